@@ -1,0 +1,72 @@
+"""The ``kinecal`` command line.
+
+Every command lives in a module of this package that registers itself on the shared
+typer app. The error contract (DESIGN section 4): a user mistake prints one line on
+stderr and exits 2; an internal error exits 1 (traceback only with KINECAL_DEBUG=1).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+
+import click
+
+from kinecal.cli._app import app
+from kinecal.errors import InputError
+
+__all__ = ["app", "main"]
+
+# One module per command family; each registers its commands on `app` when imported.
+_COMMAND_MODULES = [
+    "kinecal.cli.serial",
+    "kinecal.cli.reproduce",
+]
+
+
+def _load_commands() -> None:
+    for name in _COMMAND_MODULES:
+        importlib.import_module(name)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; return (and exit with) the status code."""
+    _load_commands()
+    args = sys.argv[1:] if argv is None else list(argv)
+    try:
+        rv = app(args=args, prog_name="kinecal", standalone_mode=False)
+        code = rv if isinstance(rv, int) else 0
+    except InputError as exc:
+        sys.stderr.write(f"kinecal: error: {exc.one_line()}\n")
+        code = 2
+    except click.exceptions.NoArgsIsHelpError:
+        code = 0
+    except click.UsageError as exc:
+        where = f"{exc.ctx.command_path}: " if exc.ctx is not None else ""
+        sys.stderr.write(f"kinecal: error: {where}{' '.join(exc.format_message().split())}\n")
+        code = 2
+    except click.exceptions.Exit as exc:
+        code = exc.exit_code
+    except click.exceptions.Abort:
+        sys.stderr.write("kinecal: aborted\n")
+        code = 130
+    except click.ClickException as exc:
+        sys.stderr.write(f"kinecal: error: {' '.join(exc.format_message().split())}\n")
+        code = 2
+    except KeyboardInterrupt:
+        sys.stderr.write("kinecal: interrupted\n")
+        code = 130
+    except BrokenPipeError:
+        code = 0
+    except Exception as exc:  # noqa: BLE001 - the last line of defence of the CLI
+        if os.environ.get("KINECAL_DEBUG"):
+            raise
+        sys.stderr.write(
+            f"kinecal: internal error: {type(exc).__name__}: {exc} "
+            "(set KINECAL_DEBUG=1 for a traceback)\n"
+        )
+        code = 1
+    if argv is None:
+        sys.exit(code)
+    return code

@@ -1,0 +1,13 @@
+"""The typer application object shared by every command module."""
+
+from __future__ import annotations
+
+import typer
+
+app = typer.Typer(
+    name="kinecal",
+    help="Kinematic calibration of serial robots, hand-eye setups and parallel-link CMMs.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)

@@ -1,0 +1,94 @@
+"""Helpers shared by the command modules: output, bundled data paths, progress bars."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinecal.errors import InputError
+from kinecal.io._atomic import write_text_atomic
+
+__all__ = ["echo_json", "progress", "resolve_data_path", "write_json", "to_jsonable"]
+
+
+def to_jsonable(obj: Any) -> Any:
+    """Convert numpy scalars/arrays (nested in dicts/lists) to plain JSON types."""
+    if isinstance(obj, dict):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.floating):
+        return float(obj)
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def echo_json(obj: Any) -> None:
+    """Print `obj` as indented JSON on stdout."""
+    sys.stdout.write(json.dumps(to_jsonable(obj), indent=2) + "\n")
+
+
+def write_json(path: str | Path, obj: Any) -> None:
+    """Write `obj` as JSON to `path` atomically."""
+    write_text_atomic(path, json.dumps(to_jsonable(obj), indent=2) + "\n")
+
+
+def resolve_data_path(spec: str, option: str = "DATA") -> Path:
+    """Resolve a CSV argument: a path, or ``NAME:PART`` for a bundled measurement set."""
+    from kinecal.datasets import bundled_csv  # local import: keeps CLI start-up light
+
+    path = Path(spec)
+    if path.exists():
+        return path
+    if ":" in spec and not path.suffix:
+        return bundled_csv(spec)
+    raise InputError(f"file not found: {spec}", option=option)
+
+
+def quiet_requested(quiet: bool) -> bool:
+    """True when progress bars must stay off (asked for, or stderr is not a terminal)."""
+    return quiet or not sys.stderr.isatty()
+
+
+@contextlib.contextmanager
+def progress(
+    description: str, total: int | None, quiet: bool = False
+) -> Iterator[Callable[..., None]]:
+    """Context manager yielding ``update(advance=1, best=None)`` that drives a rich bar.
+
+    The bar goes to stderr and is silent when `quiet` or stderr is not a terminal.
+    """
+    if quiet_requested(quiet):
+        yield lambda advance=1, best=None: None
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    cols = [
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TextColumn("{task.fields[best]}"),
+        TimeElapsedColumn(),
+    ]
+    with Progress(*cols, console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task(description, total=total, best="")
+
+        def update(advance: int = 1, best: float | None = None) -> None:
+            fields = {} if best is None else {"best": f"best {best:.4g}"}
+            bar.update(task, advance=advance, **fields)
+
+        yield update

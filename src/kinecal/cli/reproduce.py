@@ -1,0 +1,31 @@
+"""``kinecal reproduce PAPER``: run a paper's experiment and print its table beside ours."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from kinecal.cli._app import app
+from kinecal.cli._common import echo_json, quiet_requested, write_json
+from kinecal.experiments import PAPERS, experiment_module
+
+
+@app.command()
+def reproduce(
+    paper: str = typer.Argument(..., help=f"Paper id: {', '.join(PAPERS)}."),
+    quick: bool = typer.Option(False, "--quick", help="Small version that runs in seconds."),
+    json_out: bool = typer.Option(False, "--json", help="Print the table as JSON."),
+    out: Path | None = typer.Option(None, "--out", help="Directory for result.json and figures."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    quiet: bool = typer.Option(False, "--quiet", help="No progress bars."),
+) -> None:
+    """Reproduce a paper's table (hu2005, li2024, zhao-yang, liu2008)."""
+    module = experiment_module(paper)
+    result = module.run(quick=quick, seed=seed, out_dir=out, quiet=quiet_requested(quiet))
+    if out is not None:
+        write_json(out / "result.json", result)
+    if json_out:
+        echo_json(result)
+    else:
+        typer.echo(module.render(result))
