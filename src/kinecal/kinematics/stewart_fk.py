@@ -1,0 +1,397 @@
+"""Forward kinematics solvers of the Stewart-platform CMM (papers/004 sec. 2.2 and 3).
+
+* :func:`newton_batch`: damped Newton-Raphson on the leg-length equations (papers/004
+  eq. 4-5) with the analytic Jacobian, vectorized over any number of leg sets (a stream
+  of machine readings); the orientation is updated multiplicatively (``R <- exp(w) R``), so
+  there is no Euler-angle singularity inside the iteration.
+* :func:`forward_newton`: neutral start, then multi-start retries for rows that fail.
+* :func:`forward_pso`: the paper's solver: particle swarm optimisation of eq. 6,
+  ``F = sum_i |l_i - l'_i|``, with linearly decreasing inertia (eq. 7-9, Table 1), driven
+  by :func:`kinecal.optimize.minimize`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from kinecal.errors import InputError
+from kinecal.spatial import matrix_from_rpy, rpy_from_matrix
+
+if TYPE_CHECKING:
+    from kinecal.kinematics.stewart import StewartPlatform
+
+__all__ = [
+    "PSO_SETTINGS",
+    "ForwardResult",
+    "expmap",
+    "forward_newton",
+    "forward_pso",
+    "newton_batch",
+    "pso_bounds",
+    "random_starts",
+]
+
+Array = NDArray[np.float64]
+
+#: rows per Newton block in `forward_newton` (cache-sized temporaries)
+CHUNK = 4096
+
+#: papers/004 Table 1: k_max 500, 80 particles, w 0.5 -> 0.1, c1 = c2 = 1.8, v_max 1,
+#: convergence precision 0.5 um (here: target of eq. 6 in m)
+PSO_SETTINGS: dict[str, float | int] = {
+    "popsize": 80,
+    "maxiter": 500,
+    "w_max": 0.5,
+    "w_min": 0.1,
+    "c1": 1.8,
+    "c2": 1.8,
+    "vmax": 1.0,
+    "target": 0.5e-6,
+}
+
+
+@dataclass
+class ForwardResult:
+    """Result of a batch forward-kinematics solve.
+
+    Attributes
+    ----------
+    poses : ndarray, shape (N, 6)
+        Probe poses (x, y, z in the length unit; alpha, beta, gamma in rad).
+    converged : ndarray of bool, shape (N,)
+        Row solved to the tolerance (newton) or target (pso).
+    residual : ndarray, shape (N,)
+        Max abs leg-length error ``|l_i - l'_i|`` of each row (length unit).
+    iterations : ndarray of int, shape (N,)
+        Newton iterations or PSO generations per row.
+    elapsed : float
+        Wall time of the whole solve (s).
+    method : str
+        ``"newton"`` or ``"pso"``.
+    nfev : ndarray of int, shape (N,)
+        Leg-length evaluations per row (pso: particles times generations).
+    """
+
+    poses: Array
+    converged: NDArray[np.bool_]
+    residual: Array
+    iterations: NDArray[np.int64]
+    elapsed: float
+    method: str
+    nfev: NDArray[np.int64]
+
+
+def expmap(w: Array) -> Array:
+    """Rotation matrices ``(..., 3, 3)`` of rotation vectors ``w`` ``(..., 3)`` (Rodrigues)."""
+    th2 = np.sum(w * w, axis=-1)
+    th = np.sqrt(th2)
+    small = th < 1e-6
+    ths = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th2 / 6.0, np.sin(ths) / ths)
+    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(ths)) / (ths * ths))
+    x, y, z = w[..., 0], w[..., 1], w[..., 2]
+    E = b[..., None, None] * (w[..., :, None] * w[..., None, :])
+    diag = 1.0 - b * th2
+    E[..., 0, 0] += diag
+    E[..., 1, 1] += diag
+    E[..., 2, 2] += diag
+    E[..., 0, 1] -= a * z
+    E[..., 1, 0] += a * z
+    E[..., 0, 2] += a * y
+    E[..., 2, 0] -= a * y
+    E[..., 1, 2] -= a * x
+    E[..., 2, 1] += a * x
+    return E
+
+
+def _jacobian(rq: Array, n: Array) -> Array:
+    """Rows ``[n_i, (R q_i) x n_i]`` ``(N, 6, 6)`` from ``R q_i`` and unit legs ``(N, 6, 3)``."""
+    J = np.empty(n.shape[:-1] + (6,))
+    J[..., :3] = n
+    J[..., 3] = rq[..., 1] * n[..., 2] - rq[..., 2] * n[..., 1]
+    J[..., 4] = rq[..., 2] * n[..., 0] - rq[..., 0] * n[..., 2]
+    J[..., 5] = rq[..., 0] * n[..., 1] - rq[..., 1] * n[..., 0]
+    return J
+
+
+def newton_batch(
+    q: Array,
+    b: Array,
+    lengths: Array,
+    R: Array,
+    t: Array,
+    *,
+    tol: float = 1e-12,
+    max_iter: int = 50,
+    max_step: float = 0.25,
+    max_turn: float = 0.5,
+) -> tuple[Array, Array, Array, NDArray[np.int64]]:
+    """Damped Newton-Raphson on ``|R q_i + t - b_i| = L_i``, vectorized over rows.
+
+    Parameters
+    ----------
+    q : ndarray, shape (6, 3)
+        Platform joints relative to the probe tip (platform frame).
+    b : ndarray, shape (6, 3)
+        Base joints (base frame).
+    lengths : ndarray, shape (N, 6)
+        Physical leg lengths ``L_i`` (length unit).
+    R : ndarray, shape (N, 3, 3)
+        Start orientations.
+    t : ndarray, shape (N, 3)
+        Start tip positions (length unit).
+    tol : float
+        A row stops when ``max_i | |l_i| - L_i | < tol`` (length unit).
+    max_iter : int
+        Iteration limit.
+    max_step, max_turn : float
+        Step limits per iteration: translation (length unit) and rotation (rad).
+
+    Returns
+    -------
+    R : ndarray, shape (N, 3, 3)
+    t : ndarray, shape (N, 3)
+    residual : ndarray, shape (N,)
+        Final max abs leg error (length unit); ``inf`` for rows that diverged.
+    iterations : ndarray of int, shape (N,)
+    """
+    R = np.array(R, dtype=float)
+    t = np.array(t, dtype=float)
+    L = np.asarray(lengths, dtype=float)
+    n_rows = L.shape[0]
+    residual = np.full(n_rows, np.inf)
+    iters = np.zeros(n_rows, dtype=np.int64)
+    active = np.arange(n_rows)
+    far = 10.0 * (np.abs(b).max() + np.abs(q).max() + L.max(initial=1.0))
+    qt = np.ascontiguousarray(q.T)
+    for k in range(max_iter + 1):
+        Ra, ta = (R, t) if active.size == n_rows else (R[active], t[active])
+        rq = np.swapaxes(Ra @ qt, -1, -2)  # (n, 6, 3): R q_i
+        lv = rq + ta[:, None, :] - b
+        norm = np.sqrt(np.einsum("nij,nij->ni", lv, lv))
+        r = norm - (L if active.size == n_rows else L[active])
+        rmax = np.abs(r).max(axis=1)
+        ok = np.isfinite(rmax) & (np.abs(ta).max(axis=1) < far)
+        residual[active] = np.where(ok, rmax, np.inf)
+        go = ok & (rmax >= tol)
+        if k == max_iter or not go.any():
+            break
+        if not go.all():
+            active, rq, lv, norm, r, Ra, ta = (
+                a[go] for a in (active, rq, lv, norm, r, Ra, ta)
+            )
+        J = _jacobian(rq, lv / norm[..., None])
+        try:
+            d = np.linalg.solve(J, -r[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            d = -(np.linalg.pinv(J) @ r[..., None])[..., 0]
+        dt, dw = d[:, :3], d[:, 3:]
+        nt = np.sqrt(np.einsum("ni,ni->n", dt, dt))
+        nw = np.sqrt(np.einsum("ni,ni->n", dw, dw))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = np.minimum(1.0, np.minimum(max_step / nt, max_turn / nw))
+        scale = np.where(np.isfinite(scale), scale, 0.0)[:, None]
+        t[active] = ta + scale * dt
+        R[active] = expmap(scale * dw) @ Ra
+        iters[active] += 1
+    return R, t, residual, iters
+
+
+def random_starts(
+    geom: StewartPlatform, n: int, rng: np.random.Generator, *, below: bool = True
+) -> tuple[Array, Array]:
+    """Random start poses for multi-start Newton.
+
+    Orientations are uniform on SO(3) (random unit quaternions); tip positions uniform in
+    a box around the base: ``|x|, |y| <= R_b``, ``z`` in ``[-z_max, z_max]`` (or
+    ``[0, z_max]`` when `below` is false) with ``z_max = l_max + |ls|``.
+
+    Returns
+    -------
+    R : ndarray, shape (n, 3, 3)
+    t : ndarray, shape (n, 3)
+    """
+    from kinecal.spatial import matrix_from_quaternion
+
+    quat = rng.standard_normal((n, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    R = matrix_from_quaternion(quat)
+    rb = float(np.abs(geom.base_joints[:, :2]).max())
+    hi = geom.leg_range[1] if np.isfinite(geom.leg_range[1]) else 2.0 * rb
+    zmax = hi + abs(geom.probe_offset)
+    u = rng.random((n, 3))
+    t = np.empty((n, 3))
+    t[:, :2] = (2.0 * u[:, :2] - 1.0) * rb
+    t[:, 2] = (2.0 * u[:, 2] - 1.0) * zmax if below else u[:, 2] * zmax
+    return R, t
+
+
+def _start_poses(geom: StewartPlatform, x0: ArrayLike | None, n: int) -> tuple[Array, Array]:
+    x = geom.neutral_pose() if x0 is None else np.asarray(x0, dtype=float)
+    if x.shape not in ((6,), (n, 6)) or not np.isfinite(x).all():
+        raise InputError(f"x0 must be one finite pose (6,) or ({n}, 6), got {x.shape}", option="x0")
+    x = np.broadcast_to(x, (n, 6))
+    return np.array(matrix_from_rpy(x[:, 3:])), np.array(x[:, :3])
+
+
+def forward_newton(
+    geom: StewartPlatform,
+    legs: Array,
+    *,
+    x0: ArrayLike | None = None,
+    rng: np.random.Generator | int | None = None,
+    tol: float = 1e-12,
+    max_iter: int = 50,
+    restarts: int = 64,
+) -> ForwardResult:
+    """Batch Newton forward kinematics; failed rows retried from `restarts` random starts.
+
+    Parameters
+    ----------
+    geom : StewartPlatform
+    legs : ndarray, shape (N, 6)
+        Leg readings (length unit), already range-checked.
+    x0 : array_like, shape (6,) or (N, 6), optional
+        Start poses (length unit, rad); default the neutral pose.
+    rng : Generator or int, optional
+        For the retries' random starts (default seed 0: deterministic).
+    tol : float
+        Convergence tolerance on the max abs leg error (length unit).
+    max_iter : int
+        Newton iteration limit.
+    restarts : int
+        Random starts per failed row; among the converged ones the solution nearest the
+        neutral pose is kept.
+
+    Returns
+    -------
+    ForwardResult
+    """
+    t0 = time.perf_counter()
+    L = np.asarray(legs, dtype=float) + geom.leg_offsets
+    n = L.shape[0]
+    R, t = _start_poses(geom, x0, n)
+    q, b = geom.tip_joints, geom.base_joints
+    res = np.empty(n)
+    its = np.empty(n, dtype=np.int64)
+    for s in range(0, n, CHUNK):  # blocks keep the temporaries in cache (2x faster)
+        blk = slice(s, s + CHUNK)
+        R[blk], t[blk], res[blk], its[blk] = newton_batch(
+            q, b, L[blk], R[blk], t[blk], tol=tol, max_iter=max_iter
+        )
+    failed = np.flatnonzero(~(res < tol))
+    if failed.size and restarts > 0:
+        gen = np.random.default_rng(0 if rng is None else rng)
+        Rs, ts = random_starts(geom, failed.size * restarts, gen, below=False)
+        Lr = np.repeat(L[failed], restarts, axis=0)
+        Rs, ts, rs, itr = newton_batch(q, b, Lr, Rs, ts, tol=tol, max_iter=max_iter)
+        neutral = geom.neutral_pose()
+        dist = np.linalg.norm(ts - neutral[:3], axis=1) + np.linalg.norm(
+            Rs - np.eye(3), axis=(1, 2)
+        )
+        dist = np.where(rs < tol, dist, np.inf).reshape(failed.size, restarts)
+        pick = np.argmin(dist, axis=1)
+        good = np.isfinite(dist[np.arange(failed.size), pick])
+        idx = np.arange(failed.size) * restarts + pick
+        rows = failed[good]
+        R[rows], t[rows], res[rows] = Rs[idx[good]], ts[idx[good]], rs[idx[good]]
+        its[failed] += itr.reshape(failed.size, restarts).sum(axis=1)
+    poses = np.concatenate([t, rpy_from_matrix(R)], axis=1)
+    return ForwardResult(
+        poses, res < tol, res, its, time.perf_counter() - t0, "newton", 6 * (its + 1)
+    )
+
+
+def pso_bounds(geom: StewartPlatform) -> Array:
+    """Search box of the PSO solver, shape (6, 2), in (m, m, m, deg, deg, deg).
+
+    The box is centred on the neutral pose: ``x, y`` within +-R_p (the platform radius),
+    ``z`` within +-(l_max - l_min) / 2 of the neutral height, and each angle within
+    +-30 deg. papers/004 does not print its box; this one holds the whole reachable
+    workspace of Table 2's machine (legs 0.75-0.97 m) and keeps the unit-hypercube
+    velocity limit ``v_max = 1`` meaningful (docs/stewart.md).
+    """
+    x0 = geom.neutral_pose()
+    lo, hi = geom.leg_range
+    rp = float(np.linalg.norm(geom.platform_joints[:, :2], axis=1).max())
+    dz = 0.5 * (hi - lo) if np.isfinite(hi) else rp
+    half = np.array([rp, rp, dz, 30.0, 30.0, 30.0])
+    centre = np.array([x0[0], x0[1], x0[2], 0.0, 0.0, 0.0])
+    return np.stack([centre - half, centre + half], axis=1)
+
+
+def forward_pso(
+    geom: StewartPlatform,
+    legs: Array,
+    *,
+    rng: np.random.Generator | int | None = None,
+    bounds: ArrayLike | None = None,
+    **settings: float,
+) -> ForwardResult:
+    """The paper's forward kinematics: minimise eq. 6 by PSO, one leg set at a time.
+
+    Parameters
+    ----------
+    geom : StewartPlatform
+    legs : ndarray, shape (N, 6)
+        Leg readings (length unit).
+    rng : Generator or int, optional
+        Random generator or seed (same seed -> same result).
+    bounds : array_like, shape (6, 2), optional
+        Search box in (length unit x3, deg x3); default :func:`pso_bounds`.
+    **settings
+        Overrides of `PSO_SETTINGS` (papers/004 Table 1): popsize, maxiter, w_max, w_min,
+        c1, c2, vmax, target (objective value of eq. 6 at which to stop, length unit).
+
+    Returns
+    -------
+    ForwardResult
+        ``residual`` is the max abs leg error of the best particle; ``converged`` is eq. 6
+        at or below ``target``; ``iterations`` the generations used.
+    """
+    from kinecal.optimize import minimize
+
+    unknown = set(settings) - set(PSO_SETTINGS)
+    if unknown:
+        raise InputError(f"unknown PSO settings {sorted(unknown)}", option="options")
+    cfg = {**PSO_SETTINGS, **settings}
+    box = pso_bounds(geom) if bounds is None else np.asarray(bounds, dtype=float)
+    gen = np.random.default_rng(rng)
+    t0 = time.perf_counter()
+    L = np.asarray(legs, dtype=float)
+    n = L.shape[0]
+    poses = np.zeros((n, 6))
+    res = np.zeros(n)
+    its = np.zeros(n, dtype=np.int64)
+    nfev = np.zeros(n, dtype=np.int64)
+    converged = np.zeros(n, dtype=bool)
+    options = {k: cfg[k] for k in ("popsize", "w_max", "w_min", "c1", "c2", "vmax")}
+    for i in range(n):  # one optimisation per reading; each one evaluates its swarm at once
+
+        def cost(X: Array, Li: Array = L[i]) -> Array:
+            x = np.array(X, dtype=float)
+            x[:, 3:] = np.deg2rad(x[:, 3:])
+            return np.abs(geom.inverse(x) - Li).sum(axis=1)  # papers/004 eq. 6
+
+        out = minimize(
+            cost,
+            box,
+            method="pso",
+            rng=gen,
+            maxiter=int(cfg["maxiter"]),
+            target=float(cfg["target"]),
+            options=options,
+        )
+        x = np.array(out.x, dtype=float)
+        x[3:] = np.deg2rad(x[3:])
+        poses[i] = x
+        res[i] = np.abs(geom.inverse(x) - L[i]).max()
+        its[i] = int(out.nit)
+        nfev[i] = int(out.nfev)
+        converged[i] = float(out.fun) <= float(cfg["target"])
+    return ForwardResult(poses, converged, res, its, time.perf_counter() - t0, "pso", nfev)
