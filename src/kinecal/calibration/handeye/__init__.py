@@ -1,0 +1,226 @@
+"""Hand-eye calibration (paper 001, ``papers/001``): closed forms, refinement, residuals.
+
+Entry point: `calibrate_handeye`. Input conventions are OpenCV's ``calibrateHandEye``:
+
+- eye-in-hand (camera on the flange): pass ``flange2base`` and ``target2cam``; the result
+  ``X`` is ``cam2flange`` and the fixed target pose ``Y`` is ``target2base``;
+- eye-to-hand (camera fixed, target on the flange): the same two inputs; the result ``X``
+  is ``cam2base`` and ``Y`` is ``target2flange``.
+
+In both cases ``G_i X C_i = Y`` with ``C_i = target2cam`` and ``G_i = flange2base``
+(eye-in-hand) or ``base2flange`` (eye-to-hand); see docs/handeye.md.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from kinecal.calibration.handeye import axxb, axzb
+from kinecal.calibration.handeye._motions import as_transforms, check_motions, motion_pairs
+from kinecal.calibration.handeye.errors import mean_target_pose, rms, station_residuals
+from kinecal.errors import InputError
+from kinecal.spatial import invert_transform
+
+Array = NDArray[np.float64]
+
+__all__ = ["METHODS", "REFINERS", "SETUPS", "HandEyeResult", "calibrate_handeye", "solve"]
+
+#: Closed-form methods: the five AX = XB ones and the two AX = ZB ones.
+METHODS: tuple[str, ...] = (*axxb.SOLVERS, *axzb.SOLVERS)
+REFINERS: tuple[str, ...] = ("none", "lm", "igwo", "dlh-gwo-de")
+SETUPS: tuple[str, ...] = ("eye-in-hand", "eye-to-hand")
+
+
+@dataclass
+class HandEyeResult:
+    """Result of `calibrate_handeye`.
+
+    Attributes
+    ----------
+    X : ndarray, shape (4, 4)
+        ``cam2flange`` (eye-in-hand) or ``cam2base`` (eye-to-hand), length unit of the input.
+    target : ndarray, shape (4, 4)
+        Fixed target pose ``Y``: ``target2base`` (eye-in-hand) or ``target2flange``.
+    setup, method, refine : str
+        What was run.
+    rotation_deg, translation : ndarray, shape (n,)
+        Per-station residual of ``G_i X C_i`` against ``Y`` (deg, length unit).
+    outliers : list of int
+        0-based indices of stations flagged as outliers.
+    history : list of float
+        Cost after each iteration of the refinement (empty for closed forms).
+    nfev : int
+        Cost evaluations of the refinement.
+    seconds : float
+        Wall time.
+    """
+
+    X: Array
+    target: Array
+    setup: str
+    method: str
+    refine: str
+    rotation_deg: Array
+    translation: Array
+    outliers: list[int] = field(default_factory=list)
+    history: list[float] = field(default_factory=list)
+    nfev: int = 0
+    seconds: float = 0.0
+
+    @property
+    def rotation_rms_deg(self) -> float:
+        """Rms of the station rotation residuals (deg)."""
+        return rms(self.rotation_deg)
+
+    @property
+    def translation_rms(self) -> float:
+        """Rms of the station translation residuals (length unit)."""
+        return rms(self.translation)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able dict with the keys of the ``kinecal handeye`` contract (DESIGN sec. 4)."""
+        return {
+            "X": self.X.tolist(),
+            "target": self.target.tolist(),
+            "setup": self.setup,
+            "method": self.method,
+            "refine": self.refine,
+            "rotation_rms_deg": self.rotation_rms_deg,
+            "translation_rms": self.translation_rms,
+            "stations": [
+                {"rotation_deg": float(r), "translation": float(t)}
+                for r, t in zip(self.rotation_deg, self.translation, strict=True)
+            ],
+            "outliers": list(self.outliers),
+            "nfev": self.nfev,
+            "seconds": self.seconds,
+        }
+
+
+def _choice(value: str, valid: tuple[str, ...], option: str) -> str:
+    if value not in valid:
+        raise InputError(f"unknown {option} {value!r}; expected one of {', '.join(valid)}",
+                         option=option)
+    return value
+
+
+def solve(G: Array, C: Array, method: str = "tsai", pairs: str = "all") -> tuple[Array, Array]:
+    """Closed-form ``X`` and target pose ``Y`` from ``G_i X C_i = Y``.
+
+    Parameters
+    ----------
+    G : ndarray, shape (n, 4, 4)
+        Robot poses (``flange2base`` eye-in-hand, ``base2flange`` eye-to-hand).
+    C : ndarray, shape (n, 4, 4)
+        ``target2cam``.
+    method : str
+        One of `METHODS`.
+    pairs : {"all", "consecutive"}
+        Motion pairs for the AX = XB methods (ignored by shah and li).
+
+    Returns
+    -------
+    X, Y : ndarray, shape (4, 4)
+    """
+    _choice(method, METHODS, "method")
+    A, B = motion_pairs(G, C, pairs)
+    check_motions(A, "robot motions")
+    check_motions(B, "camera motions")
+    if method in axxb.SOLVERS:
+        X = axxb.SOLVERS[method](A, B)
+        return X, mean_target_pose(G, X, C)
+    # A_i X' = Z' B_i with A_i = C_i, B_i = G_i^-1, X' = Y^-1, Z' = X^-1
+    Xp, Zp = axzb.SOLVERS[method](C, invert_transform(G))
+    return invert_transform(Zp), invert_transform(Xp)
+
+
+def calibrate_handeye(
+    flange2base: ArrayLike,
+    target2cam: ArrayLike,
+    *,
+    setup: str = "eye-in-hand",
+    method: str = "tsai",
+    refine: str = "none",
+    pairs: str = "all",
+    seed: int | np.random.Generator | None = None,
+    robust: bool = True,
+    rotation_weight: float | None = None,
+    options: dict[str, Any] | None = None,
+) -> HandEyeResult:
+    """Hand-eye calibration from pose pairs (OpenCV's input conventions).
+
+    Parameters
+    ----------
+    flange2base : array_like, shape (n, 4, 4)
+        Robot flange poses in the base frame, length unit L (n >= 3).
+    target2cam : array_like, shape (n, 4, 4)
+        Target poses in the camera frame, length unit L.
+    setup : {"eye-in-hand", "eye-to-hand"}
+        Camera on the flange (X = cam2flange) or fixed (X = cam2base).
+    method : str
+        Closed form: ``tsai``, ``park``, ``horaud``, ``andreff``, ``daniilidis`` (AX = XB)
+        or ``shah``, ``li`` (AX = ZB).
+    refine : {"none", "lm", "igwo", "dlh-gwo-de"}
+        ``lm``: robust joint refinement of X and the target pose (`refine.lm`);
+        ``igwo`` / ``dlh-gwo-de``: paper 001's metaheuristic refinement (sec. 4).
+    pairs : {"all", "consecutive"}
+        Motion pairs of the AX = XB closed forms: all i < j (OpenCV) or consecutive
+        stations (paper 001, eq. (2)).
+    seed : int or Generator, optional
+        Random seed of the metaheuristic refiners.
+    robust : bool
+        ``lm`` only: Cauchy reweighting and outlier flagging.
+    rotation_weight : float, optional
+        ``lm`` only: length units per radian (default: from the residual scales).
+    options : dict, optional
+        Metaheuristic options (``pop_size``, ``maxiter``, ``rotation_box``,
+        ``translation_box``, ``method_options``), see `refine_meta.metaheuristic`.
+
+    Returns
+    -------
+    HandEyeResult
+
+    Raises
+    ------
+    InputError
+        Bad shapes, non-rigid transforms, unknown names, fewer than 3 stations or
+        degenerate motions (fewer than two non-parallel rotation axes).
+    """
+    t0 = time.perf_counter()
+    _choice(setup, SETUPS, "setup")
+    _choice(method, METHODS, "method")
+    _choice(refine, REFINERS, "refine")
+    F = as_transforms(flange2base, "flange2base")
+    C = as_transforms(target2cam, "target2cam")
+    if len(F) != len(C):
+        raise InputError(f"flange2base has {len(F)} poses but target2cam has {len(C)}")
+    if len(F) < 3:
+        raise InputError(f"{len(F)} stations given; hand-eye calibration needs at least 3")
+    G = F if setup == "eye-in-hand" else invert_transform(F)
+    X, Y = solve(G, C, method, pairs)
+    history: list[float] = []
+    nfev = 0
+    outliers: list[int] = []
+    if refine == "lm":
+        from kinecal.calibration.handeye.refine import lm
+
+        res = lm(G, C, X, Y, robust=robust, rotation_weight=rotation_weight)
+        X, Y, outliers, history, nfev = res.X, res.Y, res.outliers, res.history, res.nfev
+    elif refine in ("igwo", "dlh-gwo-de"):
+        from kinecal.calibration.handeye.refine_meta import metaheuristic
+
+        res = metaheuristic(G, C, X, refine, rng=seed, **(options or {}))
+        X, history, nfev = res.X, res.history, res.nfev
+        Y = mean_target_pose(G, X, C)
+    if refine != "lm":
+        from kinecal.calibration.handeye.refine import flag_outliers
+
+        outliers = flag_outliers(G, C, X, Y)
+    rot, tr = station_residuals(G, X, C, Y)
+    return HandEyeResult(X, Y, setup, method, refine, rot, tr, outliers, history, nfev,
+                         time.perf_counter() - t0)

@@ -1,0 +1,239 @@
+"""Closed-form solvers of ``A X = X B`` (hand-eye calibration), one function per method.
+
+Paper 001 (``papers/001``, sec. 1 refs. [3]-[6]) uses the analytic solutions of Tsai,
+Park, Horaud and Daniilidis as the starting point of its refinement; Andreff's linear
+(Kronecker) formulation completes the set offered by OpenCV's ``calibrateHandEye``.
+
+Every solver takes the motions ``A, B`` of shape ``(m, 4, 4)`` built by
+`kinecal.calibration.handeye._motions.motion_pairs` (``A_k X = X B_k``, lengths in any
+unit L) and returns ``X`` as a ``(4, 4)`` transform with a proper rotation. None of them
+mixes rotation entries and lengths in one least-squares system, so the result does not
+depend on the length unit (OpenCV's ANDREFF does, see `andreff`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.calibration.handeye._motions import (
+    align_signs,
+    finish,
+    length_scale,
+    motion_quaternions,
+    qmat_left,
+    qmat_right,
+    solve_translation,
+)
+from kinecal.spatial import (
+    axis_angle_from_matrix,
+    matrix_from_quaternion,
+    project_to_rotation,
+    skew,
+)
+
+Array = NDArray[np.float64]
+
+__all__ = ["andreff", "daniilidis", "horaud", "park", "tsai"]
+
+
+def tsai(A: Array, B: Array) -> Array:
+    """Tsai & Lenz (1989), "A new technique for fully autonomous and efficient 3D robotics
+    hand/eye calibration", IEEE Trans. Robot. Autom. 5(3).
+
+    Rotation: with the modified Rodrigues vectors ``P = 2 sin(theta/2) k`` of ``R_A``
+    (their ``Pgij``) and ``R_B`` (``Pcij``), solve ``skew(P_A + P_B) P' = P_B - P_A`` by
+    least squares, then ``P_X = 2 P' / sqrt(1 + |P'|^2)`` (sec. IV, steps 1-2). Translation:
+    ``(R_A - I) t_X = R_X t_B - t_A`` (step 3).
+
+    Parameters
+    ----------
+    A, B : ndarray, shape (m, 4, 4)
+        Motions with ``A_k X = X B_k`` (length unit L).
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        X, translation in L.
+    """
+    qa, qb = motion_quaternions(A, B)
+    R = _tsai_rotation(qa, qb)
+    R = _tsai_rotation(qa, align_signs(qa, qb, R))
+    return finish(R, solve_translation(A, B, R))
+
+
+def _tsai_rotation(qa: Array, qb: Array) -> Array:
+    pa, pb = 2.0 * qa[:, 1:], 2.0 * qb[:, 1:]  # P = 2 sin(theta/2) k
+    M = skew(pa + pb).reshape(-1, 3)
+    rhs = (pb - pa).reshape(-1)
+    p1 = np.linalg.lstsq(M, rhs, rcond=None)[0]
+    p = 2.0 * p1 / np.sqrt(1.0 + p1 @ p1)
+    # |p| = 2 sin(theta/2): back to a unit quaternion (w, x, y, z)
+    half = 0.5 * p
+    w = np.sqrt(max(0.0, 1.0 - half @ half))
+    return matrix_from_quaternion(np.concatenate([[w], half]))
+
+
+def park(A: Array, B: Array) -> Array:
+    """Park & Martin (1994), "Robot sensor calibration: solving AX = XB on the Euclidean
+    group", IEEE Trans. Robot. Autom. 10(5).
+
+    With ``alpha = log R_A`` and ``beta = log R_B`` (so ``alpha = R_X beta``), the
+    least-squares rotation is ``R_X = (M^T M)^(-1/2) M^T`` with ``M = sum beta alpha^T``
+    (their eq. for the closed form, sec. III). It is computed as the orthogonal polar
+    factor of ``M^T`` by SVD (equal to that formula whenever ``M^T M`` is invertible, and
+    still defined with only two independent axes). Translation by least squares on
+    ``(R_A - I) t_X = R_X t_B - t_A``.
+
+    Parameters
+    ----------
+    A, B : ndarray, shape (m, 4, 4)
+        Motions with ``A_k X = X B_k`` (length unit L).
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        X, translation in L.
+    """
+    alpha = axis_angle_from_matrix(A[:, :3, :3])
+    beta = axis_angle_from_matrix(B[:, :3, :3])
+    Mt = alpha.T @ beta  # M^T = sum alpha beta^T
+    U, _, Vt = np.linalg.svd(Mt)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    R = U @ D @ Vt
+    return finish(R, solve_translation(A, B, R))
+
+
+def horaud(A: Array, B: Array) -> Array:
+    """Horaud & Dornaika (1995), "Hand-eye calibration", Int. J. Robot. Res. 14(3).
+
+    Rotation by unit quaternions: minimise ``sum |q_A * q_X - q_X * q_B|^2`` over unit
+    ``q_X``, i.e. the eigenvector of the smallest eigenvalue of
+    ``sum (Q(q_A) - W(q_B))^T (Q(q_A) - W(q_B))`` (sec. 4, the linear closed form of the
+    rotation). Translation by least squares on ``(R_A - I) t_X = R_X t_B - t_A``.
+
+    Parameters
+    ----------
+    A, B : ndarray, shape (m, 4, 4)
+        Motions with ``A_k X = X B_k`` (length unit L).
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        X, translation in L.
+    """
+    qa, qb = motion_quaternions(A, B)
+    R = _horaud_rotation(qa, qb)
+    R = _horaud_rotation(qa, align_signs(qa, qb, R))
+    return finish(R, solve_translation(A, B, R))
+
+
+def _horaud_rotation(qa: Array, qb: Array) -> Array:
+    D = qmat_left(qa) - qmat_right(qb)  # (m, 4, 4)
+    S = np.einsum("kji,kjl->il", D, D)
+    _, V = np.linalg.eigh(S)
+    q = V[:, 0]
+    return matrix_from_quaternion(q if q[0] >= 0 else -q)
+
+
+def andreff(A: Array, B: Array) -> Array:
+    """Andreff, Horaud & Espiau (2001), "Robot hand-eye calibration using
+    structure-from-motion", Int. J. Robot. Res. 20(3).
+
+    The linear formulation with the Kronecker product (sec. 3): ``R_A R_X R_B^T = R_X``
+    gives ``(I_9 - R_A (x) R_B) vec(R_X) = 0`` (row-major vec); its null space is taken
+    from the SVD of the stacked 9m x 9 matrix, scaled so that ``det = +1`` and projected on
+    SO(3) (the orthogonalisation step of the paper). The translation rows
+    ``(I_3 (x) t_B^T) vec(R_X) + (I_3 - R_A) t_X = t_A`` are then solved for ``t_X`` with
+    the orthogonal ``R_X``. OpenCV 4.x solves the 12-column system jointly in the user's
+    unit, which mixes unit-free rotation entries with lengths: with millimetres its
+    translation is off by centimetres even without noise. Here the two steps are separate
+    and the result is unit-independent.
+
+    Parameters
+    ----------
+    A, B : ndarray, shape (m, 4, 4)
+        Motions with ``A_k X = X B_k`` (length unit L).
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        X, translation in L.
+    """
+    RA, RB = A[:, :3, :3], B[:, :3, :3]
+    K = np.eye(9) - np.einsum("kij,kab->kiajb", RA, RB).reshape(-1, 9, 9)
+    _, _, Vt = np.linalg.svd(K.reshape(-1, 9))
+    Rv = Vt[-1].reshape(3, 3)
+    det = np.linalg.det(Rv)
+    Rv = Rv / (np.sign(det) * abs(det) ** (1.0 / 3.0))
+    return finish(Rv, solve_translation(A, B, project_to_rotation(Rv)))
+
+
+def daniilidis(A: Array, B: Array) -> Array:
+    """Daniilidis (1999), "Hand-eye calibration using dual quaternions", Int. J. Robot.
+    Res. 18(3).
+
+    Each motion is a dual quaternion ``a = q + eps q'`` with ``q' = 1/2 t * q``; the
+    screw-motion equation ``a x = x b`` is linear in ``x = (q_X, q'_X)``. Stacking its
+    rows gives a matrix T (sec. 5: the 6m x 8 matrix; here all 8 rows per motion, the
+    scalar rows being redundant when noise-free) whose two right singular vectors of
+    smallest singular value span the solution; the constraints ``q^T q = 1`` and
+    ``q^T q' = 0`` give a quadratic in the ratio of the two coefficients (sec. 5, the
+    equations for lambda_1, lambda_2). Rotation and translation come out together.
+
+    Parameters
+    ----------
+    A, B : ndarray, shape (m, 4, 4)
+        Motions with ``A_k X = X B_k`` (length unit L).
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        X, translation in L.
+    """
+    L = length_scale(A[:, :3, 3], B[:, :3, 3])
+    qa, qb = motion_quaternions(A, B)
+    qb = align_signs(qa, qb, horaud(A, B)[:3, :3])
+    ta = np.concatenate([np.zeros((len(A), 1)), A[:, :3, 3] / L], axis=1)
+    tb = np.concatenate([np.zeros((len(B), 1)), B[:, :3, 3] / L], axis=1)
+    da = 0.5 * np.einsum("kij,kj->ki", qmat_left(ta), qa)  # q' = 1/2 t q
+    db = 0.5 * np.einsum("kij,kj->ki", qmat_left(tb), qb)
+    D0 = qmat_left(qa) - qmat_right(qb)
+    D1 = qmat_left(da) - qmat_right(db)
+    T = np.zeros((len(A), 8, 8))
+    T[:, :4, :4] = D0
+    T[:, 4:, :4] = D1
+    T[:, 4:, 4:] = D0
+    _, _, Vt = np.linalg.svd(T.reshape(-1, 8))
+    v7, v8 = Vt[-2], Vt[-1]
+    u1, w1, u2, w2 = v7[:4], v7[4:], v8[:4], v8[4:]
+    # s^2 u1.w1 + s (u1.w2 + u2.w1) + u2.w2 = 0 with s = lambda1 / lambda2
+    a, b, c = u1 @ w1, u1 @ w2 + u2 @ w1, u2 @ w2
+    if abs(a) > 1e-12:
+        disc = np.sqrt(max(b * b - 4 * a * c, 0.0))
+        roots = [(-b + disc) / (2 * a), (-b - disc) / (2 * a)]
+        vals = [s * s * (u1 @ u1) + 2 * s * (u1 @ u2) + u2 @ u2 for s in roots]
+        s = roots[int(np.argmax(vals))]
+        l2 = 1.0 / np.sqrt(max(vals[int(np.argmax(vals))], 1e-300))
+        x = s * l2 * v7 + l2 * v8
+    else:  # lambda2 = 0 root (the quadratic degenerates): x along v7
+        x = v7 / np.linalg.norm(u1)
+    q, dq = x[:4], x[4:]
+    if q[0] < 0:
+        q, dq = -q, -dq
+    n = np.linalg.norm(q)
+    q, dq = q / n, dq / n
+    conj = q * np.array([1.0, -1.0, -1.0, -1.0])
+    t = 2.0 * (qmat_left(dq) @ conj)[1:] * L
+    return finish(matrix_from_quaternion(q), t)
+
+
+#: Solvers by name (the names of OpenCV's CALIB_HAND_EYE_* flags, lower case).
+SOLVERS = {
+    "tsai": tsai,
+    "park": park,
+    "horaud": horaud,
+    "andreff": andreff,
+    "daniilidis": daniilidis,
+}
+
