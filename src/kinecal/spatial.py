@@ -132,7 +132,10 @@ def check_transform(T: ArrayLike, tol: float = 1e-6, name: str = "transform") ->
 
 
 def check_quaternion(q: ArrayLike, tol: float = 1e-3, name: str = "quaternion") -> Array:
-    """Validate quaternions ``(..., 4)`` (w, x, y, z) of unit norm within `tol`; return normalised."""
+    """Validate quaternions ``(..., 4)`` (w, x, y, z) of unit norm within `tol`.
+
+    Returns the normalised quaternions.
+    """
     q = np.asarray(q, dtype=float)
     if q.ndim < 1 or q.shape[-1] != 4:
         raise InputError(f"{name}: expected shape (..., 4) as (w, x, y, z), got {q.shape}")
@@ -246,7 +249,10 @@ def matrix_from_rpy(rpy: ArrayLike) -> Array:
 
 
 def rpy_from_matrix(R: ArrayLike) -> Array:
-    """Inverse of `matrix_from_rpy`: ``(..., 3, 3)`` -> (rx, ry, rz) ``(..., 3)``, ry in [-pi/2, pi/2]."""
+    """Inverse of `matrix_from_rpy`: ``(..., 3, 3)`` -> (rx, ry, rz) ``(..., 3)``.
+
+    ``ry`` is returned in ``[-pi/2, pi/2]``.
+    """
     R = np.asarray(R, dtype=float)
     ry = np.arcsin(np.clip(-R[..., 2, 0], -1.0, 1.0))
     rx = np.arctan2(R[..., 2, 1], R[..., 2, 2])
@@ -266,7 +272,7 @@ def project_to_rotation(M: ArrayLike) -> Array:
 
 # --------------------------------------------------------------------------- transforms
 def transform_from(R: ArrayLike, t: ArrayLike) -> Array:
-    """Homogeneous transforms ``(..., 4, 4)`` from rotations ``(..., 3, 3)`` and translations ``(..., 3)``."""
+    """Transforms ``(..., 4, 4)`` from rotations ``(..., 3, 3)`` and translations ``(..., 3)``."""
     R = np.asarray(R, dtype=float)
     t = np.asarray(t, dtype=float)
     shape = np.broadcast_shapes(R.shape[:-2], t.shape[:-1])
@@ -291,7 +297,7 @@ def transform_from_pq(pq: ArrayLike) -> Array:
 
 
 def pq_from_transform(T: ArrayLike) -> Array:
-    """Poses ``(..., 7)`` = (x, y, z, qw, qx, qy, qz), ``qw >= 0``, from transforms ``(..., 4, 4)``."""
+    """Poses ``(..., 7)`` = (x, y, z, qw, qx, qy, qz), ``qw >= 0``, from ``(..., 4, 4)``."""
     T = np.asarray(T, dtype=float)
     return np.concatenate([T[..., :3, 3], quaternion_from_matrix(T[..., :3, :3])], axis=-1)
 

@@ -14,6 +14,11 @@ import sys
 import click
 
 from kinecal.cli._app import app
+
+try:  # typer >= 0.20 ships its own copy of click; catch its exceptions as well as click's
+    from typer._click import exceptions as _tclick
+except ImportError:  # pragma: no cover - older typer uses click itself
+    _tclick = click.exceptions
 from kinecal.errors import InputError
 
 __all__ = ["app", "main"]
@@ -40,18 +45,18 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         sys.stderr.write(f"kinecal: error: {exc.one_line()}\n")
         code = 2
-    except click.exceptions.NoArgsIsHelpError:
+    except (click.exceptions.NoArgsIsHelpError, _tclick.NoArgsIsHelpError):
         code = 0
-    except click.UsageError as exc:
+    except (click.UsageError, _tclick.UsageError) as exc:
         where = f"{exc.ctx.command_path}: " if exc.ctx is not None else ""
         sys.stderr.write(f"kinecal: error: {where}{' '.join(exc.format_message().split())}\n")
         code = 2
-    except click.exceptions.Exit as exc:
+    except (click.exceptions.Exit, _tclick.Exit) as exc:
         code = exc.exit_code
-    except click.exceptions.Abort:
+    except (click.exceptions.Abort, _tclick.Abort):
         sys.stderr.write("kinecal: aborted\n")
         code = 130
-    except click.ClickException as exc:
+    except (click.ClickException, _tclick.ClickException) as exc:
         sys.stderr.write(f"kinecal: error: {' '.join(exc.format_message().split())}\n")
         code = 2
     except KeyboardInterrupt:
@@ -59,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
         code = 130
     except BrokenPipeError:
         code = 0
-    except Exception as exc:  # noqa: BLE001 - the last line of defence of the CLI
+    except Exception as exc:
         if os.environ.get("KINECAL_DEBUG"):
             raise
         sys.stderr.write(

@@ -14,7 +14,7 @@ import numpy as np
 from kinecal.errors import InputError
 from kinecal.io._atomic import write_text_atomic
 
-__all__ = ["echo_json", "progress", "resolve_data_path", "write_json", "to_jsonable"]
+__all__ = ["echo_json", "progress", "resolve_data_path", "to_jsonable", "write_json"]
 
 
 def to_jsonable(obj: Any) -> Any:

@@ -9,7 +9,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
-__all__ = ["atomic_open", "write_text_atomic", "write_bytes_atomic"]
+__all__ = ["atomic_open", "write_bytes_atomic", "write_text_atomic"]
 
 
 @contextlib.contextmanager

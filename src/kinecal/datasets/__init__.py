@@ -1,0 +1,60 @@
+"""Bundled real measurement data, each folder with its upstream LICENSE.
+
+Addressed as ``NAME:PART`` wherever a CSV path is accepted (``ur5-laser-tracker:grid``).
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+from kinecal.errors import InputError
+
+__all__ = ["DATASETS", "bundled_csv", "dataset_dir"]
+
+#: name -> description, license, the model it belongs to and its parts (file names)
+DATASETS: dict[str, dict] = {
+    "ur5-laser-tracker": {
+        "description": (
+            "Universal Robots UR5 measured with a GTS3800 laser tracker (15 um + 6 um/m); "
+            "grid: 1000 calibration poses, random: 20 test poses. Measured tool position = "
+            "target + dif (see docs/datasets.md)."
+        ),
+        "source": "P. Jacobi (2025), github.com/pauljac7700/serial_robots_datasets",
+        "license": "MIT",
+        "model": "ur5",
+        "parts": {"grid": "grid.csv", "random": "random.csv"},
+    },
+    "handeye-camodocal": {
+        "description": (
+            "Real hand-eye recording, 42 stations of (robot base->effector, camera->marker) "
+            "4x4 transforms in OpenCV FileStorage YAML; eye-to-hand."
+        ),
+        "source": "handeye_calib_camodocal (BSD-2-Clause)",
+        "license": "BSD-2-Clause",
+        "model": None,
+        "parts": {"pairs": "TransformPairsInput.yml", "upstream": "CalibratedTransform.yml"},
+    },
+}
+
+
+def dataset_dir(name: str) -> Path:
+    """Folder of a bundled dataset."""
+    if name not in DATASETS:
+        raise InputError(f"unknown dataset {name!r}; bundled: {', '.join(DATASETS)}")
+    return Path(str(resources.files("kinecal") / "datasets" / name))
+
+
+def bundled_csv(spec: str) -> Path:
+    """Path of ``NAME:PART`` (e.g. ``ur5-laser-tracker:grid``)."""
+    name, _, part = spec.partition(":")
+    info = DATASETS.get(name)
+    if info is None:
+        raise InputError(
+            f"{spec!r} is neither a file nor a bundled dataset ({', '.join(DATASETS)})"
+        )
+    if part not in info["parts"]:
+        raise InputError(
+            f"dataset {name!r} has no part {part!r}; parts: {', '.join(info['parts'])}"
+        )
+    return dataset_dir(name) / info["parts"][part]

@@ -1,0 +1,131 @@
+"""Serial-arm measurement files: joint readings and measured tool-point positions.
+
+kinecal's format (``docs/file-formats.md``): header ``q1..qn,x,y,z`` and an optional
+``weight`` column; joint values in the model's angle unit, positions in its length unit.
+The laser-tracker export of the bundled UR5 dataset (``joint_1..joint_n, x_t, y_t, z_t,
+x_dif, y_dif, z_dif``; degrees, mm) is read as well: measured = target + dif.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.errors import InputError
+from kinecal.io.csvtable import read_table, write_table
+from kinecal.kinematics.serial import SerialModel
+
+__all__ = ["Measurements", "read_measurements", "write_measurements"]
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """Joint readings with measured tool-point positions.
+
+    Attributes
+    ----------
+    q : ndarray, shape (N, n_joints)
+        Joint angles (rad).
+    xyz : ndarray, shape (N, 3)
+        Measured tool-point positions in the measurement frame (model length unit).
+    weights : ndarray, shape (N,) or None
+        Optional per-pose weights (relative, > 0).
+    source : str
+        Where the data came from (file path or description).
+    """
+
+    q: NDArray[np.float64]
+    xyz: NDArray[np.float64]
+    weights: NDArray[np.float64] | None = None
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        q = np.asarray(self.q, dtype=float)
+        xyz = np.asarray(self.xyz, dtype=float)
+        if q.ndim != 2 or xyz.shape != (q.shape[0], 3):
+            raise InputError(
+                f"measurements: expected q (N, n) and xyz (N, 3), got {q.shape} and {xyz.shape}"
+            )
+        if not (np.isfinite(q).all() and np.isfinite(xyz).all()):
+            raise InputError("measurements contain NaN or infinite values")
+        if self.weights is not None:
+            w = np.asarray(self.weights, dtype=float)
+            if w.shape != (q.shape[0],) or not (w > 0).all():
+                raise InputError("weights: expected one positive value per pose")
+
+    def __len__(self) -> int:
+        return int(np.shape(self.q)[0])
+
+    def subset(self, index: NDArray[np.intp]) -> Measurements:
+        """The poses selected by `index`."""
+        w = None if self.weights is None else np.asarray(self.weights)[index]
+        return Measurements(np.asarray(self.q)[index], np.asarray(self.xyz)[index], w,
+                            f"{self.source}[subset]")
+
+
+def _header(path: Path) -> list[str]:
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            return [h.strip() for h in next(csv.reader(fh), [])]
+    except FileNotFoundError:
+        raise InputError("file not found", file=path) from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"cannot read CSV: {exc}", file=path) from None
+
+
+def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
+    """Read a measurement CSV for `model` (a path or a bundled ``NAME:PART``).
+
+    Raises
+    ------
+    InputError
+        Missing columns, wrong joint count, NaN or non-numeric cells (with the row).
+    """
+    spec = str(path)
+    path = Path(path)
+    if not path.exists() and ":" in spec and not path.suffix:
+        from kinecal.datasets import bundled_csv
+
+        path = bundled_csv(spec)
+    header = _header(path)
+    n = model.n_joints
+    scale = np.pi / 180.0 if model.angle_unit == "deg" else 1.0
+    if "x_t" in header and "joint_1" in header:  # laser-tracker export (degrees)
+        joints = [f"joint_{i}" for i in range(1, n + 1)]
+        if f"joint_{n + 1}" in header:
+            raise InputError(f"more joint columns than the model's {n} joints", file=path)
+        cols = read_table(path, joints + ["x_t", "y_t", "z_t", "x_dif", "y_dif", "z_dif"])
+        q = np.deg2rad(np.column_stack([cols[c] for c in joints]))
+        xyz = np.column_stack([cols[f"{a}_t"] + cols[f"{a}_dif"] for a in "xyz"])
+        return Measurements(q, xyz, None, str(path))
+    qcols = [c for c in header if c.startswith("q") and c[1:].isdigit()]
+    if qcols and len(qcols) != n:
+        raise InputError(
+            f"{len(qcols)} joint columns ({', '.join(qcols)}), model {model.name!r} has {n} "
+            f"joints: expected q1..q{n}",
+            file=path,
+        )
+    joints = [f"q{i}" for i in range(1, n + 1)]
+    cols = read_table(path, joints + ["x", "y", "z"], optional=["weight"])
+    q = np.column_stack([cols[c] for c in joints]) * scale
+    xyz = np.column_stack([cols[c] for c in "xyz"])
+    weights = cols.get("weight")
+    if weights is not None and not (weights > 0).all():
+        row = int(np.argmax(~(weights > 0))) + 1
+        raise InputError("column weight: expected a positive number", file=path, row=row)
+    return Measurements(q, xyz, weights, str(path))
+
+
+def write_measurements(path: str | Path, data: Measurements, model: SerialModel) -> None:
+    """Write `data` in kinecal's CSV format (joint values in the model's angle unit)."""
+    scale = 180.0 / np.pi if model.angle_unit == "deg" else 1.0
+    q = np.asarray(data.q) * scale
+    columns = {f"q{i + 1}": q[:, i] for i in range(q.shape[1])}
+    columns.update({c: np.asarray(data.xyz)[:, k] for k, c in enumerate("xyz")})
+    if data.weights is not None:
+        columns["weight"] = np.asarray(data.weights)
+    write_table(path, columns)
