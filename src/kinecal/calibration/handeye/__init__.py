@@ -144,8 +144,8 @@ def calibrate_handeye(
     target2cam: ArrayLike,
     *,
     setup: str = "eye-in-hand",
-    method: str = "tsai",
-    refine: str = "none",
+    method: str = "park",
+    refine: str = "lm",
     pairs: str = "all",
     seed: int | np.random.Generator | None = None,
     robust: bool = True,
@@ -164,9 +164,10 @@ def calibrate_handeye(
         Camera on the flange (X = cam2flange) or fixed (X = cam2base).
     method : str
         Closed form: ``tsai``, ``park``, ``horaud``, ``andreff``, ``daniilidis`` (AX = XB)
-        or ``shah``, ``li`` (AX = ZB).
+        or ``shah``, ``li`` (AX = ZB). Default ``park`` (least squares on the rotation
+        logarithms, sign-free; identical to OpenCV's PARK).
     refine : {"none", "lm", "igwo", "dlh-gwo-de"}
-        ``lm``: robust joint refinement of X and the target pose (`refine.lm`);
+        ``none``: the closed form alone; ``lm`` (default): robust joint refinement of X and the target pose (`refine.lm`);
         ``igwo`` / ``dlh-gwo-de``: paper 001's metaheuristic refinement (sec. 4).
     pairs : {"all", "consecutive"}
         Motion pairs of the AX = XB closed forms: all i < j (OpenCV) or consecutive

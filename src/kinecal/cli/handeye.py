@@ -1,0 +1,116 @@
+"""``kinecal handeye`` and ``kinecal handeye-poses`` (DESIGN sec. 4, paper 001)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from kinecal.cli._app import app
+from kinecal.cli._common import echo_json, write_json
+from kinecal.errors import InputError
+
+#: bundled recordings addressable by name, with the setup they were recorded in
+_BUNDLED_SETUP = {"handeye-camodocal": "eye-to-hand"}
+
+
+def resolve_pairs(spec: str) -> tuple[Path, str | None]:
+    """Path of a pairs file and its default setup: a path, ``NAME`` or ``NAME:pairs``."""
+    path = Path(spec)
+    if path.exists():
+        return path, None
+    from kinecal.datasets import DATASETS, dataset_dir
+
+    name, _, part = spec.partition(":")
+    info = DATASETS.get(name)
+    if info is not None and "pairs" in info["parts"] and part in ("", "pairs"):
+        return dataset_dir(name) / info["parts"]["pairs"], _BUNDLED_SETUP.get(name)
+    raise InputError(
+        f"{spec}: no such file, and not a bundled hand-eye recording "
+        f"({', '.join(_BUNDLED_SETUP)})",
+        option="PAIRS",
+    )
+
+
+def _format_matrix(X: np.ndarray) -> str:
+    return "\n".join("  [" + ", ".join(f"{v:12.6f}" for v in row) + "]" for row in X)
+
+
+@app.command("handeye")
+def handeye(
+    pairs: str = typer.Argument(
+        ..., help="Pose pairs: CSV, OpenCV FileStorage YAML, or a bundled name "
+        "(handeye-camodocal)."
+    ),
+    setup: str | None = typer.Option(
+        None, "--setup", help="eye-in-hand (default) or eye-to-hand (default of the bundled "
+        "camodocal recording)."
+    ),
+    method: str = typer.Option("park", "--method", help="tsai, park, horaud, andreff, "
+                               "daniilidis, shah or li."),
+    refine: str = typer.Option("lm", "--refine", help="none, lm (robust, default), igwo or "
+                               "dlh-gwo-de."),
+    pairs_mode: str = typer.Option("all", "--pairs", help="Motion pairs of the AX=XB closed "
+                                   "forms: all or consecutive."),
+    seed: int = typer.Option(0, "--seed", help="Random seed (metaheuristic refiners)."),
+    json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+    out: Path | None = typer.Option(None, "--out", help="Write the result JSON here."),
+) -> None:
+    """Hand-eye calibration from (flange2base, target2cam) pose pairs."""
+    from kinecal.calibration.handeye import calibrate_handeye
+    from kinecal.io.handeye import read_handeye_pairs
+
+    path, default_setup = resolve_pairs(pairs)
+    setup = setup or default_setup or "eye-in-hand"
+    F, C = read_handeye_pairs(path)
+    res = calibrate_handeye(F, C, setup=setup, method=method, refine=refine, pairs=pairs_mode,
+                            seed=seed)
+    result = {"file": str(path), **res.to_dict(), "seed": seed}
+    if out is not None:
+        write_json(out, result)
+    if json_out:
+        echo_json(result)
+        return
+    frame = "cam2flange" if setup == "eye-in-hand" else "cam2base"
+    lines = [
+        f"{path.name}: {len(F)} stations, {setup}, method {method}, refine {refine}",
+        f"X ({frame}):",
+        _format_matrix(res.X),
+        f"station residuals: rotation rms {res.rotation_rms_deg:.4g} deg, "
+        f"translation rms {res.translation_rms:.4g}",
+        "outliers (0-based stations): "
+        + (", ".join(str(i) for i in res.outliers) if res.outliers else "none"),
+    ]
+    typer.echo("\n".join(lines))
+
+
+@app.command("handeye-poses")
+def handeye_poses(
+    distance: float = typer.Option(..., "--distance", help="|Pc|: camera height above the "
+                                   "target centre."),
+    radius: float = typer.Option(..., "--radius", help="Circumradius r of the star polygon."),
+    count: int = typer.Option(..., "--count", help="Number of poses N (>= 3)."),
+    scheme: str = typer.Option("star", "--scheme", help="star (paper 001 sec. 3) or random."),
+    seed: int = typer.Option(0, "--seed", help="Random seed (scheme random)."),
+    out: Path = typer.Option(..., "--out", help="Output CSV: camera_* (cam2target) and "
+                             "target_* (target2cam) poses."),
+) -> None:
+    """Plan hand-eye camera poses: the star-polygon scheme of paper 001, or random."""
+    from kinecal.calibration.poses import random_poses, star_polygon_poses
+    from kinecal.io.csvtable import write_table
+    from kinecal.io.handeye import pose_columns
+    from kinecal.spatial import invert_transform, pq_from_transform
+
+    if scheme == "star":
+        T = star_polygon_poses(distance, radius, count)
+    elif scheme == "random":
+        T = random_poses(distance, radius, count, np.random.default_rng(seed))
+    else:
+        raise InputError(f"unknown scheme {scheme!r}; expected star or random", option="--scheme")
+    cols = {}
+    for prefix, poses in (("camera", T), ("target", invert_transform(T))):
+        pq = pq_from_transform(poses)
+        cols.update({name: pq[:, k] for k, name in enumerate(pose_columns(prefix))})
+    write_table(out, cols)
+    typer.echo(f"{out}: {count} {scheme} poses (distance {distance:g}, radius {radius:g})")
