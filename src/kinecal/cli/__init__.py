@@ -27,6 +27,7 @@ __all__ = ["app", "main"]
 _COMMAND_MODULES = [
     "kinecal.cli.serial",
     "kinecal.cli.reproduce",
+    "kinecal.cli.handeye",
 ]
 
 
