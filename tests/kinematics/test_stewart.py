@@ -141,10 +141,10 @@ def test_forward_x0_and_single_row(cmm):
 def test_leg_range_and_bad_rows_name_the_row(cmm):
     legs = np.tile(TABLE3_LEGS, (4, 1))
     legs[2, 1] = 0.99
-    with pytest.raises(InputError, match="row 3.*leg range"):
+    with pytest.raises(InputError, match=r"row 3.*leg range"):
         cmm.forward(legs)
     legs[2, 1] = np.nan
-    with pytest.raises(InputError, match="row 3.*finite"):
+    with pytest.raises(InputError, match=r"row 3.*finite"):
         cmm.forward(legs)
     with pytest.raises(InputError, match="6 columns"):
         cmm.forward(np.ones((2, 5)))
@@ -152,7 +152,7 @@ def test_leg_range_and_bad_rows_name_the_row(cmm):
 
 def test_unreachable_legs_raise_or_flag(cmm):
     legs = np.array([TABLE3_LEGS, [0.75, 0.97, 0.75, 0.97, 0.75, 0.97]])
-    with pytest.raises(InputError, match="row 2.*no real solution"):
+    with pytest.raises(InputError, match=r"row 2.*no real solution"):
         cmm.forward(legs)
     res = cmm.forward(legs, on_failure="flag")
     assert res.converged.tolist() == [True, False]

@@ -280,11 +280,9 @@ class StewartCalibrationResult:
                 strict=True,
             )
         }
-        before = self.calibration["before"]["rms"]
-        after = self.calibration["after"]["rms"]
         ref = self.validation if self.validation is not None else self.calibration
-        improve = 100.0 * (1.0 - ref["after"]["rms"] / ref["before"]["rms"]) if before else 0.0
-        del after
+        b, a = ref["before"]["rms"], ref["after"]["rms"]
+        improve = 100.0 * (1.0 - a / b) if b > 0 else 0.0
         return {
             "model": self.nominal.name,
             "method": "lm",
