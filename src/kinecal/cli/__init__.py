@@ -28,6 +28,7 @@ _COMMAND_MODULES = [
     "kinecal.cli.serial",
     "kinecal.cli.reproduce",
     "kinecal.cli.handeye",
+    "kinecal.cli.stewart",
 ]
 
 
