@@ -167,7 +167,8 @@ def calibrate_handeye(
         or ``shah``, ``li`` (AX = ZB). Default ``park`` (least squares on the rotation
         logarithms, sign-free; identical to OpenCV's PARK).
     refine : {"none", "lm", "igwo", "dlh-gwo-de"}
-        ``none``: the closed form alone; ``lm`` (default): robust joint refinement of X and the target pose (`refine.lm`);
+        ``none``: the closed form alone; ``lm`` (default): robust joint refinement of X
+        and the target pose (`refine.lm`);
         ``igwo`` / ``dlh-gwo-de``: paper 001's metaheuristic refinement (sec. 4).
     pairs : {"all", "consecutive"}
         Motion pairs of the AX = XB closed forms: all i < j (OpenCV) or consecutive
@@ -180,7 +181,8 @@ def calibrate_handeye(
         ``lm`` only: length units per radian (default: from the residual scales).
     options : dict, optional
         Metaheuristic options (``pop_size``, ``maxiter``, ``rotation_box``,
-        ``translation_box``, ``method_options``), see `refine_meta.metaheuristic`.
+        ``translation_box``, ``maxfev``, ``method_options``), see
+        `refine_meta.metaheuristic`.
 
     Returns
     -------
@@ -215,7 +217,7 @@ def calibrate_handeye(
     elif refine in ("igwo", "dlh-gwo-de"):
         from kinecal.calibration.handeye.refine_meta import metaheuristic
 
-        res = metaheuristic(G, C, X, refine, rng=seed, **(options or {}))
+        res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **(options or {}))
         X, history, nfev = res.X, res.history, res.nfev
         Y = mean_target_pose(G, X, C)
     if refine != "lm":
