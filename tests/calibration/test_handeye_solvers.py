@@ -124,9 +124,11 @@ def test_eye_to_hand_convention():
         res = calibrate_handeye(F, C, setup="eye-to-hand", method=method, refine="none")
         assert np.abs(res.X - cam2base).max() < 1e-8, method
         assert np.abs(res.target - target2flange).max() < 1e-8, method
-    R, t = cv2.calibrateHandEye(*(lambda B: (B[:, :3, :3], B[:, :3, 3]))(invert_transform(F)),
-                                C[:, :3, :3], C[:, :3, 3], method=cv2.CALIB_HAND_EYE_PARK)
+    B = invert_transform(F)  # OpenCV's eye-to-hand recipe: pass base2gripper
+    R, t = cv2.calibrateHandEye(B[:, :3, :3], B[:, :3, 3], C[:, :3, :3], C[:, :3, 3],
+                                method=cv2.CALIB_HAND_EYE_PARK)
     assert np.abs(R - cam2base[:3, :3]).max() < 1e-8
+    assert np.abs(t.ravel() - cam2base[:3, 3]).max() < 1e-8
 
 
 def test_axxb_residuals_zero_at_truth():
