@@ -173,11 +173,13 @@ def as_positive(name: str, value: Any, *, allow_zero: bool = False) -> float:
     return v
 
 
-def distinct_others(rng: np.random.Generator, size: int, k: int) -> np.ndarray:
-    """Draw, for each row ``i`` of a population of ``size``, ``k`` distinct indices ``!= i``.
+def distinct_others(
+    rng: np.random.Generator, size: int, k: int, rows: np.ndarray | None = None
+) -> np.ndarray:
+    """Draw ``k`` distinct population indices per row, all different from the row's own index.
 
     Vectorized over rows (the loops run over ``k`` only): each draw is uniform over the indices
-    not yet taken, mapped past the excluded ones in ascending order.
+    not yet excluded, then mapped past the excluded ones (kept sorted per row).
 
     Parameters
     ----------
@@ -186,19 +188,26 @@ def distinct_others(rng: np.random.Generator, size: int, k: int) -> np.ndarray:
         Population size, ``>= k + 1``.
     k : int
         Number of indices per row.
+    rows : numpy.ndarray of int, shape (m,), optional
+        The index each row must avoid (default ``arange(size)``).
 
     Returns
     -------
-    numpy.ndarray of int, shape (size, k)
+    numpy.ndarray of int, shape (m, k)
     """
-    excl = np.arange(size)[:, None]
-    out = np.empty((size, k), dtype=np.intp)
+    own = np.arange(size) if rows is None else np.asarray(rows, dtype=np.intp)
+    excluded = [own]  # per-row sorted excluded indices, one array per rank
+    out = np.empty((own.size, k), dtype=np.intp)
     for j in range(k):
-        r = rng.integers(0, size - 1 - j, size=size)
-        for e in np.sort(excl, axis=1).T:
+        r = rng.integers(0, size - 1 - j, size=own.size)
+        for e in excluded:
             r += r >= e
         out[:, j] = r
-        excl = np.concatenate([excl, r[:, None]], axis=1)
+        merged, cur = [], r
+        for e in excluded:  # insert r, keeping every row sorted
+            merged.append(np.minimum(e, cur))
+            cur = np.maximum(e, cur)
+        excluded = [*merged, cur]
     return out
 
 
@@ -409,6 +418,7 @@ def drive(
         best = opt.best_f
         if not history:
             history.append(best)
+            done_iters = opt.nit
         elif opt.nit > done_iters:
             done_iters = opt.nit
             partial = False

@@ -43,6 +43,7 @@ from collections.abc import Generator
 from typing import Any, ClassVar
 
 import numpy as np
+from scipy.spatial.distance import cdist
 
 from kinecal.optimize._common import Optimizer, as_int, as_positive, as_probability
 
@@ -111,9 +112,7 @@ class AFSA(Optimizer):
         while True:
             k = self.nit + 1
             X, Y = X.copy(), Y.copy()
-            sq = np.einsum("ij,ij->i", X, X)
-            D2 = sq[:, None] + sq[None, :] - 2.0 * (X @ X.T)
-            view = D2 < v2
+            view = cdist(X, X, "sqeuclidean") < v2
             view[rows, rows] = False
             nf = view.sum(axis=1)
             has = nf > 0

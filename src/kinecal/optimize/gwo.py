@@ -22,6 +22,7 @@ from collections.abc import Generator
 from typing import Any, ClassVar
 
 import numpy as np
+from scipy.spatial.distance import cdist
 
 from kinecal.optimize._common import Optimizer, as_int
 
@@ -77,14 +78,14 @@ def dlh_candidates(X: np.ndarray, X_gwo: np.ndarray, rng: np.random.Generator) -
     """
     P, n = X.shape
     R2 = np.einsum("ij,ij->i", X - X_gwo, X - X_gwo)  # eq. 10 (squared)
-    diff = X[:, None, :] - X[None, :, :]
-    D2 = np.einsum("ijk,ijk->ij", diff, diff)
+    D2 = cdist(X, X, "sqeuclidean")
     mask = D2 <= R2[:, None]  # eq. 11; wolf i is its own neighbour, so N_i is never empty
     count = mask.sum(axis=1)
-    order = np.argsort(~mask, axis=1, kind="stable")  # neighbours first, in index order
+    _, members = np.nonzero(mask)  # neighbour lists of all wolves, concatenated in row order
+    start = np.cumsum(count) - count
     u = rng.random((3, P, n))
     pick = (u[0] * count[:, None]).astype(np.intp)
-    neigh = np.take_along_axis(order, pick, axis=1)  # random neighbour per dimension
+    neigh = members[start[:, None] + pick]  # a random neighbour per wolf and dimension
     rand_wolf = (u[1] * P).astype(np.intp)  # random wolf of the pack per dimension
     cols = np.arange(n)
     out = X + u[2] * (X[neigh, cols] - X[rand_wolf, cols])  # eq. 12

@@ -47,8 +47,9 @@ def best1_bin(
 
     Parameters
     ----------
-    targets : numpy.ndarray, shape (P, n)
-        Vectors crossed with the mutants.
+    targets : numpy.ndarray, shape (m, n)
+        Vectors crossed with the mutants; row ``i`` belongs to wolf ``i mod P`` (so several
+        candidate sets can be stacked).
     pack : numpy.ndarray, shape (P, n)
         Population the difference vectors come from (``p1 != p2 != i``), ``P >= 3``.
     best : numpy.ndarray, shape (n,)
@@ -61,14 +62,15 @@ def best1_bin(
 
     Returns
     -------
-    numpy.ndarray, shape (P, n)
+    numpy.ndarray, shape (m, n)
         Trial vectors, clipped to the unit cube.
     """
-    P, n = targets.shape
-    p = distinct_others(rng, P, 2)
+    m, n = targets.shape
+    P = pack.shape[0]
+    p = distinct_others(rng, P, 2, np.arange(m) % P)
     V = best + F * (pack[p[:, 0]] - pack[p[:, 1]])
-    cross = rng.random((P, n)) <= CR
-    cross[np.arange(P), rng.integers(0, n, size=P)] = True  # j_rand
+    cross = rng.random((m, n)) <= CR
+    cross[np.arange(m), rng.integers(0, n, size=m)] = True  # j_rand
     U = np.where(cross, V, targets)
     return np.clip(U, 0.0, 1.0, out=U)
 
@@ -106,11 +108,12 @@ class DLHGWODE(IGWO):
             leaders = X[order[:3]]
             X_gwo = gwo_candidates(X, leaders, self.control(self.nit), rng)  # sec. 4.2
             X_dlh = dlh_candidates(X, X_gwo, rng)
-            V_gwo = best1_bin(X_gwo, X, leaders[0], self.F, self.CR, rng)  # sec. 4.3-4.4
-            V_dlh = best1_bin(X_dlh, X, leaders[0], self.F, self.CR, rng)
-            props = np.stack([X_gwo, X_dlh, V_gwo, V_dlh])
-            fc = yield props.reshape(4 * P, self.n)
+            cands = np.concatenate([X_gwo, X_dlh])
+            trials = best1_bin(cands, X, leaders[0], self.F, self.CR, rng)  # sec. 4.3-4.4
+            props = np.concatenate([cands, trials])  # X_GWO, X_DLH, V_GWO, V_DLH
+            fc = yield props
             fc = fc.reshape(4, P)
+            props = props.reshape(4, P, self.n)
             k = np.argmin(fc, axis=0)  # sec. 4.5: best of the four
             cols = np.arange(P)
             cand, cand_f = props[k, cols], fc[k, cols]
