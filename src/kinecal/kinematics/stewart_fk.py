@@ -28,6 +28,7 @@ if TYPE_CHECKING:
 __all__ = [
     "PSO_SETTINGS",
     "ForwardResult",
+    "default_tol",
     "expmap",
     "forward_newton",
     "forward_pso",
@@ -204,6 +205,11 @@ def newton_batch(
     return R, t, residual, iters
 
 
+def default_tol(lengths: Array) -> float:
+    """Default Newton tolerance: ``1e-13`` times the longest leg (length unit)."""
+    return 1e-13 * max(float(np.abs(lengths).max(initial=0.0)), 1e-300)
+
+
 def random_starts(
     geom: StewartPlatform, n: int, rng: np.random.Generator, *, below: bool = True
 ) -> tuple[Array, Array]:
@@ -247,7 +253,7 @@ def forward_newton(
     *,
     x0: ArrayLike | None = None,
     rng: np.random.Generator | int | None = None,
-    tol: float = 1e-12,
+    tol: float | None = None,
     max_iter: int = 50,
     restarts: int = 64,
 ) -> ForwardResult:
@@ -262,8 +268,9 @@ def forward_newton(
         Start poses (length unit, rad); default the neutral pose.
     rng : Generator or int, optional
         For the retries' random starts (default seed 0: deterministic).
-    tol : float
-        Convergence tolerance on the max abs leg error (length unit).
+    tol : float, optional
+        Convergence tolerance on the max abs leg error (length unit); default
+        ``1e-13 * max(L)``, a few rounding errors of the leg lengths.
     max_iter : int
         Newton iteration limit.
     restarts : int
@@ -277,6 +284,7 @@ def forward_newton(
     t0 = time.perf_counter()
     L = np.asarray(legs, dtype=float) + geom.leg_offsets
     n = L.shape[0]
+    tol = default_tol(L) if tol is None else float(tol)
     R, t = _start_poses(geom, x0, n)
     q, b = geom.tip_joints, geom.base_joints
     res = np.empty(n)

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
-from kinecal.kinematics.stewart_fk import newton_batch, random_starts
+from kinecal.kinematics.stewart_fk import default_tol, newton_batch, random_starts
 from kinecal.spatial import rotation_angle, rpy_from_matrix
 
 if TYPE_CHECKING:
@@ -68,7 +68,7 @@ def forward_all(
     *,
     starts: int = 4096,
     rng: np.random.Generator | int | None = None,
-    tol: float = 1e-12,
+    tol: float | None = None,
     below: bool = True,
     cluster_tol: float = 1e-7,
 ) -> AssemblyModes:
@@ -83,8 +83,9 @@ def forward_all(
         Random Newton starts (default 4096; all solved as one batch).
     rng : Generator or int, optional
         Random generator or seed (default seed 0: deterministic).
-    tol : float
-        Newton tolerance on the max abs leg error (length unit).
+    tol : float, optional
+        Newton tolerance on the max abs leg error (length unit; default
+        ``1e-13 * max(L)``).
     below : bool
         Also search below the base plane (the mirror images).
     cluster_tol : float
@@ -105,6 +106,7 @@ def forward_all(
     gen = np.random.default_rng(0 if rng is None else rng)
     R0, t0 = random_starts(geom, starts, gen, below=below)
     Lp = np.repeat(L + geom.leg_offsets, starts, axis=0)
+    tol = default_tol(Lp) if tol is None else float(tol)
     R, t, res, _ = newton_batch(geom.tip_joints, geom.base_joints, Lp, R0, t0, tol=tol)
     ok = res < tol
     R, t, res = R[ok], t[ok], res[ok]

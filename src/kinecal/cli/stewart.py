@@ -1,0 +1,266 @@
+"""``kinecal stewart ik|fk|simulate|calibrate``: the parallel-link CMM of papers/004.
+
+Poses CSV: ``x,y,z,alpha,beta,gamma`` (probe tip, length unit of the geometry, angles in
+degrees, R = Rz(gamma) Ry(beta) Rx(alpha)); legs CSV: ``l1..l6``; calibration data CSV:
+both. GEOMETRY is a bundled name (``liu2008-cmm``) or a YAML path.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from kinecal.cli._app import app
+from kinecal.cli._common import echo_json, resolve_data_path, write_json
+from kinecal.errors import InputError
+
+stewart_app = typer.Typer(
+    help="Parallel-link CMM (Stewart platform, papers/004): ik, fk, simulate, calibrate.",
+    no_args_is_help=True,
+)
+app.add_typer(stewart_app, name="stewart")
+
+POSE_COLUMNS = ("x", "y", "z", "alpha", "beta", "gamma")
+LEG_COLUMNS = tuple(f"l{i}" for i in range(1, 7))
+
+
+def _geometry(spec: str):
+    from kinecal.io.geometry import load_geometry
+
+    return load_geometry(spec)
+
+
+def _read(path: str, columns: tuple[str, ...], option: str) -> np.ndarray:
+    from kinecal.io.csvtable import read_table
+
+    p = resolve_data_path(path, option)
+    table = read_table(p, columns)
+    return np.column_stack([table[c] for c in columns])
+
+
+def _poses_rad(deg: np.ndarray) -> np.ndarray:
+    from kinecal.kinematics.stewart import degrees_to_radians
+
+    return degrees_to_radians(deg)
+
+
+def _write_csv(header: list[str], rows: list[list]) -> None:
+    out = [",".join(header)]
+    for row in rows:
+        out.append(",".join(v if isinstance(v, str) else f"{v:.15g}" for v in row))
+    sys.stdout.write("\n".join(out) + "\n")
+
+
+def _check_reach(geom, poses_rad: np.ndarray, path: str) -> None:
+    legs = geom.inverse(poses_rad)
+    lo, hi = geom.leg_range
+    bad = ((legs < lo) | (legs > hi)).any(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise InputError(
+            f"pose needs leg lengths {np.array2string(legs[i], precision=6)} outside the leg "
+            f"range [{lo:g}, {hi:g}]",
+            file=path,
+            row=i + 1,
+        )
+
+
+@stewart_app.command("ik")
+def ik(
+    geometry: str = typer.Argument(..., help="Bundled geometry name or YAML path."),
+    poses: str = typer.Argument(..., help="CSV with x,y,z,alpha,beta,gamma (deg)."),
+    check_range: bool = typer.Option(
+        True, "--check-range/--no-check-range", help="Reject poses whose legs leave the range."
+    ),
+) -> None:
+    """Inverse kinematics (papers/004 eq. 4-5): leg readings l1..l6 on stdout."""
+    geom = _geometry(geometry)
+    x = _poses_rad(_read(poses, POSE_COLUMNS, "POSES"))
+    if check_range:
+        _check_reach(geom, x, poses)
+    _write_csv(list(LEG_COLUMNS), geom.inverse(x).tolist())
+
+
+@stewart_app.command("fk")
+def fk(
+    geometry: str = typer.Argument(..., help="Bundled geometry name or YAML path."),
+    legs: str = typer.Argument(..., help="CSV with l1..l6."),
+    method: str = typer.Option("newton", "--method", help="newton or pso (papers/004)."),
+    all_modes: bool = typer.Option(False, "--all", help="Every real assembly mode, one row each."),
+    seed: int = typer.Option(0, "--seed", help="Random seed (pso, --all)."),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON instead of CSV."),
+) -> None:
+    """Forward kinematics: probe poses x,y,z,alpha,beta,gamma (deg) from leg readings."""
+    geom = _geometry(geometry)
+    if method not in ("newton", "pso"):
+        raise InputError(f"unknown method {method!r}; expected newton or pso", option="--method")
+    path = str(resolve_data_path(legs, "LEGS"))
+    L = geom.check_legs(_read(legs, LEG_COLUMNS, "LEGS"), file=path)
+    from kinecal.kinematics.stewart import radians_to_degrees
+
+    if all_modes:
+        _fk_all(geom, L, path, seed, json_out)
+        return
+    # a row without any real solution is an input error, whatever the method
+    newton = geom.forward(L, on_failure="flag")
+    if not newton.converged.all():
+        i = int(np.argmin(newton.converged))
+        raise InputError(
+            f"leg lengths {np.array2string(L[i], precision=6)} have no real assembly "
+            f"(closest residual {newton.residual[i]:.3g})",
+            file=path,
+            row=i + 1,
+        )
+    res = newton if method == "newton" else geom.forward(L, "pso", rng=seed, on_failure="flag")
+    deg = radians_to_degrees(res.poses)
+    if json_out:
+        rows = [
+            {**dict(zip(POSE_COLUMNS, d, strict=True)), "converged": bool(c), "residual": float(r),
+             "iterations": int(k)}
+            for d, c, r, k in zip(deg, res.converged, res.residual, res.iterations, strict=True)
+        ]  # fmt: skip
+        echo_json({"method": method, "elapsed": res.elapsed, "poses": rows})
+        return
+    header = [*POSE_COLUMNS, "converged", "residual"]
+    rows = [
+        [*d.tolist(), "true" if c else "false", float(r)]
+        for d, c, r in zip(deg, res.converged, res.residual, strict=True)
+    ]
+    _write_csv(header, rows)
+
+
+def _fk_all(geom, L: np.ndarray, path: str, seed: int, json_out: bool) -> None:
+    from kinecal.kinematics.stewart import radians_to_degrees
+
+    out = []
+    for i in range(L.shape[0]):  # one multi-start batch per reading
+        modes = geom.forward_all(L[i], rng=seed)
+        if len(modes) == 0:
+            raise InputError(
+                f"leg lengths {np.array2string(L[i], precision=6)} have no real assembly",
+                file=path,
+                row=i + 1,
+            )
+        out.append(modes)
+    if json_out:
+        echo_json(
+            {
+                "method": "newton-multistart",
+                "rows": [
+                    {
+                        "row": i + 1,
+                        "modes": [
+                            {**dict(zip(POSE_COLUMNS, d, strict=True)), "above": bool(a),
+                             "residual": float(r), "converged": True}
+                            for d, a, r in zip(radians_to_degrees(m.poses), m.above, m.residual,
+                                               strict=True)
+                        ],
+                    }
+                    for i, m in enumerate(out)
+                ],
+            }
+        )  # fmt: skip
+        return
+    header = ["row", "mode", *POSE_COLUMNS, "above", "converged", "residual"]
+    rows = []
+    for i, m in enumerate(out):
+        for k, (d, a, r) in enumerate(
+            zip(radians_to_degrees(m.poses), m.above, m.residual, strict=True)
+        ):
+            rows.append([str(i + 1), str(k + 1), *d.tolist(), str(bool(a)).lower(), "true", r])
+    _write_csv(header, rows)
+
+
+@stewart_app.command("simulate")
+def simulate(
+    geometry: str = typer.Argument(..., help="Nominal geometry (bundled name or YAML path)."),
+    poses: int = typer.Option(60, "--poses", help="Number of random workspace poses."),
+    errors: str = typer.Option(
+        "1e-3", "--errors", help="Amplitude of uniform geometry errors, or a TRUE.yaml geometry."
+    ),
+    noise_position: float = typer.Option(1e-6, "--noise-position", help="Tip position std."),
+    noise_rotation: float = typer.Option(1.0, "--noise-rotation", help="Orientation std, arcsec."),
+    noise_legs: float = typer.Option(1e-6, "--noise-legs", help="Leg reading std."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    out: Path = typer.Option(..., "--out", help="DATA.csv: x..gamma (deg) and l1..l6."),
+    truth_out: Path | None = typer.Option(None, "--truth-out", help="Write the true geometry."),
+) -> None:
+    """Simulate calibration data: measured poses and leg readings of a perturbed machine."""
+    from kinecal.calibration.stewart import ARCSEC, perturb_geometry, simulate_stewart
+    from kinecal.io.csvtable import write_table
+    from kinecal.io.geometry import load_geometry, save_geometry
+    from kinecal.kinematics.stewart import radians_to_degrees
+
+    geom = _geometry(geometry)
+    if poses < 1:
+        raise InputError("expected a positive number of poses", option="--poses")
+    for name, v in (("--noise-position", noise_position), ("--noise-rotation", noise_rotation),
+                    ("--noise-legs", noise_legs)):  # fmt: skip
+        if not (np.isfinite(v) and v >= 0):
+            raise InputError("expected a non-negative number", option=name)
+    rng = np.random.default_rng(seed)
+    try:
+        amplitude = float(errors)
+    except ValueError:
+        true = load_geometry(errors)
+    else:
+        if not (np.isfinite(amplitude) and amplitude >= 0):
+            raise InputError("expected a non-negative amplitude or a YAML file", option="--errors")
+        true = perturb_geometry(geom, amplitude, rng)
+    data = simulate_stewart(
+        true,
+        poses,
+        rng=rng,
+        position_noise=noise_position,
+        rotation_noise=noise_rotation * ARCSEC,
+        leg_noise=noise_legs,
+    )
+    deg = radians_to_degrees(data.poses)
+    cols = {c: deg[:, k] for k, c in enumerate(POSE_COLUMNS)}
+    cols.update({c: data.legs[:, k] for k, c in enumerate(LEG_COLUMNS)})
+    write_table(out, cols)
+    if truth_out is not None:
+        save_geometry(true, truth_out)
+    typer.echo(f"wrote {poses} poses to {out}", err=True)
+
+
+@stewart_app.command("calibrate")
+def calibrate(
+    geometry: str = typer.Argument(..., help="Nominal geometry (bundled name or YAML path)."),
+    data: str = typer.Argument(..., help="CSV: x,y,z,alpha,beta,gamma (deg) and l1..l6."),
+    validate: str | None = typer.Option(None, "--validate", help="Held-out DATA.csv."),
+    out: Path | None = typer.Option(None, "--out", help="RESULT.json."),
+    geometry_out: Path | None = typer.Option(
+        None, "--geometry-out", help="Calibrated geometry YAML (load_geometry reads it)."
+    ),
+    json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
+) -> None:
+    """Identify the 42 geometric parameters from measured poses and leg readings."""
+    from kinecal.calibration.stewart import StewartData, calibrate_stewart
+    from kinecal.io.geometry import save_geometry
+
+    geom = _geometry(geometry)
+
+    def load(spec: str, option: str) -> StewartData:
+        x = _poses_rad(_read(spec, POSE_COLUMNS, option))
+        L = _read(spec, LEG_COLUMNS, option)
+        return StewartData(x, L)
+
+    cal = load(data, "DATA")
+    val = load(validate, "--validate") if validate is not None else None
+    try:
+        res = calibrate_stewart(geom, cal, validate=val)
+    except InputError as exc:
+        raise InputError(exc.message, file=data) from None
+    result = res.to_dict()
+    if out is not None:
+        write_json(out, result)
+    if geometry_out is not None:
+        save_geometry(res.geometry, geometry_out)
+    if json_out:
+        echo_json(result)
+    else:
+        typer.echo(res.summary())
