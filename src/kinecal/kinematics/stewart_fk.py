@@ -80,6 +80,8 @@ class ForwardResult:
         ``"newton"`` or ``"pso"``.
     nfev : ndarray of int, shape (N,)
         Leg-length evaluations per row (pso: particles times generations).
+    history : list of ndarray, optional
+        pso: best value of eq. 6 after each generation, one array per row.
     """
 
     poses: Array
@@ -89,6 +91,7 @@ class ForwardResult:
     elapsed: float
     method: str
     nfev: NDArray[np.int64]
+    history: list[Array] | None = None
 
 
 def expmap(w: Array) -> Array:
@@ -380,6 +383,7 @@ def forward_pso(
     its = np.zeros(n, dtype=np.int64)
     nfev = np.zeros(n, dtype=np.int64)
     converged = np.zeros(n, dtype=bool)
+    history = []
     options = {k: cfg[k] for k in ("popsize", "w_max", "w_min", "c1", "c2", "vmax")}
     for i in range(n):  # one optimisation per reading; each one evaluates its swarm at once
 
@@ -404,4 +408,6 @@ def forward_pso(
         its[i] = int(out.nit)
         nfev[i] = int(out.nfev)
         converged[i] = float(out.fun) <= float(cfg["target"])
-    return ForwardResult(poses, converged, res, its, time.perf_counter() - t0, "pso", nfev)
+        history.append(np.asarray(out.history, dtype=float))
+    elapsed = time.perf_counter() - t0
+    return ForwardResult(poses, converged, res, its, elapsed, "pso", nfev, history)
