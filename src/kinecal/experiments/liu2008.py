@@ -221,7 +221,9 @@ def render(result: dict) -> str:
         f"newton: {nw['iterations']} iterations, residual {nw['residual_m']:.1e} m, "
         f"{nw['seconds'] * 1e3:.2f} ms",
         f"pso ({ps['seeds']} seeds, 80 particles, w 0.5->0.1, c1=c2=1.8): "
-        f"{ps['success']}/{ps['seeds']} within 0.5 um; generations median "
+        f"{ps['success']}/{ps['seeds']} within 0.5 um (median tip error "
+        f"{ps['position_error_median_m'] * 1e6:.2f} um, angles {ps['angle_error_median_deg']:.1e} "
+        f"deg); generations median "
         f"{ps['iterations_median']:.0f} (min {ps['iterations_min']}, max {ps['iterations_max']}; "
         f"paper ~55); {ps['seconds_mean'] * 1e3:.1f} ms per solve (paper ~3 s, Java on a P4)",
     ]
