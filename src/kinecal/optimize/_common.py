@@ -356,7 +356,7 @@ def _evaluate(fun: Callable[[np.ndarray], Any], X: np.ndarray) -> np.ndarray:
                 option="fun",
             )
         f = f.reshape(X.shape[0])
-    if np.isnan(f).any():
+    if np.isnan(np.add.reduce(f)):  # one cheap test; NaN (or inf - inf) -> look closer
         f = np.where(np.isnan(f), np.inf, f)
     return f
 

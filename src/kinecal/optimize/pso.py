@@ -97,7 +97,7 @@ class PSO(Optimizer):
             np.clip(x, 0.0, 1.0, out=x)
             f = yield x
             better = f < pbest_f
-            pbest[better] = x[better]
-            pbest_f[better] = f[better]
+            np.copyto(pbest, x, where=better[:, None])
+            np.copyto(pbest_f, f, where=better)
             g = int(np.argmin(pbest_f))
             self.nit += 1
