@@ -114,3 +114,126 @@ def fk(
         out = np.column_stack([out, quaternion_from_matrix(T[:, :3, :3])])
     lines = [",".join(header)] + [",".join(f"{v:.10g}" for v in row) for row in out]
     sys.stdout.write("\n".join(lines) + "\n")
+
+
+def _free_option(free: str) -> str | list[str]:
+    if free in ("all", "identifiable"):
+        return free
+    return [n.strip() for n in free.split(",") if n.strip()]
+
+
+@app.command()
+def simulate(
+    model: str = typer.Argument(..., help="Bundled model name or model YAML path."),
+    poses: int = typer.Option(..., "--poses", help="Number of random poses."),
+    noise: float = typer.Option(0.0, "--noise", help="Gaussian noise sigma per coordinate."),
+    errors: str = typer.Option("random", "--errors", help="zero, random or TRUTH.json."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    out: Path = typer.Option(..., "--out", help="Measurement CSV to write."),
+    truth_out: Path | None = typer.Option(None, "--truth-out", help="Truth JSON to write."),
+) -> None:
+    """Simulate measurements of a model with true errors and noise."""
+    from kinecal.calibration.simulate import read_truth, write_truth
+    from kinecal.calibration.simulate import simulate as run
+    from kinecal.io.measurements import write_measurements
+    from kinecal.io.models import load_model
+
+    m = load_model(model)
+    if errors in ("zero", "random"):
+        err: object = errors
+    else:
+        err = read_truth(Path(errors), m) - m.nominal
+    sim = run(m, poses, errors=err, noise=noise, rng=seed)
+    write_measurements(out, sim.data, m)
+    if truth_out is not None:
+        write_truth(truth_out, m, sim.true_params)
+    typer.echo(f"wrote {poses} poses to {out}" + (f", truth to {truth_out}" if truth_out else ""),
+               err=True)
+
+
+@app.command()
+def identifiability(
+    model: str = typer.Argument(..., help="Bundled model name or model YAML path."),
+    data: str | None = typer.Option(None, "--data", help="Measurement CSV (poses to analyse)."),
+    poses: int = typer.Option(50, "--poses", help="Random poses when no --data is given."),
+    free: str = typer.Option("all", "--free", help="all, identifiable or comma-separated names."),
+    seed: int = typer.Option(0, "--seed", help="Random seed for the poses."),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON."),
+) -> None:
+    """Rank, identifiable and unidentifiable parameters, condition number, O1-O5."""
+    from kinecal.calibration.problem import resolve_free
+    from kinecal.calibration.simulate import simulate as run
+    from kinecal.io.measurements import read_measurements
+    from kinecal.io.models import load_model
+
+    m = load_model(model)
+    if data is not None:
+        meas = read_measurements(resolve_data_path(data, "--data"), m)
+    else:
+        if poses < 1:
+            raise InputError(f"expected a positive number of poses, got {poses}",
+                             option="--poses")
+        meas = run(m, poses, errors="zero", rng=seed).data
+    _, report = resolve_free(m, meas, _free_option(free))
+    if json_out:
+        echo_json(report.to_dict())
+        return
+    typer.echo(report.explain())
+    typer.echo("identifiable: " + ", ".join(report.identifiable))
+    typer.echo("observability: " + ", ".join(f"{k}={v:.4g}"
+                                             for k, v in report.observability.items()))
+
+
+@app.command()
+def calibrate(
+    model: str = typer.Argument(..., help="Bundled model name or model YAML path."),
+    data: str = typer.Argument(..., help="Measurement CSV or NAME:PART."),
+    method: str = typer.Option("lm", "--method", help="lm, householder, a metaheuristic "
+                               "(ga, pso, afsa, sa-iafsa, gwo, igwo, dlh-gwo-de, de) or hybrid-*."),
+    validate: str | None = typer.Option(None, "--validate", help="Validation CSV or NAME:PART."),
+    free: str = typer.Option("identifiable", "--free",
+                             help="identifiable, all or comma-separated names."),
+    seed: int = typer.Option(0, "--seed", help="Random seed (metaheuristics)."),
+    loss: str = typer.Option("linear", "--loss", help="linear, huber, soft_l1, cauchy, arctan."),
+    maxiter: int | None = typer.Option(None, "--maxiter", help="Iteration budget."),
+    target: float | None = typer.Option(None, "--target", help="Stop at this mean error."),
+    out: Path | None = typer.Option(None, "--out", help="Result JSON to write."),
+    model_out: Path | None = typer.Option(None, "--model-out", help="Calibrated model YAML."),
+    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
+    json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
+    quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+) -> None:
+    """Calibrate a serial arm from measured tool positions."""
+    from kinecal.calibration.serial import CALIBRATION_METHODS
+    from kinecal.calibration.serial import calibrate as run
+    from kinecal.cli._common import progress
+    from kinecal.io.measurements import read_measurements
+    from kinecal.io.models import load_model
+
+    if method not in CALIBRATION_METHODS:
+        raise InputError(f"unknown method {method!r}; expected one of "
+                         f"{', '.join(CALIBRATION_METHODS)}", option="--method")
+    if maxiter is not None and maxiter < 1:
+        raise InputError(f"expected a positive iteration budget, got {maxiter}",
+                         option="--maxiter")
+    m = load_model(model)
+    meas = read_measurements(resolve_data_path(data, "DATA"), m)
+    val = None
+    if validate is not None:
+        val = read_measurements(resolve_data_path(validate, "--validate"), m)
+    iterative = method not in ("lm",)
+    with progress(f"calibrate {m.name} ({method})", maxiter if iterative else None,
+                  quiet or json_out) as update:
+        res = run(m, meas, method, free=_free_option(free), validate=val, rng=seed, loss=loss,
+                  maxiter=maxiter, target=target,
+                  progress=(lambda it, best: update(1, best)) if iterative else None)
+    if out is not None:
+        res.to_json(out)
+    if model_out is not None:
+        res.save_model(model_out)
+    if report is not None:
+        res.report(report)
+    if json_out:
+        echo_json(res.to_dict())
+    else:
+        typer.echo(res.summary())

@@ -1,0 +1,141 @@
+"""`CalibrationProblem`: free parameters, residuals, analytic Jacobian, population cost.
+
+The unknowns ``x`` are the free parameters' values (model length unit, rad). The residual
+of pose ``i`` is ``sqrt(w_i) * (p_model(q_i; x) - p_measured_i)`` (3 rows per pose); the
+metaheuristics minimise paper 000's criterion ``s = mean_i ||p_model - p_measured||``
+(papers/000 sec. 2, the mean Euclidean distance error), evaluated for a whole population
+in one call.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.calibration.identifiability import RANK_TOL, IdentifiabilityReport, analyse
+from kinecal.errors import InputError
+from kinecal.io.measurements import Measurements
+from kinecal.kinematics.serial import SerialModel
+
+__all__ = ["CalibrationProblem", "resolve_free"]
+
+Array = NDArray[np.float64]
+
+
+def resolve_free(
+    model: SerialModel, data: Measurements, free: str | Sequence[str], params: Array | None = None,
+    tol: float = RANK_TOL,
+) -> tuple[list[str], IdentifiabilityReport]:
+    """Free parameter names for ``free`` = ``"all"``, ``"identifiable"`` or explicit names.
+
+    ``all`` means every calibratable parameter of the model (not the ones fixed by its
+    design); ``identifiable`` keeps the subset that pivoted QR finds identifiable from
+    `data`'s poses. The identifiability report of the candidate set is returned as well.
+    """
+    if isinstance(free, str):
+        if free == "all":
+            names = list(model.calibratable)
+        elif free == "identifiable":
+            names = list(model.calibratable)
+        else:
+            names = [n.strip() for n in free.split(",") if n.strip()]
+            if not names:
+                raise InputError(
+                    f"free: expected all, identifiable or parameter names, got {free!r}",
+                    option="--free",
+                )
+    else:
+        names = list(free)
+    try:
+        model.index(names)
+    except InputError as exc:
+        raise InputError(exc.message, option="--free") from None
+    if len(set(names)) != len(names):
+        raise InputError("free: a parameter is listed twice", option="--free")
+    p = model.nominal if params is None else params
+    J = model.identification_jacobian(data.q, p)[:, :, model.index(names)]
+    report = analyse(J.reshape(-1, len(names)), names, tol=tol)
+    if free == "identifiable":
+        names = report.identifiable
+    return names, report
+
+
+class CalibrationProblem:
+    """Least-squares view of a serial-arm calibration.
+
+    Parameters
+    ----------
+    model : SerialModel
+        Nominal model (start point and values of the fixed parameters).
+    data : Measurements
+        Joint readings and measured tool positions.
+    free : sequence of str
+        Names of the free parameters.
+    """
+
+    def __init__(self, model: SerialModel, data: Measurements, free: Sequence[str]) -> None:
+        self.model = model
+        self.data = data
+        self.free = list(free)
+        self.index = model.index(self.free)
+        self.base_params = model.nominal
+        self.x0 = self.base_params[self.index].copy()
+        n_res = 3 * len(data)
+        if n_res < len(self.free):
+            raise InputError(
+                f"{len(data)} poses give {n_res} equations for {len(self.free)} free parameters: "
+                f"expected at least {int(np.ceil(len(self.free) / 3))} poses"
+            )
+        w = np.ones(len(data)) if data.weights is None else np.asarray(data.weights, float)
+        self.sqrt_w = np.sqrt(w)
+        self.q = np.asarray(data.q, dtype=float)
+        self.xyz = np.asarray(data.xyz, dtype=float)
+        angle = model.is_angle()[self.index]
+        tol = model.tolerances or {}
+        self.half_width = np.where(angle, tol.get("angle", 0.02), tol.get("length", 1.0))
+
+    @property
+    def n_free(self) -> int:
+        """Number of free parameters."""
+        return len(self.free)
+
+    def full(self, x: Array) -> Array:
+        """Full parameter vector(s) ``(n_params,)`` or ``(P, n_params)`` from free values."""
+        x = np.asarray(x, dtype=float)
+        p = np.broadcast_to(self.base_params, x.shape[:-1] + (self.model.n_params,)).copy()
+        p[..., self.index] = x
+        return p
+
+    def errors(self, x: Array) -> Array:
+        """Position error vectors ``model - measured`` ``(N, 3)`` (or ``(P, N, 3)``)."""
+        return self.model.positions(self.q, self.full(x)) - self.xyz
+
+    def distances(self, x: Array) -> Array:
+        """Euclidean distance errors ``(N,)`` (or ``(P, N)``) in the length unit."""
+        return np.linalg.norm(self.errors(x), axis=-1)
+
+    def residuals(self, x: Array) -> Array:
+        """Weighted residual vector ``(3N,)``."""
+        return (self.errors(x) * self.sqrt_w[:, None]).ravel()
+
+    def jacobian(self, x: Array) -> Array:
+        """Analytic Jacobian of `residuals`, shape ``(3N, n_free)``."""
+        J = self.model.identification_jacobian(self.q, self.full(x))[:, :, self.index]
+        return (J * self.sqrt_w[:, None, None]).reshape(-1, self.n_free)
+
+    def mean_distance_from_residuals(self, r: Array) -> float:
+        """Paper 000's ``s`` recomputed from a residual vector of `residuals`."""
+        e = np.asarray(r).reshape(-1, 3) / self.sqrt_w[:, None]
+        return float(np.linalg.norm(e, axis=1).mean())
+
+    def population_cost(self, X: Array) -> Array:
+        """Mean distance error ``s`` (papers/000 sec. 2) of each row of ``X`` ``(P, n_free)``."""
+        return self.distances(np.atleast_2d(X)).mean(axis=-1)
+
+    def bounds(self, center: Array | None = None, shrink: float = 1.0) -> Array:
+        """Search box ``(n_free, 2)``: nominal (or `center`) +- tolerance * `shrink`."""
+        c = self.x0 if center is None else np.asarray(center, dtype=float)
+        h = self.half_width * shrink
+        return np.column_stack([c - h, c + h])

@@ -1,0 +1,212 @@
+"""`CalibrationResult`: identified geometry, uncertainty, before/after statistics, JSON."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.calibration.identifiability import IdentifiabilityReport
+from kinecal.io._atomic import write_text_atomic
+from kinecal.kinematics.serial import SerialModel
+
+__all__ = ["CalibrationResult", "error_stats"]
+
+Array = NDArray[np.float64]
+
+
+def error_stats(distances: Array) -> dict[str, float]:
+    """``{n, mean, rms, std, max}`` of Euclidean distance errors ``(N,)`` (ISO 9283 style)."""
+    d = np.asarray(distances, dtype=float)
+    if d.size == 0:
+        return {"n": 0, "mean": float("nan"), "rms": float("nan"), "std": float("nan"),
+                "max": float("nan")}
+    return {"n": int(d.size), "mean": float(d.mean()), "rms": float(np.sqrt((d * d).mean())),
+            "std": float(d.std(ddof=1)) if d.size > 1 else 0.0, "max": float(d.max())}
+
+
+@dataclass
+class CalibrationResult:
+    """Outcome of `kinecal.calibrate`.
+
+    Attributes
+    ----------
+    model : SerialModel
+        The calibrated model.
+    nominal_model : SerialModel
+        The model calibrated from.
+    method : str
+        Solver name.
+    free : list of str
+        Free (identified) parameters.
+    params : ndarray, shape (n_params,)
+        Identified full parameter vector (length unit, rad).
+    std : ndarray, shape (n_params,)
+        Standard errors (0 for parameters that were not free).
+    covariance : ndarray, shape (n_free, n_free)
+        Covariance of the free parameters, ``sigma^2 (J^T W J)^-1`` with
+        ``sigma^2 = RSS / (m - p)``.
+    identifiability : IdentifiabilityReport
+        Analysis of the candidate parameters on the calibration poses.
+    errors_before, errors_after : ndarray, shape (N,)
+        Distance errors on the calibration poses (length unit).
+    val_before, val_after : ndarray, shape (N_val,) or None
+        Distance errors on the validation poses.
+    """
+
+    model: SerialModel
+    nominal_model: SerialModel
+    method: str
+    free: list[str]
+    params: Array
+    std: Array
+    covariance: Array
+    identifiability: IdentifiabilityReport
+    errors_before: Array
+    errors_after: Array
+    val_before: Array | None = None
+    val_after: Array | None = None
+    seed: int | None = None
+    iterations: int = 0
+    evaluations: int = 0
+    seconds: float = 0.0
+    history: list[float] = field(default_factory=list)
+    outliers: list[int] = field(default_factory=list)
+    message: str = ""
+    success: bool = True
+    sigma: float = float("nan")
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    # ------------------------------------------------------------------ numbers
+    @property
+    def calibration_stats(self) -> dict[str, dict[str, float]]:
+        """Before/after statistics on the calibration poses."""
+        return {"before": error_stats(self.errors_before), "after": error_stats(self.errors_after)}
+
+    @property
+    def validation_stats(self) -> dict[str, dict[str, float]] | None:
+        """Before/after statistics on the validation poses (None without validation)."""
+        if self.val_before is None or self.val_after is None:
+            return None
+        return {"before": error_stats(self.val_before), "after": error_stats(self.val_after)}
+
+    @property
+    def improvement_percent(self) -> float:
+        """Reduction of the mean error, on validation poses when given (else calibration)."""
+        s = self.validation_stats or self.calibration_stats
+        before, after = s["before"]["mean"], s["after"]["mean"]
+        return float(100.0 * (before - after) / before) if before > 0 else 0.0
+
+    def _unit_scale(self) -> Array:
+        s = 180.0 / np.pi if self.nominal_model.angle_unit == "deg" else 1.0
+        return np.where(self.nominal_model.is_angle(), s, 1.0)
+
+    def parameter_table(self) -> dict[str, dict[str, Any]]:
+        """``{name: {nominal, identified, std, free}}`` in the model file's units."""
+        conv = self._unit_scale()
+        nominal = self.nominal_model.nominal * conv
+        ident = self.params * conv
+        std = self.std * conv
+        free = set(self.free)
+        return {
+            n: {"nominal": float(nominal[k]), "identified": float(ident[k]),
+                "std": float(std[k]), "free": n in free}
+            for k, n in enumerate(self.nominal_model.parameter_names)
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        """The calibration JSON of DESIGN section 4 (lengths in the model unit)."""
+        from kinecal import __version__
+
+        rep = self.identifiability
+        out: dict[str, Any] = {
+            "kinecal": __version__,
+            "model": self.nominal_model.name,
+            "method": self.method,
+            "seed": self.seed,
+            "length_unit": self.nominal_model.length_unit,
+            "angle_unit": self.nominal_model.angle_unit,
+            "parameters": self.parameter_table(),
+            "free": list(self.free),
+            "unidentifiable": list(rep.unidentifiable),
+            "confounded_with": rep.confounded_with,
+            "rank": rep.rank,
+            "condition_number": float(rep.condition_number),
+            "observability": rep.observability,
+            "calibration": {"n": int(self.errors_before.size), **self.calibration_stats},
+            "validation": None,
+            "improvement_percent": self.improvement_percent,
+            "iterations": int(self.iterations),
+            "evaluations": int(self.evaluations),
+            "seconds": float(self.seconds),
+            "sigma": float(self.sigma),
+            "history": [float(h) for h in self.history],
+            "outliers": [int(i) for i in self.outliers],
+            "success": bool(self.success),
+            "message": self.message,
+        }
+        if self.validation_stats is not None:
+            out["validation"] = {"n": int(self.val_before.size), **self.validation_stats}
+        out.update(self.extra)
+        return out
+
+    def to_json(self, path: str | Path) -> None:
+        """Write `to_dict` as JSON (atomic)."""
+        text = json.dumps(self.to_dict(), indent=2, default=float, allow_nan=True)
+        write_text_atomic(path, text + "\n")
+
+    def save_model(self, path: str | Path) -> None:
+        """Write the calibrated model file (read back by `kinecal.load_model`)."""
+        from kinecal.io.models import save_model
+
+        save_model(self.model, path)
+
+    # ------------------------------------------------------------------ text
+    def summary(self) -> str:
+        """Plain-text summary: identifiability, before/after table, largest corrections."""
+        unit = self.nominal_model.length_unit
+        rep = self.identifiability
+        lines = [
+            f"model {self.nominal_model.name} ({self.nominal_model.convention}), method "
+            f"{self.method}: {len(self.free)} free parameters, rank {rep.rank} of "
+            f"{len(rep.names)}, condition number {rep.condition_number:.3g}",
+        ]
+        if rep.unidentifiable:
+            lines.append("not identifiable (held at nominal): " + ", ".join(rep.unidentifiable))
+        head = f"{'':12s} {'n':>5s} {'mean':>10s} {'rms':>10s} {'std':>10s} {'max':>10s}"
+        lines += ["", f"position error [{unit}]", head]
+        rows = [("calibration", self.calibration_stats)]
+        if self.validation_stats is not None:
+            rows.append(("validation", self.validation_stats))
+        for label, stats in rows:
+            for when in ("before", "after"):
+                s = stats[when]
+                lines.append(f"{label[:3] + '. ' + when:12s} {s['n']:5d} {s['mean']:10.4g} "
+                             f"{s['rms']:10.4g} {s['std']:10.4g} {s['max']:10.4g}")
+        lines.append(f"improvement of the mean error: {self.improvement_percent:.2f} %")
+        lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations, "
+                     f"{self.seconds:.3g} s")
+        if self.outliers:
+            lines.append(f"outlier poses (robust loss): {self.outliers}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    # ------------------------------------------------------------------ figures
+    def plot(self, kind: str = "errors", ax: Any = None) -> Any:
+        """Draw a figure for notebooks: ``errors`` (per pose), ``histogram`` or
+        ``convergence``. Returns the matplotlib Axes."""
+        from kinecal.report.figures import plot_calibration
+
+        return plot_calibration(self, kind=kind, ax=ax)
+
+    def report(self, path: str | Path) -> Path:
+        """Write a self-contained HTML report; returns its path."""
+        from kinecal.report.html import calibration_report
+
+        return calibration_report(self, path)
