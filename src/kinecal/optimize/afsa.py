@@ -45,7 +45,7 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.spatial.distance import cdist
 
-from kinecal.optimize._common import Optimizer, as_int, as_positive, as_probability
+from kinecal.optimize._common import Optimizer, as_int, as_positive, as_probability, clip_unit
 
 __all__ = ["AFSA", "SAIAFSA"]
 
@@ -90,7 +90,7 @@ class AFSA(Optimizer):
         d = T - X
         norm = np.sqrt(np.einsum("ij,ij->i", d, d))
         scale = self.rng.random(X.shape[0]) * self.step / np.where(norm > 0.0, norm, 1.0)
-        return np.clip(X + scale[:, None] * d, 0.0, 1.0)
+        return clip_unit(X + scale[:, None] * d)
 
     def accept(self, Y: np.ndarray, Yj: np.ndarray, k: int) -> np.ndarray:
         """Accept tries of costs ``Yj`` ``(m, T)`` better than their fish ``Y`` ``(m,)``."""
@@ -99,7 +99,7 @@ class AFSA(Optimizer):
     # -- the iteration ------------------------------------------------------------------------
     def random_points(self, X: np.ndarray) -> np.ndarray:
         """Points ``X + visual rand(-1, 1)`` ``(m, n)``, clipped to the cube."""
-        return np.clip(X + self.visual * self.rng.uniform(-1.0, 1.0, X.shape), 0.0, 1.0)
+        return clip_unit(X + self.visual * self.rng.uniform(-1.0, 1.0, X.shape))
 
     def _steps(self) -> Generator[np.ndarray, np.ndarray, None]:
         N, n = self.popsize, self.n
@@ -114,7 +114,7 @@ class AFSA(Optimizer):
             X, Y = X.copy(), Y.copy()
             view = cdist(X, X, "sqeuclidean") < v2
             view[rows, rows] = False
-            nf = view.sum(axis=1)
+            nf = np.add.reduce(view, axis=1, dtype=np.intp)
             has = nf > 0
             # swarm: evaluate the centres of the fish that see others
             swarm_ok = np.zeros(N, dtype=bool)
@@ -199,7 +199,7 @@ class SAIAFSA(AFSA):
     def move_toward(self, X: np.ndarray, T: np.ndarray) -> np.ndarray:
         """Adaptive step ``Step = rand ||T - X||`` (papers/002 eq. 6, 7, 10): ``X + rand (T-X)``."""
         r = self.rng.random(X.shape[0])
-        return np.clip(X + r[:, None] * (T - X), 0.0, 1.0)
+        return clip_unit(X + r[:, None] * (T - X))
 
     def accept(self, Y: np.ndarray, Yj: np.ndarray, k: int) -> np.ndarray:
         """papers/002 eq. 8: ``dY > 0`` or (``dY < 0`` and ``exp(C k dY) > alpha``)."""

@@ -24,7 +24,7 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.spatial.distance import cdist
 
-from kinecal.optimize._common import Optimizer, as_int
+from kinecal.optimize._common import Optimizer, as_int, clip_unit
 
 __all__ = ["GWO", "IGWO", "dlh_candidates", "gwo_candidates", "update_leaders"]
 
@@ -55,9 +55,9 @@ def gwo_candidates(
     C = 2.0 * r[1]  # eq. 3.4
     L = leaders[:, None, :]
     Xk = L - A * np.abs(C * L - X)  # eq. 3.5-3.6
-    out = Xk.sum(axis=0)
+    out = np.add.reduce(Xk, axis=0)
     out /= 3.0  # eq. 3.7
-    return np.clip(out, 0.0, 1.0, out=out)
+    return clip_unit(out)
 
 
 def dlh_candidates(X: np.ndarray, X_gwo: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -80,7 +80,7 @@ def dlh_candidates(X: np.ndarray, X_gwo: np.ndarray, rng: np.random.Generator) -
     R2 = np.einsum("ij,ij->i", X - X_gwo, X - X_gwo)  # eq. 10 (squared)
     D2 = cdist(X, X, "sqeuclidean")
     mask = D2 <= R2[:, None]  # eq. 11; wolf i is its own neighbour, so N_i is never empty
-    count = mask.sum(axis=1)
+    count = np.add.reduce(mask, axis=1, dtype=np.intp)
     _, members = np.nonzero(mask)  # neighbour lists of all wolves, concatenated in row order
     start = np.cumsum(count) - count
     u = rng.random((3, P, n))
@@ -89,7 +89,7 @@ def dlh_candidates(X: np.ndarray, X_gwo: np.ndarray, rng: np.random.Generator) -
     rand_wolf = (u[1] * P).astype(np.intp)  # random wolf of the pack per dimension
     cols = np.arange(n)
     out = X + u[2] * (X[neigh, cols] - X[rand_wolf, cols])  # eq. 12
-    return np.clip(out, 0.0, 1.0, out=out)
+    return clip_unit(out)
 
 
 def update_leaders(

@@ -29,7 +29,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from kinecal.errors import InputError
-from kinecal.optimize._common import as_positive, as_probability, distinct_others
+from kinecal.optimize._common import as_positive, as_probability, clip_unit, distinct_others
 from kinecal.optimize.gwo import IGWO, dlh_candidates, gwo_candidates
 
 __all__ = ["DLHGWODE", "best1_bin"]
@@ -72,7 +72,7 @@ def best1_bin(
     cross = rng.random((m, n)) <= CR
     cross[np.arange(m), rng.integers(0, n, size=m)] = True  # j_rand
     U = np.where(cross, V, targets)
-    return np.clip(U, 0.0, 1.0, out=U)
+    return clip_unit(U)
 
 
 class DLHGWODE(IGWO):

@@ -26,7 +26,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from kinecal.optimize._common import Optimizer, as_int, as_positive
+from kinecal.optimize._common import Optimizer, as_int, as_positive, clip_unit
 
 __all__ = ["PSO"]
 
@@ -91,10 +91,11 @@ class PSO(Optimizer):
             v *= w
             v += c1 * r[0] * (pbest - x)
             v += c2 * r[1] * (pbest[g] - x)
-            np.clip(v, -vmax, vmax, out=v)
+            np.maximum(v, -vmax, out=v)
+            np.minimum(v, vmax, out=v)
             # eq. 8 and the position limits of section 3.2
             x = x + v
-            np.clip(x, 0.0, 1.0, out=x)
+            clip_unit(x)
             f = yield x
             better = f < pbest_f
             np.copyto(pbest, x, where=better[:, None])
