@@ -302,53 +302,18 @@ class StewartPlatform:
         return np.array([0.0, 0.0, float(np.mean(z)), 0.0, 0.0, 0.0])
 
     def workspace_box(self) -> Array:
-        """Default pose box for random workspace poses, shape (6, 2) (length unit, rad).
+        """Default pose box, shape (6, 2) (see `stewart_modes.workspace_box`)."""
+        from kinecal.kinematics.stewart_modes import workspace_box
 
-        Centred on `neutral_pose`: ``|x|, |y| <= 0.3 R_b``, ``z`` within
-        ``+-(l_max - l_min) / 2``, each angle within +-20 deg. (The leg range alone admits
-        poses turned by up to 90 deg, which a real CMM's joints and legs do not reach.)
-        """
-        x0 = self.neutral_pose()
-        rb = float(np.linalg.norm(self.base_joints[:, :2], axis=1).max())
-        lo, hi = self.leg_range
-        dz = 0.5 * (hi - lo) if np.isfinite(hi) else 0.2 * rb
-        a = np.deg2rad(20.0)
-        half = np.array([0.3 * rb, 0.3 * rb, dz, a, a, a])
-        return np.stack([x0 - half, x0 + half], axis=1)
+        return workspace_box(self)
 
     def random_poses(
         self, n: int, rng: np.random.Generator | int | None = None, box: ArrayLike | None = None
     ) -> Array:
-        """``n`` random poses uniform in `box` whose legs lie inside the leg range.
+        """``n`` random reachable poses ``(n, 6)`` (see `stewart_modes.random_poses`)."""
+        from kinecal.kinematics.stewart_modes import random_poses
 
-        Parameters
-        ----------
-        n : int
-            Number of poses.
-        rng : Generator or int, optional
-            Random generator or seed.
-        box : array_like, shape (6, 2), optional
-            Pose bounds (length unit, rad); default `workspace_box`.
-
-        Returns
-        -------
-        ndarray, shape (n, 6)
-            Poses (length unit, rad), rejection-sampled (vectorized batches).
-        """
-        gen = np.random.default_rng(rng)
-        lim = self.workspace_box() if box is None else np.asarray(box, dtype=float)
-        lo, hi = self.leg_range
-        out = np.empty((0, 6))
-        for _ in range(1000):
-            if out.shape[0] >= n:
-                break
-            cand = lim[:, 0] + (lim[:, 1] - lim[:, 0]) * gen.random((max(4 * n, 256), 6))
-            legs = self.inverse(cand)
-            ok = ((legs >= lo) & (legs <= hi)).all(axis=1)
-            out = np.concatenate([out, cand[ok]])
-        if out.shape[0] < n:
-            raise InputError("the pose box holds (almost) no reachable pose", option="box")
-        return out[:n]
+        return random_poses(self, n, rng, box)
 
     def forward(
         self,

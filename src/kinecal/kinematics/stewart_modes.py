@@ -1,5 +1,7 @@
 """All real assembly modes of the Stewart-platform CMM for one set of leg lengths.
 
+Also the workspace sampling (:func:`random_poses`) used by tests, simulation and benchmarks.
+
 papers/004 (sec. 1) notes that the forward position problem of a parallel mechanism has
 many solutions; its PSO finds one of them. Here every real solution is found by
 vectorized multi-start Newton (:func:`kinecal.kinematics.stewart_fk.newton_batch` from
@@ -25,7 +27,7 @@ from kinecal.spatial import rotation_angle, rpy_from_matrix
 if TYPE_CHECKING:
     from kinecal.kinematics.stewart import StewartPlatform
 
-__all__ = ["AssemblyModes", "forward_all"]
+__all__ = ["AssemblyModes", "forward_all", "random_poses", "workspace_box"]
 
 Array = NDArray[np.float64]
 
@@ -137,3 +139,60 @@ def forward_all(
         hits=hits[order],
         n_starts=starts,
     )
+
+
+def workspace_box(geom: StewartPlatform) -> Array:
+    """Default pose box for random workspace poses, shape (6, 2) (length unit, rad).
+
+    Centred on the neutral pose: ``|x|, |y| <= 0.3 R_b``, ``z`` within
+    ``+-(l_max - l_min) / 2``, each angle within +-20 deg. (The leg range alone admits
+    poses turned by up to 90 deg, which a real CMM's joints and legs do not reach.)
+    """
+    x0 = geom.neutral_pose()
+    rb = float(np.linalg.norm(geom.base_joints[:, :2], axis=1).max())
+    lo, hi = geom.leg_range
+    dz = 0.5 * (hi - lo) if np.isfinite(hi) else 0.2 * rb
+    a = np.deg2rad(20.0)
+    half = np.array([0.3 * rb, 0.3 * rb, dz, a, a, a])
+    return np.stack([x0 - half, x0 + half], axis=1)
+
+
+def random_poses(
+    geom: StewartPlatform,
+    n: int,
+    rng: np.random.Generator | int | None = None,
+    box: ArrayLike | None = None,
+) -> Array:
+    """``n`` random poses uniform in `box` whose legs lie inside the leg range.
+
+    Parameters
+    ----------
+    geom : StewartPlatform
+    n : int
+        Number of poses.
+    rng : Generator or int, optional
+        Random generator or seed.
+    box : array_like, shape (6, 2), optional
+        Pose bounds (length unit, rad); default `workspace_box`.
+
+    Returns
+    -------
+    ndarray, shape (n, 6)
+        Poses (length unit, rad), rejection-sampled in vectorized batches.
+    """
+    gen = np.random.default_rng(rng)
+    lim = workspace_box(geom) if box is None else np.asarray(box, dtype=float)
+    if lim.shape != (6, 2) or not np.isfinite(lim).all():
+        raise InputError(f"box must be 6 finite (low, high) rows, got {lim.shape}", option="box")
+    lo, hi = geom.leg_range
+    out = np.empty((0, 6))
+    for _ in range(1000):  # batches of candidates until enough are reachable
+        if out.shape[0] >= n:
+            break
+        cand = lim[:, 0] + (lim[:, 1] - lim[:, 0]) * gen.random((max(4 * n, 256), 6))
+        legs = geom.inverse(cand)
+        ok = ((legs >= lo) & (legs <= hi)).all(axis=1)
+        out = np.concatenate([out, cand[ok]])
+    if out.shape[0] < n:
+        raise InputError("the pose box holds (almost) no reachable pose", option="box")
+    return out[:n]
