@@ -11,8 +11,8 @@ function that lists a joint's elementary motions in order (see ``docs/convention
 The base frame is ``Tx(x) Ty(y) Tz(z) Rz(rz) Ry(ry) Rx(rx)`` (a pose in roll-pitch-yaw),
 the tool ``Tx(x) Ty(y) Tz(z)`` followed by ``Rz Ry Rx`` for a tool frame.
 
-Forward kinematics composes the motions column by column on frame stacks of shape
-``(P, N, 3, 3)`` / ``(P, N, 3)`` (population x poses), without Python loops over poses or
+Forward kinematics composes the motions on axis-vector stacks of shape
+``(3, P, N)`` (component, population, poses), without Python loops over poses or
 parameter vectors. The identification Jacobian follows from the same sweep: a rotation
 about a unit axis ``u`` through ``o`` moves the tool point ``p`` by ``u x (p - o)`` per
 radian, a translation along ``u`` moves it by ``u``.
@@ -143,17 +143,6 @@ def _tool_motions(frame: bool) -> list[Motion]:
             Motion(ROTATION, X, "tool.rx"),
         ]
     return motions
-
-
-def _rotate_columns(R: Array, axis: int, angle: Array) -> Array:
-    """``R @ R_axis(angle)`` for frame stacks ``R`` (..., 3, 3), angles (...)."""
-    j, k = (axis + 1) % 3, (axis + 2) % 3
-    c, s = np.cos(angle)[..., None], np.sin(angle)[..., None]
-    cj, ck = R[..., :, j], R[..., :, k]
-    out = R.copy()
-    out[..., :, j] = c * cj + s * ck
-    out[..., :, k] = c * ck - s * cj
-    return out
 
 
 @dataclass
@@ -354,24 +343,44 @@ class SerialModel:
         return q
 
     def _sweep(self, q: Array, p: Array, record: bool) -> tuple[Array, Array, list]:
-        """Compose all motions. Returns R ``(..., N, 3, 3)``, o ``(..., N, 3)`` and, if
-        `record`, the list of (axis vector, origin) before each motion."""
+        """Compose all motions on frame stacks.
+
+        The frame is kept as three axis arrays and an origin, each ``(3, *batch, N)``
+        (component first, so that per-pose factors broadcast without reshaping). A motion
+        whose value is exactly zero for every row (and no joint reading) is the identity and
+        is skipped; its recorded frame is the current one.
+
+        Returns R ``(*batch, N, 3, 3)``, o ``(*batch, N, 3)`` and, if `record`, the list of
+        (axis vector ``(*batch, N, 3)``, origin ``(*batch, N, 3)``) before each motion.
+        """
         batch = p.shape[:-1]
         N = q.shape[0]
-        R = np.broadcast_to(np.eye(3), batch + (N, 3, 3)).copy()
-        o = np.zeros(batch + (N, 3))
+        shape = (3, *batch, N)
+        axes = [np.zeros(shape), np.zeros(shape), np.zeros(shape)]
+        for i in range(3):
+            axes[i][i] = 1.0
+        o = np.zeros(shape)
         frames = []
         for m, k in zip(self.motions, self._motion_index, strict=True):
-            value = p[..., k][..., None]  # (..., 1) broadcast over poses
+            value = p[..., k]
             if record:
-                frames.append((R[..., :, m.axis].copy(), o.copy()))
+                frames.append((np.moveaxis(axes[m.axis], 0, -1).copy(),
+                               np.moveaxis(o, 0, -1).copy()))
+            if m.joint is None and not np.any(value):
+                continue
+            value = value[..., None]  # (*batch, 1): broadcast over poses
+            u = axes[m.axis]
             if m.kind == TRANSLATION:
-                o = o + value[..., None] * R[..., :, m.axis]
-            else:
-                angle = value + q[:, m.joint] if m.joint is not None else np.broadcast_to(
-                    value, batch + (N,))
-                R = _rotate_columns(R, m.axis, angle)
-        return R, o, frames
+                o = o + value * u
+                continue
+            angle = value + q[:, m.joint] if m.joint is not None else value
+            c, s_ = np.cos(angle), np.sin(angle)
+            j, l = (m.axis + 1) % 3, (m.axis + 2) % 3
+            vj, vl = axes[j], axes[l]
+            axes[j] = c * vj + s_ * vl
+            axes[l] = c * vl - s_ * vj
+        R = np.stack([np.moveaxis(a, 0, -1) for a in axes], axis=-1)
+        return R, np.moveaxis(o, 0, -1), frames
 
     def fk(self, q: ArrayLike, params: ArrayLike | None = None) -> Array:
         """Tool (or flange) frame in the measurement frame.
