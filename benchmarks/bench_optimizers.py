@@ -223,6 +223,7 @@ def run_scipy_de(fun, n: int, half: float, maxfev: int, seed: int) -> float:
         atol=0.0,
         polish=False,
         init="random",
+        strategy="rand1bin",
         mutation=0.5,
         recombination=0.9,
         vectorized=True,

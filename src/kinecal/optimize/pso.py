@@ -83,14 +83,16 @@ class PSO(Optimizer):
         pbest, pbest_f = x.copy(), f.copy()
         self.population, self.energies = pbest, pbest_f
         g = int(np.argmin(pbest_f))
-        c1, c2, vmax = self.c1, self.c2, self.vmax
+        c = np.array([self.c1, self.c2]).reshape(2, 1, 1)
+        vmax = self.vmax
         while True:
             w = self.inertia(self.nit)
             r = rng.random((2, P, n))
+            r *= c  # c1 r1, c2 r2
             # eq. 7
             v *= w
-            v += c1 * r[0] * (pbest - x)
-            v += c2 * r[1] * (pbest[g] - x)
+            v += r[0] * (pbest - x)
+            v += r[1] * (pbest[g] - x)
             np.maximum(v, -vmax, out=v)
             np.minimum(v, vmax, out=v)
             # eq. 8 and the position limits of section 3.2
