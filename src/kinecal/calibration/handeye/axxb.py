@@ -162,7 +162,7 @@ def andreff(A: Array, B: Array) -> Array:
     """
     RA, RB = A[:, :3, :3], B[:, :3, :3]
     K = np.eye(9) - np.einsum("kij,kab->kiajb", RA, RB).reshape(-1, 9, 9)
-    _, _, Vt = np.linalg.svd(K.reshape(-1, 9))
+    _, _, Vt = np.linalg.svd(K.reshape(-1, 9), full_matrices=False)
     Rv = Vt[-1].reshape(3, 3)
     det = np.linalg.det(Rv)
     Rv = Rv / (np.sign(det) * abs(det) ** (1.0 / 3.0))
@@ -204,7 +204,7 @@ def daniilidis(A: Array, B: Array) -> Array:
     T[:, :4, :4] = D0
     T[:, 4:, :4] = D1
     T[:, 4:, 4:] = D0
-    _, _, Vt = np.linalg.svd(T.reshape(-1, 8))
+    _, _, Vt = np.linalg.svd(T.reshape(-1, 8), full_matrices=False)
     v7, v8 = Vt[-2], Vt[-1]
     u1, w1, u2, w2 = v7[:4], v7[4:], v8[:4], v8[4:]
     # s^2 u1.w1 + s (u1.w2 + u2.w1) + u2.w2 = 0 with s = lambda1 / lambda2
