@@ -18,9 +18,9 @@ import time
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import kinecal  # noqa: E402
+import kinecal
 
 
 def best_time(fn, repeat=3):

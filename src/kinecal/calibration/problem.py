@@ -90,6 +90,7 @@ class CalibrationProblem:
             )
         w = np.ones(len(data)) if data.weights is None else np.asarray(data.weights, float)
         self.sqrt_w = np.sqrt(w)
+        self.weighted = data.weights is not None
         self.q = np.asarray(data.q, dtype=float)
         self.xyz = np.asarray(data.xyz, dtype=float)
         angle = model.is_angle()[self.index]
@@ -118,12 +119,15 @@ class CalibrationProblem:
 
     def residuals(self, x: Array) -> Array:
         """Weighted residual vector ``(3N,)``."""
-        return (self.errors(x) * self.sqrt_w[:, None]).ravel()
+        e = self.errors(x)
+        return (e * self.sqrt_w[:, None]).ravel() if self.weighted else e.ravel()
 
     def jacobian(self, x: Array) -> Array:
         """Analytic Jacobian of `residuals`, shape ``(3N, n_free)``."""
-        J = self.model.identification_jacobian(self.q, self.full(x))[:, :, self.index]
-        return (J * self.sqrt_w[:, None, None]).reshape(-1, self.n_free)
+        Jt = self.model.jacobian_t(self.q, self.full(x))[self.index]  # (k, 3, N)
+        if self.weighted:
+            Jt *= self.sqrt_w
+        return Jt.transpose(2, 1, 0).reshape(-1, self.n_free)
 
     def mean_distance_from_residuals(self, r: Array) -> float:
         """Paper 000's ``s`` recomputed from a residual vector of `residuals`."""

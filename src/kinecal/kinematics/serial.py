@@ -351,7 +351,7 @@ class SerialModel:
         is skipped; its recorded frame is the current one.
 
         Returns R ``(*batch, N, 3, 3)``, o ``(*batch, N, 3)`` and, if `record`, the list of
-        (axis vector ``(*batch, N, 3)``, origin ``(*batch, N, 3)``) before each motion.
+        (axis vector ``(3, *batch, N)``, origin ``(3, *batch, N)``) before each motion.
         """
         batch = p.shape[:-1]
         N = q.shape[0]
@@ -363,9 +363,8 @@ class SerialModel:
         frames = []
         for m, k in zip(self.motions, self._motion_index, strict=True):
             value = p[..., k]
-            if record:
-                frames.append((np.moveaxis(axes[m.axis], 0, -1).copy(),
-                               np.moveaxis(o, 0, -1).copy()))
+            if record:  # arrays are replaced, never modified in place: no copies needed
+                frames.append((axes[m.axis], o))
             if m.joint is None and not np.any(value):
                 continue
             value = value[..., None]  # (*batch, 1): broadcast over poses
@@ -432,6 +431,15 @@ class SerialModel:
         ndarray, shape (N, 3, n_params) or (N, 6, n_params)
             Length unit per length unit for lengths, length unit per rad for angles.
         """
+        return np.ascontiguousarray(self.jacobian_t(q, params, outputs).transpose(2, 1, 0))
+
+    def jacobian_t(
+        self, q: ArrayLike, params: ArrayLike | None = None, outputs: str = "position"
+    ) -> Array:
+        """`identification_jacobian` in parameter-major layout ``(n_params, 3 or 6, N)``.
+
+        Cheaper for solvers that select parameter rows before reshaping.
+        """
         if outputs not in ("position", "pose"):
             raise InputError(f"outputs: expected 'position' or 'pose', got {outputs!r}")
         q = self._check_q(q)
@@ -439,13 +447,17 @@ class SerialModel:
         if p.ndim != 1:
             raise InputError("identification_jacobian expects one parameter vector")
         _, o_end, frames = self._sweep(q, p, record=True)
+        p_end = np.moveaxis(o_end, -1, 0)  # (3, N)
         rows = 3 if outputs == "position" else 6
-        J = np.zeros((q.shape[0], rows, self.n_params))
+        Jt = np.zeros((self.n_params, rows, q.shape[0]))
         for m, k, (u, o) in zip(self.motions, self._motion_index, frames, strict=True):
             if m.kind == TRANSLATION:
-                J[:, :3, k] += u
-            else:
-                J[:, :3, k] += np.cross(u, o_end - o)
-                if rows == 6:
-                    J[:, 3:, k] += u
-        return J
+                Jt[k, :3] += u
+                continue
+            r = p_end - o
+            Jt[k, 0] += u[1] * r[2] - u[2] * r[1]
+            Jt[k, 1] += u[2] * r[0] - u[0] * r[2]
+            Jt[k, 2] += u[0] * r[1] - u[1] * r[0]
+            if rows == 6:
+                Jt[k, 3:] += u
+        return Jt
