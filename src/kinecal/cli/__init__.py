@@ -36,6 +36,7 @@ _COMMAND_MODULES = [
     "kinecal.cli.reproduce",
     "kinecal.cli.handeye",
     "kinecal.cli.stewart",
+    "kinecal.cli.batch",
 ]
 
 

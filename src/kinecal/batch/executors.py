@@ -1,0 +1,94 @@
+"""Executors for batch runs: a local process pool, or a Dask ``distributed`` cluster.
+
+Both are plain `concurrent.futures.Executor` objects, so `kinecal.batch.run_batch` runs
+on either (and on any other executor, e.g. a thread pool).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+from collections.abc import Iterator
+from concurrent.futures import Executor, ProcessPoolExecutor
+
+from kinecal.errors import InputError
+
+__all__ = ["BLAS_THREAD_VARS", "dask_executor", "local_executor", "single_thread_blas"]
+
+#: kinecal's matrices are small: one BLAS thread per worker process is 10-50x faster than
+#: several threads competing for the same cores
+BLAS_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def single_thread_blas() -> None:
+    """Ask worker processes started from now on for single-threaded BLAS.
+
+    Sets the variables in this process's environment (inherited by the workers); an
+    explicit user setting wins.
+    """
+    for var in BLAS_THREAD_VARS:
+        os.environ.setdefault(var, "1")
+
+
+def local_executor(workers: int | None = None) -> ProcessPoolExecutor:
+    """A process pool of `workers` processes (default: the number of CPUs).
+
+    Workers are forked from a fork server that has already imported the calibration
+    code, so a pool (or its replacement after a worker died) starts in milliseconds and
+    no thread of the parent (e.g. a Dask client) is copied into the workers.
+    """
+    if workers is not None and workers < 1:
+        raise InputError(f"expected a positive number of workers, got {workers}",
+                         option="--workers")
+    single_thread_blas()
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(["kinecal.batch.work", "kinecal.calibration.serial"])
+    return ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, mp_context=ctx)
+
+
+@contextlib.contextmanager
+def dask_executor(address: str | None = None, workers: int | None = None) -> Iterator[Executor]:
+    """A Dask executor: connect to the scheduler at `address`, or start a local cluster.
+
+    Parameters
+    ----------
+    address : str, optional
+        Scheduler address (``tcp://host:8786``). Without it a `LocalCluster` of `workers`
+        single-threaded worker processes is started on the loopback interface.
+    workers : int, optional
+        Number of local worker processes (default: the number of CPUs); ignored with an
+        address.
+
+    Yields
+    ------
+    concurrent.futures.Executor
+        ``client.get_executor(pure=False)``: a resubmitted job is a new task, not the
+        erred one.
+    """
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise InputError("the Dask executor needs the optional extra: pip install "
+                         "'kinecal[dask]'", option="--executor") from None
+    if workers is not None and workers < 1:
+        raise InputError(f"expected a positive number of workers, got {workers}",
+                         option="--workers")
+    single_thread_blas()
+    with contextlib.ExitStack() as stack:
+        if address is None:
+            cluster = stack.enter_context(LocalCluster(
+                n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                processes=True, host="127.0.0.1", dashboard_address=None))
+            client = stack.enter_context(Client(cluster))
+        else:
+            try:
+                client = stack.enter_context(Client(address, timeout="10s"))
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise InputError(f"cannot connect to the Dask scheduler {address!r} ({exc})",
+                                 option="--scheduler") from None
+        executor = client.get_executor(pure=False)
+        try:
+            yield executor
+        finally:
+            executor.shutdown(wait=False)

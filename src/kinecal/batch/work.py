@@ -1,0 +1,122 @@
+"""One batch job, run inside a worker process: load or simulate the data, calibrate.
+
+`run_job` never raises for a job's own failure: it returns an outcome dict with the
+error, so that one bad job cannot take the others down. The result dict is the
+calibration JSON of DESIGN section 4 (`CalibrationResult.to_dict`) plus ``job`` (the job
+specification, used to resume) and, for simulated jobs, ``truth`` (the true parameter
+values in the model file's units, used by the coverage study).
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+from typing import Any
+
+import numpy as np
+
+from kinecal.batch.jobs import Job
+from kinecal.errors import InputError
+
+__all__ = ["job_seeds", "run_job", "simulate_job"]
+
+
+def job_seeds(seed: int) -> tuple[np.random.Generator, np.random.Generator]:
+    """Independent generators for a simulated job's calibration and validation poses.
+
+    Seeding with ``[seed, k]`` gives streams that depend only on the job's seed, so a
+    study with the same seeds and different methods or noise levels sees the same poses
+    and the same true arm (common random numbers).
+    """
+    return np.random.default_rng([seed, 0]), np.random.default_rng([seed, 1])
+
+
+def simulate_job(job: Job, model: Any) -> tuple[Any, Any, np.ndarray]:
+    """Simulated calibration data, validation data (or None) and true parameters.
+
+    Parameters
+    ----------
+    job : Job
+        A simulated job (``poses`` set).
+    model : SerialModel
+        Its nominal model.
+
+    Returns
+    -------
+    data : Measurements
+        ``job.poses`` noisy calibration poses.
+    validate : Measurements or None
+        ``job.validation_poses`` noisy poses of the same true arm.
+    true_params : ndarray, shape (n_params,)
+        True parameter vector (length unit, rad).
+    """
+    from kinecal.calibration.problem import resolve_free
+    from kinecal.calibration.simulate import random_configurations, random_errors, simulate
+    from kinecal.io.measurements import Measurements
+
+    gen, gen_val = job_seeds(job.seed)
+    if job.errors == "identifiable":
+        # errors only where the poses can see them: the identified values then estimate
+        # the true values themselves (no confounded parameter absorbs another's error)
+        q = random_configurations(model, job.poses, gen)
+        probe = Measurements(q, np.zeros((len(q), 3)), None, "poses")
+        names, _ = resolve_free(model, probe, "identifiable" if job.free == "all" else job.free)
+        errors: Any = random_errors(model, gen, names)
+        sim = simulate(model, job.poses, errors=errors, noise=job.noise, rng=gen, q=q)
+    else:
+        sim = simulate(model, job.poses, errors=job.errors, noise=job.noise, rng=gen)
+    val = None
+    if job.validation_poses:
+        val = simulate(model, job.validation_poses, errors=sim.true_params - model.nominal,
+                       noise=job.noise, rng=gen_val).data
+    return sim.data, val, sim.true_params
+
+
+def _truth_table(model: Any, true_params: np.ndarray) -> dict[str, float]:
+    """True values in the model file's units (angles in deg when the file uses deg)."""
+    scale = 180.0 / np.pi if model.angle_unit == "deg" else 1.0
+    conv = np.where(model.is_angle(), scale, 1.0)
+    return {n: float(v) for n, v in zip(model.parameter_names, true_params * conv, strict=True)}
+
+
+def run_job(job: Job) -> dict[str, Any]:
+    """Run one job; return its outcome (never raises for the job's own errors).
+
+    Returns
+    -------
+    dict
+        ``{"name", "status": "done" | "failed", "seconds", "result": dict | None,
+        "error": str, "kind": "" | "input" | "internal"}``; ``result`` is the
+        calibration JSON with ``job`` (and ``truth`` for simulated jobs) added.
+    """
+    from kinecal.calibration.serial import calibrate
+    from kinecal.io.measurements import read_measurements
+    from kinecal.io.models import load_model
+
+    t0 = time.perf_counter()
+    try:
+        model = load_model(job.model)
+        truth = None
+        if job.simulated:
+            data, val, truth = simulate_job(job, model)
+        else:
+            data = read_measurements(job.data, model)
+            val = None if job.validation is None else read_measurements(job.validation, model)
+        res = calibrate(model, data, job.method, free=job.free, validate=val, rng=job.seed,
+                        loss=job.loss, maxiter=job.maxiter, target=job.target,
+                        options=job.options)
+        result = res.to_dict()
+        result["job"] = job.spec()
+        if truth is not None:
+            result["truth"] = _truth_table(model, truth)
+    except InputError as exc:
+        return {"name": job.name, "status": "failed", "seconds": time.perf_counter() - t0,
+                "result": None, "error": exc.one_line(), "kind": "input"}
+    except Exception as exc:  # a job's failure must not stop the batch
+        last = traceback.extract_tb(exc.__traceback__)[-1]
+        where = f" ({last.filename.rsplit('/', 1)[-1]}:{last.lineno})"
+        return {"name": job.name, "status": "failed", "seconds": time.perf_counter() - t0,
+                "result": None, "error": f"{type(exc).__name__}: {exc}{where}",
+                "kind": "internal"}
+    return {"name": job.name, "status": "done", "seconds": time.perf_counter() - t0,
+            "result": result, "error": "", "kind": ""}
