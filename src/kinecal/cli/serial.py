@@ -237,3 +237,31 @@ def calibrate(
         echo_json(res.to_dict())
     else:
         typer.echo(res.summary())
+
+
+@app.command("select-poses")
+def select_poses_cmd(
+    model: str = typer.Argument(..., help="Bundled model name or model YAML path."),
+    count: int = typer.Option(..., "--count", help="Number of poses to select."),
+    candidates: int = typer.Option(2000, "--candidates", help="Random candidate poses."),
+    seed: int = typer.Option(0, "--seed", help="Random seed for the candidates."),
+    out: Path = typer.Option(..., "--out", help="CSV of the selected q1..qn."),
+) -> None:
+    """Choose calibration poses maximising observability (O1, D-optimal)."""
+    from kinecal.calibration.pose_selection import select_poses
+    from kinecal.calibration.problem import resolve_free
+    from kinecal.calibration.simulate import random_configurations
+    from kinecal.io.csvtable import write_table
+    from kinecal.io.measurements import Measurements
+    from kinecal.io.models import load_model
+
+    m = load_model(model)
+    if candidates < 1:
+        raise InputError(f"expected a positive number, got {candidates}", option="--candidates")
+    q = random_configurations(m, candidates, np.random.default_rng(seed))
+    ident, _ = resolve_free(m, Measurements(q, m.positions(q)), "identifiable", tol=1e-4)
+    idx, obs = select_poses(m, q, count, free=ident)
+    scale = 180.0 / np.pi if m.angle_unit == "deg" else 1.0
+    write_table(out, {f"q{i + 1}": q[idx, i] * scale for i in range(m.n_joints)})
+    typer.echo(f"wrote {count} poses to {out}; O1 = {obs['O1']:.4g}, O2 = {obs['O2']:.4g} "
+               f"({len(ident)} identifiable parameters)", err=True)
