@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 from kinecal.spatial import (
     axis_angle_from_matrix,
@@ -39,7 +39,7 @@ Array = NDArray[np.float64]
 __all__ = ["LMRefinement", "camera_residuals", "flag_outliers", "lm"]
 
 #: Median of the chi distribution with 3 degrees of freedom (scale of |3-vector| of N(0, s)).
-_CHI3_MEDIAN = float(np.sqrt(chi2.ppf(0.5, 3)))
+_CHI3_MEDIAN = float(np.sqrt(chdtri(3, 0.5)))
 #: Cauchy tuning constant (95 % efficiency on Gaussian data), in units of the per-dof scale.
 _CAUCHY_C = 2.3849
 
@@ -183,7 +183,7 @@ def lm(
             if done:
                 break
     d = _distances(G, C, X, Y, sr, st)
-    inlier = d**2 <= chi2.ppf(outlier_level, 6) if robust else np.ones(n, bool)
+    inlier = d**2 <= chdtri(6, 1.0 - outlier_level) if robust else np.ones(n, bool)
     if inlier.sum() < 3:
         inlier = np.ones(n, bool)
     # final plain least squares on the inliers, scales re-estimated from them (rms)
@@ -228,4 +228,4 @@ def flag_outliers(G: Array, C: Array, X: Array, Y: Array, level: float = 0.999) 
     rot, tr = camera_residuals(G, C, X, Y)
     sr, st = _scales(rot, tr, L)
     d = _distances(G, C, X, Y, sr, st)
-    return [int(i) for i in np.flatnonzero(d**2 > chi2.ppf(level, 6))]
+    return [int(i) for i in np.flatnonzero(d**2 > chdtri(6, 1.0 - level))]

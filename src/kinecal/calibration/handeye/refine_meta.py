@@ -33,7 +33,7 @@ from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix, tran
 
 Array = NDArray[np.float64]
 
-__all__ = ["MetaRefinement", "axxb_fitness", "metaheuristic"]
+__all__ = ["MetaRefinement", "axxb_fitness", "fitness_matrix", "metaheuristic"]
 
 
 @dataclass
@@ -64,22 +64,44 @@ def axxb_fitness(A: Array, B: Array, length: float = 1.0) -> Callable[[Array], A
     callable
         ``f(x)`` with ``x`` ``(P, 7)`` = (q_w, q_x, q_y, q_z, t (L)); ``f`` unit-free.
     """
-    RA, tA = A[:, :3, :3], A[:, :3, 3] / length
-    RB, tB = B[:, :3, :3], B[:, :3, 3] / length
-    m = len(A)
+    Q = fitness_matrix(A, B, length)
 
     def fun(x: Array) -> Array:
         x = np.atleast_2d(x)
         q = x[:, :4]
         norm = np.linalg.norm(q, axis=1)
         R = matrix_from_quaternion(np.where(norm[:, None] > 0, q, [1.0, 0.0, 0.0, 0.0]))
-        t = x[:, 4:] / length
-        dR = np.einsum("mij,pjk->pmik", RA, R) - np.einsum("pij,mjk->pmik", R, RB)
-        dt = (np.einsum("mij,pj->pmi", RA, t) + tA[None] - np.einsum("pij,mj->pmi", R, tB)
-              - t[:, None, :])
-        return (np.sum(dR**2, axis=(1, 2, 3)) + np.sum(dt**2, axis=(1, 2))) / m
+        z = np.concatenate([R.reshape(-1, 9), x[:, 4:] / length, np.ones((len(x), 1))], axis=1)
+        return np.einsum("pi,ij,pj->p", z, Q, z)
 
     return fun
+
+
+def fitness_matrix(A: Array, B: Array, length: float = 1.0) -> Array:
+    """The fitness as a quadratic form ``f = z^T Q z``, ``z = (vec R (row-major), t / length, 1)``.
+
+    Per pair, ``A X - X B`` is linear in z: rotation block
+    ``(R_A (x) I - I (x) R_B^T) vec R`` (9 rows) and translation block
+    ``(R_A - I) t - (I (x) t_B^T) vec R + t_A`` (3 rows); summing their Gram matrices once
+    makes each evaluation of the whole pack one small quadratic form instead of m matrix
+    products per wolf.
+
+    Returns
+    -------
+    ndarray, shape (13, 13)
+        Symmetric positive semi-definite, divided by the number of pairs m.
+    """
+    m = len(A)
+    RA, RB = A[:, :3, :3], B[:, :3, :3]
+    tA, tB = A[:, :3, 3] / length, B[:, :3, 3] / length
+    I3 = np.eye(3)
+    M = np.zeros((m, 12, 13))
+    M[:, :9, :9] = (np.einsum("kij,ab->kiajb", RA, I3)
+                    - np.einsum("ij,kba->kiajb", I3, RB)).reshape(m, 9, 9)
+    M[:, 9:, :9] = -np.einsum("ij,kb->kijb", I3, tB).reshape(m, 3, 9)
+    M[:, 9:, 9:12] = RA - I3
+    M[:, 9:, 12] = tA
+    return np.einsum("kai,kaj->ij", M, M) / m
 
 
 def metaheuristic(
