@@ -20,6 +20,9 @@ __all__ = ["BLAS_THREAD_VARS", "dask_executor", "local_executor", "single_thread
 #: several threads competing for the same cores
 BLAS_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
+#: how long to try to reach a Dask scheduler before giving up
+CONNECT_TIMEOUT = "10s"
+
 
 def single_thread_blas() -> None:
     """Ask worker processes started from now on for single-threaded BLAS.
@@ -83,7 +86,7 @@ def dask_executor(address: str | None = None, workers: int | None = None) -> Ite
             client = stack.enter_context(Client(cluster))
         else:
             try:
-                client = stack.enter_context(Client(address, timeout="10s"))
+                client = stack.enter_context(Client(address, timeout=CONNECT_TIMEOUT))
             except (OSError, TimeoutError, ValueError) as exc:
                 raise InputError(f"cannot connect to the Dask scheduler {address!r} ({exc})",
                                  option="--scheduler") from None

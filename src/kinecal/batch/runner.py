@@ -224,7 +224,7 @@ def run_batch(
         except CancelledError:
             outcome = None
             exc: BaseException | None = RuntimeError("cancelled")
-        except Exception as err:  # noqa: BLE001 - anything raised is recorded
+        except Exception as err:  # anything raised (pickling, scheduler) is recorded
             outcome, exc = None, err
         else:
             exc = None
