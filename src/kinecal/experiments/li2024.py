@@ -37,7 +37,7 @@ from kinecal.spatial import (
     transform_from,
 )
 
-__all__ = ["NOISE_MODEL", "render", "run"]
+__all__ = ["NOISE_MODEL", "assemble", "experiment1", "refinement", "render", "run", "sweeps"]
 
 PAPER = "li2024"
 SOURCE = "papers/001"
@@ -233,6 +233,15 @@ def run(quick: bool = False, seed: int = 0, out_dir: str | Path | None = None,
     e1 = experiment1(trials, rng)
     sw = sweeps(4 if quick else 40, rng, quick)
     rf = refinement(2 if quick else 10, rng, 60 if quick else 200)
+    result = assemble(e1, sw, rf, trials, seed)
+    if out_dir is not None:
+        result["figures"] = _figures(result, Path(out_dir))
+    return result
+
+
+def assemble(e1: dict[str, Any], sw: dict[str, Any], rf: dict[str, Any], trials: int,
+             seed: int) -> dict[str, Any]:
+    """The result dict of `run` from the outputs of `experiment1`, `sweeps`, `refinement`."""
     red = e1["reduction_vs_random"]
     rows = [
         {"experiment": "1 (N=19, |Pc|=380, r=60)", "quantity": "rotation error, scheme vs random",
@@ -255,8 +264,6 @@ def run(quick: bool = False, seed: int = 0, out_dir: str | Path | None = None,
               "units": {"rotation": "deg (geodesic)", "translation": "mm"},
               "trials": trials, "seed": seed, "rows": rows, "experiment1": e1, "sweeps": sw,
               "refinement": rf}
-    if out_dir is not None:
-        result["figures"] = _figures(result, Path(out_dir))
     return result
 
 
