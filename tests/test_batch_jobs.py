@@ -7,7 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from kinecal.batch import Job, coverage_table, load_jobs, parse_jobs, run_job, study_table
+from kinecal.batch import (
+    Job,
+    coverage_table,
+    load_jobs,
+    parameter_coverage,
+    parse_jobs,
+    run_job,
+    study_table,
+)
 from kinecal.batch.runner import JobRecord
 from kinecal.batch.tables import Z95
 from kinecal.errors import InputError
@@ -123,7 +131,11 @@ def test_coverage_table_counts_truths_inside_the_intervals():
     assert rows[0]["runs_all_covered"] == pytest.approx(0.5)
     z = np.array([1.9, -0.5, 2.0, 0.0])
     assert rows[0]["z_rms"] == pytest.approx(np.sqrt(np.mean(z * z)))
+    assert rows[0]["z_median_abs"] == pytest.approx(np.median(np.abs(z)))
     assert 0.19 / 0.1 < Z95 < 0.2 / 0.1
+    per = parameter_coverage([inside, outside, other])
+    assert [(r["parameter"], r["runs"], r["coverage"]) for r in per] == [
+        ("p0", 3, pytest.approx(2 / 3)), ("p1", 2, 1.0)]
 
 
 def test_study_table_medians_over_seeds_skip_failures():

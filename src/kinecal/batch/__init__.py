@@ -16,7 +16,13 @@ from __future__ import annotations
 from kinecal.batch.executors import dask_executor, local_executor
 from kinecal.batch.jobs import Job, JobsFile, Study, expand_study, load_jobs, parse_jobs
 from kinecal.batch.runner import BatchResult, JobRecord, read_result, run_batch, write_summary
-from kinecal.batch.tables import coverage_table, format_table, load_results, study_table
+from kinecal.batch.tables import (
+    coverage_table,
+    format_table,
+    load_results,
+    parameter_coverage,
+    study_table,
+)
 from kinecal.batch.work import run_job
 
 __all__ = [
@@ -32,6 +38,7 @@ __all__ = [
     "load_jobs",
     "load_results",
     "local_executor",
+    "parameter_coverage",
     "parse_jobs",
     "read_result",
     "run_batch",
