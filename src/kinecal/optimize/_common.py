@@ -185,8 +185,10 @@ def distinct_others(
 ) -> np.ndarray:
     """Draw ``k`` distinct population indices per row, all different from the row's own index.
 
-    Vectorized over rows (the loops run over ``k`` only): each draw is uniform over the indices
-    not yet excluded, then mapped past the excluded ones (kept sorted per row).
+    Each row draws ``k`` distinct offsets in ``1 .. size - 1`` (the ``j``-th uniform over the
+    ``size - 1 - j`` offsets not yet taken, mapped past the taken ones) and returns
+    ``(own + offset) mod size``: uniform over the ordered ``k``-tuples of other indices.
+    Vectorized over rows; the loops run over ``k`` only.
 
     Parameters
     ----------
@@ -203,19 +205,19 @@ def distinct_others(
     numpy.ndarray of int, shape (m, k)
     """
     own = np.arange(size) if rows is None else np.asarray(rows, dtype=np.intp)
-    excluded = [own]  # per-row sorted excluded indices, one array per rank
-    out = np.empty((own.size, k), dtype=np.intp)
+    highs = (size - np.arange(k))[:, None]  # exclusive upper bounds: 1 .. size - 1 - j
+    off = rng.integers(1, highs, size=(k, own.size))
+    taken: list[np.ndarray] = []  # offsets drawn so far, sorted per row
     for j in range(k):
-        r = rng.integers(0, size - 1 - j, size=own.size)
-        for e in excluded:
+        r = off[j]
+        for e in taken:
             r += r >= e
-        out[:, j] = r
         merged, cur = [], r
-        for e in excluded:  # insert r, keeping every row sorted
+        for e in taken:  # insert r, keeping every row sorted
             merged.append(np.minimum(e, cur))
             cur = np.maximum(e, cur)
-        excluded = [*merged, cur]
-    return out
+        taken = [*merged, cur]
+    return (own[:, None] + off.T) % size
 
 
 class Optimizer:
