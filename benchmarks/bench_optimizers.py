@@ -87,6 +87,10 @@ class Timed:
 
 
 # -- overhead --------------------------------------------------------------------------------
+#: evaluated points per iteration seen in the overhead runs, by (method, population)
+POINTS_PER_ITER: dict[tuple[str, int], float] = {}
+
+
 def overhead_kinecal(method: str, pop: int, n: int, iters: int, seed: int) -> float:
     """Per-iteration time beside the objective of one run (s)."""
     obj = Timed(sphere)
@@ -94,7 +98,9 @@ def overhead_kinecal(method: str, pop: int, n: int, iters: int, seed: int) -> fl
     res = minimize(
         obj, [(-5.12, 5.12)] * n, method, rng=seed, maxiter=iters, options={"popsize": pop}
     )
-    return (time.perf_counter() - t0 - obj.t) / max(res.nit, 1)
+    elapsed = time.perf_counter() - t0 - obj.t
+    POINTS_PER_ITER[(method, pop)] = res.nfev / max(res.nit, 1)
+    return elapsed / max(res.nit, 1)
 
 
 def overhead_pyswarms(pop: int, n: int, iters: int, seed: int) -> float | None:
@@ -163,8 +169,8 @@ def overhead_table(quick: bool) -> list[str]:
         + " | ".join(f"pop {p} (ms)" for p in pops)
         + " | "
         + " | ".join(f"/ pyswarms @{p}" for p in pops)
-        + " |",
-        "|---|" + "---:|" * (2 * len(pops)),
+        + " | points/iter @50 | us/point @50 |",
+        "|---|" + "---:|" * (2 * len(pops) + 2),
     ]
 
     def fmt(v: float | None) -> str:
@@ -173,16 +179,24 @@ def overhead_table(quick: bool) -> list[str]:
     def ratio(a: float, b: float | None) -> str:
         return "n/a" if b is None else f"{a / b:.2f}x"
 
+    def per_point(v: float | None, points: float) -> str:
+        return "n/a" if v is None else f"{1e6 * v / points:.2f}"
+
     for m, vals in rows.items():
+        pts = POINTS_PER_ITER[(m, 50)]
         lines.append(
             f"| {m} | "
             + " | ".join(fmt(v) for v in vals)
             + " | "
             + " | ".join(ratio(v, b) for v, b in zip(vals, ps, strict=True))
-            + " |"
+            + f" | {pts:.0f} | {per_point(vals[1], pts)} |"
         )
-    lines.append(f"| pyswarms GlobalBestPSO | {' | '.join(fmt(v) for v in ps)} |" + " |" * 3)
-    lines.append(f"| scipy DE (vectorized) | {' | '.join(fmt(v) for v in de)} |" + " |" * 3)
+    for label, vals in (("pyswarms GlobalBestPSO", ps), ("scipy DE (vectorized)", de)):
+        lines.append(
+            f"| {label} | {' | '.join(fmt(v) for v in vals)} |"
+            + " |" * 3
+            + f" 50 | {per_point(vals[1], 50)} |"
+        )
     lines += [
         "",
         "kinecal de / scipy DE: "
@@ -276,6 +290,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer iterations, runs and seeds")
     ap.add_argument("--out", type=Path, help="also write the markdown tables to this file")
+    ap.add_argument("--overhead-only", action="store_true", help="skip the quality tables")
     args = ap.parse_args(argv)
     head = [
         "# kinecal.optimize benchmark",
@@ -290,7 +305,7 @@ def main(argv: list[str] | None = None) -> int:
     text = head + overhead_table(args.quick)
     print("\n".join(text), flush=True)
     seeds = 2 if args.quick else 5
-    for n in (10, 25):
+    for n in () if args.overhead_only else (10, 25):
         part = ["", f"## Quality, {n}-D", "", *quality_table(n, seeds)]
         print("\n".join(part), flush=True)
         text += part
