@@ -105,13 +105,13 @@ class AFSA(Optimizer):
         N, n = self.popsize, self.n
         X = self.initial_population(N)
         Y = yield X
+        Y = Y.copy()  # X and Y are updated in place below
         self.population, self.energies = X, Y
         v2 = self.visual**2
         rows = np.arange(N)
         crowd = self.delta * N
         while True:
             k = self.nit + 1
-            X, Y = X.copy(), Y.copy()
             view = cdist(X, X, "sqeuclidean") < v2
             view[rows, rows] = False
             nf = np.add.reduce(view, axis=1, dtype=np.intp)
@@ -131,12 +131,8 @@ class AFSA(Optimizer):
             s_idx = np.flatnonzero(swarm_ok)
             f_idx = np.flatnonzero(follow_ok)
             if s_idx.size + f_idx.size:
-                moves = np.concatenate(
-                    [
-                        self.move_toward(X[s_idx], targets_c[s_idx]),
-                        self.move_toward(X[f_idx], X[jb[f_idx]]),
-                    ]
-                )
+                goals = np.concatenate([targets_c[s_idx], X[jb[f_idx]]])
+                moves = self.move_toward(X[np.concatenate([s_idx, f_idx])], goals)
                 Ym = yield moves
                 new_f = np.full(N, np.inf)
                 new_x = np.zeros_like(X)
