@@ -94,7 +94,10 @@ def test_noise_free_identifiable_job_recovers_its_truth():
     res = out["result"]
     assert res["job"] == job.spec()
     free = [n for n, p in res["parameters"].items() if p["free"]]
-    assert len(free) == res["rank"]
+    assert len(free) == res["rank"] == 20
+    # the errors sit exactly on the free (identifiable) parameters
+    moved = [n for n, p in res["parameters"].items() if res["truth"][n] != p["nominal"]]
+    assert moved == free
     for name, p in res["parameters"].items():
         # errors only on identifiable parameters: everything, free or held, equals its truth
         assert p["identified"] == pytest.approx(res["truth"][name], abs=1e-6)

@@ -82,7 +82,7 @@ def dask_executor(address: str | None = None, workers: int | None = None) -> Ite
         if address is None:
             cluster = stack.enter_context(LocalCluster(
                 n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                processes=True, host="127.0.0.1", dashboard_address=None))
+                processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0"))
             client = stack.enter_context(Client(cluster))
         else:
             try:

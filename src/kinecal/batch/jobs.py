@@ -79,8 +79,9 @@ class Job(_Common):
     errors : {"random", "zero", "identifiable"}
         True deviations of a simulated arm: uniform within the model's tolerances on every
         calibratable parameter, none, or only on the parameters identifiable from the poses
-        (so that the identified values estimate the truth itself: the Monte Carlo
-        coverage study of the standard errors).
+        at nominal, which are then exactly the free parameters of the calibration (so that
+        the identified values estimate the truth itself: the Monte Carlo coverage study
+        of the standard errors).
     seed : int
         Seed of the simulation and of the calibration's randomness.
     method, free, loss, maxiter, target, options

@@ -31,8 +31,8 @@ def job_seeds(seed: int) -> tuple[np.random.Generator, np.random.Generator]:
     return np.random.default_rng([seed, 0]), np.random.default_rng([seed, 1])
 
 
-def simulate_job(job: Job, model: Any) -> tuple[Any, Any, np.ndarray]:
-    """Simulated calibration data, validation data (or None) and true parameters.
+def simulate_job(job: Job, model: Any) -> tuple[Any, Any, np.ndarray, list[str] | None]:
+    """Simulated calibration data, validation data (or None), true parameters, free set.
 
     Parameters
     ----------
@@ -49,18 +49,27 @@ def simulate_job(job: Job, model: Any) -> tuple[Any, Any, np.ndarray]:
         ``job.validation_poses`` noisy poses of the same true arm.
     true_params : ndarray, shape (n_params,)
         True parameter vector (length unit, rad).
+    free : list of str or None
+        With ``errors: identifiable``, the parameters that carry the errors (identifiable
+        from the poses at nominal, with `kinecal.calibrate`'s rank threshold); the
+        calibration then identifies exactly these, so that each free parameter has a
+        well-defined truth. None otherwise.
     """
     from kinecal.calibration.problem import resolve_free
+    from kinecal.calibration.serial import CALIBRATION_RANK_TOL
     from kinecal.calibration.simulate import random_configurations, random_errors, simulate
     from kinecal.io.measurements import Measurements
 
     gen, gen_val = job_seeds(job.seed)
+    names = None
     if job.errors == "identifiable":
-        # errors only where the poses can see them: the identified values then estimate
-        # the true values themselves (no confounded parameter absorbs another's error)
+        # errors only where the poses can see them, and exactly these identified: the
+        # identified values then estimate the true values themselves (no confounded
+        # parameter absorbs another's error, e.g. d2/d3 of parallel axes once beta2 != 0)
         q = random_configurations(model, job.poses, gen)
         probe = Measurements(q, np.zeros((len(q), 3)), None, "poses")
-        names, _ = resolve_free(model, probe, "identifiable" if job.free == "all" else job.free)
+        names, _ = resolve_free(model, probe, "identifiable" if job.free == "all" else job.free,
+                                tol=CALIBRATION_RANK_TOL)
         errors: Any = random_errors(model, gen, names)
         sim = simulate(model, job.poses, errors=errors, noise=job.noise, rng=gen, q=q)
     else:
@@ -69,7 +78,7 @@ def simulate_job(job: Job, model: Any) -> tuple[Any, Any, np.ndarray]:
     if job.validation_poses:
         val = simulate(model, job.validation_poses, errors=sim.true_params - model.nominal,
                        noise=job.noise, rng=gen_val).data
-    return sim.data, val, sim.true_params
+    return sim.data, val, sim.true_params, names
 
 
 def _truth_table(model: Any, true_params: np.ndarray) -> dict[str, float]:
@@ -96,13 +105,14 @@ def run_job(job: Job) -> dict[str, Any]:
     t0 = time.perf_counter()
     try:
         model = load_model(job.model)
-        truth = None
+        truth, free = None, job.free
         if job.simulated:
-            data, val, truth = simulate_job(job, model)
+            data, val, truth, names = simulate_job(job, model)
+            free = free if names is None else names
         else:
             data = read_measurements(job.data, model)
             val = None if job.validation is None else read_measurements(job.validation, model)
-        res = calibrate(model, data, job.method, free=job.free, validate=val, rng=job.seed,
+        res = calibrate(model, data, job.method, free=free, validate=val, rng=job.seed,
                         loss=job.loss, maxiter=job.maxiter, target=job.target,
                         options=job.options)
         result = res.to_dict()
