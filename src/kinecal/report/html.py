@@ -1,0 +1,326 @@
+"""Self-contained HTML reports: calibration, hand-eye and paper reproduction.
+
+A report is one HTML file: inline CSS, figures embedded as base64 PNG ``data:`` URIs, no
+script and no network access. Every user-supplied string (model names, file names,
+parameter names, messages) goes through `html.escape`. Files are written atomically.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+from kinecal.io._atomic import write_text_atomic
+from kinecal.report.figures import (
+    DPI,
+    FIGSIZE,
+    calibration_figures,
+    figure_png,
+    plot_handeye_stations,
+    plot_histories,
+)
+
+__all__ = [
+    "calibration_report",
+    "fmt",
+    "handeye_report",
+    "image_tag",
+    "page",
+    "reproduce_report",
+    "table",
+]
+
+_CSS = """
+body{font-family:system-ui,-apple-system,"Segoe UI",sans-serif;margin:2em auto;max-width:60em;
+color:#222;padding:0 1em}
+h1{font-size:1.6em;margin-bottom:.2em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;
+margin-top:1.6em}
+table{border-collapse:collapse;margin:.6em 0;font-size:.92em}
+th,td{border:1px solid #ddd;padding:.25em .6em;text-align:right}
+th{background:#f3f3f3}td.l,th.l{text-align:left}
+tr.fixed td{color:#888}
+figure{margin:1em 0}figcaption{font-size:.9em;color:#555}
+img.fig{display:block;border:1px solid #eee}
+p.meta{color:#555;margin-top:0}code,pre{background:#f6f6f6;padding:.1em .3em}
+pre{padding:.6em;overflow-x:auto}
+"""
+
+#: pixel size of every embedded figure
+FIG_WIDTH, FIG_HEIGHT = round(FIGSIZE[0] * DPI), round(FIGSIZE[1] * DPI)
+
+
+def fmt(value: Any, digits: int = 4) -> str:
+    """Format a number with `digits` significant digits (``-`` for None/NaN)."""
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "-"
+        return f"{value:.{digits}g}"
+    return str(value)
+
+
+def table(header: Sequence[str] | None, rows: Iterable[Sequence[Any]], *, left: int = 1,
+          row_classes: Sequence[str] | None = None) -> str:
+    """An HTML table; every cell is formatted with `fmt` and escaped.
+
+    No header row when `header` is None. The first `left` columns are left-aligned
+    (names), the others right-aligned (numbers).
+    """
+    def cell(tag: str, k: int, v: Any) -> str:
+        cls = ' class="l"' if k < left else ""
+        return f"<{tag}{cls}>{html.escape(fmt(v))}</{tag}>"
+
+    head = ("" if header is None else
+            "<thead><tr>" + "".join(cell("th", k, h) for k, h in enumerate(header))
+            + "</tr></thead>")
+    body = []
+    for i, row in enumerate(rows):
+        cls = row_classes[i] if row_classes is not None and row_classes[i] else ""
+        attr = f' class="{html.escape(cls)}"' if cls else ""
+        body.append(f"<tr{attr}>" + "".join(cell("td", k, v) for k, v in enumerate(row))
+                    + "</tr>")
+    return f"<table>{head}<tbody>{''.join(body)}</tbody></table>"
+
+
+def image_tag(png: bytes, alt: str, caption: str = "", ident: str = "") -> str:
+    """A ``<figure>`` embedding `png` as a base64 data URI (width/height attributes set)."""
+    data = base64.b64encode(png).decode("ascii")
+    idattr = f' id="{html.escape(ident)}"' if ident else ""
+    cap = f"<figcaption>{html.escape(caption)}</figcaption>" if caption else ""
+    return (f'<figure{idattr}><img class="fig" src="data:image/png;base64,{data}" '
+            f'alt="{html.escape(alt)}" width="{FIG_WIDTH}" height="{FIG_HEIGHT}">{cap}'
+            "</figure>")
+
+
+def section(ident: str, title: str, body: str) -> str:
+    """A ``<section>`` with an ``h2`` title (the title is escaped, the body is not)."""
+    return (f'<section id="{html.escape(ident)}"><h2>{html.escape(title)}</h2>'
+            f"{body}</section>")
+
+
+def page(title: str, subtitle: str, sections: Sequence[str]) -> str:
+    """The complete document: escaped title, inline CSS, the given sections."""
+    from kinecal import __version__
+
+    return (
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"
+        f"<h1>{html.escape(title)}</h1><p class=\"meta\">{html.escape(subtitle)} "
+        f"&middot; kinecal {html.escape(__version__)}</p>"
+        + "".join(sections) + "</body></html>\n"
+    )
+
+
+def _kv(pairs: Sequence[tuple[str, Any]]) -> str:
+    return table(None, pairs, left=1)
+
+
+# --------------------------------------------------------------------- calibration
+def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
+    nom = result.nominal_model
+    unit = nom.length_unit
+    angle = "deg" if nom.angle_unit == "deg" else "rad"
+    rep = result.identifiability
+    n_val = None if result.val_before is None else int(result.val_before.size)
+    data_src = result.extra.get("data") if isinstance(result.extra, dict) else None
+    summary = _kv([
+        ("model", nom.name), ("convention", nom.convention), ("joints", nom.n_joints),
+        ("parameters", nom.n_params), ("units", f"{unit}, {angle}"),
+        ("method", result.method), ("seed", result.seed),
+        ("calibration poses", int(result.errors_before.size)), ("validation poses", n_val),
+        *([("data", data_src)] if data_src else []),
+        ("iterations", int(result.iterations)), ("evaluations", int(result.evaluations)),
+        ("time [s]", float(result.seconds)), ("solver message", result.message or "-"),
+    ])
+    confounded = [
+        (name, ", ".join(f"{c:+.3g} {other}" for other, c in
+                         sorted(rep.confounded_with.get(name, {}).items(),
+                                key=lambda kv: -abs(kv[1]))[:4]) or "-")
+        for name in rep.unidentifiable
+    ]
+    ident = _kv([
+        ("rank", f"{rep.rank} of {len(rep.names)}"),
+        ("condition number (scaled Jacobian)", float(rep.condition_number)),
+        ("free parameters", len(result.free)),
+        *[(k, float(v)) for k, v in rep.observability.items()],
+    ])
+    if confounded:
+        ident += ("<p>Not identifiable from these poses (held at nominal), with the "
+                  "identifiable parameters each is a combination of:</p>"
+                  + table(["parameter", "combination of"], confounded, left=2))
+    else:
+        ident += "<p>Every candidate parameter is identifiable from these poses.</p>"
+    ptab = result.parameter_table()
+    names = list(ptab)
+    is_angle = dict(zip(nom.parameter_names, nom.is_angle(), strict=True))
+    prow = [(n, angle if is_angle[n] else unit, e["nominal"], e["identified"],
+             e["identified"] - e["nominal"], e["std"] if e["free"] else None,
+             "free" if e["free"] else "fixed") for n, e in ptab.items()]
+    params = table(["parameter", "unit", "nominal", "identified", "delta", "std. error",
+                    "status"], prow, left=2,
+                   row_classes=["" if ptab[n]["free"] else "fixed" for n in names])
+    stat_rows = []
+    groups = [("calibration", result.calibration_stats)]
+    if result.validation_stats is not None:
+        groups.append(("validation", result.validation_stats))
+    for label, stats in groups:
+        for when in ("before", "after"):
+            s = stats[when]
+            stat_rows.append((f"{label}, {when}", s["n"], s["mean"], s["rms"], s["std"],
+                              s["max"]))
+    errors = (table(["poses", "n", f"mean [{unit}]", f"rms [{unit}]", f"std [{unit}]",
+                     f"max [{unit}]"], stat_rows)
+              + f"<p>Mean error reduced by <b>{result.improvement_percent:.2f} %</b> on the "
+              f"{'validation' if result.validation_stats else 'calibration'} poses "
+              "(distance errors, ISO 9283-style position accuracy statistics).</p>")
+    captions = {
+        "errors": "Per-pose position error on the calibration poses, before (grey) and "
+                  "after (blue) calibration.",
+        "validation": "Per-pose position error on the held-out validation poses.",
+        "histogram": "Distribution of the calibration errors (log-spaced bins).",
+        "convergence": "Mean position error after each solver iteration.",
+    }
+    figs = "".join(image_tag(png, f"{kind} figure", captions[kind], f"fig-{kind}")
+                   for kind, png in pngs.items())
+    return [
+        section("summary", "Model and data", summary),
+        section("identifiability", "Identifiability", ident),
+        section("errors", "Position error before and after", errors),
+        section("parameters", "Parameters", params),
+        section("figures", "Figures", figs),
+    ]
+
+
+def calibration_report(result: Any, path: str | Path,
+                       pngs: dict[str, bytes] | None = None) -> Path:
+    """Write the HTML report of a `CalibrationResult`; returns `path`.
+
+    Sections: model and data, identifiability (rank, unidentifiable parameters and what
+    they are confounded with, condition number, O1-O5), before/after statistics on the
+    calibration and validation poses, parameter table (nominal, identified, delta,
+    standard error), and the figures of `kinecal.report.figures.plot_calibration`
+    (`pngs`, computed when omitted).
+    """
+    pngs = calibration_figures(result) if pngs is None else pngs
+    nom = result.nominal_model
+    doc = page(f"Calibration of {nom.name}",
+               f"method {result.method}, {int(result.errors_before.size)} calibration poses",
+               _calibration_sections(result, pngs))
+    path = Path(path)
+    write_text_atomic(path, doc)
+    return path
+
+
+# ----------------------------------------------------------------------- hand-eye
+def handeye_report(result: dict[str, Any], path: str | Path) -> Path:
+    """Write the HTML report of a hand-eye result dict (``kinecal handeye --json``).
+
+    Sections: setup and solver, the transform X, residual statistics, per-station residual
+    table and figure (outliers marked).
+    """
+    stations = result.get("stations") or []
+    outliers = {int(i) for i in result.get("outliers") or []}
+    setup = str(result.get("setup", "eye-in-hand"))
+    frame = "cam2flange" if setup == "eye-in-hand" else "cam2base"
+    summary = _kv([
+        ("file", result.get("file", "-")), ("setup", setup),
+        ("method", result.get("method", "-")), ("refinement", result.get("refine", "-")),
+        ("stations", len(stations)), ("seed", result.get("seed")),
+        ("rotation rms [deg]", result.get("rotation_rms_deg")),
+        ("translation rms", result.get("translation_rms")),
+        ("outlier stations (0-based)", ", ".join(str(i) for i in sorted(outliers)) or "none"),
+    ])
+    X = result.get("X") or []
+    xtab = table(["", "c1", "c2", "c3", "t"],
+                 [[f"r{i + 1}", *[float(v) for v in row]] for i, row in enumerate(X)])
+    srows = [(k, s.get("rotation_deg"), s.get("translation"),
+              "outlier" if k in outliers else "") for k, s in enumerate(stations)]
+    stab = table(["station", "rotation [deg]", "translation", ""], srows)
+    fig = image_tag(figure_png(plot_handeye_stations(result)), "per-station residuals",
+                    "Rotation and translation residual of every station (red: outliers).",
+                    "fig-stations")
+    doc = page("Hand-eye calibration", f"{setup}, method {result.get('method', '-')}", [
+        section("summary", "Setup and solver", summary),
+        section("transform", f"X ({frame})", xtab),
+        section("figures", "Per-station residuals", fig),
+        section("stations", "Stations", stab),
+    ])
+    path = Path(path)
+    write_text_atomic(path, doc)
+    return path
+
+
+# ---------------------------------------------------------------------- reproduce
+def _histories(obj: Any, prefix: str = "") -> dict[str, list[float]]:
+    """Every numeric list stored under a key containing ``history`` (nested dicts)."""
+    found: dict[str, list[float]] = {}
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            name = f"{prefix}.{k}" if prefix else str(k)
+            if ("history" in str(k) and isinstance(v, list) and len(v) > 1
+                    and all(isinstance(x, int | float) for x in v)):
+                found[name] = [float(x) for x in v]
+            else:
+                found.update(_histories(v, name))
+    return found
+
+
+def _flat(obj: Any, prefix: str = "") -> list[tuple[str, Any]]:
+    """Scalars of nested dicts as ``(dotted.key, value)``; long lists summarised."""
+    out: list[tuple[str, Any]] = []
+    for k, v in obj.items():
+        name = f"{prefix}.{k}" if prefix else str(k)
+        if isinstance(v, dict):
+            out += _flat(v, name)
+        elif isinstance(v, list):
+            if len(v) <= 8 and all(isinstance(x, int | float | str) for x in v):
+                out.append((name, ", ".join(fmt(x) for x in v)))
+            else:
+                out.append((name, f"[{len(v)} values]"))
+        else:
+            out.append((name, v))
+    return out
+
+
+def reproduce_report(result: dict[str, Any], path: str | Path) -> Path:
+    """Write the HTML report of a paper reproduction (``experiments.<paper>.run()``).
+
+    Sections: the rows table (the paper's values beside kinecal's), the experiment's own
+    text rendering when its module is importable, the other numbers, and convergence
+    curves of every ``*history*`` list found in the result.
+    """
+    paper = str(result.get("paper", "?"))
+    rows = [r for r in result.get("rows") or [] if isinstance(r, dict)]
+    cols: list[str] = []
+    for r in rows:
+        cols += [c for c in r if c not in cols]
+    rtab = table(cols, [[r.get(c) for c in cols] for r in rows]) if rows else "<p>no rows</p>"
+    sections = [section("rows", "Table", rtab)]
+    try:
+        from kinecal.experiments import experiment_module
+
+        text = experiment_module(paper).render(result)
+        sections.append(section("rendered", "As printed by kinecal reproduce",
+                                f"<pre>{html.escape(text)}</pre>"))
+    except Exception:  # the report must not fail on an unknown or older result dict
+        pass
+    other = {k: v for k, v in result.items() if k not in ("rows", "paper")}
+    sections.append(section("details", "Details", _kv(_flat(other))))
+    hist = _histories(result)
+    if hist:
+        png = figure_png(plot_histories(hist))
+        sections.append(section("figures", "Convergence",
+                                image_tag(png, "convergence", ", ".join(hist), "fig-history")))
+    doc = page(f"Reproduction of {paper}", str(result.get("source", "")), sections)
+    path = Path(path)
+    write_text_atomic(path, doc)
+    return path
