@@ -270,7 +270,8 @@ def assemble(e1: dict[str, Any], sw: dict[str, Any], rf: dict[str, Any], trials:
     rows.append({"experiment": "refinement",
                  "quantity": "iterations to 99 % of the gain (median), IGWO / DLH-GWO-DE",
                  "paper": "DLH-GWO-DE faster", "kinecal":
-                 f"{it['igwo']:g} / {it['dlh-gwo-de']:g} (of {rf['maxiter']})"})
+                 " / ".join(f"{it[m]:g}" if it[m] <= rf["maxiter"] else f"> {rf['maxiter']}"
+                            for m in ("igwo", "dlh-gwo-de"))})
     f = rf["fitness"]
     rows.append({"experiment": "refinement", "quantity": "final fitness DLH-GWO-DE vs IGWO",
                  "paper": "DLH-GWO-DE lower", "kinecal":
