@@ -37,6 +37,8 @@ _COMMAND_MODULES = [
     "kinecal.cli.handeye",
     "kinecal.cli.stewart",
     "kinecal.cli.batch",
+    "kinecal.cli.demo",
+    "kinecal.cli.bench",
 ]
 
 
