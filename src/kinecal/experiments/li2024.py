@@ -192,6 +192,7 @@ def _figures(result: dict[str, Any], out_dir: Path) -> list[str]:
         ax[1].set_ylabel("translation error (mm)")
         for a in ax:
             a.set_xlabel(labels[var])
+            a.set_yscale("log")
             a.legend()
         fig.suptitle(f"li2024 experiment {fig_no - 2} (paper fig. {fig_no})")
         fig.tight_layout()
