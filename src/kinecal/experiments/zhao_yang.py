@@ -165,6 +165,11 @@ def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
         runs = [_one_seed(model, s, k, size, quiet) for s in seeds]
         for method in METHODS:
             rows.append(_aggregate(method, setting, runs))
+        # per seed: does SA-IAFSA end below plain AFSA (papers/002 Table 4's claim)?
+        wins = sum(r["methods"]["sa-iafsa"]["calibration"]["after"]["mean"]
+                   < r["methods"]["afsa"]["calibration"]["after"]["mean"] for r in runs)
+        rows[-len(METHODS) + METHODS.index("sa-iafsa")]["seeds_better_than_afsa"] = int(wins)
+        for method in METHODS:
             if method != "lm-20":
                 curves[f"{setting}: {method}"] = runs[0]["methods"][method]["history"]
         if k == 0:
@@ -244,6 +249,10 @@ def render(result: dict[str, Any]) -> str:
         ["setting", "method", "free", "before mean", "before std", "before max", "after mean",
          "after std", "after max", "validation mean", "improvement %", "paper %", "seconds"],
         rows))
+    for r in result["rows"]:
+        if "seeds_better_than_afsa" in r:
+            out.append(f"{r['setting']}: SA-IAFSA ends below AFSA in "
+                       f"{r['seeds_better_than_afsa']} of {len(r['per_seed'])} seeds")
     out.append("(averages over the seeds; improvement = 100 (1 - mean after / mean before) on "
                f"the calibration poses; paper: {result['paper_improvement_percent']} %)")
     if "figure" in result:
