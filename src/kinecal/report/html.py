@@ -69,7 +69,7 @@ def fmt(value: Any, digits: int = 4) -> str:
 
 
 def table(header: Sequence[str] | None, rows: Iterable[Sequence[Any]], *, left: int = 1,
-          row_classes: Sequence[str] | None = None) -> str:
+          row_classes: Sequence[str] | None = None, digits: int = 4) -> str:
     """An HTML table; every cell is formatted with `fmt` and escaped.
 
     No header row when `header` is None. The first `left` columns are left-aligned
@@ -77,7 +77,7 @@ def table(header: Sequence[str] | None, rows: Iterable[Sequence[Any]], *, left: 
     """
     def cell(tag: str, k: int, v: Any) -> str:
         cls = ' class="l"' if k < left else ""
-        return f"<{tag}{cls}>{html.escape(fmt(v))}</{tag}>"
+        return f"<{tag}{cls}>{html.escape(fmt(v, digits))}</{tag}>"
 
     head = ("" if header is None else
             "<thead><tr>" + "".join(cell("th", k, h) for k, h in enumerate(header))
@@ -179,7 +179,7 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
                               s["max"]))
     errors = (table(["poses", "n", f"mean [{unit}]", f"rms [{unit}]", f"std [{unit}]",
                      f"max [{unit}]"], stat_rows)
-              + f"<p>Mean error reduced by <b>{result.improvement_percent:.2f} %</b> on the "
+              + f"<p>Mean error reduced by <strong>{result.improvement_percent:.2f} %</strong> on the "
               f"{'validation' if result.validation_stats else 'calibration'} poses "
               "(distance errors, ISO 9283-style position accuracy statistics).</p>")
     captions = {
@@ -303,7 +303,8 @@ def reproduce_report(result: dict[str, Any], path: str | Path) -> Path:
     cols: list[str] = []
     for r in rows:
         cols += [c for c in r if c not in cols]
-    rtab = table(cols, [[r.get(c) for c in cols] for r in rows]) if rows else "<p>no rows</p>"
+    rtab = (table(cols, [[r.get(c) for c in cols] for r in rows], digits=10) if rows
+            else "<p>no rows</p>")
     sections = [section("rows", "Table", rtab)]
     try:
         from kinecal.experiments import experiment_module
@@ -314,7 +315,7 @@ def reproduce_report(result: dict[str, Any], path: str | Path) -> Path:
     except Exception:  # the report must not fail on an unknown or older result dict
         pass
     other = {k: v for k, v in result.items() if k not in ("rows", "paper")}
-    sections.append(section("details", "Details", _kv(_flat(other))))
+    sections.append(section("details", "Details", table(None, _flat(other), digits=6)))
     hist = _histories(result)
     if hist:
         png = figure_png(plot_histories(hist))
