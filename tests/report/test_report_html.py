@@ -51,7 +51,7 @@ def test_calibration_report_sections_numbers_and_figures(ur5_result, tmp_path):
     assert "<script" not in text and "http://" not in text and "https://" not in text
     # every parameter appears in the table, free ones with their standard error
     table = res.parameter_table()
-    for name, entry in table.items():
+    for name in table:
         assert f"<td class=\"l\">{name}</td>" in text
     some_free = next(n for n, e in table.items() if e["free"])
     assert fmt(table[some_free]["std"]) in text
@@ -78,7 +78,7 @@ def test_calibration_report_sections_numbers_and_figures(ur5_result, tmp_path):
 
 
 def test_per_pose_figure_shows_the_after_errors_below_the_before_errors(ur5_result):
-    fig, ax = figures.new_figure()
+    _, ax = figures.new_figure()
     figures.plot_calibration(ur5_result, "errors", ax)
     before, after = ax.collections[:2]
     top = [np.array([seg[1, 1] for seg in c.get_segments()]) for c in (before, after)]

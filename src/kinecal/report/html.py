@@ -179,7 +179,8 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
                               s["max"]))
     errors = (table(["poses", "n", f"mean [{unit}]", f"rms [{unit}]", f"std [{unit}]",
                      f"max [{unit}]"], stat_rows)
-              + f"<p>Mean error reduced by <strong>{result.improvement_percent:.2f} %</strong> on the "
+              + "<p>Mean error reduced by "
+              f"<strong>{result.improvement_percent:.2f} %</strong> on the "
               f"{'validation' if result.validation_stats else 'calibration'} poses "
               "(distance errors, ISO 9283-style position accuracy statistics).</p>")
     captions = {
