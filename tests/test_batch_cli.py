@@ -71,3 +71,18 @@ def test_batch_bad_jobs_file_exit_2(tmp_path, capsys):
     assert main(["batch", str(jobs), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "jobs.yaml" in err and "unknown method 'simplex'" in err
+
+
+def test_batch_interrupt_exits_130_and_says_how_to_resume(tmp_path, capsys, monkeypatch):
+    import kinecal.batch
+
+    def interrupted(jobs, out, on_result=None, **kwargs):
+        on_result(kinecal.batch.JobRecord("x", "lm", 0, 0.0, 10, status="done"))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(kinecal.batch, "run_batch", interrupted)
+    jobs = tmp_path / "jobs.yaml"
+    jobs.write_text(JOBS, encoding="utf-8")
+    assert main(["batch", str(jobs), "--out", str(tmp_path / "o"), "--quiet"]) == 130
+    err = capsys.readouterr().err
+    assert "interrupted: 1 of 7 jobs have results" in err and "resume" in err

@@ -62,8 +62,19 @@ def batch(
         if executor == "dask":
             ex = stack.enter_context(dask_executor(scheduler, workers))
         update = stack.enter_context(progress(f"batch {jobs_file.name}", len(jobs), quiet))
-        result = run_batch(jobs, out, executor=ex, workers=workers,
-                           on_result=lambda rec: update(1))
+        settled: list[str] = []
+
+        def on_result(rec) -> None:
+            settled.append(rec.status)
+            update(1)
+
+        try:
+            result = run_batch(jobs, out, executor=ex, workers=workers, on_result=on_result)
+        except KeyboardInterrupt:
+            finished = sum(s in ("done", "resumed") for s in settled)
+            typer.echo(f"kinecal: interrupted: {finished} of {len(jobs)} jobs have results in "
+                       f"{out}; run the same command again to resume", err=True)
+            raise typer.Exit(130) from None
     records = result.records
     if not quiet:
         if len(records) <= MAX_PRINTED_ROWS:
