@@ -26,7 +26,16 @@ try:  # typer >= 0.20 ships its own copy of click; catch its exceptions as well 
     from typer._click import exceptions as _tclick
 except ImportError:  # pragma: no cover - older typer uses click itself
     _tclick = click.exceptions
+import typer.exceptions as _texc  # noqa: E402
+
 from kinecal.errors import InputError  # noqa: E402
+
+# typer 0.29's bundled click has no Exit/Abort (they live in typer.exceptions): gather the
+# classes that exist, or the except clauses below raise AttributeError on any exception.
+_EXIT = tuple({c for c in (click.exceptions.Exit, getattr(_tclick, "Exit", None),
+                           getattr(_texc, "Exit", None)) if c is not None})
+_ABORT = tuple({c for c in (click.exceptions.Abort, getattr(_tclick, "Abort", None),
+                            getattr(_texc, "Abort", None)) if c is not None})
 
 __all__ = ["app", "main"]
 
@@ -63,9 +72,9 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{exc.ctx.command_path}: " if exc.ctx is not None else ""
         sys.stderr.write(f"kinecal: error: {where}{' '.join(exc.format_message().split())}\n")
         code = 2
-    except (click.exceptions.Exit, _tclick.Exit) as exc:
+    except _EXIT as exc:
         code = exc.exit_code
-    except (click.exceptions.Abort, _tclick.Abort):
+    except _ABORT:
         sys.stderr.write("kinecal: aborted\n")
         code = 130
     except (click.ClickException, _tclick.ClickException) as exc:

@@ -9,6 +9,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
+from kinecal.errors import InputError
+
 __all__ = ["atomic_open", "write_bytes_atomic", "write_text_atomic"]
 
 
@@ -20,9 +22,14 @@ def atomic_open(path: str | Path, mode: str = "w", encoding: str | None = "utf-8
     existing `path` untouched.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.is_dir():
+        raise InputError("is a directory; expected a file path to write", file=path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:  # parent is a file, no permission, read-only file system
+        raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None
     binary = "b" in mode
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         os.chmod(tmp, _file_mode(path))  # mkstemp makes 0600; a result file is 0644-like
         with os.fdopen(fd, mode, encoding=None if binary else encoding, newline=None) as fh:
