@@ -152,3 +152,17 @@ def test_job_that_always_kills_its_worker_is_given_up(tmp_path, monkeypatch):
     assert rec.status == "failed" and rec.attempts == 2 and "worker died" in rec.error
     assert [r.status for r in out.records] == ["failed", "failed"]
     assert not list((tmp_path / "out").glob("*.json"))
+
+
+def test_any_executor_thread_pool_instance_and_factory(tmp_path):
+    from concurrent.futures import ThreadPoolExecutor
+
+    jobs = parse_jobs({"study": {**STUDY, "methods": ["householder"], "seeds": [0, 1],
+                                 "noise": [0.01]}})
+    with ThreadPoolExecutor(2) as ex:
+        given = run_batch(jobs, tmp_path / "given", executor=ex)
+    made = run_batch(jobs, tmp_path / "made", executor=lambda: ThreadPoolExecutor(2))
+    assert given.counts == made.counts == {"done": 2}
+    for job in jobs:
+        assert _strip(json.loads((tmp_path / "given" / f"{job.name}.json").read_text())) == \
+            _strip(json.loads((tmp_path / "made" / f"{job.name}.json").read_text()))

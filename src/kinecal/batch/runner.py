@@ -23,7 +23,7 @@ import json
 import math
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, CancelledError, Executor, wait
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -241,8 +241,13 @@ def run_batch(
             result = outcome["result"]
             result["batch"] = {"seconds": outcome["seconds"], "attempts": rec.attempts}
             text = json.dumps(result, indent=2, default=_json_default, allow_nan=True)
-            write_text_atomic(out / f"{job.name}.json", text + "\n")
-            rec.fill(result, outcome["seconds"], "done")
+            try:
+                write_text_atomic(out / f"{job.name}.json", text + "\n")
+            except OSError as err:  # e.g. disk full: this job has no result, go on
+                rec.status, rec.kind = "failed", "internal"
+                rec.error = f"cannot write {job.name}.json: {err}"
+            else:
+                rec.fill(result, outcome["seconds"], "done")
         else:
             rec.status, rec.error, rec.kind = "failed", outcome["error"], outcome["kind"]
             rec.seconds = outcome["seconds"]
@@ -272,7 +277,7 @@ def run_batch(
                 for fut in done:
                     handle(fut, inflight.pop(fut))
                 if owned:
-                    current.shutdown(wait=False, cancel_futures=True)
+                    _shutdown(current, wait=False)
                     current = None
                 else:  # a given executor cannot be replaced
                     for job in todo:
@@ -286,7 +291,7 @@ def run_batch(
         for fut in inflight:
             fut.cancel()
         if owned and current is not None:
-            current.shutdown(wait=not interrupted, cancel_futures=True)
+            _shutdown(current, wait=not interrupted)
         summary = out / "summary.csv"
         write_summary(summary, [records[job.name] for job in jobs])
     return BatchResult([records[job.name] for job in jobs], out, summary)
@@ -298,6 +303,9 @@ def _cpu_count() -> int:
     return os.cpu_count() or 1
 
 
-def record_fields() -> list[str]:
-    """Names of the `JobRecord` fields (for tables)."""
-    return [f.name for f in fields(JobRecord)]
+def _shutdown(executor: Executor, wait: bool) -> None:
+    """Shut `executor` down, cancelling queued jobs where the executor supports it."""
+    try:
+        executor.shutdown(wait=wait, cancel_futures=True)
+    except TypeError:  # e.g. Dask's ClientExecutor: no cancel_futures (wait=False cancels)
+        executor.shutdown(wait=wait)
