@@ -119,7 +119,11 @@ def fk(
 def _free_option(free: str) -> str | list[str]:
     if free in ("all", "identifiable"):
         return free
-    return [n.strip() for n in free.split(",") if n.strip()]
+    names = [n.strip() for n in free.split(",") if n.strip()]
+    if not names:
+        raise InputError("expected all, identifiable or comma-separated parameter names",
+                         option="--free")
+    return names
 
 
 @app.command()
