@@ -126,3 +126,22 @@ def test_metaheuristic_refiners_lower_the_fitness_and_are_deterministic(refine):
     assert a.history[-1] <= a.history[0]
     assert np.all(np.diff(a.history) <= 0)
     assert a.nfev > 0
+
+
+def test_lm_jacobian_matches_finite_differences():
+    from kinecal.calibration.handeye.refine import _update, residual_jacobian
+
+    rng = np.random.default_rng(11)
+    G, C = stations(n=6, seed=11)
+    X0 = X_TRUE @ transform_from(matrix_from_axis_angle([0.05, 0.0, -0.03]), [1.0, 2.0, 0.0])
+    p = rng.normal(size=12) * 0.2
+
+    def f(p):
+        rot, tr = camera_residuals(G, C, _update(X0, p[:6]), _update(Y_TRUE, p[6:]))
+        return np.concatenate([rot, tr], axis=1)
+
+    J = residual_jacobian(G, C, X0, Y_TRUE, p)
+    h = 1e-6
+    Jn = np.stack([(f(p + h * e) - f(p - h * e)) / (2 * h) for e in np.eye(12)], axis=-1)
+    assert J.shape == (6, 6, 12)
+    assert np.abs(J - Jn).max() < 1e-6 * max(1.0, np.abs(Jn).max())

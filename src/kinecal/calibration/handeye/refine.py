@@ -31,12 +31,13 @@ from kinecal.spatial import (
     axis_angle_from_matrix,
     invert_transform,
     matrix_from_axis_angle,
+    skew,
     transform_from,
 )
 
 Array = NDArray[np.float64]
 
-__all__ = ["LMRefinement", "camera_residuals", "flag_outliers", "lm"]
+__all__ = ["LMRefinement", "camera_residuals", "flag_outliers", "lm", "residual_jacobian"]
 
 #: Median of the chi distribution with 3 degrees of freedom (scale of |3-vector| of N(0, s)).
 _CHI3_MEDIAN = float(np.sqrt(chdtri(3, 0.5)))
@@ -102,6 +103,58 @@ def camera_residuals(G: Array, C: Array, X: Array, Y: Array) -> tuple[Array, Arr
     return rot, C[:, :3, 3] - pred[:, :3, 3]
 
 
+def _jr(w: Array) -> Array:
+    """Right Jacobian of SO(3) at rotation vectors ``(..., 3)`` -> ``(..., 3, 3)``."""
+    th = np.linalg.norm(w, axis=-1)[..., None, None]
+    small = th < 1e-6
+    ts = np.where(small, 1.0, th)
+    a = np.where(small, 0.5 - th**2 / 24.0, (1.0 - np.cos(ts)) / ts**2)
+    b = np.where(small, 1.0 / 6.0 - th**2 / 120.0, (ts - np.sin(ts)) / ts**3)
+    K = skew(w)
+    return np.eye(3) - a * K + b * (K @ K)
+
+
+def _jr_inv(w: Array) -> Array:
+    """Inverse right Jacobian of SO(3) at rotation vectors ``(..., 3)`` -> ``(..., 3, 3)``."""
+    th = np.linalg.norm(w, axis=-1)[..., None, None]
+    small = th < 1e-6
+    ts = np.where(small, 1.0, np.minimum(th, np.pi - 1e-6))
+    c = np.where(small, 1.0 / 12.0 + th**2 / 720.0,
+                 1.0 / ts**2 - (1.0 + np.cos(ts)) / (2.0 * ts * np.sin(ts)))
+    K = skew(w)
+    return np.eye(3) + 0.5 * K + c * (K @ K)
+
+
+def residual_jacobian(G: Array, C: Array, X0: Array, Y0: Array, p: Array) -> Array:
+    """Analytic Jacobian ``(n, 6, 12)`` of `camera_residuals` (unscaled) w.r.t. ``p``.
+
+    ``p = (omega_X, v_X, omega_Y, v_Y)`` with ``X = (R_X0 Exp(omega_X), t_X0 + v_X)`` and the
+    same for Y. With ``E_i = R_Y^T R_Gi R_X R_Ci`` (rotation residual ``log E_i``) and the
+    right Jacobian ``J_r`` of SO(3):
+
+    - ``d log E / d omega_X = J_r^-1(log E) R_C^T J_r(omega_X)``,
+    - ``d log E / d omega_Y = -J_r^-1(log E) E^T J_r(omega_Y)``,
+    - ``d t / d omega_X = -[t^]x J_r(omega_X)``, ``d t / d v_X = R_X^T``,
+      ``d t / d v_Y = -R_X^T R_G^T`` for the translation residual ``t = t_C - t^``.
+    """
+    X = _update(X0, p[:6])
+    Y = _update(Y0, p[6:])
+    rot, tr = camera_residuals(G, C, X, Y)
+    pred_t = C[:, :3, 3] - tr
+    RX, RY = X[:3, :3], Y[:3, :3]
+    RC = C[:, :3, :3]
+    E = RY.T @ G[:, :3, :3] @ RX @ RC
+    Jinv = _jr_inv(rot)
+    n = len(G)
+    J = np.zeros((n, 6, 12))
+    J[:, :3, 0:3] = Jinv @ np.swapaxes(RC, 1, 2) @ _jr(p[0:3])
+    J[:, :3, 6:9] = -Jinv @ np.swapaxes(E, 1, 2) @ _jr(p[6:9])
+    J[:, 3:, 0:3] = -skew(pred_t) @ _jr(p[0:3])
+    J[:, 3:, 3:6] = RX.T
+    J[:, 3:, 9:12] = -RX.T @ np.swapaxes(G[:, :3, :3], 1, 2)
+    return J
+
+
 def _scales(rot: Array, trans: Array, L: float) -> tuple[float, float]:
     sr = float(np.median(np.linalg.norm(rot, axis=1))) / _CHI3_MEDIAN
     st = float(np.median(np.linalg.norm(trans, axis=1))) / _CHI3_MEDIAN
@@ -155,11 +208,17 @@ def lm(
         nonlocal nfev
         sw = np.sqrt(w)[:, None]
 
+        scale = np.r_[[1.0 / sr] * 3, [1.0 / st] * 3]
+
         def fun(p: Array) -> Array:
             rot, tr = camera_residuals(G, C, _update(X, p[:6]), _update(Y, p[6:]))
             return np.concatenate([sw * rot / sr, sw * tr / st], axis=1).ravel()
 
-        sol = least_squares(fun, np.zeros(12), method="lm", x_scale="jac")
+        def jac(p: Array) -> Array:
+            J = residual_jacobian(G, C, X, Y, p)  # (n, 6, 12)
+            return (J * (scale[None, :, None] * sw[:, :, None])).reshape(-1, 12)
+
+        sol = least_squares(fun, np.zeros(12), jac=jac, method="lm", x_scale="jac")
         nfev += int(sol.nfev)
         return _update(X, sol.x[:6]), _update(Y, sol.x[6:]), float(2.0 * sol.cost)
 
