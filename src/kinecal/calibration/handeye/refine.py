@@ -16,6 +16,10 @@ translation residuals, which sets the rotation / translation weighting from the 
 iteratively reweighted Levenberg-Marquardt with Cauchy weights on the station distance
 ``d_i = |r_i|`` and then flags stations with ``d_i^2`` beyond the chi-square(6) quantile
 ``outlier_level`` as outliers; a last non-robust pass uses the inliers only.
+
+Each pass is scipy's MINPACK Levenberg-Marquardt with the analytic Jacobian
+(`residual_jacobian`, through the right Jacobian of SO(3)), checked against finite
+differences in the tests.
 """
 
 from __future__ import annotations
