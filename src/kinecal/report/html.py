@@ -14,6 +14,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+from kinecal.errors import InputError
 from kinecal.io._atomic import write_text_atomic
 from kinecal.report.figures import (
     DPI,
@@ -211,6 +212,9 @@ def calibration_report(result: Any, path: str | Path,
     standard error), and the figures of `kinecal.report.figures.plot_calibration`
     (`pngs`, computed when omitted).
     """
+    path = Path(path)
+    if path.is_dir():  # before the figures: fail fast on a user mistake
+        raise InputError("is a directory; expected a file path to write", file=path)
     pngs = calibration_figures(result) if pngs is None else pngs
     nom = result.nominal_model
     doc = page(f"Calibration of {nom.name}",
