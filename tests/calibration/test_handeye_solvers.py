@@ -172,3 +172,21 @@ def test_bad_input_errors():
     bad[2, :3, :3] *= 1.1
     with pytest.raises(InputError, match="orthonormal"):
         calibrate_handeye(bad, C)
+
+
+def test_axxb_station_rms_matches_loop():
+    from kinecal.calibration.handeye._motions import motion_pairs
+    from kinecal.calibration.handeye.errors import axxb_station_rms
+
+    G, C = synthetic(n=6, seed=8)
+    X = X_TRUE @ transform_from(matrix_from_axis_angle([0.01, 0.02, 0.0]), [1.0, 0.0, 2.0])
+    rot, tr = axxb_station_rms(G, C, X)
+    A, B = motion_pairs(G, C)  # pairs (i, j), i < j, in np.triu_indices order
+    i, j = np.triu_indices(6, k=1)
+    for s in range(6):
+        mask = (i == s) | (j == s)
+        r, t = axxb_residuals(A[mask], B[mask], X)
+        assert rot[s] == pytest.approx(np.sqrt(np.mean(r**2)), rel=1e-12)
+        assert tr[s] == pytest.approx(np.sqrt(np.mean(t**2)), rel=1e-12)
+    res = calibrate_handeye(G, C, refine="none")
+    assert res.axxb_rotation_deg.max() < 1e-8 and len(res.to_dict()["axxb_stations"]) == 6

@@ -22,7 +22,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinecal.calibration.handeye import axxb, axzb
 from kinecal.calibration.handeye._motions import as_transforms, check_motions, motion_pairs
-from kinecal.calibration.handeye.errors import mean_target_pose, rms, station_residuals
+from kinecal.calibration.handeye.errors import (
+    axxb_station_rms,
+    mean_target_pose,
+    rms,
+    station_residuals,
+)
 from kinecal.errors import InputError
 from kinecal.spatial import invert_transform
 
@@ -50,6 +55,8 @@ class HandEyeResult:
         What was run.
     rotation_deg, translation : ndarray, shape (n,)
         Per-station residual of ``G_i X C_i`` against ``Y`` (deg, length unit).
+    axxb_rotation_deg, axxb_translation : ndarray, shape (n,)
+        Per-station rms of the ``A X - X B`` mismatch over all pairs with that station.
     outliers : list of int
         0-based indices of stations flagged as outliers.
     history : list of float
@@ -67,6 +74,8 @@ class HandEyeResult:
     refine: str
     rotation_deg: Array
     translation: Array
+    axxb_rotation_deg: Array
+    axxb_translation: Array
     outliers: list[int] = field(default_factory=list)
     history: list[float] = field(default_factory=list)
     nfev: int = 0
@@ -95,6 +104,10 @@ class HandEyeResult:
             "stations": [
                 {"rotation_deg": float(r), "translation": float(t)}
                 for r, t in zip(self.rotation_deg, self.translation, strict=True)
+            ],
+            "axxb_stations": [
+                {"rotation_deg": float(r), "translation": float(t)}
+                for r, t in zip(self.axxb_rotation_deg, self.axxb_translation, strict=True)
             ],
             "outliers": list(self.outliers),
             "nfev": self.nfev,
@@ -225,5 +238,6 @@ def calibrate_handeye(
 
         outliers = flag_outliers(G, C, X, Y)
     rot, tr = station_residuals(G, X, C, Y)
-    return HandEyeResult(X, Y, setup, method, refine, rot, tr, outliers, history, nfev,
-                         time.perf_counter() - t0)
+    arot, atr = axxb_station_rms(G, C, X)
+    return HandEyeResult(X, Y, setup, method, refine, rot, tr, arot, atr, outliers, history,
+                         nfev, time.perf_counter() - t0)

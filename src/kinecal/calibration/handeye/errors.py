@@ -7,7 +7,7 @@
   sec. 2, eq. (1)); the per-station deviation from ``Y`` is the residual reported by
   `kinecal.calibrate_handeye` and by ``kinecal handeye``.
 - `axxb_residuals`: the ``A X`` vs ``X B`` mismatch per motion pair (the quantity the
-  paper's refinement fitness is built on).
+  paper's refinement fitness is built on); `axxb_station_rms` its rms per station.
 """
 
 from __future__ import annotations
@@ -19,7 +19,13 @@ from kinecal.spatial import pose_errors, project_to_rotation, transform_from
 
 Array = NDArray[np.float64]
 
-__all__ = ["axxb_residuals", "mean_target_pose", "pose_error", "station_residuals"]
+__all__ = [
+    "axxb_residuals",
+    "axxb_station_rms",
+    "mean_target_pose",
+    "pose_error",
+    "station_residuals",
+]
 
 
 def pose_error(X_est: Array, X_true: Array) -> tuple[float, float]:
@@ -99,6 +105,36 @@ def axxb_residuals(A: Array, B: Array, X: Array) -> tuple[Array, Array]:
     """
     r, t = pose_errors(A @ X, X @ B)
     return np.degrees(r), t
+
+
+def axxb_station_rms(G: Array, C: Array, X: Array) -> tuple[Array, Array]:
+    """Per-station rms of the ``A X - X B`` mismatch over all pairs (i, j) containing it.
+
+    Parameters
+    ----------
+    G : ndarray, shape (n, 4, 4)
+        Robot poses (``flange2base`` eye-in-hand, ``base2flange`` eye-to-hand).
+    C : ndarray, shape (n, 4, 4)
+        ``target2cam``.
+    X : ndarray, shape (4, 4)
+        Hand-eye transform.
+
+    Returns
+    -------
+    rotation_deg, translation : ndarray, shape (n,)
+        Rms over the n - 1 pairs of each station (deg, length unit).
+    """
+    from kinecal.calibration.handeye._motions import motion_pairs, pair_indices
+
+    n = len(G)
+    i, j = pair_indices(n, "all")
+    A, B = motion_pairs(G, C, "all")
+    rot, tr = axxb_residuals(A, B, X)
+    sr, st = np.zeros(n), np.zeros(n)
+    for idx in (i, j):
+        np.add.at(sr, idx, rot**2)
+        np.add.at(st, idx, tr**2)
+    return np.sqrt(sr / (n - 1)), np.sqrt(st / (n - 1))
 
 
 def rms(x: Array) -> float:
