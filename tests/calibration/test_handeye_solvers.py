@@ -190,3 +190,13 @@ def test_axxb_station_rms_matches_loop():
         assert tr[s] == pytest.approx(np.sqrt(np.mean(t**2)), rel=1e-12)
     res = calibrate_handeye(G, C, refine="none")
     assert res.axxb_rotation_deg.max() < 1e-8 and len(res.to_dict()["axxb_stations"]) == 6
+
+
+def test_bad_refine_options():
+    G, C = synthetic()
+    with pytest.raises(InputError, match="unknown option"):
+        calibrate_handeye(G, C, refine="igwo", options={"wolves": 3})
+    with pytest.raises(InputError, match="rotation_weight"):
+        calibrate_handeye(G, C, rotation_weight=-1.0)
+    with pytest.raises(InputError, match="refine"):
+        calibrate_handeye(G, C, refine="gwo")

@@ -39,6 +39,8 @@ __all__ = ["METHODS", "REFINERS", "SETUPS", "HandEyeResult", "calibrate_handeye"
 METHODS: tuple[str, ...] = (*axxb.SOLVERS, *axzb.SOLVERS)
 REFINERS: tuple[str, ...] = ("none", "lm", "igwo", "dlh-gwo-de")
 SETUPS: tuple[str, ...] = ("eye-in-hand", "eye-to-hand")
+_META_OPTIONS = {"popsize", "maxiter", "rotation_box", "translation_box", "maxfev", "length",
+                 "method_options"}
 
 
 @dataclass
@@ -193,8 +195,8 @@ def calibrate_handeye(
     rotation_weight : float, optional
         ``lm`` only: length units per radian (default: from the residual scales).
     options : dict, optional
-        Metaheuristic options (``pop_size``, ``maxiter``, ``rotation_box``,
-        ``translation_box``, ``maxfev``, ``method_options``), see
+        Metaheuristic options (``popsize``, ``maxiter``, ``rotation_box``,
+        ``translation_box``, ``maxfev``, ``length``, ``method_options``), see
         `refine_meta.metaheuristic`.
 
     Returns
@@ -217,6 +219,9 @@ def calibrate_handeye(
         raise InputError(f"flange2base has {len(F)} poses but target2cam has {len(C)}")
     if len(F) < 3:
         raise InputError(f"{len(F)} stations given; hand-eye calibration needs at least 3")
+    if rotation_weight is not None and not (np.isfinite(rotation_weight) and rotation_weight > 0):
+        raise InputError(f"rotation_weight {rotation_weight}: expected a positive length per "
+                         "radian", option="rotation_weight")
     G = F if setup == "eye-in-hand" else invert_transform(F)
     X, Y = solve(G, C, method, pairs)
     history: list[float] = []
@@ -230,7 +235,12 @@ def calibrate_handeye(
     elif refine in ("igwo", "dlh-gwo-de"):
         from kinecal.calibration.handeye.refine_meta import metaheuristic
 
-        res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **(options or {}))
+        opts = dict(options or {})
+        unknown = sorted(set(opts) - _META_OPTIONS)
+        if unknown:
+            raise InputError(f"unknown option(s) {', '.join(unknown)}; expected "
+                             f"{', '.join(sorted(_META_OPTIONS))}", option="options")
+        res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **opts)
         X, history, nfev = res.X, res.history, res.nfev
         Y = mean_target_pose(G, X, C)
     if refine != "lm":
