@@ -12,7 +12,7 @@ The paper's GA, gene by gene (section 4.2, items 1-7):
    ``X' = r X + (1 - r) Y``, ``Y' = (1 - r) X + r Y``, ``r`` uniform in ``[0, 1]`` per pair;
    then each gene mutates with probability ``Pm`` to a uniform random value of its range;
 6. elitism: the best individual does not undergo crossover and mutation; it replaces the worst
-   individual of the new generation;
+   individual of the new generation (it can still be selected as a parent, like any other);
 7. stop when the best cost reaches the threshold ``eps`` (kinecal's ``target``).
 
 Defaults: ``L = 30``, ``Pc = 0.95``, ``Pm = 0.01`` (section 5).
