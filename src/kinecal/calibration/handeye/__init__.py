@@ -143,10 +143,14 @@ def solve(G: Array, C: Array, method: str = "tsai", pairs: str = "all") -> tuple
     X, Y : ndarray, shape (4, 4)
     """
     _choice(method, METHODS, "method")
-    A, B = motion_pairs(G, C, pairs)
-    check_motions(A, "robot motions")
-    check_motions(B, "camera motions")
+    # motions relative to station 0 suffice to detect degeneracy: if all of them turn about
+    # one axis, so does every pair
+    A0 = invert_transform(G[:1]) @ G[1:]
+    B0 = C[:1] @ invert_transform(C[1:])
+    check_motions(A0, "robot motions")
+    check_motions(B0, "camera motions")
     if method in axxb.SOLVERS:
+        A, B = motion_pairs(G, C, pairs)
         X = axxb.SOLVERS[method](A, B)
         return X, mean_target_pose(G, X, C)
     # A_i X' = Z' B_i with A_i = C_i, B_i = G_i^-1, X' = Y^-1, Z' = X^-1
