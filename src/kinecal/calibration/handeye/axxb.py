@@ -43,8 +43,8 @@ def tsai(A: Array, B: Array) -> Array:
 
     Rotation: with the modified Rodrigues vectors ``P = 2 sin(theta/2) k`` of ``R_A``
     (their ``Pgij``) and ``R_B`` (``Pcij``), solve ``skew(P_A + P_B) P' = P_B - P_A`` by
-    least squares, then ``P_X = 2 P' / sqrt(1 + |P'|^2)`` (sec. IV, steps 1-2). Translation:
-    ``(R_A - I) t_X = R_X t_B - t_A`` (step 3).
+    least squares, then ``P_X = 2 P' / sqrt(1 + |P'|^2)`` (the rotation step of the paper's
+    two-step procedure). Translation: ``(R_A - I) t_X = R_X t_B - t_A`` (its second step).
 
     Parameters
     ----------
@@ -80,7 +80,7 @@ def park(A: Array, B: Array) -> Array:
 
     With ``alpha = log R_A`` and ``beta = log R_B`` (so ``alpha = R_X beta``), the
     least-squares rotation is ``R_X = (M^T M)^(-1/2) M^T`` with ``M = sum beta alpha^T``
-    (their eq. for the closed form, sec. III). It is computed as the orthogonal polar
+    (the paper's closed-form least-squares solution). It is computed as the orthogonal polar
     factor of ``M^T`` by SVD (equal to that formula whenever ``M^T M`` is invertible, and
     still defined with only two independent axes). Translation by least squares on
     ``(R_A - I) t_X = R_X t_B - t_A``.
@@ -109,7 +109,7 @@ def horaud(A: Array, B: Array) -> Array:
 
     Rotation by unit quaternions: minimise ``sum |q_A * q_X - q_X * q_B|^2`` over unit
     ``q_X``, i.e. the eigenvector of the smallest eigenvalue of
-    ``sum (Q(q_A) - W(q_B))^T (Q(q_A) - W(q_B))`` (sec. 4, the linear closed form of the
+    ``sum (Q(q_A) - W(q_B))^T (Q(q_A) - W(q_B))`` (the paper's linear closed form of the
     rotation). Translation by least squares on ``(R_A - I) t_X = R_X t_B - t_A``.
 
     Parameters
@@ -140,7 +140,7 @@ def andreff(A: Array, B: Array) -> Array:
     """Andreff, Horaud & Espiau (2001), "Robot hand-eye calibration using
     structure-from-motion", Int. J. Robot. Res. 20(3).
 
-    The linear formulation with the Kronecker product (sec. 3): ``R_A R_X R_B^T = R_X``
+    The paper's linear formulation with the Kronecker product: ``R_A R_X R_B^T = R_X``
     gives ``(I_9 - R_A (x) R_B) vec(R_X) = 0`` (row-major vec); its null space is taken
     from the SVD of the stacked 9m x 9 matrix, scaled so that ``det = +1`` and projected on
     SO(3) (the orthogonalisation step of the paper). The translation rows
@@ -175,10 +175,10 @@ def daniilidis(A: Array, B: Array) -> Array:
 
     Each motion is a dual quaternion ``a = q + eps q'`` with ``q' = 1/2 t * q``; the
     screw-motion equation ``a x = x b`` is linear in ``x = (q_X, q'_X)``. Stacking its
-    rows gives a matrix T (sec. 5: the 6m x 8 matrix; here all 8 rows per motion, the
+    rows gives the paper's matrix T (6m x 8 there; here all 8 rows per motion, the
     scalar rows being redundant when noise-free) whose two right singular vectors of
     smallest singular value span the solution; the constraints ``q^T q = 1`` and
-    ``q^T q' = 0`` give a quadratic in the ratio of the two coefficients (sec. 5, the
+    ``q^T q' = 0`` give a quadratic in the ratio of the two coefficients (the paper's
     equations for lambda_1, lambda_2). Rotation and translation come out together.
 
     Parameters

@@ -45,10 +45,10 @@ def shah(A: Array, B: Array) -> tuple[Array, Array]:
     Kronecker product", ASME J. Mechanisms Robotics 5(3).
 
     ``R_A R_X R_B^T = R_Z`` gives ``(R_A (x) R_B) vec(R_X) = vec(R_Z)`` (row-major vec).
-    With ``K = sum_i R_A,i (x) R_B,i`` (sec. 3), ``vec(R_X)`` and ``vec(R_Z)`` are the
+    With ``K = sum_i R_A,i (x) R_B,i``, ``vec(R_X)`` and ``vec(R_Z)`` are the
     right and left singular vectors of the largest singular value of K, scaled so that
     ``det = +1`` and orthonormalised; the translations then follow by linear least squares
-    from ``R_A t_X - t_Z = R_Z t_B - t_A`` (sec. 4).
+    from ``R_A t_X - t_Z = R_Z t_B - t_A``.
 
     Parameters
     ----------
@@ -72,7 +72,7 @@ def li(A: Array, B: Array) -> tuple[Array, Array]:
     """Li, Wang & Wu (2010), "Simultaneous robot-world and hand-eye calibration using
     dual-quaternions and Kronecker product", Int. J. Phys. Sci. 5(10).
 
-    The Kronecker formulation (sec. 3): one linear system in
+    The paper's Kronecker formulation: one linear system in
     ``(vec(R_X), vec(R_Z), t_X, t_Z)`` (24 unknowns),
 
         (R_A (x) I_3) vec(R_X) - (I_3 (x) R_B^T) vec(R_Z) = 0
