@@ -221,7 +221,7 @@ def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
     # 4. kinecal's default
     lm = calibrate(model, cal, "lm", validate=val)
     rows.append(result_row("lm", lm, None, table2=checkpoints(lm.history, it_ls)))
-    curves["lm (identifiable)"] = lm.history
+    curves["lm (identifiable), per evaluation"] = lm.history
 
     rep = lm.identifiability
     result: dict[str, Any] = {

@@ -119,6 +119,7 @@ def _aggregate(method: str, setting: str, runs: list[dict]) -> dict[str, Any]:
         "setting": setting,
         "free": len(m[0]["free"]),
         "free_names": m[0]["free"],
+        "free_range": [min(len(x["free"]) for x in m), max(len(x["free"]) for x in m)],
         "iterations": avg(("iterations",)),
         "evaluations": avg(("evaluations",)),
         "seconds": avg(("seconds",)),
@@ -171,7 +172,8 @@ def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
         rows[-len(METHODS) + METHODS.index("sa-iafsa")]["seeds_better_than_afsa"] = int(wins)
         for method in METHODS:
             if method != "lm-20":
-                curves[f"{setting}: {method}"] = runs[0]["methods"][method]["history"]
+                label = f"{setting}: {method}" + (" (per evaluation)" if method == "lm" else "")
+                curves[label] = runs[0]["methods"][method]["history"]
         if k == 0:
             ident_info = _identifiability(model, size["n_cal"], seed)
             ident_info["per_seed_identifiable"] = [len(r["identifiable"]) for r in runs]
@@ -241,7 +243,9 @@ def render(result: dict[str, Any]) -> str:
     ]
     rows = []
     for r in result["rows"]:
-        rows.append([r["setting"], r["method"], r["free"], r["before"]["mean"],
+        lo, hi = r.get("free_range", [r["free"], r["free"]])
+        rows.append([r["setting"], r["method"], str(lo) if lo == hi else f"{lo}-{hi}",
+                     r["before"]["mean"],
                      r["before"]["std"], r["before"]["max"], r["after"]["mean"],
                      r["after"]["std"], r["after"]["max"], r["validation_mean"],
                      r["improvement_percent"], r["paper_value"], r["seconds"]])
