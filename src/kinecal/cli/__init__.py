@@ -18,24 +18,33 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import importlib  # noqa: E402
 import sys  # noqa: E402
 
-import click  # noqa: E402
-
 from kinecal.cli._app import app  # noqa: E402
-
-try:  # typer >= 0.20 ships its own copy of click; catch its exceptions as well as click's
-    from typer._click import exceptions as _tclick
-except ImportError:  # pragma: no cover - older typer uses click itself
-    _tclick = click.exceptions
-import typer.exceptions as _texc  # noqa: E402
-
 from kinecal.errors import InputError  # noqa: E402
 
-# typer 0.29's bundled click has no Exit/Abort (they live in typer.exceptions): gather the
-# classes that exist, or the except clauses below raise AttributeError on any exception.
-_EXIT = tuple({c for c in (click.exceptions.Exit, getattr(_tclick, "Exit", None),
-                           getattr(_texc, "Exit", None)) if c is not None})
-_ABORT = tuple({c for c in (click.exceptions.Abort, getattr(_tclick, "Abort", None),
-                            getattr(_texc, "Abort", None)) if c is not None})
+
+def _exception_types(name: str) -> tuple[type[BaseException], ...]:
+    """Every class called `name` in click, typer's bundled click and typer.exceptions.
+
+    typer >= 0.20 ships its own copy of click (``typer._click``) and no longer installs
+    click, whose Exit/Abort moved to ``typer.exceptions``: a plain ``import click`` fails
+    on a clean install, so each module is optional here.
+    """
+    found = []
+    for module in ("click.exceptions", "typer._click.exceptions", "typer.exceptions"):
+        try:
+            cls = getattr(importlib.import_module(module), name, None)
+        except ImportError:
+            continue
+        if isinstance(cls, type) and cls not in found:
+            found.append(cls)
+    return tuple(found)
+
+
+_NO_ARGS = _exception_types("NoArgsIsHelpError")
+_USAGE = _exception_types("UsageError")
+_EXIT = _exception_types("Exit")
+_ABORT = _exception_types("Abort")
+_CLICK = _exception_types("ClickException")
 
 __all__ = ["app", "main"]
 
@@ -66,9 +75,9 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         sys.stderr.write(f"kinecal: error: {exc.one_line()}\n")
         code = 2
-    except (click.exceptions.NoArgsIsHelpError, _tclick.NoArgsIsHelpError):
+    except _NO_ARGS:
         code = 0
-    except (click.UsageError, _tclick.UsageError) as exc:
+    except _USAGE as exc:
         where = f"{exc.ctx.command_path}: " if exc.ctx is not None else ""
         sys.stderr.write(f"kinecal: error: {where}{' '.join(exc.format_message().split())}\n")
         code = 2
@@ -77,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     except _ABORT:
         sys.stderr.write("kinecal: aborted\n")
         code = 130
-    except (click.ClickException, _tclick.ClickException) as exc:
+    except _CLICK as exc:
         sys.stderr.write(f"kinecal: error: {' '.join(exc.format_message().split())}\n")
         code = 2
     except KeyboardInterrupt:
