@@ -12,7 +12,7 @@ from pathlib import Path
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import progress
+from kinecal.cli._common import echo_json, progress
 from kinecal.errors import InputError
 
 #: what the demo runs on
@@ -65,10 +65,15 @@ def demo(
                              help="Directory for result.json, the calibrated model, "
                                   "report.html and the figures."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+    json_out: bool = typer.Option(False, "--json", help="Print the result JSON (with the "
+                                  "written files under 'files') instead of the table."),
 ) -> None:
     """Calibrate a UR5 on bundled laser-tracker data and write a report (no arguments needed).
     """
-    res, written = run_demo(out, quiet)
+    res, written = run_demo(out, quiet or json_out)
+    if json_out:
+        echo_json({**res.to_dict(), "files": [str(p) for p in written]})
+        return
     typer.echo(f"kinecal demo: UR5 calibrated on {DEMO_DATA} (1000 poses), validated on "
                f"{DEMO_VALIDATION} (20 held-out poses)\n")
     typer.echo(res.summary())
