@@ -15,7 +15,6 @@ from numpy.typing import NDArray
 
 from kinecal.errors import InputError
 from kinecal.spatial import (
-    axis_angle_from_matrix,
     invert_transform,
     project_to_rotation,
     quaternion_from_matrix,
@@ -75,6 +74,10 @@ def motion_pairs(G: Array, C: Array, pairs: str = "all") -> tuple[Array, Array]:
 def check_motions(A: Array, what: str = "robot motions") -> None:
     """Raise `InputError` unless the motions contain two non-parallel rotation axes.
 
+    All rotations turn about one axis k exactly when k is a common null vector of every
+    ``R_k - I``, i.e. when the 3 x 3 matrix ``M = sum (R_k - I)^T (R_k - I)
+    = sum (2 I - R_k - R_k^T)`` is singular; pure translations make ``M = 0``.
+
     Parameters
     ----------
     A : ndarray, shape (m, 4, 4)
@@ -82,17 +85,15 @@ def check_motions(A: Array, what: str = "robot motions") -> None:
     what : str
         Name used in the message.
     """
-    v = axis_angle_from_matrix(A[:, :3, :3])
-    ang = np.linalg.norm(v, axis=1)
-    rot = ang > MIN_ANGLE
-    if not rot.any():
+    R = A[:, :3, :3]
+    M = 2.0 * len(R) * np.eye(3) - (R.sum(axis=0) + R.sum(axis=0).T)
+    lam = np.linalg.eigvalsh(M)  # ascending, = squared singular values of the stack
+    if lam[-1] <= len(R) * MIN_ANGLE**2:
         raise InputError(
             f"degenerate {what}: pure translations (no rotation between stations); the "
             "hand-eye rotation is unobservable, expected rotations about >= 2 non-parallel axes"
         )
-    axes = v[rot] / ang[rot, None]
-    s = np.linalg.svd(axes, compute_uv=False)
-    if s.size < 2 or s[1] < 1e-6 * s[0]:
+    if lam[0] <= 1e-12 * lam[-1]:
         raise InputError(
             f"degenerate {what}: all rotations are about one axis; expected rotations about "
             ">= 2 non-parallel axes (the translation along that axis is unobservable)"
