@@ -14,12 +14,16 @@ any metaheuristic of `kinecal.optimize` (``ga``, ``pso``, ``afsa``, ``sa-iafsa``
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+import scipy.linalg
+import scipy.stats
 
+from kinecal.calibration.identifiability import analyse
 from kinecal.calibration.problem import CalibrationProblem, resolve_free
 from kinecal.calibration.result import CalibrationResult
 from kinecal.errors import InputError
@@ -64,6 +68,59 @@ def _covariance(problem: CalibrationProblem, x: np.ndarray, keep: np.ndarray | N
     sigma2 = float(r @ r) / dof if dof > 0 else float("nan")
     cov = sigma2 * np.linalg.pinv(J.T @ J)
     return cov, float(np.sqrt(sigma2))
+
+
+def _grow_identifiable(model, data, problem, res, report, tol, monitor):
+    """Free the parameters that became identifiable at the identified geometry.
+
+    Identifiability is local: directions confounded at the nominal geometry can separate
+    at the identified one (e.g. large angle errors make the IRB-120's rank 23 instead of
+    20). Candidates are the held parameters whose unit-norm columns keep a component
+    above `tol` after projecting out the free set's columns (the free set only grows, it
+    never swaps a confounded pair). The larger model is kept only if it lowers the residual
+    sum of squares significantly (extra-sum-of-squares F-test at the 1 % level), so noise
+    is never fitted with weakly identifiable parameters.
+    """
+    names = list(problem.free)
+    held = [n for n in report.names if n not in names]
+    if not held:
+        return problem, res, names, report
+    params = problem.full(res.x)
+    J = model.identification_jacobian(data.q, params)
+    Jf = J[:, :, model.index(names)].reshape(-1, len(names))
+    Jh = J[:, :, model.index(held)].reshape(-1, len(held))
+    Jh = Jh / np.maximum(np.linalg.norm(Jh, axis=0), 1e-300)
+    Q, _ = np.linalg.qr(Jf / np.maximum(np.linalg.norm(Jf, axis=0), 1e-300))
+    rest = Jh - Q @ (Q.T @ Jh)
+    _, R, piv = scipy.linalg.qr(rest, mode="economic", pivoting=True)
+    diag = np.abs(np.diag(R))
+    added = [held[k] for k in np.sort(piv[: int((diag > tol).sum())])]
+    if not added:
+        return problem, res, names, report
+    grown = [n for n in report.names if n in names or n in added]
+    bigger = CalibrationProblem(model, data, grown)
+    res2 = levenberg_marquardt(bigger.residuals, bigger.jacobian, params[bigger.index],
+                               monitor=monitor)
+    rss0 = 2.0 * res.fun
+    rss1 = 2.0 * res2.fun
+    dof = bigger.residuals(res2.x).size - len(grown)
+    k = len(added)
+    significant = rss1 <= 0.0 or (dof > 0 and (rss0 - rss1) / k > scipy.stats.f.ppf(
+        0.99, k, dof) * rss1 / dof)
+    if not significant:
+        return problem, res, names, report
+    res2.nfev += res.nfev
+    res2.nit += res.nit
+    res2.history = list(res.history) + list(res2.history)
+    Jg = bigger.jacobian(res2.x)
+    sub = analyse(Jg, grown)
+    new_report = dataclasses.replace(
+        report, rank=len(grown), identifiable=grown,
+        unidentifiable=[n for n in report.names if n not in grown],
+        confounded_with={n: c for n, c in report.confounded_with.items() if n not in grown},
+        condition_number=sub.condition_number, observability=sub.observability,
+    )
+    return bigger, res2, grown, new_report
 
 
 def calibrate(
@@ -144,24 +201,8 @@ def calibrate(
         res = levenberg_marquardt(problem.residuals, problem.jacobian, problem.x0,
                                   monitor=monitor)
         if free == "identifiable":
-            # Identifiability is local: directions confounded at the nominal geometry can
-            # separate at the identified one (e.g. large angle errors). Re-analyse there
-            # and free what became identifiable, until the set stops growing.
-            for _ in range(3):
-                params = problem.full(res.x)
-                grown, rep2 = resolve_free(model, data, "identifiable", params,
-                                           tol=max(GROWTH_TOL, rank_tol))
-                if len(grown) <= len(names):
-                    break
-                names, report = grown, rep2
-                problem = CalibrationProblem(model, data, names)
-                res0 = res
-                start = params[problem.index]
-                res = levenberg_marquardt(problem.residuals, problem.jacobian, start,
-                                          monitor=monitor)
-                res.nfev += res0.nfev
-                res.nit += res0.nit
-                res.history = list(res0.history) + list(res.history)
+            problem, res, names, report = _grow_identifiable(
+                model, data, problem, res, report, max(GROWTH_TOL, rank_tol), monitor)
         if loss != "linear":
             d = problem.distances(res.x)
             scale = f_scale if f_scale is not None else 3.0 * max(float(np.median(d)), 1e-12)
