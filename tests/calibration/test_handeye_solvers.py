@@ -218,11 +218,11 @@ def _near_half_turn_set():
     return G, C
 
 
-@pytest.mark.parametrize("method", ["tsai", "horaud", "daniilidis"])
-def test_quaternion_signs_consistent_near_half_turns(method):
-    """Near 180 deg, w ~ 0 and noise can flip q_B against q_A; the aligned solvers stay as
-    accurate as Park (which works on rotation vectors)."""
+@pytest.mark.parametrize("method", ["tsai", "park", "horaud", "daniilidis"])
+def test_signs_consistent_near_half_turns(method):
+    """Near 180 deg, w ~ 0 and noise can flip q_B against q_A (or send log R_B to the
+    antipode); the aligned solvers stay as accurate as Shah (absolute poses, no pairs)."""
     G, C = _near_half_turn_set()
-    ref = pose_error(solve(G, C, "park")[0], X_TRUE)
+    ref = pose_error(solve(G, C, "shah")[0], X_TRUE)
     err = pose_error(solve(G, C, method)[0], X_TRUE)
-    assert err[0] < 2.0 * ref[0] + 0.01 and err[1] < 2.0 * ref[1] + 0.1
+    assert err[0] < 2.0 * ref[0] + 0.005 and err[1] < 2.0 * ref[1] + 0.05

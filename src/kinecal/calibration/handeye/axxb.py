@@ -82,8 +82,9 @@ def park(A: Array, B: Array) -> Array:
     least-squares rotation is ``R_X = (M^T M)^(-1/2) M^T`` with ``M = sum beta alpha^T``
     (the paper's closed-form least-squares solution). It is computed as the orthogonal polar
     factor of ``M^T`` by SVD (equal to that formula whenever ``M^T M`` is invertible, and
-    still defined with only two independent axes). Translation by least squares on
-    ``(R_A - I) t_X = R_X t_B - t_A``.
+    still defined with only two independent axes). Motions within noise of 180 deg whose
+    ``beta`` came out antipodal are flipped and the rotation solved again. Translation by
+    least squares on ``(R_A - I) t_X = R_X t_B - t_A``.
 
     Parameters
     ----------
@@ -97,11 +98,20 @@ def park(A: Array, B: Array) -> Array:
     """
     alpha = axis_angle_from_matrix(A[:, :3, :3])
     beta = axis_angle_from_matrix(B[:, :3, :3])
+    R = _park_rotation(alpha, beta)
+    # near 180 deg noise can send log R_B to the antipode (beta ~ -R_X^T alpha): flip those
+    # and solve again (a kinecal addition; no effect on motions away from 180 deg)
+    flip = np.sum(alpha * (beta @ R.T), axis=1) < 0
+    if flip.any():
+        R = _park_rotation(alpha, np.where(flip[:, None], -beta, beta))
+    return finish(R, solve_translation(A, B, R))
+
+
+def _park_rotation(alpha: Array, beta: Array) -> Array:
     Mt = alpha.T @ beta  # M^T = sum alpha beta^T
     U, _, Vt = np.linalg.svd(Mt)
     D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    R = U @ D @ Vt
-    return finish(R, solve_translation(A, B, R))
+    return U @ D @ Vt
 
 
 def horaud(A: Array, B: Array) -> Array:
