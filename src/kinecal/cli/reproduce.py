@@ -8,6 +8,7 @@ import typer
 
 from kinecal.cli._app import app
 from kinecal.cli._common import echo_json, quiet_requested, write_json
+from kinecal.errors import InputError
 from kinecal.experiments import PAPERS, experiment_module
 
 
@@ -19,12 +20,22 @@ def reproduce(
     out: Path | None = typer.Option(None, "--out", help="Directory for result.json and figures."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bars."),
+    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
 ) -> None:
     """Reproduce a paper's table (hu2005, li2024, zhao-yang, liu2008)."""
     module = experiment_module(paper)
+    if out is not None and out.exists() and not out.is_dir():
+        raise InputError(f"{out} exists and is not a directory", option="--out")
+    if report is not None and report.is_dir():
+        raise InputError(f"{report} is a directory, expected an HTML file path",
+                         option="--report")
     result = module.run(quick=quick, seed=seed, out_dir=out, quiet=quiet_requested(quiet))
     if out is not None:
         write_json(out / "result.json", result)
+    if report is not None:
+        from kinecal.report.html import reproduce_report
+
+        reproduce_report(result, report)
     if json_out:
         echo_json(result)
     else:
