@@ -43,7 +43,7 @@ PAPER = "li2024"
 SOURCE = "papers/001"
 NOISE_MODEL = (
     "target2cam perturbed by a rotation vector with N(0, 0.1 deg) per component and a "
-    "translation with N(0, 0.5 mm) per component (camera frame); flange2base by N(0, 0.02 "
+    "translation with N(0, 0.5 mm) per component (target frame); flange2base by N(0, 0.02 "
     "deg) and N(0, 0.1 mm) (flange frame); independent per station"
 )
 METHODS = ("tsai", "park", "horaud", "daniilidis")
