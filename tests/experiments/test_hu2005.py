@@ -20,9 +20,10 @@ def quick(tmp_path_factory):
     return hu2005.run(quick=True, seed=0, out_dir=out), out
 
 
-def _row(res, method, ls_iterations=None):
+def _row(res, method, ls_iterations=None, selection="roulette"):
     rows = [r for r in res["rows"] if r["method"] == method
-            and (ls_iterations is None or r.get("ls_iterations") == ls_iterations)]
+            and (ls_iterations is None or r.get("ls_iterations") == ls_iterations)
+            and r.get("selection", "roulette") == selection]
     assert len(rows) == 1
     return rows[0]
 
@@ -84,6 +85,9 @@ def test_ga_and_hybrid(quick):
     assert hy1["iterations"] == ga["iterations"] == 300
     assert hy1["calibration_mean"] < 0.25 * ga["calibration_mean"]
     assert hy1["table2"]["1"] == pytest.approx(_row(res, "householder")["table2"]["2"])
+    # beyond the paper: tournament selection gets the hybrid further in the same budget
+    hyt = _row(res, "hybrid-ga", 1, "tournament")
+    assert hyt["calibration_mean"] < hy1["calibration_mean"]
 
 
 def test_render_shows_paper_values(quick):
