@@ -1,8 +1,11 @@
 """Identifiability of kinematic parameters: pivoted QR, SVD and observability indices.
 
 The identification Jacobian ``J`` (rows: measured coordinates, columns: parameters) is
-first made unit-free by scaling every column to unit norm (column equilibration), so that
-lengths and angles compare. Then
+first made unit-free, so that lengths and angles compare: either by a physical scale per
+column (`analyse`'s ``scale``; calibration uses 1 for lengths and a characteristic length
+``L`` of the measured workspace for angles, i.e. an angle counts as the arc it sweeps at
+distance ``L``), or, without ``scale``, by scaling every column to unit norm (column
+equilibration). Then
 
 * QR with column pivoting orders the columns by how much new information each brings;
   the columns past the numerical rank are the unidentifiable parameters: each is, to
@@ -46,8 +49,9 @@ class IdentifiabilityReport:
     unidentifiable : list of str
         Parameters that are combinations of the identifiable ones (input order).
     confounded_with : dict of str to dict of str to float
-        For each unidentifiable parameter, the identifiable parameters its (scaled) column
-        is made of, with coefficients.
+        For each unidentifiable parameter, the identifiable parameters whose combination
+        has the same effect, with coefficients in parameter units (length unit, rad): a
+        unit change of the unidentifiable parameter equals ``sum(c * unit change)``.
     condition_number : float
         sigma_max / sigma_min of the scaled Jacobian restricted to the identifiable set.
     singular_values : ndarray, shape (n,)
@@ -81,11 +85,13 @@ class IdentifiabilityReport:
     def explain(self) -> str:
         """Human-readable lines: why each dropped parameter is not identifiable."""
         lines = [f"rank {self.rank} of {len(self.names)}; condition number "
-                 f"{self.condition_number:.3g} (identifiable set, unit-norm columns)"]
+                 f"{self.condition_number:.3g} (identifiable set, scaled columns)"]
         for name in self.unidentifiable:
             parts = self.confounded_with.get(name, {})
             combo = " ".join(f"{c:+.3g}*{n}" for n, c in parts.items()) or "0 (no effect)"
             lines.append(f"  {name}: its effect equals {combo}")
+        if self.unidentifiable:
+            lines.append("  (coefficients per unit: length unit, rad)")
         return "\n".join(lines)
 
 
@@ -113,7 +119,8 @@ def observability_indices(singular_values: NDArray[np.float64], m: int) -> dict[
 
 
 def analyse(
-    J: NDArray[np.float64], names: Sequence[str], tol: float = RANK_TOL
+    J: NDArray[np.float64], names: Sequence[str], tol: float = RANK_TOL,
+    scale: NDArray[np.float64] | None = None,
 ) -> IdentifiabilityReport:
     """Identifiability of the parameters behind the Jacobian `J`.
 
@@ -125,6 +132,9 @@ def analyse(
         Parameter names of the columns.
     tol : float
         Relative rank threshold on the pivoted R diagonal.
+    scale : ndarray, shape (n,), optional
+        Column scale factors making the columns comparable (see module docstring); unit
+        column norms when omitted.
 
     Returns
     -------
@@ -136,9 +146,17 @@ def analyse(
         raise InputError(f"Jacobian shape {J.shape} does not match {len(names)} names")
     if not np.isfinite(J).all():
         raise InputError("Jacobian contains NaN or infinite values")
-    norms = np.linalg.norm(J, axis=0)
-    zero = norms <= tol * max(norms.max(), 1.0)
-    Js = J / np.where(zero, 1.0, norms)
+    if scale is None:
+        norms = np.linalg.norm(J, axis=0)
+        zero = norms <= tol * max(norms.max(), 1.0)
+        factors = 1.0 / np.where(zero, 1.0, norms)
+    else:
+        factors = np.asarray(scale, dtype=float)
+        if factors.shape != (len(names),) or not (factors > 0).all():
+            raise InputError(f"scale: expected {len(names)} positive factors")
+        norms = np.linalg.norm(J * factors, axis=0)
+        zero = norms <= tol * max(norms.max(), 1e-300)
+    Js = J * factors
     Js[:, zero] = 0.0
     _, R, piv = scipy.linalg.qr(Js, mode="economic", pivoting=True)
     diag = np.abs(np.diag(R))
@@ -148,6 +166,8 @@ def analyse(
     confounded: dict[str, dict[str, float]] = {}
     if dropped.size and rank:
         coef, *_ = np.linalg.lstsq(Js[:, kept], Js[:, dropped], rcond=None)
+        # back to parameter units: J_d f_d = J_k f_k c  ->  J_d = J_k (f_k c / f_d)
+        coef = coef * factors[kept][:, None] / factors[dropped][None, :]
         for j, col in enumerate(dropped):
             c = coef[:, j]
             big = np.abs(c) > 1e-6 * max(np.abs(c).max(), 1e-300)

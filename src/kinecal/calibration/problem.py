@@ -19,9 +19,28 @@ from kinecal.errors import InputError
 from kinecal.io.measurements import Measurements
 from kinecal.kinematics.serial import SerialModel
 
-__all__ = ["CalibrationProblem", "resolve_free"]
+__all__ = ["CalibrationProblem", "characteristic_length", "column_scale", "resolve_free"]
 
 Array = NDArray[np.float64]
+
+
+def characteristic_length(model: SerialModel, data: Measurements, params=None) -> float:
+    """RMS distance of the tool points from their centroid (model length unit).
+
+    An angle of ``1 / L`` rad sweeps an arc of one length unit at this distance: the
+    scale that makes angle and length parameters comparable.
+    """
+    P = model.positions(data.q, params)
+    L = float(np.sqrt((np.linalg.norm(P - P.mean(axis=0), axis=1) ** 2).mean()))
+    return L if L > 0 else 1.0
+
+
+def column_scale(
+    model: SerialModel, data: Measurements, names: Sequence[str], params=None
+) -> Array:
+    """Column factors ``(k,)``: 1 for lengths, ``1 / L`` for angles (`characteristic_length`)."""
+    L = characteristic_length(model, data, params)
+    return np.where(model.is_angle()[model.index(list(names))], 1.0 / L, 1.0)
 
 
 def resolve_free(
@@ -56,7 +75,8 @@ def resolve_free(
         raise InputError("free: a parameter is listed twice", option="--free")
     p = model.nominal if params is None else params
     J = model.identification_jacobian(data.q, p)[:, :, model.index(names)]
-    report = analyse(J.reshape(-1, len(names)), names, tol=tol)
+    report = analyse(J.reshape(-1, len(names)), names, tol=tol,
+                     scale=column_scale(model, data, names, p))
     if free == "identifiable":
         names = report.identifiable
     return names, report

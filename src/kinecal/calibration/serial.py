@@ -24,7 +24,7 @@ import scipy.linalg
 import scipy.stats
 
 from kinecal.calibration.identifiability import analyse
-from kinecal.calibration.problem import CalibrationProblem, resolve_free
+from kinecal.calibration.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.result import CalibrationResult
 from kinecal.errors import InputError
 from kinecal.io.measurements import Measurements
@@ -89,12 +89,15 @@ def _grow_identifiable(model, data, problem, res, report, tol, monitor):
     J = model.identification_jacobian(data.q, params)
     Jf = J[:, :, model.index(names)].reshape(-1, len(names))
     Jh = J[:, :, model.index(held)].reshape(-1, len(held))
-    Jh = Jh / np.maximum(np.linalg.norm(Jh, axis=0), 1e-300)
-    Q, _ = np.linalg.qr(Jf / np.maximum(np.linalg.norm(Jf, axis=0), 1e-300))
+    # the same physical column scale as the analysis, threshold relative to the free set
+    Jf = Jf * column_scale(model, data, names, params)
+    Jh = Jh * column_scale(model, data, held, params)
+    Q, Rf = np.linalg.qr(Jf)
     rest = Jh - Q @ (Q.T @ Jh)
     _, R, piv = scipy.linalg.qr(rest, mode="economic", pivoting=True)
     diag = np.abs(np.diag(R))
-    added = [held[k] for k in np.sort(piv[: int((diag > tol).sum())])]
+    ref = np.abs(np.diag(Rf)).max()
+    added = [held[k] for k in np.sort(piv[: int((diag > tol * ref).sum())])]
     if not added:
         return problem, res, names, report
     grown = [n for n in report.names if n in names or n in added]
@@ -113,7 +116,7 @@ def _grow_identifiable(model, data, problem, res, report, tol, monitor):
     res2.nit += res.nit
     res2.history = list(res.history) + list(res2.history)
     Jg = bigger.jacobian(res2.x)
-    sub = analyse(Jg, grown)
+    sub = analyse(Jg, grown, scale=column_scale(model, data, grown, bigger.full(res2.x)))
     new_report = dataclasses.replace(
         report, rank=len(grown), identifiable=grown,
         unidentifiable=[n for n in report.names if n not in grown],
