@@ -84,7 +84,8 @@ def test_yaml_errors_name_station(tmp_path):
     write_handeye_yaml(tmp_path / "bad.yml", F, C)
     with pytest.raises(InputError) as exc:
         read_handeye_pairs(tmp_path / "bad.yml")
-    assert exc.value.row == 2 and "T2_2" in str(exc.value) and "orthonormal" in str(exc.value)
+    # the FileStorage key names the station; no 0-based "row" in a 1-based contract
+    assert exc.value.row is None and "T2_2" in str(exc.value) and "orthonormal" in str(exc.value)
     (tmp_path / "short.yml").write_text("%YAML:1.0\nframeCount: 1\n")
     with pytest.raises(InputError, match="at least 3"):
         read_handeye_pairs(tmp_path / "short.yml")

@@ -118,27 +118,28 @@ _OpenCVLoader.add_constructor("tag:yaml.org,2002:opencv-matrix", _opencv_matrix)
 
 
 def _matrix(doc: dict, key: str, path: Path, station: int) -> Array:
+    # The key (T1_<station>) locates the error in a FileStorage file: no row number.
     node = doc.get(key)
     if node is None:
-        raise InputError(f"missing matrix {key}", file=path, row=station)
+        raise InputError(f"missing matrix {key}", file=path)
     try:
         rows, cols = int(node["rows"]), int(node["cols"])
         data = np.asarray(node["data"], dtype=float)
     except (KeyError, TypeError, ValueError):
         raise InputError(f"{key}: expected an opencv-matrix with rows, cols and data",
-                         file=path, row=station) from None
+                         file=path) from None
     if (rows, cols) != (4, 4) or data.size != 16:
         raise InputError(f"{key}: {rows}x{cols} matrix with {data.size} values, expected 4x4",
-                         file=path, row=station)
+                         file=path)
     T = data.reshape(4, 4)
     if not np.isfinite(T).all():
-        raise InputError(f"{key}: contains NaN or infinite values", file=path, row=station)
+        raise InputError(f"{key}: contains NaN or infinite values", file=path)
     if np.abs(T[3] - [0.0, 0.0, 0.0, 1.0]).max() > 1e-6:
-        raise InputError(f"{key}: last row must be (0, 0, 0, 1)", file=path, row=station)
+        raise InputError(f"{key}: last row must be (0, 0, 0, 1)", file=path)
     try:
         check_rotation(T[:3, :3], tol=1e-4, name=key)
     except InputError as exc:
-        raise InputError(exc.message, file=path, row=station) from None
+        raise InputError(exc.message, file=path) from None
     return T
 
 
