@@ -56,6 +56,7 @@ def handeye(
     seed: int = typer.Option(0, "--seed", help="Random seed (metaheuristic refiners)."),
     json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),
     out: Path | None = typer.Option(None, "--out", help="Write the result JSON here."),
+    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
 ) -> None:
     """Hand-eye calibration from (flange2base, target2cam) pose pairs."""
     from kinecal.calibration.handeye import calibrate_handeye
@@ -69,6 +70,10 @@ def handeye(
     result = {"file": str(path), **res.to_dict(), "seed": seed}
     if out is not None:
         write_json(out, result)
+    if report is not None:
+        from kinecal.report.html import handeye_report
+
+        handeye_report(result, report)
     if json_out:
         echo_json(result)
         return
