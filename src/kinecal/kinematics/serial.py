@@ -229,6 +229,7 @@ class SerialModel:
         self._index = {n: k for k, n in enumerate(self._names)}
         self._nominal = np.array([values[n] for n in self._names])
         self._motion_index = np.array([self._index[m.name] for m in motions])
+        self._rotation_mask = np.array([m.kind == ROTATION for m in motions])
         fixed = set(self.fixed)
         if self.base is None:
             fixed |= set(BASE_NAMES)
@@ -361,13 +362,16 @@ class SerialModel:
             axes[i][i] = 1.0
         o = np.zeros(shape)
         frames = []
+        nonzero = np.any(p != 0.0, axis=tuple(range(p.ndim - 1))) if p.ndim > 1 else p != 0.0
+        # one parameter vector: plain floats (cheaper than 0-d arrays in the loop below)
+        values = p.tolist() if p.ndim == 1 else None
         for m, k in zip(self.motions, self._motion_index, strict=True):
-            value = p[..., k]
             if record:  # arrays are replaced, never modified in place: no copies needed
                 frames.append((axes[m.axis], o))
-            if m.joint is None and not np.any(value):
+            if m.joint is None and not nonzero[k]:
                 continue
-            value = value[..., None]  # (*batch, 1): broadcast over poses
+            # (*batch, 1): broadcast over poses
+            value = values[k] if values is not None else p[..., k][..., None]
             u = axes[m.axis]
             if m.kind == TRANSLATION:
                 o = o + value * u
@@ -449,15 +453,14 @@ class SerialModel:
         _, o_end, frames = self._sweep(q, p, record=True)
         p_end = np.moveaxis(o_end, -1, 0)  # (3, N)
         rows = 3 if outputs == "position" else 6
+        U = np.stack([u for u, _ in frames])  # (n_motions, 3, N)
         Jt = np.zeros((self.n_params, rows, q.shape[0]))
-        for m, k, (u, o) in zip(self.motions, self._motion_index, frames, strict=True):
-            if m.kind == TRANSLATION:
-                Jt[k, :3] += u
-                continue
-            r = p_end - o
-            Jt[k, 0] += u[1] * r[2] - u[2] * r[1]
-            Jt[k, 1] += u[2] * r[0] - u[0] * r[2]
-            Jt[k, 2] += u[0] * r[1] - u[1] * r[0]
-            if rows == 6:
-                Jt[k, 3:] += u
+        rot = self._rotation_mask
+        idx = self._motion_index
+        Jt[idx[~rot], :3] = U[~rot]  # translations move the point along their axis
+        Ur = U[rot]
+        r = p_end - np.stack([o for (_, o), is_rot in zip(frames, rot, strict=True) if is_rot])
+        Jt[idx[rot], :3] = np.cross(Ur, r, axis=1)  # rotations: u x (p - o)
+        if rows == 6:
+            Jt[idx[rot], 3:] = Ur
         return Jt
