@@ -111,6 +111,7 @@ class CalibrationProblem:
         w = np.ones(len(data)) if data.weights is None else np.asarray(data.weights, float)
         self.sqrt_w = np.sqrt(w)
         self.weighted = data.weights is not None
+        self._cache: tuple | None = None
         self.q = np.asarray(data.q, dtype=float)
         self.xyz = np.asarray(data.xyz, dtype=float)
         angle = model.is_angle()[self.index]
@@ -129,9 +130,21 @@ class CalibrationProblem:
         p[..., self.index] = x
         return p
 
+    def _sweep(self, x: Array):
+        """FK sweep at `x`, cached: LM asks for the Jacobian where it evaluated residuals."""
+        x = np.asarray(x, dtype=float)
+        if self._cache is not None and np.array_equal(self._cache[0], x):
+            return self._cache[1]
+        sweep = self.model.sweep(self.q, self.full(x))
+        self._cache = (x.copy(), sweep)
+        return sweep
+
     def errors(self, x: Array) -> Array:
         """Position error vectors ``model - measured`` ``(N, 3)`` (or ``(P, N, 3)``)."""
-        return self.model.positions(self.q, self.full(x)) - self.xyz
+        x = np.asarray(x, dtype=float)
+        if x.ndim > 1:
+            return self.model.positions(self.q, self.full(x)) - self.xyz
+        return self._sweep(x).positions - self.xyz
 
     def distances(self, x: Array) -> Array:
         """Euclidean distance errors ``(N,)`` (or ``(P, N)``) in the length unit."""
@@ -144,7 +157,7 @@ class CalibrationProblem:
 
     def jacobian(self, x: Array) -> Array:
         """Analytic Jacobian of `residuals`, shape ``(3N, n_free)``."""
-        Jt = self.model.jacobian_t(self.q, self.full(x))[self.index]  # (k, 3, N)
+        Jt = self._sweep(x).jacobian_t()[self.index]  # (k, 3, N)
         if self.weighted:
             Jt *= self.sqrt_w
         return Jt.transpose(2, 1, 0).reshape(-1, self.n_free)

@@ -32,6 +32,7 @@ __all__ = [
     "CONVENTIONS",
     "Motion",
     "SerialModel",
+    "Sweep",
     "craig_motions",
     "dh_motions",
     "hayati_motions",
@@ -444,19 +445,42 @@ class SerialModel:
 
         Cheaper for solvers that select parameter rows before reshaping.
         """
-        if outputs not in ("position", "pose"):
-            raise InputError(f"outputs: expected 'position' or 'pose', got {outputs!r}")
+        return self.sweep(q, params).jacobian_t(outputs)
+
+    def sweep(self, q: ArrayLike, params: ArrayLike | None = None) -> Sweep:
+        """Forward kinematics of one parameter vector, keeping what the Jacobian needs.
+
+        A solver that needs the positions at ``x`` and then, if the step is accepted, the
+        Jacobian at the same ``x`` computes the chain once: ``s = model.sweep(q, p)``,
+        ``s.positions``, later ``s.jacobian_t()``.
+        """
         q = self._check_q(q)
         p = self._check_params(params)
         if p.ndim != 1:
             raise InputError("identification_jacobian expects one parameter vector")
         _, o_end, frames = self._sweep(q, p, record=True)
-        p_end = np.moveaxis(o_end, -1, 0)  # (3, N)
+        return Sweep(self, o_end, frames)
+
+
+class Sweep:
+    """Result of `SerialModel.sweep`: tool positions and the frames before each motion."""
+
+    def __init__(self, model: SerialModel, o_end: Array, frames: list) -> None:
+        self.model = model
+        self.positions = o_end  # (N, 3)
+        self.frames = frames
+
+    def jacobian_t(self, outputs: str = "position") -> Array:
+        """Identification Jacobian ``(n_params, 3 or 6, N)`` (see `identification_jacobian`)."""
+        if outputs not in ("position", "pose"):
+            raise InputError(f"outputs: expected 'position' or 'pose', got {outputs!r}")
+        model, frames = self.model, self.frames
+        p_end = self.positions.T  # (3, N)
         rows = 3 if outputs == "position" else 6
         U = np.stack([u for u, _ in frames])  # (n_motions, 3, N)
-        Jt = np.zeros((self.n_params, rows, q.shape[0]))
-        rot = self._rotation_mask
-        idx = self._motion_index
+        Jt = np.zeros((model.n_params, rows, p_end.shape[1]))
+        rot = model._rotation_mask
+        idx = model._motion_index
         Jt[idx[~rot], :3] = U[~rot]  # translations move the point along their axis
         Ur = U[rot]
         r = p_end - np.stack([o for (_, o), is_rot in zip(frames, rot, strict=True) if is_rot])
