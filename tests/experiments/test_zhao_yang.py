@@ -50,11 +50,13 @@ def test_lm_rows(quick):
     res, _ = quick
     for setting in ("paper", "realistic"):
         lm, lm20 = _row(res, setting, "lm"), _row(res, setting, "lm-20")
-        # identifiability grows at the identified geometry: 23 free, exact geometry found
-        assert lm["free"] == 23
-        assert lm["calibration_mean"] < 1e-9 and lm["validation_mean"] < 1e-9
-        # the 20-parameter floor the swarms can reach at best
+        # the 20-parameter floor the swarms can reach at best (the model error of the
+        # 20-parameter reduction: the true arm has errors in all 25)
         assert lm20["free"] == 20 and 0 < lm20["calibration_mean"] < 0.05
+        # kinecal's default frees parameters that became identifiable at the solution
+        assert lm["free"] > 20
+        assert lm["calibration_mean"] < lm20["calibration_mean"]
+        assert lm["validation_mean"] < lm20["validation_mean"]
         hy = _row(res, setting, "hybrid-sa-iafsa")
         assert hy["calibration_mean"] <= 1.5 * lm20["calibration_mean"] + 1e-6
         assert hy["calibration_mean"] < _row(res, setting, "sa-iafsa")["calibration_mean"]
