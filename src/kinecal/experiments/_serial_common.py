@@ -146,20 +146,24 @@ def write_convergence_png(
     path: Path,
     curves: dict[str, Sequence[float]],
     title: str,
-    xlabel: str = "iteration",
+    evaluations: dict[str, int] | None = None,
     hline: float | None = None,
 ) -> Path:
-    """Plot ``log10`` error curves ``{label: history (mm)}`` and write a PNG atomically.
+    """Plot ``log10`` error curves vs iteration (and vs evaluations); write a PNG atomically.
 
     Parameters
     ----------
     path : Path
         Output file (its directory is created).
     curves : dict
-        Label -> mean distance error after each iteration (mm); values <= 0 are clipped to
-        1e-16 for the log axis.
-    title, xlabel : str
-        Figure title and x label.
+        Label -> mean distance error after each iteration (mm), start first; values <= 0
+        are clipped to 1e-16 for the log axis.
+    title : str
+        Figure title.
+    evaluations : dict, optional
+        Label -> total objective evaluations of that run; adds a second panel against
+        evaluations, spread evenly over the iterations (exact for the GA's fixed L per
+        generation, an average for the fish swarms).
     hline : float, optional
         A threshold drawn as a dashed line (papers/000's eps).
     """
@@ -170,21 +174,28 @@ def write_convergence_png(
 
     from kinecal.io._atomic import write_bytes_atomic
 
-    fig = Figure(figsize=(7.0, 4.5), dpi=110)
-    ax = fig.add_subplot(1, 1, 1)
+    panels = 2 if evaluations else 1
+    fig = Figure(figsize=(7.0 * panels, 4.8), dpi=100)
+    axes = [fig.add_subplot(1, panels, k + 1) for k in range(panels)]
     for label, h in curves.items():
         y = np.maximum(np.asarray(h, dtype=float), 1e-16)
-        x = np.arange(1, y.size + 1)
-        ax.plot(x, y, label=label, lw=1.4, marker="o" if y.size < 12 else None, ms=3)
-    if hline is not None:
-        ax.axhline(hline, color="k", ls="--", lw=0.8, label=f"eps = {hline:g} mm")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel(f"{xlabel} (paper numbering: start = 1)")
-    ax.set_ylabel("mean distance error [mm]")
-    ax.set_title(title)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+        style = {"lw": 1.4, "marker": "o" if y.size < 12 else None, "ms": 3}
+        axes[0].plot(np.arange(1, y.size + 1), y, label=label, **style)
+        if evaluations:
+            n = max(int(evaluations.get(label, y.size)), 1)
+            axes[1].plot(np.linspace(n / y.size, n, y.size), y, label=label, **style)
+    axes[0].set_xlabel("iteration (paper numbering: start = 1)")
+    if evaluations:
+        axes[1].set_xlabel("objective evaluations")
+    for ax in axes:
+        if hline is not None:
+            ax.axhline(hline, color="k", ls="--", lw=0.8, label=f"eps = {hline:g} mm")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_ylabel("mean distance error [mm]")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png")

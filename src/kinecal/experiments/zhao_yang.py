@@ -160,6 +160,7 @@ def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
     seeds = [seed + i for i in range(size["seeds"])]
     rows: list[dict[str, Any]] = []
     curves: dict[str, list[float]] = {}
+    evals: dict[str, int] = {}
     ident_info: dict[str, Any] = {}
     for k, (setting, tol) in enumerate(SETTINGS.items()):
         model = dataclasses.replace(base, tolerances=dict(tol))
@@ -174,6 +175,7 @@ def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
             if method != "lm-20":
                 label = f"{setting}: {method}" + (" (per evaluation)" if method == "lm" else "")
                 curves[label] = runs[0]["methods"][method]["history"]
+                evals[label] = runs[0]["methods"][method]["evaluations"]
         if k == 0:
             ident_info = _identifiability(model, size["n_cal"], seed)
             ident_info["per_seed_identifiable"] = [len(r["identifiable"]) for r in runs]
@@ -198,7 +200,8 @@ def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
     }
     if out_dir is not None:
         png = write_convergence_png(Path(out_dir) / "zhao-yang-convergence.png", curves,
-                                    f"papers/002 IRB-120: mean distance error, seed {seed}")
+                                    f"papers/002 IRB-120: mean distance error, seed {seed}",
+                                    evaluations=evals)
         result["figure"] = str(png)
     return result
 
