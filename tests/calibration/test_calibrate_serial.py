@@ -132,6 +132,8 @@ def test_householder_on_all_scanner_parameters_reports_singularity(scanner):
     res = calibrate(m, cal.data, "householder", free="all", maxiter=10)
     assert "singular" in res.message
     assert len(res.free) == 25
+    frozen = res.to_dict()["singular_parameters"]
+    assert len(frozen) == 2 and set(frozen) <= {"theta6", "d6", "a6", "alpha6"}
 
 
 def test_robust_loss_flags_outliers():

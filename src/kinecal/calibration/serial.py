@@ -242,6 +242,12 @@ def calibrate(
         val_before = np.linalg.norm(model.positions(validate.q) - validate.xyz, axis=1)
         val_after = np.linalg.norm(model.positions(validate.q, params) - validate.xyz, axis=1)
     history = list(res.history)
+    extra: dict[str, Any] = {}
+    if "singular" in res:  # Householder: directions where J^T J was singular
+        extra["singular_parameters"] = [names[i] for i in res.singular]
+    if "ls_history" in res:  # hybrid: the least-squares stage before the metaheuristic
+        extra["least_squares_history"] = [float(h) for h in res.ls_history]
+        extra["least_squares_iterations"] = int(res.ls_iterations)
     return CalibrationResult(
         model=calibrated,
         nominal_model=model,
@@ -264,4 +270,5 @@ def calibrate(
         message=str(res.message),
         success=bool(res.success),
         sigma=sigma,
+        extra=extra,
     )
