@@ -32,7 +32,7 @@ except ImportError:  # optional peer
     pyswarms = None
 
 try:
-    from kinecal.io._atomic import write_text_atomic
+    from kinecal._files import write_text_atomic
 except ImportError:  # pragma: no cover
     write_text_atomic = None
 

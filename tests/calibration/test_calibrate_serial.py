@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 import kinecal
+from kinecal.calibration.data import Measurements
 from kinecal.calibration.problem import CalibrationProblem, resolve_free
 from kinecal.calibration.serial import calibrate
 from kinecal.calibration.simulate import read_truth, simulate, write_truth
 from kinecal.cli import main
 from kinecal.errors import InputError
-from kinecal.io.measurements import Measurements
 
 
 @pytest.fixture(scope="module")

@@ -148,7 +148,7 @@ CASES = [
                                "d1", "--report", "{dir}"], "is a directory"),
     ("fk-missing-joints", ["fk", "ur5", "{fk_missing.csv}"], "missing column(s) q3"),
     ("fk-broken-params-json", ["fk", "ur5", "{fk_good.csv}", "--params", "{broken.json}"],
-     "not a readable JSON"),
+     "not valid JSON at line 1"),
     ("fk-params-of-another-model", ["fk", "ur5", "{fk_good.csv}", "--params",
                                     "{other_model.json}"], "does not belong"),
     ("simulate-zero-poses", ["simulate", "ur5", "--poses", "0", "--out", "{dir}/s.csv"],

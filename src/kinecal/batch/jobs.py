@@ -23,6 +23,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from kinecal._files import read_text
 from kinecal.errors import InputError
 
 __all__ = ["Job", "JobsFile", "Study", "expand_study", "load_jobs", "parse_jobs"]
@@ -254,13 +255,7 @@ def load_jobs(path: str | Path) -> list[Job]:
 
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"not a readable text file ({exc})", file=path) from None
-    try:
-        doc = yaml.safe_load(text)
+        doc = yaml.safe_load(read_text(path))
     except yaml.YAMLError as exc:
         raise InputError(f"not valid YAML ({' '.join(str(exc).split())})", file=path) from None
     return parse_jobs(doc, path.parent, path)

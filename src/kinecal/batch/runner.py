@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
+from kinecal._files import atomic_open, write_text_atomic
 from kinecal.batch.jobs import Job
 from kinecal.batch.work import run_job
-from kinecal.io._atomic import atomic_open, write_text_atomic
 
 __all__ = ["BatchResult", "JobRecord", "read_result", "run_batch", "write_summary"]
 

@@ -14,9 +14,9 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal.calibration.data import Measurements
 from kinecal.calibration.identifiability import RANK_TOL, IdentifiabilityReport, analyse
 from kinecal.errors import InputError
-from kinecal.io.measurements import Measurements
 from kinecal.kinematics.serial import SerialModel
 
 __all__ = ["CalibrationProblem", "characteristic_length", "column_scale", "resolve_free"]

@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal._files import write_text_atomic
 from kinecal.calibration.identifiability import IdentifiabilityReport
-from kinecal.io._atomic import write_text_atomic
 from kinecal.kinematics.serial import SerialModel
 
 __all__ = ["CalibrationResult", "error_stats"]

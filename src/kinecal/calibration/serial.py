@@ -23,11 +23,11 @@ import numpy as np
 import scipy.linalg
 import scipy.stats
 
+from kinecal.calibration.data import Measurements
 from kinecal.calibration.identifiability import analyse
 from kinecal.calibration.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.result import CalibrationResult
 from kinecal.errors import InputError
-from kinecal.io.measurements import Measurements
 from kinecal.kinematics.serial import SerialModel
 from kinecal.optimize import METHODS, minimize
 from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize

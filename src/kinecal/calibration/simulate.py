@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal._files import read_json, write_text_atomic
+from kinecal.calibration.data import Measurements
 from kinecal.errors import InputError
-from kinecal.io._atomic import write_text_atomic
-from kinecal.io.measurements import Measurements
 from kinecal.kinematics.serial import SerialModel
 
 __all__ = [
@@ -160,12 +160,7 @@ def write_truth(path: str | Path, model: SerialModel, true_params: Array) -> Non
 def read_truth(path: str | Path, model: SerialModel) -> Array:
     """True parameter vector ``(n_params,)`` from a truth file's ``errors``."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"not a readable JSON file ({exc})", file=path) from None
+    data = read_json(path)
     errors = data.get("errors") if isinstance(data, dict) else None
     if not isinstance(errors, dict):
         raise InputError("expected a truth file with an 'errors' mapping", file=path)

@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
-from kinecal.io._atomic import write_text_atomic
 
 __all__ = ["echo_json", "progress", "resolve_data_path", "to_jsonable", "write_json"]
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -16,12 +15,9 @@ from kinecal.errors import InputError
 
 def parameters_from_result(model, path: Path) -> np.ndarray:
     """Full parameter vector from a calibration result JSON (``identified`` values)."""
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"not a readable JSON file ({exc})", file=path) from None
+    from kinecal._files import read_json
+
+    data = read_json(path)
     params = data.get("parameters") if isinstance(data, dict) else None
     if not isinstance(params, dict):
         raise InputError("expected a calibration result with a 'parameters' mapping", file=path)
@@ -252,11 +248,11 @@ def select_poses_cmd(
     out: Path = typer.Option(..., "--out", help="CSV of the selected q1..qn."),
 ) -> None:
     """Choose calibration poses maximising observability (O1, D-optimal)."""
+    from kinecal.calibration.data import Measurements
     from kinecal.calibration.pose_selection import select_poses
     from kinecal.calibration.problem import resolve_free
     from kinecal.calibration.simulate import random_configurations
     from kinecal.io.csvtable import write_table
-    from kinecal.io.measurements import Measurements
     from kinecal.io.models import load_model
 
     m = load_model(model)

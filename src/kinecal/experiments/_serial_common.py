@@ -172,7 +172,7 @@ def write_convergence_png(
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
-    from kinecal.io._atomic import write_bytes_atomic
+    from kinecal._files import write_bytes_atomic
 
     panels = 2 if evaluations else 1
     fig = Figure(figsize=(7.0 * panels, 4.8), dpi=100)

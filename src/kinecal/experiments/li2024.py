@@ -176,7 +176,7 @@ def _figures(result: dict[str, Any], out_dir: Path) -> list[str]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from kinecal.io._atomic import write_bytes_atomic
+    from kinecal._files import write_bytes_atomic
 
     out_dir.mkdir(parents=True, exist_ok=True)
     files = []

@@ -188,7 +188,7 @@ def _figure(result: dict, out: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from kinecal.io._atomic import atomic_open
+    from kinecal._files import atomic_open
 
     out.mkdir(parents=True, exist_ok=True)
     h = np.maximum(np.array(result["pso"]["history_first_seed"]), 1e-16)

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal._files import atomic_open
 from kinecal.errors import InputError
-from kinecal.io._atomic import atomic_open
 
 __all__ = ["read_table", "write_table"]
 

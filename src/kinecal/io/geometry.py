@@ -33,8 +33,8 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, model_validator
 
+from kinecal._files import read_yaml_mapping, write_text_atomic
 from kinecal.errors import InputError
-from kinecal.io._atomic import write_text_atomic
 from kinecal.kinematics.stewart import StewartPlatform
 
 __all__ = [
@@ -177,16 +177,7 @@ def load_geometry(name_or_path: str | Path) -> StewartPlatform:
         Unknown name, unreadable file, invalid YAML or schema violation (with the file).
     """
     path = geometry_path(name_or_path)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read file: {exc}", file=path) from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise InputError(f"not valid YAML{where}", file=path) from None
-    if not isinstance(data, dict):
-        raise InputError("expected a YAML mapping at the top level", file=path)
+    data = read_yaml_mapping(path)
     try:
         spec = GeometrySpec.model_validate(data)
         return spec.to_platform()

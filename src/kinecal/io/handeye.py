@@ -22,8 +22,8 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from kinecal._files import read_text, write_text_atomic
 from kinecal.errors import InputError
-from kinecal.io._atomic import write_text_atomic
 from kinecal.io.csvtable import read_table, write_table
 from kinecal.spatial import check_rotation, pq_from_transform, transform_from_pq
 
@@ -152,13 +152,7 @@ def read_handeye_yaml(path: str | Path) -> tuple[Array, Array]:
         ``T1_i`` and ``T2_i`` as stored (lengths in the file's unit).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read: {exc}", file=path) from None
-    lines = text.splitlines()
+    lines = read_text(path).splitlines()
     if lines and lines[0].startswith("%YAML:"):  # OpenCV's non-standard directive
         lines = lines[1:]
     try:

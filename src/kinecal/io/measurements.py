@@ -9,62 +9,16 @@ x_dif, y_dif, z_dif``; degrees, mm) is read as well: measured = target + dif.
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
+from kinecal.calibration.data import Measurements
 from kinecal.errors import InputError
 from kinecal.io.csvtable import read_table, write_table
 from kinecal.kinematics.serial import SerialModel
 
-__all__ = ["Measurements", "read_measurements", "write_measurements"]
-
-
-@dataclass(frozen=True)
-class Measurements:
-    """Joint readings with measured tool-point positions.
-
-    Attributes
-    ----------
-    q : ndarray, shape (N, n_joints)
-        Joint angles (rad).
-    xyz : ndarray, shape (N, 3)
-        Measured tool-point positions in the measurement frame (model length unit).
-    weights : ndarray, shape (N,) or None
-        Optional per-pose weights (relative, > 0).
-    source : str
-        Where the data came from (file path or description).
-    """
-
-    q: NDArray[np.float64]
-    xyz: NDArray[np.float64]
-    weights: NDArray[np.float64] | None = None
-    source: str = ""
-
-    def __post_init__(self) -> None:
-        q = np.asarray(self.q, dtype=float)
-        xyz = np.asarray(self.xyz, dtype=float)
-        if q.ndim != 2 or xyz.shape != (q.shape[0], 3):
-            raise InputError(
-                f"measurements: expected q (N, n) and xyz (N, 3), got {q.shape} and {xyz.shape}"
-            )
-        if not (np.isfinite(q).all() and np.isfinite(xyz).all()):
-            raise InputError("measurements contain NaN or infinite values")
-        if self.weights is not None:
-            w = np.asarray(self.weights, dtype=float)
-            if w.shape != (q.shape[0],) or not (w > 0).all():
-                raise InputError("weights: expected one positive value per pose")
-
-    def __len__(self) -> int:
-        return int(np.shape(self.q)[0])
-
-    def subset(self, index: NDArray[np.intp]) -> Measurements:
-        """The poses selected by `index`."""
-        w = None if self.weights is None else np.asarray(self.weights)[index]
-        return Measurements(np.asarray(self.q)[index], np.asarray(self.xyz)[index], w,
-                            f"{self.source}[subset]")
+__all__ = ["Measurements", "read_measurements", "write_measurements"]  # Measurements re-exported
 
 
 def _header(path: Path) -> list[str]:

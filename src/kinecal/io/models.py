@@ -28,8 +28,8 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
+from kinecal._files import read_yaml_mapping, write_text_atomic
 from kinecal.errors import InputError
-from kinecal.io._atomic import write_text_atomic
 from kinecal.kinematics.serial import SerialModel
 
 __all__ = ["ModelFile", "bundled_models", "load_model", "model_path", "read_yaml", "save_model"]
@@ -130,19 +130,7 @@ def model_path(name_or_path: str | Path) -> Path:
 
 def read_yaml(path: Path) -> dict:
     """Read a YAML mapping; `InputError` with the file (and line) when unreadable."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read file: {exc}", file=path) from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise InputError(f"not valid YAML{where}", file=path) from None
-    if not isinstance(data, dict):
-        raise InputError("expected a YAML mapping (key: value) at the top level", file=path)
-    return data
+    return read_yaml_mapping(path)
 
 
 def _validation_message(exc: ValidationError) -> str:

@@ -173,7 +173,7 @@ def save_calibration_figures(result: Any, out_dir: str | Path,
 
     Returns the written paths.
     """
-    from kinecal.io._atomic import write_bytes_atomic
+    from kinecal._files import write_bytes_atomic
 
     out_dir = Path(out_dir)
     pngs = calibration_figures(result) if pngs is None else pngs

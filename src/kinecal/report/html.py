@@ -14,8 +14,8 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
-from kinecal.io._atomic import write_text_atomic
 from kinecal.report.figures import (
     DPI,
     FIGSIZE,

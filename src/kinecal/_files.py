@@ -1,17 +1,30 @@
-"""Atomic file writes: a temporary file in the target directory, then a rename."""
+"""File helpers used by every layer: atomic writes and strict reads.
+
+Writes go to a temporary file in the target directory, then a rename: an existing output
+is never half overwritten. Reads turn every failure into `kinecal.InputError` naming the
+file. (This module sits beside `kinecal.errors`, below all layers.)
+"""
 
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 from kinecal.errors import InputError
 
-__all__ = ["atomic_open", "write_bytes_atomic", "write_text_atomic"]
+__all__ = [
+    "atomic_open",
+    "read_json",
+    "read_text",
+    "read_yaml_mapping",
+    "write_bytes_atomic",
+    "write_text_atomic",
+]
 
 
 @contextlib.contextmanager
@@ -63,3 +76,41 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     """Write `data` to `path` atomically."""
     with atomic_open(path, "wb", encoding=None) as fh:
         fh.write(data)
+
+
+def read_text(path: str | Path) -> str:
+    """The UTF-8 text of `path`; `InputError` (with the file) when missing or unreadable."""
+    path = Path(path)
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("file not found", file=path) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, expected a file", file=path) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"not a readable text file ({exc})", file=path) from None
+
+
+def read_json(path: str | Path) -> Any:
+    """The JSON document in `path`; `InputError` naming the file (and line) otherwise."""
+    text = read_text(path)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not valid JSON at line {exc.lineno}: {exc.msg}", file=path) from None
+
+
+def read_yaml_mapping(path: str | Path, text: str | None = None) -> dict:
+    """The YAML mapping in `path` (or in `text` read from it); `InputError` otherwise."""
+    import yaml
+
+    text = read_text(path) if text is None else text
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise InputError(f"not valid YAML{where}", file=path) from None
+    if not isinstance(data, dict):
+        raise InputError("expected a YAML mapping (key: value) at the top level", file=path)
+    return data
