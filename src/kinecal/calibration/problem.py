@@ -157,7 +157,7 @@ class CalibrationProblem:
 
     def jacobian(self, x: Array) -> Array:
         """Analytic Jacobian of `residuals`, shape ``(3N, n_free)``."""
-        Jt = self._sweep(x).jacobian_t()[self.index]  # (k, 3, N)
+        Jt = self._sweep(x).jacobian_t(columns=self.index)  # (k, 3, N)
         if self.weighted:
             Jt *= self.sqrt_w
         return Jt.transpose(2, 1, 0).reshape(-1, self.n_free)

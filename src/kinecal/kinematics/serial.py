@@ -470,21 +470,33 @@ class Sweep:
         self.positions = o_end  # (N, 3)
         self.frames = frames
 
-    def jacobian_t(self, outputs: str = "position") -> Array:
-        """Identification Jacobian ``(n_params, 3 or 6, N)`` (see `identification_jacobian`)."""
+    def jacobian_t(self, outputs: str = "position", columns: ArrayLike | None = None) -> Array:
+        """Identification Jacobian ``(n, 3 or 6, N)`` (see `identification_jacobian`).
+
+        `columns` (parameter indices) restricts the rows to those parameters, in that
+        order; only their motions are differentiated.
+        """
         if outputs not in ("position", "pose"):
             raise InputError(f"outputs: expected 'position' or 'pose', got {outputs!r}")
-        model, frames = self.model, self.frames
+        model = self.model
+        cols = np.arange(model.n_params) if columns is None else np.asarray(columns)
+        row_of = np.full(model.n_params, -1)
+        row_of[cols] = np.arange(cols.size)
         p_end = self.positions.T  # (3, N)
         rows = 3 if outputs == "position" else 6
-        U = np.stack([u for u, _ in frames])  # (n_motions, 3, N)
-        Jt = np.zeros((model.n_params, rows, p_end.shape[1]))
-        rot = model._rotation_mask
-        idx = model._motion_index
-        Jt[idx[~rot], :3] = U[~rot]  # translations move the point along their axis
-        Ur = U[rot]
-        r = p_end - np.stack([o for (_, o), is_rot in zip(frames, rot, strict=True) if is_rot])
-        Jt[idx[rot], :3] = np.cross(Ur, r, axis=1)  # rotations: u x (p - o)
-        if rows == 6:
-            Jt[idx[rot], 3:] = Ur
+        Jt = np.zeros((cols.size, rows, p_end.shape[1]))
+        for (u, o), k, is_rot in zip(self.frames, model._motion_index, model._rotation_mask,
+                                     strict=True):
+            r_ = row_of[k]
+            if r_ < 0:
+                continue
+            if not is_rot:  # a translation moves the point along its axis
+                Jt[r_, :3] = u
+                continue
+            d = p_end - o  # a rotation about u through o: u x (p - o)
+            Jt[r_, 0] = u[1] * d[2] - u[2] * d[1]
+            Jt[r_, 1] = u[2] * d[0] - u[0] * d[2]
+            Jt[r_, 2] = u[0] * d[1] - u[1] * d[0]
+            if rows == 6:
+                Jt[r_, 3:] = u
         return Jt
