@@ -56,6 +56,8 @@ class CalibrationResult:
         Distance errors on the calibration poses (length unit).
     val_before, val_after : ndarray, shape (N_val,) or None
         Distance errors on the validation poses.
+    q_calibration, q_validation : ndarray, shape (N, n_joints), optional
+        Joint angles (rad) of the calibration and validation poses.
     """
 
     model: SerialModel
@@ -80,6 +82,8 @@ class CalibrationResult:
     success: bool = True
     sigma: float = float("nan")
     extra: dict[str, Any] = field(default_factory=dict)
+    q_calibration: Array | None = None
+    q_validation: Array | None = None
 
     # ------------------------------------------------------------------ numbers
     @property
@@ -100,6 +104,35 @@ class CalibrationResult:
         s = self.validation_stats or self.calibration_stats
         before, after = s["before"]["mean"], s["after"]["mean"]
         return float(100.0 * (before - after) / before) if before > 0 else 0.0
+
+    def position_covariance(self, q: Array) -> Array:
+        """Covariance ``(N, 3, 3)`` of the calibrated model's tool positions at `q`.
+
+        First-order propagation of the parameter covariance: ``J C J^T`` with ``J`` the
+        identification Jacobian of the free parameters at the identified values (length
+        unit squared). It is the uncertainty the calibration leaves in the model, not the
+        instrument's noise.
+        """
+        idx = self.nominal_model.index(self.free)
+        J = self.nominal_model.identification_jacobian(q, self.params)[:, :, idx]
+        return J @ self.covariance @ np.swapaxes(J, 1, 2)
+
+    def predicted_position_error(self, q: Array) -> Array:
+        """RMS distance error ``(N,)`` of the calibrated model at `q` due to the parameter
+        uncertainty: ``sqrt(trace(J C J^T))`` (length unit); checked by Monte Carlo in the
+        tests."""
+        return np.sqrt(np.clip(np.trace(self.position_covariance(q), axis1=1, axis2=2), 0, None))
+
+    def predicted_error_summary(self) -> dict[str, float | None]:
+        """Mean `predicted_position_error` over the calibration and validation poses."""
+        out: dict[str, float | None] = {"calibration_mean": None, "validation_mean": None}
+        if not np.isfinite(self.covariance).all():
+            return out
+        for key, q in (("calibration_mean", self.q_calibration),
+                       ("validation_mean", self.q_validation)):
+            if q is not None and len(q):
+                out[key] = float(self.predicted_position_error(q).mean())
+        return out
 
     def _unit_scale(self) -> Array:
         s = 180.0 / np.pi if self.nominal_model.angle_unit == "deg" else 1.0
@@ -151,6 +184,7 @@ class CalibrationResult:
         }
         if self.validation_stats is not None:
             out["validation"] = {"n": int(self.val_before.size), **self.validation_stats}
+        out["predicted_error"] = self.predicted_error_summary()
         out.update(self.extra)
         return out
 
@@ -188,6 +222,12 @@ class CalibrationResult:
                 lines.append(f"{label[:3] + '. ' + when:12s} {s['n']:5d} {s['mean']:10.4g} "
                              f"{s['rms']:10.4g} {s['std']:10.4g} {s['max']:10.4g}")
         lines.append(f"improvement of the mean error: {self.improvement_percent:.2f} %")
+        pred = self.predicted_error_summary()
+        if pred["calibration_mean"] is not None:
+            where = f"{pred['calibration_mean']:.3g} {unit} on the calibration poses"
+            if pred["validation_mean"] is not None:
+                where += f", {pred['validation_mean']:.3g} {unit} on the validation poses"
+            lines.append(f"model uncertainty left (1 sigma, first order): {where}")
         lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations, "
                      f"{self.seconds:.3g} s")
         if self.outliers:

@@ -271,4 +271,6 @@ def calibrate(
         success=bool(res.success),
         sigma=sigma,
         extra=extra,
+        q_calibration=np.asarray(data.q),
+        q_validation=None if validate is None else np.asarray(validate.q),
     )

@@ -184,6 +184,14 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
               f"<strong>{result.improvement_percent:.2f} %</strong> on the "
               f"{'validation' if result.validation_stats else 'calibration'} poses "
               "(distance errors, ISO 9283-style position accuracy statistics).</p>")
+    pred = result.predicted_error_summary()
+    if pred["calibration_mean"] is not None:
+        parts = [f"{pred['calibration_mean']:.3g} {unit} on the calibration poses"]
+        if pred["validation_mean"] is not None:
+            parts.append(f"{pred['validation_mean']:.3g} {unit} on the validation poses")
+        errors += ("<p>Uncertainty the calibration leaves in the model (1 sigma RMS position "
+                   "error from the parameter covariance, first order): "
+                   f"{html.escape(', '.join(parts))}.</p>")
     captions = {
         "errors": "Per-pose position error on the calibration poses, before (grey) and "
                   "after (blue) calibration.",
