@@ -25,6 +25,7 @@ __all__ = [
     "check_rotation",
     "check_transform",
     "invert_transform",
+    "left_jacobian_inverse",
     "matrix_from_axis_angle",
     "matrix_from_quaternion",
     "matrix_from_rpy",
@@ -235,6 +236,23 @@ def axis_angle_from_matrix(R: ArrayLike) -> Array:
     small = vn < 1e-12
     scale = np.where(small, 2.0, angle / np.where(small, 1.0, vn))
     return q[..., 1:] * scale[..., None]
+
+
+def left_jacobian_inverse(rotvec: ArrayLike) -> Array:
+    """Inverse left Jacobian of SO(3) at rotation vectors ``(..., 3)`` -> ``(..., 3, 3)``.
+
+    ``log(exp(d) exp(e)) = e + J_l^-1(e) d + O(|d|^2)``: how a rotation error
+    ``e = log(R R_ref^T)`` changes when ``R`` is rotated by a small ``d`` (in the reference
+    frame). ``J_l^-1 = I - [e]x / 2 + (1/t^2 - (1 + cos t) / (2 t sin t)) [e]x^2``, t = |e|.
+    """
+    e = np.asarray(rotvec, dtype=float)
+    t = np.linalg.norm(e, axis=-1)
+    small = t < 1e-6
+    ts = np.where(small, 1.0, t)
+    c = np.where(small, 1.0 / 12.0 + t**2 / 720.0,
+                 1.0 / ts**2 - (1.0 + np.cos(ts)) / (2.0 * ts * np.sin(ts)))
+    K = skew(e)
+    return np.eye(3) - 0.5 * K + c[..., None, None] * (K @ K)
 
 
 def rotation_angle(R: ArrayLike) -> Array:

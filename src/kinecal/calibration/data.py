@@ -12,13 +12,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.errors import InputError
+from kinecal.spatial import check_rotation
 
 __all__ = ["Measurements"]
 
 
 @dataclass(frozen=True)
 class Measurements:
-    """Joint readings with measured tool-point positions.
+    """Joint readings with measured tool-point positions (and optionally orientations).
 
     Attributes
     ----------
@@ -30,12 +31,16 @@ class Measurements:
         Optional per-pose weights (relative, > 0).
     source : str
         Where the data came from (file path or description).
+    rotations : ndarray, shape (N, 3, 3) or None
+        Measured tool-frame orientations in the measurement frame (6-DoF trackers, camera
+        poses); None for position-only measurements.
     """
 
     q: NDArray[np.float64]
     xyz: NDArray[np.float64]
     weights: NDArray[np.float64] | None = None
     source: str = ""
+    rotations: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         q = np.asarray(self.q, dtype=float)
@@ -50,6 +55,11 @@ class Measurements:
             w = np.asarray(self.weights, dtype=float)
             if w.shape != (q.shape[0],) or not (w > 0).all():
                 raise InputError("weights: expected one positive value per pose")
+        if self.rotations is not None:
+            R = np.asarray(self.rotations, dtype=float)
+            if R.shape != (q.shape[0], 3, 3):
+                raise InputError(f"rotations: expected shape ({q.shape[0]}, 3, 3), got {R.shape}")
+            check_rotation(R, tol=1e-6, name="measured rotation")
 
     def __len__(self) -> int:
         return int(np.shape(self.q)[0])
@@ -57,5 +67,6 @@ class Measurements:
     def subset(self, index: NDArray[np.intp]) -> Measurements:
         """The poses selected by `index`."""
         w = None if self.weights is None else np.asarray(self.weights)[index]
+        R = None if self.rotations is None else np.asarray(self.rotations)[index]
         return Measurements(np.asarray(self.q)[index], np.asarray(self.xyz)[index], w,
-                            f"{self.source}[subset]")
+                            f"{self.source}[subset]", R)

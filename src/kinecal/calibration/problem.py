@@ -18,8 +18,15 @@ from kinecal.calibration.data import Measurements
 from kinecal.calibration.identifiability import RANK_TOL, IdentifiabilityReport, analyse
 from kinecal.errors import InputError
 from kinecal.kinematics.serial import SerialModel
+from kinecal.spatial import axis_angle_from_matrix, left_jacobian_inverse
 
-__all__ = ["CalibrationProblem", "characteristic_length", "column_scale", "resolve_free"]
+__all__ = [
+    "CalibrationProblem",
+    "characteristic_length",
+    "column_scale",
+    "identification_rows",
+    "resolve_free",
+]
 
 Array = NDArray[np.float64]
 
@@ -41,6 +48,25 @@ def column_scale(
     """Column factors ``(k,)``: 1 for lengths, ``1 / L`` for angles (`characteristic_length`)."""
     L = characteristic_length(model, data, params)
     return np.where(model.is_angle()[model.index(list(names))], 1.0 / L, 1.0)
+
+
+def identification_rows(
+    model: SerialModel, data: Measurements, names: Sequence[str], params=None,
+    rotation_weight: float | None = None,
+) -> Array:
+    """Identification Jacobian rows ``(3N or 6N, k)`` of `names` for the measured quantities.
+
+    Position rows always; with measured orientations (``data.rotations``) also the three
+    rotation rows per pose, times `rotation_weight` (length per rad; default the
+    `characteristic_length`), so that they compare with the position rows.
+    """
+    idx = model.index(list(names))
+    if data.rotations is None:
+        return model.identification_jacobian(data.q, params)[:, :, idx].reshape(-1, idx.size)
+    J = model.identification_jacobian(data.q, params, outputs="pose")[:, :, idx]
+    w = characteristic_length(model, data, params) if rotation_weight is None else rotation_weight
+    J[:, 3:] *= w
+    return J.reshape(-1, idx.size)
 
 
 def resolve_free(
@@ -74,9 +100,8 @@ def resolve_free(
     if len(set(names)) != len(names):
         raise InputError("free: a parameter is listed twice", option="--free")
     p = model.nominal if params is None else params
-    J = model.identification_jacobian(data.q, p)[:, :, model.index(names)]
-    report = analyse(J.reshape(-1, len(names)), names, tol=tol,
-                     scale=column_scale(model, data, names, p))
+    J = identification_rows(model, data, names, p)
+    report = analyse(J, names, tol=tol, scale=column_scale(model, data, names, p))
     if free == "identifiable":
         names = report.identifiable
     return names, report
@@ -93,21 +118,42 @@ class CalibrationProblem:
         Joint readings and measured tool positions.
     free : sequence of str
         Names of the free parameters.
+    rotation_weight : float, optional
+        With measured orientations: length units per radian of rotation error in the
+        residual (default: the workspace's `characteristic_length`; the ratio of position
+        to orientation noise is the statistically right choice when known).
+
+    Notes
+    -----
+    With measured orientations each pose has six residuals: the position error and
+    ``rotation_weight * log(R_model R_measured^T)`` (a rotation vector in the measurement
+    frame); its Jacobian uses the inverse left Jacobian of SO(3), exact to first order at
+    any residual size.
     """
 
-    def __init__(self, model: SerialModel, data: Measurements, free: Sequence[str]) -> None:
+    def __init__(self, model: SerialModel, data: Measurements, free: Sequence[str],
+                 rotation_weight: float | None = None) -> None:
         self.model = model
         self.data = data
         self.free = list(free)
         self.index = model.index(self.free)
         self.base_params = model.nominal
         self.x0 = self.base_params[self.index].copy()
-        n_res = 3 * len(data)
+        self.R_meas = None if data.rotations is None else np.asarray(data.rotations, float)
+        self.rows = 3 if self.R_meas is None else 6
+        n_res = self.rows * len(data)
         if n_res < len(self.free):
             raise InputError(
                 f"{len(data)} poses give {n_res} equations for {len(self.free)} free parameters: "
-                f"expected at least {int(np.ceil(len(self.free) / 3))} poses"
+                f"expected at least {int(np.ceil(len(self.free) / self.rows))} poses"
             )
+        self.rotation_weight = 0.0
+        if self.R_meas is not None:
+            self.rotation_weight = (characteristic_length(model, data) if rotation_weight is None
+                                    else float(rotation_weight))
+            if not self.rotation_weight > 0:
+                raise InputError(f"rotation weight: expected > 0, got {rotation_weight}",
+                                 option="--rotation-weight")
         w = np.ones(len(data)) if data.weights is None else np.asarray(data.weights, float)
         self.sqrt_w = np.sqrt(w)
         self.weighted = data.weights is not None
@@ -150,21 +196,37 @@ class CalibrationProblem:
         """Euclidean distance errors ``(N,)`` (or ``(P, N)``) in the length unit."""
         return np.linalg.norm(self.errors(x), axis=-1)
 
+    def rotation_errors(self, x: Array) -> Array:
+        """Rotation error vectors ``log(R_model R_measured^T)`` ``(N, 3)`` (rad); needs
+        measured orientations."""
+        if self.R_meas is None:
+            raise InputError("these measurements have no orientations")
+        R = self._sweep(np.asarray(x, dtype=float)).rotations
+        return axis_angle_from_matrix(R @ np.swapaxes(self.R_meas, 1, 2))
+
     def residuals(self, x: Array) -> Array:
-        """Weighted residual vector ``(3N,)``."""
+        """Weighted residual vector ``(3N,)``, or ``(6N,)`` with measured orientations."""
         e = self.errors(x)
+        if self.R_meas is not None:
+            e = np.concatenate([e, self.rotation_weight * self.rotation_errors(x)], axis=1)
         return (e * self.sqrt_w[:, None]).ravel() if self.weighted else e.ravel()
 
     def jacobian(self, x: Array) -> Array:
-        """Analytic Jacobian of `residuals`, shape ``(3N, n_free)``."""
-        Jt = self._sweep(x).jacobian_t(columns=self.index)  # (k, 3, N)
+        """Analytic Jacobian of `residuals`, shape ``(3N or 6N, n_free)``."""
+        sweep = self._sweep(x)
+        if self.R_meas is None:
+            Jt = sweep.jacobian_t(columns=self.index)  # (k, 3, N)
+        else:
+            Jt = sweep.jacobian_t("pose", columns=self.index)  # (k, 6, N)
+            Jl = left_jacobian_inverse(self.rotation_errors(x))  # (N, 3, 3)
+            Jt[:, 3:] = self.rotation_weight * np.einsum("nij,kjn->kin", Jl, Jt[:, 3:])
         if self.weighted:
             Jt *= self.sqrt_w
         return Jt.transpose(2, 1, 0).reshape(-1, self.n_free)
 
     def mean_distance_from_residuals(self, r: Array) -> float:
         """Paper 000's ``s`` recomputed from a residual vector of `residuals`."""
-        e = np.asarray(r).reshape(-1, 3) / self.sqrt_w[:, None]
+        e = np.asarray(r).reshape(-1, self.rows)[:, :3] / self.sqrt_w[:, None]
         return float(np.linalg.norm(e, axis=1).mean())
 
     def population_cost(self, X: Array) -> Array:

@@ -221,6 +221,14 @@ class CalibrationResult:
                 s = stats[when]
                 lines.append(f"{label[:3] + '. ' + when:12s} {s['n']:5d} {s['mean']:10.4g} "
                              f"{s['rms']:10.4g} {s['std']:10.4g} {s['max']:10.4g}")
+        rot = self.extra.get("rotation_deg") or {}
+        if rot:
+            lines += ["", "orientation error [deg]", head]
+            for label, stats in rot.items():
+                for when in ("before", "after"):
+                    s = stats[when]
+                    lines.append(f"{label[:3] + '. ' + when:12s} {s['n']:5d} {s['mean']:10.4g} "
+                                 f"{s['rms']:10.4g} {s['std']:10.4g} {s['max']:10.4g}")
         lines.append(f"improvement of the mean error: {self.improvement_percent:.2f} %")
         pred = self.predicted_error_summary()
         if pred["calibration_mean"] is not None:

@@ -25,13 +25,19 @@ import scipy.stats
 
 from kinecal.calibration.data import Measurements
 from kinecal.calibration.identifiability import analyse
-from kinecal.calibration.problem import CalibrationProblem, column_scale, resolve_free
-from kinecal.calibration.result import CalibrationResult
+from kinecal.calibration.problem import (
+    CalibrationProblem,
+    column_scale,
+    identification_rows,
+    resolve_free,
+)
+from kinecal.calibration.result import CalibrationResult, error_stats
 from kinecal.errors import InputError
 from kinecal.kinematics.serial import SerialModel
 from kinecal.optimize import METHODS, minimize
 from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
 from kinecal.optimize.lsq import householder_gauss_newton, levenberg_marquardt
+from kinecal.spatial import rotation_angle
 
 __all__ = ["CALIBRATION_METHODS", "calibrate"]
 
@@ -59,8 +65,8 @@ def _outliers(d: np.ndarray) -> list[int]:
 
 
 def _covariance(problem: CalibrationProblem, x: np.ndarray, keep: np.ndarray | None):
-    r = problem.residuals(x).reshape(-1, 3)
-    J = problem.jacobian(x).reshape(-1, 3, problem.n_free)
+    r = problem.residuals(x).reshape(-1, problem.rows)
+    J = problem.jacobian(x).reshape(-1, problem.rows, problem.n_free)
     if keep is not None:
         r, J = r[keep], J[keep]
     r, J = r.ravel(), J.reshape(-1, problem.n_free)
@@ -68,6 +74,16 @@ def _covariance(problem: CalibrationProblem, x: np.ndarray, keep: np.ndarray | N
     sigma2 = float(r @ r) / dof if dof > 0 else float("nan")
     cov = sigma2 * np.linalg.pinv(J.T @ J)
     return cov, float(np.sqrt(sigma2))
+
+
+def _rotation_stats(model: SerialModel, data: Measurements, params: np.ndarray) -> dict:
+    """Before/after statistics of the geodesic orientation errors (degrees)."""
+    R_meas = np.swapaxes(np.asarray(data.rotations), 1, 2)
+    out = {}
+    for when, p in (("before", None), ("after", params)):
+        err = np.degrees(rotation_angle(model.fk(data.q, p)[:, :3, :3] @ R_meas))
+        out[when] = error_stats(err)
+    return out
 
 
 def _grow_identifiable(model, data, problem, res, report, tol, monitor):
@@ -86,9 +102,9 @@ def _grow_identifiable(model, data, problem, res, report, tol, monitor):
     if not held:
         return problem, res, names, report
     params = problem.full(res.x)
-    J = model.identification_jacobian(data.q, params)
-    Jf = J[:, :, model.index(names)].reshape(-1, len(names))
-    Jh = J[:, :, model.index(held)].reshape(-1, len(held))
+    weight = problem.rotation_weight or None
+    Jf = identification_rows(model, data, names, params, weight)
+    Jh = identification_rows(model, data, held, params, weight)
     # the same physical column scale as the analysis, threshold relative to the free set
     Jf = Jf * column_scale(model, data, names, params)
     Jh = Jh * column_scale(model, data, held, params)
@@ -101,7 +117,7 @@ def _grow_identifiable(model, data, problem, res, report, tol, monitor):
     if not added:
         return problem, res, names, report
     grown = [n for n in report.names if n in names or n in added]
-    bigger = CalibrationProblem(model, data, grown)
+    bigger = CalibrationProblem(model, data, grown, problem.rotation_weight or None)
     res2 = levenberg_marquardt(bigger.residuals, bigger.jacobian, params[bigger.index],
                                monitor=monitor)
     rss0 = 2.0 * res.fun
@@ -141,6 +157,7 @@ def calibrate(
     options: dict[str, Any] | None = None,
     progress: Callable[[int, float], Any] | None = None,
     rank_tol: float = CALIBRATION_RANK_TOL,
+    rotation_weight: float | None = None,
 ) -> CalibrationResult:
     """Identify the geometric parameters of `model` from `data`.
 
@@ -177,6 +194,9 @@ def calibrate(
     rank_tol : float
         Relative pivot threshold of the identifiability analysis behind
         ``free="identifiable"`` (see `CALIBRATION_RANK_TOL`).
+    rotation_weight : float, optional
+        With measured orientations (``data.rotations``): length units per radian of rotation
+        error (default: the workspace's characteristic length; see `CalibrationProblem`).
 
     Returns
     -------
@@ -190,7 +210,7 @@ def calibrate(
     seed = int(rng) if isinstance(rng, int | np.integer) else None
     t0 = time.perf_counter()
     names, report = resolve_free(model, data, free, tol=rank_tol)
-    problem = CalibrationProblem(model, data, names)
+    problem = CalibrationProblem(model, data, names, rotation_weight)
     monitor = problem.mean_distance_from_residuals
     outliers: list[int] = []
     options = dict(options or {})
@@ -241,10 +261,17 @@ def calibrate(
     if validate is not None:
         val_before = np.linalg.norm(model.positions(validate.q) - validate.xyz, axis=1)
         val_after = np.linalg.norm(model.positions(validate.q, params) - validate.xyz, axis=1)
+    rotation = {}
+    if data.rotations is not None:
+        rotation["calibration"] = _rotation_stats(model, data, params)
+    if validate is not None and validate.rotations is not None:
+        rotation["validation"] = _rotation_stats(model, validate, params)
     history = list(res.history)
     extra: dict[str, Any] = {}
     if "singular" in res:  # Householder: directions where J^T J was singular
         extra["singular_parameters"] = [names[i] for i in res.singular]
+    if rotation:  # measured orientations: rotation errors in degrees
+        extra["rotation_deg"] = rotation
     if "ls_history" in res:  # hybrid: the least-squares stage before the metaheuristic
         extra["least_squares_history"] = [float(h) for h in res.ls_history]
         extra["least_squares_iterations"] = int(res.ls_iterations)

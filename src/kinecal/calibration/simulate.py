@@ -22,6 +22,7 @@ from kinecal._files import read_json, write_text_atomic
 from kinecal.calibration.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial import SerialModel
+from kinecal.spatial import matrix_from_axis_angle
 
 __all__ = [
     "Simulation",
@@ -88,6 +89,8 @@ def simulate(
     noise: float = 0.0,
     rng: int | np.random.Generator | None = None,
     q: Array | None = None,
+    orientation: bool = False,
+    angle_noise: float = 0.0,
 ) -> Simulation:
     """Measurements of a true arm = `model` + `errors`, at random (or given) poses.
 
@@ -106,6 +109,10 @@ def simulate(
         Randomness (poses, errors, noise).
     q : ndarray, shape (N, n_joints), optional
         Joint angles to use instead of random ones.
+    orientation : bool
+        Also measure the tool frame's orientation (a 6-DoF instrument).
+    angle_noise : float
+        Standard deviation (rad) of the orientation noise, a random rotation vector per pose.
     """
     gen = np.random.default_rng(rng)
     if q is None:
@@ -130,10 +137,20 @@ def simulate(
         e = np.asarray(errors, dtype=float)
         if e.shape != (model.n_params,):
             raise InputError(f"errors: expected {model.n_params} values, got {e.shape}")
+    if not angle_noise >= 0:
+        raise InputError(f"angle noise: expected >= 0, got {angle_noise}", option="--angle-noise")
     true_params = model.nominal + e
-    exact = model.positions(q, true_params)
+    T = model.fk(q, true_params)
+    exact = T[:, :3, 3]
     xyz = exact + gen.normal(0.0, noise, exact.shape) if noise > 0 else exact.copy()
-    return Simulation(Measurements(q, xyz, None, f"simulated {model.name}"), true_params, exact)
+    rotations = None
+    if orientation:
+        rotations = T[:, :3, :3]
+        if angle_noise > 0:
+            turn = matrix_from_axis_angle(gen.normal(0.0, angle_noise, exact.shape))
+            rotations = turn @ rotations
+    data = Measurements(q, xyz, None, f"simulated {model.name}", rotations)
+    return Simulation(data, true_params, exact)
 
 
 def _angle_scale(model: SerialModel) -> float:

@@ -131,6 +131,10 @@ def simulate(
     seed: int = typer.Option(0, "--seed", help="Random seed."),
     out: Path = typer.Option(..., "--out", help="Measurement CSV to write."),
     truth_out: Path | None = typer.Option(None, "--truth-out", help="Truth JSON to write."),
+    orientation: bool = typer.Option(False, "--orientation",
+                                     help="Also measure the tool orientation (qw..qz columns)."),
+    angle_noise: float = typer.Option(0.0, "--angle-noise",
+                                      help="Orientation noise sigma (model angle unit)."),
 ) -> None:
     """Simulate measurements of a model with true errors and noise."""
     from kinecal.calibration.simulate import read_truth, write_truth
@@ -143,7 +147,11 @@ def simulate(
         err: object = errors
     else:
         err = read_truth(Path(errors), m) - m.nominal
-    sim = run(m, poses, errors=err, noise=noise, rng=seed)
+    if angle_noise and not orientation:
+        raise InputError("--angle-noise needs --orientation", option="--angle-noise")
+    to_rad = np.pi / 180.0 if m.angle_unit == "deg" else 1.0
+    sim = run(m, poses, errors=err, noise=noise, rng=seed, orientation=orientation,
+              angle_noise=angle_noise * to_rad)
     write_measurements(out, sim.data, m)
     if truth_out is not None:
         write_truth(truth_out, m, sim.true_params)
@@ -202,8 +210,11 @@ def calibrate(
     report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
     json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+    rotation_weight: float | None = typer.Option(
+        None, "--rotation-weight", help="With measured orientations: length units per rad of "
+        "rotation error (default: the workspace's characteristic length)."),
 ) -> None:
-    """Calibrate a serial arm from measured tool positions."""
+    """Calibrate a serial arm from measured tool positions (and orientations if given)."""
     from kinecal.calibration.serial import CALIBRATION_METHODS
     from kinecal.calibration.serial import calibrate as run
     from kinecal.cli._common import progress
@@ -225,7 +236,7 @@ def calibrate(
     with progress(f"calibrate {m.name} ({method})", maxiter if iterative else None,
                   quiet or json_out) as update:
         res = run(m, meas, method, free=_free_option(free), validate=val, rng=seed, loss=loss,
-                  maxiter=maxiter, target=target,
+                  maxiter=maxiter, target=target, rotation_weight=rotation_weight,
                   progress=(lambda it, best: update(1, best)) if iterative else None)
     if out is not None:
         res.to_json(out)

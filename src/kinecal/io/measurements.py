@@ -1,7 +1,8 @@
 """Serial-arm measurement files: joint readings and measured tool-point positions.
 
-kinecal's format (``docs/file-formats.md``): header ``q1..qn,x,y,z`` and an optional
-``weight`` column; joint values in the model's angle unit, positions in its length unit.
+kinecal's format (``docs/file-formats.md``): header ``q1..qn,x,y,z``, optional
+``qw,qx,qy,qz`` (measured tool orientation, a unit quaternion, for 6-DoF instruments) and an
+optional ``weight`` column; joint values in the model's angle unit, positions in its length unit.
 The laser-tracker export of the bundled UR5 dataset (``joint_1..joint_n, x_t, y_t, z_t,
 x_dif, y_dif, z_dif``; degrees, mm) is read as well: measured = target + dif.
 """
@@ -17,6 +18,7 @@ from kinecal.calibration.data import Measurements
 from kinecal.errors import InputError
 from kinecal.io.csvtable import read_table, write_table
 from kinecal.kinematics.serial import SerialModel
+from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
 __all__ = ["Measurements", "read_measurements", "write_measurements"]  # Measurements re-exported
 
@@ -64,14 +66,32 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
             file=path,
         )
     joints = [f"q{i}" for i in range(1, n + 1)]
-    cols = read_table(path, joints + ["x", "y", "z"], optional=["weight"])
+    quat = ["qw", "qx", "qy", "qz"]
+    present = [c for c in quat if c in header]
+    if present and len(present) != 4:
+        raise InputError(
+            f"orientation columns {', '.join(present)} without the others: expected all of "
+            "qw, qx, qy, qz (tool orientation as a unit quaternion) or none",
+            file=path,
+        )
+    cols = read_table(path, joints + ["x", "y", "z"], optional=["weight", *quat])
     q = np.column_stack([cols[c] for c in joints]) * scale
     xyz = np.column_stack([cols[c] for c in "xyz"])
     weights = cols.get("weight")
     if weights is not None and not (weights > 0).all():
         row = int(np.argmax(~(weights > 0))) + 1
         raise InputError("column weight: expected a positive number", file=path, row=row)
-    return Measurements(q, xyz, weights, str(path))
+    rotations = None
+    if present:
+        qv = np.column_stack([cols[c] for c in quat])
+        norm = np.linalg.norm(qv, axis=1)
+        bad = np.abs(norm - 1.0) > 1e-3
+        if bad.any():
+            row = int(np.argmax(bad)) + 1
+            raise InputError(f"qw, qx, qy, qz: norm {norm[row - 1]:.6f}, expected a unit "
+                             "quaternion", file=path, row=row)
+        rotations = matrix_from_quaternion(qv)
+    return Measurements(q, xyz, weights, str(path), rotations)
 
 
 def write_measurements(path: str | Path, data: Measurements, model: SerialModel) -> None:
@@ -80,6 +100,9 @@ def write_measurements(path: str | Path, data: Measurements, model: SerialModel)
     q = np.asarray(data.q) * scale
     columns = {f"q{i + 1}": q[:, i] for i in range(q.shape[1])}
     columns.update({c: np.asarray(data.xyz)[:, k] for k, c in enumerate("xyz")})
+    if data.rotations is not None:
+        qv = quaternion_from_matrix(np.asarray(data.rotations))
+        columns.update({c: qv[:, k] for k, c in enumerate(("qw", "qx", "qy", "qz"))})
     if data.weights is not None:
         columns["weight"] = np.asarray(data.weights)
     write_table(path, columns)

@@ -458,16 +458,17 @@ class SerialModel:
         p = self._check_params(params)
         if p.ndim != 1:
             raise InputError("identification_jacobian expects one parameter vector")
-        _, o_end, frames = self._sweep(q, p, record=True)
-        return Sweep(self, o_end, frames)
+        R, o_end, frames = self._sweep(q, p, record=True)
+        return Sweep(self, o_end, frames, R)
 
 
 class Sweep:
-    """Result of `SerialModel.sweep`: tool positions and the frames before each motion."""
+    """Result of `SerialModel.sweep`: tool poses and the frames before each motion."""
 
-    def __init__(self, model: SerialModel, o_end: Array, frames: list) -> None:
+    def __init__(self, model: SerialModel, o_end: Array, frames: list, R: Array) -> None:
         self.model = model
         self.positions = o_end  # (N, 3)
+        self.rotations = R  # (N, 3, 3): tool frame orientation in the measurement frame
         self.frames = frames
 
     def jacobian_t(self, outputs: str = "position", columns: ArrayLike | None = None) -> Array:
