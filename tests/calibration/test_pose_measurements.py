@@ -81,3 +81,13 @@ def test_cli_simulates_and_calibrates_poses(tmp_path, capsys):
     assert main(["simulate", "irb120", "--poses", "5", "--angle-noise", "0.1",
                  "--out", str(tmp_path / "x.csv")]) == 2
     assert "--orientation" in capsys.readouterr().err
+
+
+def test_report_shows_orientation_errors(tmp_path):
+    m = kinecal.load_model("irb120")
+    sim = simulate(m, 30, errors="random", rng=4, orientation=True, noise=0.01,
+                   angle_noise=2e-4)
+    res = kinecal.calibrate(m, sim.data)
+    text = res.report(tmp_path / "r.html").read_text()
+    assert "Orientation error" in text and "mean [deg]" in text
+    assert "orientation error [deg]" in res.summary()

@@ -184,6 +184,15 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
               f"<strong>{result.improvement_percent:.2f} %</strong> on the "
               f"{'validation' if result.validation_stats else 'calibration'} poses "
               "(distance errors, ISO 9283-style position accuracy statistics).</p>")
+    rot = result.extra.get("rotation_deg") or {}
+    if rot:
+        rot_rows = [(f"{label}, {when}", st[when]["n"], st[when]["mean"], st[when]["rms"],
+                     st[when]["std"], st[when]["max"])
+                    for label, st in rot.items() for when in ("before", "after")]
+        errors += ("<p>Orientation error (geodesic angle between the model's and the measured "
+                   "tool frame):</p>"
+                   + table(["poses", "n", "mean [deg]", "rms [deg]", "std [deg]", "max [deg]"],
+                           rot_rows))
     pred = result.predicted_error_summary()
     if pred["calibration_mean"] is not None:
         parts = [f"{pred['calibration_mean']:.3g} {unit} on the calibration poses"]
