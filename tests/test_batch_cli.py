@@ -85,4 +85,5 @@ def test_batch_interrupt_exits_130_and_says_how_to_resume(tmp_path, capsys, monk
     jobs.write_text(JOBS, encoding="utf-8")
     assert main(["batch", str(jobs), "--out", str(tmp_path / "o"), "--quiet"]) == 130
     err = capsys.readouterr().err
-    assert "interrupted: 1 of 7 jobs have results" in err and "resume" in err
+    assert "1 of 7 jobs have results" in err and "resume" in err
+    assert err.rstrip().endswith("kinecal: interrupted")

@@ -48,3 +48,14 @@ def test_fk_bad_input_exit_2(tmp_path, capsys):
     assert main(["fk", "irb120", str(csv)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "q4" in err and "joints.csv" in err
+
+
+def test_ctrl_c_is_one_line_and_exit_130(capsys):
+    from kinecal.cli._app import app
+
+    @app.command("interrupt-me", hidden=True)
+    def interrupt_me() -> None:
+        raise KeyboardInterrupt
+
+    assert main(["interrupt-me"]) == 130
+    assert capsys.readouterr().err == "kinecal: interrupted\n"

@@ -72,6 +72,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         rv = app(args=args, prog_name="kinecal", standalone_mode=False)
         code = rv if isinstance(rv, int) else 0
+        if code == 130:  # typer turns Ctrl-C into Exit(130), returned without a word
+            sys.stderr.write("kinecal: interrupted\n")
     except InputError as exc:
         sys.stderr.write(f"kinecal: error: {exc.one_line()}\n")
         code = 2

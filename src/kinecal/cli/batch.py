@@ -72,8 +72,9 @@ def batch(
             result = run_batch(jobs, out, executor=ex, workers=workers, on_result=on_result)
         except KeyboardInterrupt:
             finished = sum(s in ("done", "resumed") for s in settled)
-            typer.echo(f"kinecal: interrupted: {finished} of {len(jobs)} jobs have results in "
-                       f"{out}; run the same command again to resume", err=True)
+            # `kinecal.cli.main` adds "kinecal: interrupted" for the exit status 130
+            typer.echo(f"{finished} of {len(jobs)} jobs have results in {out}; run the same "
+                       "command again to resume", err=True)
             raise typer.Exit(130) from None
     records = result.records
     if not quiet:
