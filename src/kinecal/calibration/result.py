@@ -14,9 +14,15 @@ from kinecal._files import write_text_atomic
 from kinecal.calibration.identifiability import IdentifiabilityReport
 from kinecal.kinematics.serial import SerialModel
 
-__all__ = ["CalibrationResult", "error_stats"]
+__all__ = ["CalibrationResult", "error_stats", "stat_rows"]
 
 Array = NDArray[np.float64]
+
+
+def stat_rows(groups: dict[str, dict[str, dict[str, float]]]) -> list[tuple[str, str, dict]]:
+    """``(label, "before"|"after", stats)`` rows of before/after statistics groups."""
+    return [(label, when, stats[when]) for label, stats in groups.items()
+            for when in ("before", "after")]
 
 
 def error_stats(distances: Array) -> dict[str, float]:
@@ -97,6 +103,18 @@ class CalibrationResult:
         if self.val_before is None or self.val_after is None:
             return None
         return {"before": error_stats(self.val_before), "after": error_stats(self.val_after)}
+
+    def position_groups(self) -> dict[str, dict[str, dict[str, float]]]:
+        """``{"calibration": stats, "validation": stats}`` of the position errors (the
+        validation entry only with validation poses)."""
+        groups = {"calibration": self.calibration_stats}
+        if self.validation_stats is not None:
+            groups["validation"] = self.validation_stats
+        return groups
+
+    def rotation_groups(self) -> dict[str, dict[str, dict[str, float]]]:
+        """The same for orientation errors (degrees); empty without measured orientations."""
+        return dict(self.extra.get("rotation_deg") or {})
 
     @property
     def improvement_percent(self) -> float:
@@ -212,23 +230,14 @@ class CalibrationResult:
         if rep.unidentifiable:
             lines.append("not identifiable (held at nominal): " + ", ".join(rep.unidentifiable))
         head = f"{'':12s} {'n':>5s} {'mean':>10s} {'rms':>10s} {'std':>10s} {'max':>10s}"
-        lines += ["", f"position error [{unit}]", head]
-        rows = [("calibration", self.calibration_stats)]
-        if self.validation_stats is not None:
-            rows.append(("validation", self.validation_stats))
-        for label, stats in rows:
-            for when in ("before", "after"):
-                s = stats[when]
+        tables = [(f"position error [{unit}]", self.position_groups())]
+        if self.rotation_groups():
+            tables.append(("orientation error [deg]", self.rotation_groups()))
+        for title, groups in tables:
+            lines += ["", title, head]
+            for label, when, s in stat_rows(groups):
                 lines.append(f"{label[:3] + '. ' + when:12s} {s['n']:5d} {s['mean']:10.4g} "
                              f"{s['rms']:10.4g} {s['std']:10.4g} {s['max']:10.4g}")
-        rot = self.extra.get("rotation_deg") or {}
-        if rot:
-            lines += ["", "orientation error [deg]", head]
-            for label, stats in rot.items():
-                for when in ("before", "after"):
-                    s = stats[when]
-                    lines.append(f"{label[:3] + '. ' + when:12s} {s['n']:5d} {s['mean']:10.4g} "
-                                 f"{s['rms']:10.4g} {s['std']:10.4g} {s['max']:10.4g}")
         lines.append(f"improvement of the mean error: {self.improvement_percent:.2f} %")
         pred = self.predicted_error_summary()
         if pred["calibration_mean"] is not None:

@@ -54,20 +54,6 @@ def _write_csv(header: list[str], rows: list[list]) -> None:
     sys.stdout.write("\n".join(out) + "\n")
 
 
-def _check_reach(geom, poses_rad: np.ndarray, path: str) -> None:
-    legs = geom.inverse(poses_rad)
-    lo, hi = geom.leg_range
-    bad = ((legs < lo) | (legs > hi)).any(axis=1)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise InputError(
-            f"pose needs leg lengths {np.array2string(legs[i], precision=6)} outside the leg "
-            f"range [{lo:g}, {hi:g}]",
-            file=path,
-            row=i + 1,
-        )
-
-
 @stewart_app.command("ik")
 def ik(
     geometry: str = typer.Argument(..., help="Bundled geometry name or YAML path."),
@@ -79,9 +65,10 @@ def ik(
     """Inverse kinematics (papers/004 eq. 4-5): leg readings l1..l6 on stdout."""
     geom = _geometry(geometry)
     x = _poses_rad(_read(poses, POSE_COLUMNS, "POSES"))
-    if check_range:
-        _check_reach(geom, x, poses)
-    _write_csv(list(LEG_COLUMNS), geom.inverse(x).tolist())
+    legs = geom.inverse(x)
+    if check_range:  # the row of the first pose whose legs leave the range
+        geom.check_legs(legs, file=poses)
+    _write_csv(list(LEG_COLUMNS), legs.tolist())
 
 
 @stewart_app.command("fk")

@@ -25,7 +25,6 @@ loaded by name. Writes are atomic.
 
 from __future__ import annotations
 
-from importlib import resources
 from pathlib import Path
 from typing import Literal
 
@@ -35,6 +34,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, mo
 
 from kinecal._files import read_yaml_mapping, write_text_atomic
 from kinecal.errors import InputError
+from kinecal.io.bundled import bundled_names, resolve_machine_file
 from kinecal.kinematics.stewart import StewartPlatform
 
 __all__ = [
@@ -134,38 +134,14 @@ class GeometrySpec(BaseModel):
         return geom
 
 
-def _robots_dir() -> Path:
-    return Path(str(resources.files("kinecal") / "robots"))
-
-
 def bundled_geometries() -> list[str]:
     """Names of the bundled Stewart geometries (``kind: stewart`` files in robots/)."""
-    out = []
-    for p in sorted(_robots_dir().glob("*.yaml")):
-        try:
-            data = yaml.safe_load(p.read_text(encoding="utf-8"))
-        except (OSError, yaml.YAMLError):
-            continue
-        if isinstance(data, dict) and data.get("kind") == "stewart":
-            out.append(p.stem)
-    return out
+    return bundled_names("geometry")
 
 
 def geometry_path(name_or_path: str | Path) -> Path:
     """Path of a geometry file from a bundled name or a path; `InputError` if neither."""
-    path = Path(name_or_path)
-    if path.suffix in (".yaml", ".yml") or path.exists():
-        if not path.is_file():
-            raise InputError("geometry file not found", file=path)
-        return path
-    bundled = _robots_dir() / f"{name_or_path}.yaml"
-    if bundled.is_file() and str(name_or_path) in bundled_geometries():
-        return bundled
-    raise InputError(
-        f"unknown geometry {str(name_or_path)!r}: not a file and not a bundled geometry "
-        f"(bundled: {', '.join(bundled_geometries())})",
-        option="GEOMETRY",
-    )
+    return resolve_machine_file(name_or_path, "geometry", option="GEOMETRY")
 
 
 def load_geometry(name_or_path: str | Path) -> StewartPlatform:

@@ -20,7 +20,6 @@ Bundled models live in ``kinecal/robots/NAME.yaml`` and are loaded by name.
 
 from __future__ import annotations
 
-from importlib import resources
 from pathlib import Path
 from typing import Literal
 
@@ -30,6 +29,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from kinecal._files import read_yaml_mapping, write_text_atomic
 from kinecal.errors import InputError
+from kinecal.io.bundled import bundled_names, resolve_machine_file
 from kinecal.kinematics.serial import SerialModel
 
 __all__ = ["ModelFile", "bundled_models", "load_model", "model_path", "read_yaml", "save_model"]
@@ -100,32 +100,14 @@ class ModelFile(BaseModel):
         return v
 
 
-def _robots_dir() -> Path:
-    return Path(str(resources.files("kinecal") / "robots"))
-
-
 def bundled_models() -> list[str]:
     """Names of the bundled serial-arm models."""
-    return sorted(
-        p.stem for p in _robots_dir().glob("*.yaml")
-        if yaml.safe_load(p.read_text()).get("convention") is not None
-    )
+    return bundled_names("model")
 
 
 def model_path(name_or_path: str | Path) -> Path:
     """Path of a model file given a bundled name or a path; `InputError` if neither."""
-    path = Path(name_or_path)
-    if path.suffix in (".yaml", ".yml") or path.exists():
-        if not path.is_file():
-            raise InputError("model file not found", file=path)
-        return path
-    bundled = _robots_dir() / f"{name_or_path}.yaml"
-    if bundled.is_file():
-        return bundled
-    raise InputError(
-        f"unknown model {str(name_or_path)!r}: not a file and not a bundled model "
-        f"(bundled: {', '.join(bundled_models())})"
-    )
+    return resolve_machine_file(name_or_path, "model")
 
 
 def read_yaml(path: Path) -> dict:

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from kinecal._files import write_text_atomic
+from kinecal.calibration.result import stat_rows
 from kinecal.errors import InputError
 from kinecal.report.figures import (
     DPI,
@@ -169,26 +170,17 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
     params = table(["parameter", "unit", "nominal", "identified", "delta", "std. error",
                     "status"], prow, left=2,
                    row_classes=["" if ptab[n]["free"] else "fixed" for n in names])
-    stat_rows = []
-    groups = [("calibration", result.calibration_stats)]
-    if result.validation_stats is not None:
-        groups.append(("validation", result.validation_stats))
-    for label, stats in groups:
-        for when in ("before", "after"):
-            s = stats[when]
-            stat_rows.append((f"{label}, {when}", s["n"], s["mean"], s["rms"], s["std"],
-                              s["max"]))
+    rows = [(f"{label}, {when}", st["n"], st["mean"], st["rms"], st["std"], st["max"])
+            for label, when, st in stat_rows(result.position_groups())]
     errors = (table(["poses", "n", f"mean [{unit}]", f"rms [{unit}]", f"std [{unit}]",
-                     f"max [{unit}]"], stat_rows)
+                     f"max [{unit}]"], rows)
               + "<p>Mean error reduced by "
               f"<strong>{result.improvement_percent:.2f} %</strong> on the "
               f"{'validation' if result.validation_stats else 'calibration'} poses "
               "(distance errors, ISO 9283-style position accuracy statistics).</p>")
-    rot = result.extra.get("rotation_deg") or {}
-    if rot:
-        rot_rows = [(f"{label}, {when}", st[when]["n"], st[when]["mean"], st[when]["rms"],
-                     st[when]["std"], st[when]["max"])
-                    for label, st in rot.items() for when in ("before", "after")]
+    if result.rotation_groups():
+        rot_rows = [(f"{label}, {when}", st["n"], st["mean"], st["rms"], st["std"], st["max"])
+                    for label, when, st in stat_rows(result.rotation_groups())]
         errors += ("<p>Orientation error (geodesic angle between the model's and the measured "
                    "tool frame):</p>"
                    + table(["poses", "n", "mean [deg]", "rms [deg]", "std [deg]", "max [deg]"],
