@@ -87,21 +87,13 @@ def fk(
     params: Path | None = typer.Option(None, "--params", help="Calibration result JSON."),
 ) -> None:
     """Forward kinematics: tool-point positions (CSV on stdout)."""
-    from kinecal.io.csvtable import read_table
     from kinecal.io.models import load_model
     from kinecal.spatial import quaternion_from_matrix
 
     m = load_model(model)
-    path = resolve_data_path(joints, "JOINTS")
-    if path.suffix == "" or "x_t" in path.read_text(encoding="utf-8", errors="replace")[:200]:
-        from kinecal.io.measurements import read_measurements
+    from kinecal.io.measurements import read_joints
 
-        q = read_measurements(path, m).q
-    else:
-        names = [f"q{i}" for i in range(1, m.n_joints + 1)]
-        cols = read_table(path, names)
-        scale = np.pi / 180.0 if m.angle_unit == "deg" else 1.0
-        q = np.column_stack([cols[n] for n in names]) * scale
+    q = read_joints(resolve_data_path(joints, "JOINTS"), m)
     p = None if params is None else parameters_from_result(m, params)
     T = m.fk(q, p)
     header = ["x", "y", "z"] + (["qw", "qx", "qy", "qz"] if pose else [])

@@ -13,6 +13,7 @@ import csv
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from kinecal.calibration.data import Measurements
 from kinecal.errors import InputError
@@ -20,7 +21,8 @@ from kinecal.io.csvtable import read_table, write_table
 from kinecal.kinematics.serial import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
-__all__ = ["Measurements", "read_measurements", "write_measurements"]  # Measurements re-exported
+# Measurements is re-exported from kinecal.calibration.data
+__all__ = ["Measurements", "read_joints", "read_measurements", "write_measurements"]
 
 
 def _header(path: Path) -> list[str]:
@@ -33,6 +35,29 @@ def _header(path: Path) -> list[str]:
         raise InputError(f"cannot read CSV: {exc}", file=path) from None
 
 
+def _resolve(path: str | Path) -> Path:
+    """A file path, or the file of a bundled ``NAME:PART``."""
+    spec = str(path)
+    path = Path(path)
+    if not path.exists() and ":" in spec and not path.suffix:
+        from kinecal.datasets import bundled_csv
+
+        path = bundled_csv(spec)
+    return path
+
+
+def read_joints(path: str | Path, model: SerialModel) -> NDArray[np.float64]:
+    """Joint angles ``(N, n_joints)`` in rad from a CSV with ``q1..qn`` (model angle unit;
+    other columns ignored) or a laser-tracker export (``joint_1..``, degrees)."""
+    path = _resolve(path)
+    if "joint_1" in _header(path):
+        return read_measurements(path, model).q
+    names = [f"q{i}" for i in range(1, model.n_joints + 1)]
+    cols = read_table(path, names)
+    scale = np.pi / 180.0 if model.angle_unit == "deg" else 1.0
+    return np.column_stack([cols[n] for n in names]) * scale
+
+
 def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
     """Read a measurement CSV for `model` (a path or a bundled ``NAME:PART``).
 
@@ -41,12 +66,7 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
     InputError
         Missing columns, wrong joint count, NaN or non-numeric cells (with the row).
     """
-    spec = str(path)
-    path = Path(path)
-    if not path.exists() and ":" in spec and not path.suffix:
-        from kinecal.datasets import bundled_csv
-
-        path = bundled_csv(spec)
+    path = _resolve(path)
     header = _header(path)
     n = model.n_joints
     scale = np.pi / 180.0 if model.angle_unit == "deg" else 1.0
