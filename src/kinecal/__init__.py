@@ -18,6 +18,8 @@ _LAZY = {
     "load_model": "kinecal.io.models",
     "save_model": "kinecal.io.models",
     "read_measurements": "kinecal.io.measurements",
+    "Measurements": "kinecal.data",
+    "simulate": "kinecal.calibration.simulate",
     "calibrate": "kinecal.calibration.serial",
     "CalibrationResult": "kinecal.calibration.result",
     "StewartPlatform": "kinecal.kinematics.stewart",

@@ -162,3 +162,22 @@ def test_bad_inputs_raise_input_error():
         SerialModel("x", "dhx", [dict(theta=0, d=0, a=0, alpha=0)])
     with pytest.raises(InputError, match="beta"):
         SerialModel("x", "dh", [dict(theta=0, d=0, a=0, alpha=0, beta=0)])
+
+
+@pytest.mark.parametrize("convention", ["dh", "craig", "hayati"])
+def test_joint_jacobian_matches_finite_differences(convention):
+    rng = np.random.default_rng(7)
+    model = random_model(convention, rng)
+    q = rng.uniform(-np.pi, np.pi, (5, 6))
+    p = model.nominal + rng.normal(0, 0.01, model.n_params)
+    J = model.joint_jacobian(q, p)
+    h = 1e-6
+    for j in range(6):
+        dq = np.zeros(6)
+        dq[j] = h
+        Tp, Tm = model.fk(q + dq, p), model.fk(q - dq, p)
+        np.testing.assert_allclose(J[:, :3, j], (Tp[:, :3, 3] - Tm[:, :3, 3]) / (2 * h),
+                                   atol=1e-6 * np.abs(J[:, :3]).max())
+        dR = Tp[:, :3, :3] @ np.swapaxes(Tm[:, :3, :3], 1, 2)
+        np.testing.assert_allclose(J[:, 3:, j], axis_angle_from_matrix(dR) / (2 * h), atol=1e-7)
+    np.testing.assert_array_equal(model.joint_jacobian(q, p, outputs="position"), J[:, :3])

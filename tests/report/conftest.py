@@ -3,8 +3,8 @@
 import pytest
 
 import kinecal
-from kinecal.calibration.data import Measurements
 from kinecal.calibration.simulate import simulate
+from kinecal.data import Measurements
 
 
 @pytest.fixture(scope="session")

@@ -55,10 +55,10 @@ def simulate_job(job: Job, model: Any) -> tuple[Any, Any, np.ndarray, list[str] 
         calibration then identifies exactly these, so that each free parameter has a
         well-defined truth. None otherwise.
     """
-    from kinecal.calibration.data import Measurements
     from kinecal.calibration.problem import resolve_free
     from kinecal.calibration.serial import CALIBRATION_RANK_TOL
     from kinecal.calibration.simulate import random_configurations, random_errors, simulate
+    from kinecal.data import Measurements
 
     gen, gen_val = job_seeds(job.seed)
     names = None

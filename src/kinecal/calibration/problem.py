@@ -14,8 +14,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.calibration.data import Measurements
 from kinecal.calibration.identifiability import RANK_TOL, IdentifiabilityReport, analyse
+from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial import SerialModel
 from kinecal.spatial import axis_angle_from_matrix, left_jacobian_inverse

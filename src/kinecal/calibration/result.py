@@ -12,27 +12,12 @@ from numpy.typing import NDArray
 
 from kinecal._files import write_text_atomic
 from kinecal.calibration.identifiability import IdentifiabilityReport
+from kinecal.calibration.stats import error_stats, stat_rows
 from kinecal.kinematics.serial import SerialModel
 
-__all__ = ["CalibrationResult", "error_stats", "stat_rows"]
+__all__ = ["CalibrationResult"]
 
 Array = NDArray[np.float64]
-
-
-def stat_rows(groups: dict[str, dict[str, dict[str, float]]]) -> list[tuple[str, str, dict]]:
-    """``(label, "before"|"after", stats)`` rows of before/after statistics groups."""
-    return [(label, when, stats[when]) for label, stats in groups.items()
-            for when in ("before", "after")]
-
-
-def error_stats(distances: Array) -> dict[str, float]:
-    """``{n, mean, rms, std, max}`` of Euclidean distance errors ``(N,)`` (ISO 9283 style)."""
-    d = np.asarray(distances, dtype=float)
-    if d.size == 0:
-        return {"n": 0, "mean": float("nan"), "rms": float("nan"), "std": float("nan"),
-                "max": float("nan")}
-    return {"n": int(d.size), "mean": float(d.mean()), "rms": float(np.sqrt((d * d).mean())),
-            "std": float(d.std(ddof=1)) if d.size > 1 else 0.0, "max": float(d.max())}
 
 
 @dataclass

@@ -23,7 +23,6 @@ import numpy as np
 import scipy.linalg
 import scipy.stats
 
-from kinecal.calibration.data import Measurements
 from kinecal.calibration.identifiability import analyse
 from kinecal.calibration.problem import (
     CalibrationProblem,
@@ -31,7 +30,9 @@ from kinecal.calibration.problem import (
     identification_rows,
     resolve_free,
 )
-from kinecal.calibration.result import CalibrationResult, error_stats
+from kinecal.calibration.result import CalibrationResult
+from kinecal.calibration.stats import error_stats
+from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial import SerialModel
 from kinecal.optimize import METHODS, minimize

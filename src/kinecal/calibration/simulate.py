@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal._files import read_json, write_text_atomic
-from kinecal.calibration.data import Measurements
+from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial import SerialModel
 from kinecal.spatial import matrix_from_axis_angle

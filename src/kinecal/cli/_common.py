@@ -14,7 +14,14 @@ import numpy as np
 from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
 
-__all__ = ["echo_json", "progress", "resolve_data_path", "to_jsonable", "write_json"]
+__all__ = [
+    "check_paths",
+    "echo_json",
+    "progress",
+    "resolve_data_path",
+    "to_jsonable",
+    "write_json",
+]
 
 
 def to_jsonable(obj: Any) -> Any:
@@ -56,6 +63,53 @@ def resolve_data_path(spec: str, option: str = "DATA") -> Path:
     if ":" in spec and not path.suffix:
         return bundled_csv(spec)
     raise InputError(f"file not found: {spec}", option=option)
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        if a.exists() and b.exists():
+            return a.samefile(b)
+    except OSError:
+        pass
+    return a.resolve() == b.resolve()
+
+
+def check_paths(
+    inputs: dict[str, str | Path | None], outputs: dict[str, str | Path | None]
+) -> None:
+    """Refuse, before any work, outputs that would overwrite an input or each other.
+
+    Parameters
+    ----------
+    inputs : dict of str to path
+        Argument or option name -> input path (``NAME:PART`` bundled sets and None are
+        skipped: they are never written).
+    outputs : dict of str to path
+        Option name -> output path (None: not requested).
+
+    Raises
+    ------
+    InputError
+        An output equal to an input or to another output (the same file under any name),
+        an output that is a directory, or an output whose folder does not exist.
+    """
+    ins = {k: Path(v) for k, v in inputs.items() if v is not None and Path(v).exists()}
+    outs = {k: Path(v) for k, v in outputs.items() if v is not None}
+    seen: dict[str, Path] = {}
+    for opt, path in outs.items():
+        if path.is_dir():
+            raise InputError(f"{path} is a directory, expected a file path", option=opt)
+        if not path.parent.is_dir():
+            raise InputError(f"folder {path.parent} does not exist", option=opt)
+        for name, src in ins.items():
+            if _same_file(path, src):
+                raise InputError(f"{path} is also the input {name}: refusing to overwrite an "
+                                 "input, choose another output path", option=opt)
+        for other, prev in seen.items():
+            if _same_file(path, prev):
+                raise InputError(f"{path} is also given to {other}: two outputs cannot share "
+                                 "a path", option=opt)
+        seen[opt] = path
 
 
 def quiet_requested(quiet: bool) -> bool:

@@ -251,10 +251,10 @@ def select_poses_cmd(
     out: Path = typer.Option(..., "--out", help="CSV of the selected q1..qn."),
 ) -> None:
     """Choose calibration poses maximising observability (O1, D-optimal)."""
-    from kinecal.calibration.data import Measurements
     from kinecal.calibration.pose_selection import select_poses
     from kinecal.calibration.problem import resolve_free
     from kinecal.calibration.simulate import random_configurations
+    from kinecal.data import Measurements
     from kinecal.io.csvtable import write_table
     from kinecal.io.models import load_model
 

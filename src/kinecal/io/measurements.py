@@ -15,13 +15,13 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.calibration.data import Measurements
+from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.io.csvtable import read_table, write_table
 from kinecal.kinematics.serial import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
-# Measurements is re-exported from kinecal.calibration.data
+# Measurements (kinecal.data) is re-exported here
 __all__ = ["Measurements", "read_joints", "read_measurements", "write_measurements"]
 
 

@@ -230,6 +230,10 @@ class SerialModel:
         self._index = {n: k for k, n in enumerate(self._names)}
         self._nominal = np.array([values[n] for n in self._names])
         self._motion_index = np.array([self._index[m.name] for m in motions])
+        # parameter carrying each joint's reading (the motion whose value adds q_j)
+        joint_param = {m.joint: self._index[m.name] for m in motions if m.joint is not None}
+        self._joint_columns = np.array([joint_param[j] for j in range(len(self.joints))],
+                                       dtype=np.intp)
         self._rotation_mask = np.array([m.kind == ROTATION for m in motions])
         fixed = set(self.fixed)
         if self.base is None:
@@ -447,6 +451,30 @@ class SerialModel:
         """
         return self.sweep(q, params).jacobian_t(outputs)
 
+    def joint_jacobian(
+        self, q: ArrayLike, params: ArrayLike | None = None, outputs: str = "pose"
+    ) -> Array:
+        """Derivative of the tool pose with respect to the joint readings.
+
+        Parameters
+        ----------
+        q : array_like, shape (N, n_joints)
+            Joint readings (rad).
+        params : array_like, shape (n_params,), optional
+            Parameter vector; nominal if omitted.
+        outputs : {"pose", "position"}
+            ``pose``: d(x, y, z) and the small-rotation vector of the tool frame in the
+            measurement frame; ``position``: d(x, y, z) only.
+
+        Returns
+        -------
+        ndarray, shape (N, 6, n_joints) or (N, 3, n_joints)
+            The geometric Jacobian: length unit per rad (and rad per rad) for a revolute
+            joint.
+        """
+        Jt = self.sweep(q, params).joint_jacobian_t(outputs)
+        return np.ascontiguousarray(Jt.transpose(2, 1, 0))
+
     def sweep(self, q: ArrayLike, params: ArrayLike | None = None) -> Sweep:
         """Forward kinematics of one parameter vector, keeping what the Jacobian needs.
 
@@ -470,6 +498,14 @@ class Sweep:
         self.positions = o_end  # (N, 3)
         self.rotations = R  # (N, 3, 3): tool frame orientation in the measurement frame
         self.frames = frames
+
+    def joint_jacobian_t(self, outputs: str = "pose") -> Array:
+        """Geometric Jacobian ``(n_joints, 6 or 3, N)`` with respect to the joint readings.
+
+        A joint's reading adds to the value of one motion of the chain, so its column is
+        that motion's parameter column of `jacobian_t`.
+        """
+        return self.jacobian_t(outputs, columns=self.model._joint_columns)
 
     def jacobian_t(self, outputs: str = "position", columns: ArrayLike | None = None) -> Array:
         """Identification Jacobian ``(n, 3 or 6, N)`` (see `identification_jacobian`).

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from kinecal._files import write_text_atomic
-from kinecal.calibration.result import stat_rows
+from kinecal.calibration.stats import stat_rows
 from kinecal.errors import InputError
 from kinecal.report.figures import (
     DPI,

@@ -1,7 +1,7 @@
-"""Calibration data: joint readings with measured tool-point positions.
+"""In-memory measurement data: joint readings with measured tool-point positions.
 
-Readers and writers of the files live in `kinecal.io.measurements`; this type sits in the
-calibration layer so that the solvers do not depend on the file layer.
+Readers and writers of the files live in `kinecal.io.measurements`; the type sits below
+both the file layer and the calibration layer, so that neither imports the other.
 """
 
 from __future__ import annotations
