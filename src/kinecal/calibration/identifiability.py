@@ -23,15 +23,24 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import NDArray
 
 from kinecal.errors import InputError
+from kinecal.optimize.factor import qr_update
 
-__all__ = ["IdentifiabilityReport", "analyse", "observability_indices"]
+__all__ = [
+    "IdentifiabilityReport",
+    "analyse",
+    "analyse_factor",
+    "conditioning",
+    "observability_indices",
+    "pivoted_qr_diagonal",
+]
 
 #: relative threshold on |R_kk| / |R_00| below which a pivoted column counts as dependent
 RANK_TOL = 1e-8
+#: relative difference of remaining column norms below which pivoting sees a tie
+TIE_TOL = 1e-9
 
 
 @dataclass
@@ -139,42 +148,84 @@ def analyse(
     Returns
     -------
     IdentifiabilityReport
+
+    Notes
+    -----
+    `J` is reduced to its R factor (row blocks folded one at a time, `qr_update`) and
+    handed to `analyse_factor`: every number of the report depends on ``J`` only through
+    ``J^T J``.
     """
     J = np.asarray(J, dtype=float)
     names = list(names)
     if J.ndim != 2 or J.shape[1] != len(names):
         raise InputError(f"Jacobian shape {J.shape} does not match {len(names)} names")
-    if not np.isfinite(J).all():
+    R = None
+    step = max(4 * J.shape[1], 4096)
+    for s in range(0, max(J.shape[0], 1), step):
+        R = qr_update(R, J[s:s + step])
+    return analyse_factor(R, names, J.shape[0], tol=tol, scale=scale)
+
+
+def analyse_factor(
+    R: NDArray[np.float64], names: Sequence[str], n_rows: int, tol: float = RANK_TOL,
+    scale: NDArray[np.float64] | None = None,
+) -> IdentifiabilityReport:
+    """Identifiability from a square-root factor of ``J^T J`` (see `analyse`).
+
+    Parameters
+    ----------
+    R : ndarray, shape (k, n)
+        Any factor with ``R^T R = J^T J``: the R of a (TSQR) QR factorisation of ``J``
+        (exact) or a root of an accumulated Gram matrix (`kinecal.optimize.factor.gram_root`;
+        directions below ``sqrt(eps)`` are lost). Column-pivoted QR of ``R`` makes the same
+        pivoting decisions as that of ``J``, because ``J = Q R`` with ``Q`` orthonormal
+        preserves column norms and inner products; the least-squares confounding
+        coefficients and the singular values are those of ``J`` as well.
+    names : sequence of str, length n
+        Parameter names of the columns.
+    n_rows : int
+        Rows ``m`` of ``J`` (for O1, which divides by ``sqrt(m)``).
+    tol, scale
+        As in `analyse`.
+
+    Returns
+    -------
+    IdentifiabilityReport
+    """
+    R = np.asarray(R, dtype=float)
+    names = list(names)
+    if R.ndim != 2 or R.shape[1] != len(names):
+        raise InputError(f"Jacobian factor shape {R.shape} does not match {len(names)} names")
+    if not np.isfinite(R).all():
         raise InputError("Jacobian contains NaN or infinite values")
     if scale is None:
-        norms = np.linalg.norm(J, axis=0)
-        zero = norms <= tol * max(norms.max(), 1.0)
+        norms = np.linalg.norm(R, axis=0)
+        zero = norms <= tol * max(norms.max(initial=0.0), 1.0)
         factors = 1.0 / np.where(zero, 1.0, norms)
     else:
         factors = np.asarray(scale, dtype=float)
         if factors.shape != (len(names),) or not (factors > 0).all():
             raise InputError(f"scale: expected {len(names)} positive factors")
-        norms = np.linalg.norm(J * factors, axis=0)
-        zero = norms <= tol * max(norms.max(), 1e-300)
-    Js = J * factors
-    Js[:, zero] = 0.0
-    _, R, piv = scipy.linalg.qr(Js, mode="economic", pivoting=True)
-    diag = np.abs(np.diag(R))
+        norms = np.linalg.norm(R * factors, axis=0)
+        zero = norms <= tol * max(norms.max(initial=0.0), 1e-300)
+    Rs = R * factors
+    Rs[:, zero] = 0.0
+    diag, piv = pivoted_qr_diagonal(Rs)
     rank = int((diag > tol * diag[0]).sum()) if diag.size and diag[0] > 0 else 0
     kept = np.sort(piv[:rank])
     dropped = np.sort(piv[rank:])
     confounded: dict[str, dict[str, float]] = {}
     if dropped.size and rank:
-        coef, *_ = np.linalg.lstsq(Js[:, kept], Js[:, dropped], rcond=None)
+        coef, *_ = np.linalg.lstsq(Rs[:, kept], Rs[:, dropped], rcond=None)
         # back to parameter units: J_d f_d = J_k f_k c  ->  J_d = J_k (f_k c / f_d)
         coef = coef * factors[kept][:, None] / factors[dropped][None, :]
         for j, col in enumerate(dropped):
             c = coef[:, j]
             big = np.abs(c) > 1e-6 * max(np.abs(c).max(), 1e-300)
             confounded[names[col]] = {names[kept[i]]: float(c[i]) for i in np.flatnonzero(big)}
-    s_all = np.linalg.svd(Js, compute_uv=False)
-    s_id = np.linalg.svd(Js[:, kept], compute_uv=False) if rank else np.zeros(0)
-    cond = float(s_id[0] / s_id[-1]) if rank and s_id[-1] > 0 else float("inf")
+    n_sv = min(n_rows, len(names))
+    s_all = np.linalg.svd(Rs, compute_uv=False)[:n_sv] if Rs.size else np.zeros(0)
+    cond, s_id = conditioning(Rs[:, kept]) if rank else (float("inf"), np.zeros(0))
     return IdentifiabilityReport(
         names=names,
         rank=rank,
@@ -183,5 +234,62 @@ def analyse(
         confounded_with=confounded,
         condition_number=cond,
         singular_values=s_all,
-        observability=observability_indices(s_id, J.shape[0]),
+        observability=observability_indices(s_id, n_rows),
     )
+
+
+def pivoted_qr_diagonal(
+    A: NDArray[np.float64], tie: float = TIE_TOL
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """``|diag(R)|`` and the column order of Householder QR with column pivoting of `A`.
+
+    Each step takes the column with the largest remaining norm (Businger and Golub 1965);
+    among columns within a relative `tie` of that largest norm (parameters whose effects are
+    equal to working precision, such as a base-frame z and the first link's d when the two
+    axes coincide) the one *last* in column order wins, so that base- and tool-frame
+    parameters, listed last, take up what is confounded with a joint's. An exact rule
+    instead of LAPACK's round-off: the choice does not depend on how ``J`` was reduced to
+    its factor (row order, chunk sizes).
+
+    Parameters
+    ----------
+    A : ndarray, shape (m, n)
+    tie : float
+        Relative tolerance of a tie between remaining column norms.
+
+    Returns
+    -------
+    diag : ndarray, shape (min(m, n),)
+        Absolute pivots ``|R_kk|``, non-increasing.
+    piv : ndarray, shape (n,)
+        Column order (``piv[k]`` is the column pivoted at step ``k``).
+    """
+    W = np.array(A, dtype=float, copy=True)
+    m, n = W.shape
+    piv = np.arange(n)
+    diag = np.zeros(min(m, n))
+    for j in range(min(m, n)):
+        norms = np.linalg.norm(W[j:, j:], axis=0)
+        top = norms.max()
+        if top == 0.0:
+            break
+        near = np.flatnonzero(norms >= top * (1.0 - tie))
+        c = j + near[np.argmax(piv[j + near])]
+        W[:, [j, c]] = W[:, [c, j]]
+        piv[[j, c]] = piv[[c, j]]
+        x = W[j:, j]
+        alpha = -np.copysign(np.linalg.norm(x), x[0])
+        v = x.copy()
+        v[0] -= alpha
+        vv = float(v @ v)
+        diag[j] = abs(alpha)
+        if vv > 0.0:
+            W[j:, j:] -= np.outer(v, (2.0 / vv) * (v @ W[j:, j:]))
+    return diag, piv
+
+
+def conditioning(R: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
+    """Condition number and singular values (descending) of a (scaled) factor ``(k, n)``."""
+    s = np.linalg.svd(R, compute_uv=False) if R.size else np.zeros(0)
+    cond = float(s[0] / s[-1]) if s.size and s[-1] > 0 else float("inf")
+    return cond, s

@@ -14,7 +14,12 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.calibration.identifiability import RANK_TOL, IdentifiabilityReport, analyse
+from kinecal.calibration.identifiability import (
+    RANK_TOL,
+    IdentifiabilityReport,
+    analyse_factor,
+)
+from kinecal.calibration.rows import PoseRows
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial import SerialModel
@@ -22,6 +27,7 @@ from kinecal.spatial import axis_angle_from_matrix, left_jacobian_inverse
 
 __all__ = [
     "CalibrationProblem",
+    "analyse_poses",
     "characteristic_length",
     "column_scale",
     "identification_rows",
@@ -31,22 +37,25 @@ __all__ = [
 Array = NDArray[np.float64]
 
 
-def characteristic_length(model: SerialModel, data: Measurements, params=None) -> float:
+def characteristic_length(model: SerialModel, data: Measurements, params=None,
+                          positions: Array | None = None) -> float:
     """RMS distance of the tool points from their centroid (model length unit).
 
     An angle of ``1 / L`` rad sweeps an arc of one length unit at this distance: the
-    scale that makes angle and length parameters comparable.
+    scale that makes angle and length parameters comparable. `positions` ``(N, 3)``: the
+    tool points at `params` when already known (saves a forward-kinematics pass).
     """
-    P = model.positions(data.q, params)
+    P = model.positions(data.q, params) if positions is None else positions
     L = float(np.sqrt((np.linalg.norm(P - P.mean(axis=0), axis=1) ** 2).mean()))
     return L if L > 0 else 1.0
 
 
 def column_scale(
-    model: SerialModel, data: Measurements, names: Sequence[str], params=None
+    model: SerialModel, data: Measurements, names: Sequence[str], params=None,
+    positions: Array | None = None,
 ) -> Array:
     """Column factors ``(k,)``: 1 for lengths, ``1 / L`` for angles (`characteristic_length`)."""
-    L = characteristic_length(model, data, params)
+    L = characteristic_length(model, data, params, positions)
     return np.where(model.is_angle()[model.index(list(names))], 1.0 / L, 1.0)
 
 
@@ -99,12 +108,32 @@ def resolve_free(
         raise InputError(exc.message, option="--free") from None
     if len(set(names)) != len(names):
         raise InputError("free: a parameter is listed twice", option="--free")
-    p = model.nominal if params is None else params
-    J = identification_rows(model, data, names, p)
-    report = analyse(J, names, tol=tol, scale=column_scale(model, data, names, p))
+    report = analyse_poses(model, data, names, params, tol=tol)
     if free == "identifiable":
         names = report.identifiable
     return names, report
+
+
+def analyse_poses(
+    model: SerialModel, data: Measurements, names: Sequence[str], params: Array | None = None,
+    tol: float = RANK_TOL, rotation_weight: float | None = None,
+) -> IdentifiabilityReport:
+    """Identifiability of `names` from `data`'s poses at `params` (default nominal).
+
+    The identification rows (`identification_rows`, unweighted) are folded chunk by chunk
+    into their R factor (TSQR): memory stays linear in the number of poses with a small
+    constant, and the report is that of `analyse` on the full matrix.
+    """
+    p = model.nominal if params is None else np.asarray(params, dtype=float)
+    P = None
+    if rotation_weight is None and data.rotations is not None:
+        P = model.positions(data.q, p)
+        rotation_weight = characteristic_length(model, data, p, P)
+    rows = PoseRows(model, data, rotation_weight or 0.0, weighted=False)
+    k = len(names)
+    R, _, P = rows.factor(p, model.index(list(names)))
+    scale = column_scale(model, data, names, p, positions=P)
+    return analyse_factor(R[:k, :k], names, rows.rows * rows.n_poses, tol=tol, scale=scale)
 
 
 class CalibrationProblem:
@@ -157,6 +186,8 @@ class CalibrationProblem:
         w = np.ones(len(data)) if data.weights is None else np.asarray(data.weights, float)
         self.sqrt_w = np.sqrt(w)
         self.weighted = data.weights is not None
+        #: chunked rows (weighted like `residuals`) for the memory-linear passes
+        self.pose_rows = PoseRows(model, data, self.rotation_weight, weighted=True)
         self._cache: tuple | None = None
         self.q = np.asarray(data.q, dtype=float)
         self.xyz = np.asarray(data.xyz, dtype=float)
@@ -188,9 +219,9 @@ class CalibrationProblem:
     def errors(self, x: Array) -> Array:
         """Position error vectors ``model - measured`` ``(N, 3)`` (or ``(P, N, 3)``)."""
         x = np.asarray(x, dtype=float)
-        if x.ndim > 1:
-            return self.model.positions(self.q, self.full(x)) - self.xyz
-        return self._sweep(x).positions - self.xyz
+        if x.ndim == 1 and self._cache is not None and np.array_equal(self._cache[0], x):
+            return self._cache[1].positions - self.xyz
+        return self.model.positions(self.q, self.full(x)) - self.xyz
 
     def distances(self, x: Array) -> Array:
         """Euclidean distance errors ``(N,)`` (or ``(P, N)``) in the length unit."""
@@ -223,6 +254,38 @@ class CalibrationProblem:
         if self.weighted:
             Jt *= self.sqrt_w
         return Jt.transpose(2, 1, 0).reshape(-1, self.n_free)
+
+    def normal_equations(self, x: Array) -> tuple[Array, Array, Array]:
+        """``(residuals, J^T J, J^T r)`` at `x`, accumulated over cache-sized chunks of poses.
+
+        The same numbers as from `residuals` and `jacobian` (to round-off), without forming
+        the ``(3N, n_free)`` Jacobian or keeping the FK frames of all poses.
+        """
+        return self.pose_rows.normal_equations(self.full(x), self.index)
+
+    def gram(self, x: Array, names: Sequence[str] | None = None,
+             keep: Array | None = None) -> Array:
+        """Gram matrix ``(k + 1, k + 1)`` of ``[J | r]`` at `x`, chunked (see `PoseRows`).
+
+        `names` (default the free parameters) selects the Jacobian columns (any parameter of
+        the model); `keep` (pose indices) restricts the rows.
+        """
+        cols = self.index if names is None else self.model.index(list(names))
+        return self.pose_rows.gram(self.full(x), cols, keep)[0]
+
+    def distances_from_residuals(self, r: Array) -> Array:
+        """Euclidean distance errors ``(N,)`` recomputed from a vector of `residuals`."""
+        e = np.asarray(r).reshape(-1, self.rows)[:, :3]
+        if self.weighted:
+            e = e / self.sqrt_w[:, None]
+        return np.linalg.norm(e, axis=1)
+
+    def positions_from_residuals(self, r: Array) -> Array:
+        """Model tool positions ``(N, 3)`` recomputed from a vector of `residuals`."""
+        e = np.asarray(r).reshape(-1, self.rows)[:, :3]
+        if self.weighted:
+            e = e / self.sqrt_w[:, None]
+        return e + self.xyz
 
     def mean_distance_from_residuals(self, r: Array) -> float:
         """Paper 000's ``s`` recomputed from a residual vector of `residuals`."""

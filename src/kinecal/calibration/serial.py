@@ -21,21 +21,23 @@ from typing import Any
 
 import numpy as np
 import scipy.linalg
-import scipy.stats
+from scipy.special import fdtri
 
-from kinecal.calibration.identifiability import analyse
+from kinecal.calibration.covariance import parameter_covariance
+from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.problem import (
     CalibrationProblem,
     column_scale,
-    identification_rows,
     resolve_free,
 )
 from kinecal.calibration.result import CalibrationResult
+from kinecal.calibration.rows import PoseRows
 from kinecal.calibration.stats import error_stats
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial import SerialModel
 from kinecal.optimize import METHODS, minimize
+from kinecal.optimize.factor import gram_root
 from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
 from kinecal.optimize.lsq import householder_gauss_newton, levenberg_marquardt
 from kinecal.spatial import rotation_angle
@@ -65,16 +67,19 @@ def _outliers(d: np.ndarray) -> list[int]:
     return [int(i) for i in np.flatnonzero(d > med + OUTLIER_K * mad)]
 
 
-def _covariance(problem: CalibrationProblem, x: np.ndarray, keep: np.ndarray | None):
-    r = problem.residuals(x).reshape(-1, problem.rows)
-    J = problem.jacobian(x).reshape(-1, problem.rows, problem.n_free)
-    if keep is not None:
-        r, J = r[keep], J[keep]
-    r, J = r.ravel(), J.reshape(-1, problem.n_free)
-    dof = r.size - problem.n_free
-    sigma2 = float(r @ r) / dof if dof > 0 else float("nan")
-    cov = sigma2 * np.linalg.pinv(J.T @ J)
-    return cov, float(np.sqrt(sigma2))
+def _covariance(problem: CalibrationProblem, x: np.ndarray, keep: np.ndarray | None,
+                normal: np.ndarray | None = None, rss: float | None = None):
+    """Covariance of the free parameters at `x` (`parameter_covariance`).
+
+    `normal` and `rss`: ``J^T W J`` and the weighted RSS at `x` when the solver already has
+    them (LM); otherwise one chunked pass over the poses (only `keep` when given).
+    """
+    k = problem.n_free
+    if normal is None or rss is None or keep is not None:
+        G = problem.gram(x, keep=keep)
+        normal, rss = G[:k, :k], G[k, k]
+    n = len(problem.data) if keep is None else len(keep)
+    return parameter_covariance(normal, rss, problem.rows * n - k)
 
 
 def _rotation_stats(model: SerialModel, data: Measurements, params: np.ndarray) -> dict:
@@ -97,20 +102,28 @@ def _grow_identifiable(model, data, problem, res, report, tol, monitor):
     never swaps a confounded pair). The larger model is kept only if it lowers the residual
     sum of squares significantly (extra-sum-of-squares F-test at the 1 % level), so noise
     is never fitted with weakly identifiable parameters.
+
+    One chunked pass at the identified geometry gives the Gram matrix of the candidates'
+    identification rows and the residual; everything else is ``(p, p)`` algebra on it. The
+    F-test is first taken on the linearised fit (the Gauss-Newton reduction of the RSS
+    from the current solution): when even that is not significant, no second solve runs.
+    Otherwise LM continues from the current solution on the larger set (its first normal
+    equations come from the same pass) and the F-test is taken on the actual fit.
     """
     names = list(problem.free)
     held = [n for n in report.names if n not in names]
     if not held:
         return problem, res, names, report
     params = problem.full(res.x)
-    weight = problem.rotation_weight or None
-    Jf = identification_rows(model, data, names, params, weight)
-    Jh = identification_rows(model, data, held, params, weight)
+    cand = names + held
+    plain = PoseRows(model, data, problem.rotation_weight, weighted=False)
+    G, P = plain.gram(params, model.index(cand))
+    kf, kc = len(names), len(cand)
     # the same physical column scale as the analysis, threshold relative to the free set
-    Jf = Jf * column_scale(model, data, names, params)
-    Jh = Jh * column_scale(model, data, held, params)
-    Q, Rf = np.linalg.qr(Jf)
-    rest = Jh - Q @ (Q.T @ Jh)
+    scale = column_scale(model, data, cand, params, positions=P)
+    B = gram_root(G[:kc, :kc] * scale[:, None] * scale[None, :])  # B^T B = (J D)^T (J D)
+    Q, Rf = np.linalg.qr(B[:, :kf])
+    rest = B[:, kf:] - Q @ (Q.T @ B[:, kf:])
     _, R, piv = scipy.linalg.qr(rest, mode="economic", pivoting=True)
     diag = np.abs(np.diag(R))
     ref = np.abs(np.diag(Rf)).max()
@@ -118,22 +131,33 @@ def _grow_identifiable(model, data, problem, res, report, tol, monitor):
     if not added:
         return problem, res, names, report
     grown = [n for n in report.names if n in names or n in added]
+    k = len(added)
+    dof = problem.rows * len(data) - len(grown)
+    if problem.weighted:  # the F-test weighs the rows like the fit
+        Gw = problem.gram(res.x, grown)
+    else:
+        pos = [cand.index(n) for n in grown] + [kc]
+        Gw = G[np.ix_(pos, pos)]
+    A, g = Gw[:-1, :-1], Gw[:-1, -1]
+    free_pos = [grown.index(n) for n in names]
+    rss0 = 2.0 * res.fun
+    reduction = (g @ np.linalg.lstsq(A, g, rcond=None)[0]
+                 - g[free_pos] @ np.linalg.lstsq(A[np.ix_(free_pos, free_pos)], g[free_pos],
+                                                 rcond=None)[0])
+    if not _significant(rss0, rss0 - reduction, k, dof):
+        return problem, res, names, report
     bigger = CalibrationProblem(model, data, grown, problem.rotation_weight or None)
     res2 = levenberg_marquardt(bigger.residuals, bigger.jacobian, params[bigger.index],
-                               monitor=monitor)
-    rss0 = 2.0 * res.fun
-    rss1 = 2.0 * res2.fun
-    dof = bigger.residuals(res2.x).size - len(grown)
-    k = len(added)
-    significant = rss1 <= 0.0 or (dof > 0 and (rss0 - rss1) / k > scipy.stats.f.ppf(
-        0.99, k, dof) * rss1 / dof)
-    if not significant:
+                               monitor=monitor, normal_equations=bigger.normal_equations,
+                               start=(res.residual, A, g))
+    if not _significant(rss0, 2.0 * res2.fun, k, dof):
         return problem, res, names, report
     res2.nfev += res.nfev
     res2.nit += res.nit
     res2.history = list(res.history) + list(res2.history)
-    Jg = bigger.jacobian(res2.x)
-    sub = analyse(Jg, grown, scale=column_scale(model, data, grown, bigger.full(res2.x)))
+    P2 = bigger.positions_from_residuals(res2.residual)
+    sub = analyse_factor(gram_root(res2.normal_matrix), grown, bigger.rows * len(data),
+                         scale=column_scale(model, data, grown, positions=P2))
     new_report = dataclasses.replace(
         report, rank=len(grown), identifiable=grown,
         unidentifiable=[n for n in report.names if n not in grown],
@@ -141,6 +165,14 @@ def _grow_identifiable(model, data, problem, res, report, tol, monitor):
         condition_number=sub.condition_number, observability=sub.observability,
     )
     return bigger, res2, grown, new_report
+
+
+def _significant(rss0: float, rss1: float, k: int, dof: int) -> bool:
+    """Extra-sum-of-squares F-test at the 1 % level: does adding `k` parameters (leaving
+    `dof` degrees of freedom) lower the RSS from `rss0` to `rss1` significantly?"""
+    if rss1 <= 0.0:
+        return True
+    return dof > 0 and (rss0 - rss1) / k > float(fdtri(k, dof, 0.99)) * rss1 / dof
 
 
 def calibrate(
@@ -223,7 +255,7 @@ def calibrate(
 
     if method == "lm":
         res = levenberg_marquardt(problem.residuals, problem.jacobian, problem.x0,
-                                  monitor=monitor)
+                                  monitor=monitor, normal_equations=problem.normal_equations)
         if free == "identifiable":
             problem, res, names, report = _grow_identifiable(
                 model, data, problem, res, report, max(GROWTH_TOL, rank_tol), monitor)
@@ -252,7 +284,8 @@ def calibrate(
     keep = None
     if outliers:
         keep = np.setdiff1d(np.arange(len(data)), outliers)
-    cov, sigma = _covariance(problem, x, keep)
+    normal = res.get("normal_matrix") if loss == "linear" else None
+    cov, sigma = _covariance(problem, x, keep, normal, 2.0 * float(res.fun))
     params = problem.full(x)
     std = np.zeros(model.n_params)
     std[problem.index] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
@@ -286,7 +319,8 @@ def calibrate(
         covariance=cov,
         identifiability=report,
         errors_before=problem.distances(x_nom),
-        errors_after=problem.distances(x),
+        errors_after=(problem.distances_from_residuals(res.residual)
+                      if normal is not None else problem.distances(x)),
         val_before=val_before,
         val_after=val_after,
         seed=seed,

@@ -23,6 +23,8 @@ __all__ = ["LOSSES", "householder_gauss_newton", "levenberg_marquardt"]
 Array = NDArray[np.float64]
 Residual = Callable[[Array], Array]
 Jacobian = Callable[[Array], Array]
+#: ``normal_equations(x) -> (r, J^T J, J^T r)``
+NormalEquations = Callable[[Array], tuple[Array, Array, Array]]
 
 #: robust losses of `levenberg_marquardt` (scipy names)
 LOSSES = ("linear", "huber", "soft_l1", "cauchy", "arctan")
@@ -143,6 +145,8 @@ def levenberg_marquardt(
     gtol: float | None = None,
     solver: str = "kinecal",
     monitor: Callable[[Array], float] | None = None,
+    normal_equations: NormalEquations | None = None,
+    start: tuple[Array, Array, Array] | None = None,
 ) -> OptimizeResult:
     """Levenberg-Marquardt with the analytic Jacobian.
 
@@ -156,12 +160,28 @@ def levenberg_marquardt(
     with scale `f_scale` in residual units): scipy `least_squares` (MINPACK LM for linear,
     trust-region reflective for robust losses) with the same analytic Jacobian.
 
+    Parameters
+    ----------
+    residual, jacobian : callable
+        ``r(x) -> (m,)`` and ``J(x) -> (m, n)``.
+    x0 : ndarray, shape (n,)
+        Start point.
+    normal_equations : callable, optional
+        ``normal_equations(x) -> (r, J^T J, J^T r)``: the kinecal solver then never asks
+        for ``J`` itself, so a caller can accumulate the ``(n, n)`` normal equations over
+        chunks of rows (memory linear in ``m`` with a small constant). Used only by the
+        kinecal solver; `residual` and `jacobian` still serve MINPACK and robust losses.
+    start : tuple of ndarray, optional
+        ``(r, J^T J, J^T r)`` already known at `x0` (kinecal solver): saves one evaluation.
+
     Returns
     -------
     OptimizeResult
         ``x, fun (0.5 sum rho(r^2)), nit, nfev, njev, history, residual, jac, success,
-        status, message``; ``history`` is the monitored cost (default RMS residual) after
-        each accepted step, ``history[0]`` at `x0`.
+        status, message``; the kinecal solver also returns ``normal_matrix`` (``J^T J``)
+        and ``gradient`` (``J^T r``) at ``x``, and ``jac`` only without `normal_equations`;
+        ``history`` is the monitored cost (default RMS residual) after each accepted step,
+        ``history[0]`` at `x0`.
 
     Notes
     -----
@@ -176,7 +196,12 @@ def levenberg_marquardt(
         raise InputError(f"solver: expected kinecal or minpack, got {solver!r}")
     monitor = monitor or _rms
     if loss == "linear" and solver == "kinecal":
-        return _lm_normal_equations(residual, jacobian, np.asarray(x0, dtype=float),
+        if normal_equations is not None:
+            evaluate, linearize = _cached_normal_equations(normal_equations)
+        else:
+            evaluate, linearize = _plain_normal_equations(residual, jacobian)
+        return _lm_normal_equations(evaluate, linearize, np.asarray(x0, dtype=float),
+                                    start=start,
                                     max_nfev=max_nfev or 200 * (np.size(x0) + 1),
                                     ftol=1e-12 if ftol is None else ftol,
                                     xtol=1e-12 if xtol is None else xtol,
@@ -204,17 +229,53 @@ def levenberg_marquardt(
     )
 
 
+def _plain_normal_equations(residual: Residual, jacobian: Jacobian):
+    """``evaluate(x) -> r`` and ``linearize(x, r) -> (A, g, J)`` from plain callables."""
+
+    def linearize(x: Array, r: Array):
+        J = jacobian(x)
+        return J.T @ J, J.T @ r, J
+
+    return residual, linearize
+
+
+def _cached_normal_equations(normal_equations: NormalEquations):
+    """``evaluate`` / ``linearize`` from one call that returns r, A and g together."""
+    last: dict = {}
+
+    def evaluate(x: Array) -> Array:
+        r, A, g = normal_equations(x)
+        last.update(x=x.copy(), A=A, g=g)
+        return r
+
+    def linearize(x: Array, r: Array):
+        if "x" in last and np.array_equal(last["x"], x):
+            return last["A"], last["g"], None
+        _, A, g = normal_equations(x)
+        return A, g, None
+
+    return evaluate, linearize
+
+
 def _lm_normal_equations(
-    residual: Residual, jacobian: Jacobian, x: Array, *, max_nfev: int, ftol: float,
+    evaluate: Residual, linearize: Callable, x: Array, *, max_nfev: int, ftol: float,
     xtol: float, gtol: float, monitor: Callable[[Array], float],
+    start: tuple[Array, Array, Array] | None = None,
 ) -> OptimizeResult:
-    """Levenberg-Marquardt on the normal equations (see `levenberg_marquardt`)."""
+    """Levenberg-Marquardt on the normal equations (see `levenberg_marquardt`).
+
+    ``evaluate(x) -> r`` at every trial point, ``linearize(x, r) -> (J^T J, J^T r, J or
+    None)`` at accepted points (right after `evaluate` at the same point).
+    """
     t0 = time.perf_counter()
-    r = residual(x)
+    if start is not None:
+        r, A, g = start
+        J = None
+    else:
+        r = evaluate(x)
+        A, g, J = linearize(x, r)
     F = 0.5 * float(r @ r)
-    J = jacobian(x)
     nfev, njev, nit = 1, 1, 0
-    A, g = J.T @ J, J.T @ r
     history = [monitor(r)]
     mu = 1e-3  # dimensionless: the damping is mu * diag(J^T J) (Marquardt scaling)
     nu = 2.0
@@ -239,7 +300,7 @@ def _lm_normal_equations(
             status, message = 2, "step below xtol"
             break
         x_new = x + h
-        r_new = residual(x_new)
+        r_new = evaluate(x_new)
         nfev += 1
         F_new = 0.5 * float(r_new @ r_new)
         predicted = 0.5 * float(h @ (mu * d * h - g))
@@ -247,10 +308,9 @@ def _lm_normal_equations(
         if rho > 0 and np.isfinite(F_new):
             reduction = F - F_new
             x, r, F = x_new, r_new, F_new
-            J = jacobian(x)
+            A, g, J = linearize(x, r)
             njev += 1
             nit += 1
-            A, g = J.T @ J, J.T @ r
             history.append(monitor(r))
             mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
             nu = 2.0
@@ -263,7 +323,9 @@ def _lm_normal_equations(
             if mu > 1e30:
                 status, message = 4, "no further decrease possible (round-off level)"
                 break
+    extra = {} if J is None else {"jac": J}
     return make_result(
         x, F, nit=nit, nfev=nfev, success=status > 0, status=status, message=message,
-        history=history, elapsed=time.perf_counter() - t0, njev=njev, residual=r, jac=J,
+        history=history, elapsed=time.perf_counter() - t0, njev=njev, residual=r,
+        normal_matrix=A, gradient=g, **extra,
     )
