@@ -58,8 +58,11 @@ class Simulation:
 def random_configurations(
     model: SerialModel, n: int, rng: np.random.Generator, limit: float = np.pi
 ) -> Array:
-    """``(n, n_joints)`` joint angles uniform within the model's limits, clipped to +-`limit`."""
-    lim = np.clip(model.joint_limits, -limit, limit)
+    """``(n, n_joints)`` joint values uniform within the model's limits; revolute joints'
+    ranges clipped to +-`limit` (rad), prismatic joints' ranges used as they are."""
+    lim = np.array(model.joint_limits, dtype=float)
+    revolute = ~model.is_prismatic()
+    lim[revolute] = np.clip(lim[revolute], -limit, limit)
     return rng.uniform(lim[:, 0], lim[:, 1], size=(n, model.n_joints))
 
 

@@ -264,7 +264,7 @@ def select_poses_cmd(
     q = random_configurations(m, candidates, np.random.default_rng(seed))
     ident, _ = resolve_free(m, Measurements(q, m.positions(q)), "identifiable", tol=1e-4)
     idx, obs = select_poses(m, q, count, free=ident)
-    scale = 180.0 / np.pi if m.angle_unit == "deg" else 1.0
-    write_table(out, {f"q{i + 1}": q[idx, i] * scale for i in range(m.n_joints)})
+    scale = 1.0 / m.joint_scale()  # to the file's units per joint column
+    write_table(out, {f"q{i + 1}": q[idx, i] * scale[i] for i in range(m.n_joints)})
     typer.echo(f"wrote {count} poses to {out}; O1 = {obs['O1']:.4g}, O2 = {obs['O2']:.4g} "
                f"({len(ident)} identifiable parameters)", err=True)

@@ -47,15 +47,15 @@ def _resolve(path: str | Path) -> Path:
 
 
 def read_joints(path: str | Path, model: SerialModel) -> NDArray[np.float64]:
-    """Joint angles ``(N, n_joints)`` in rad from a CSV with ``q1..qn`` (model angle unit;
-    other columns ignored) or a laser-tracker export (``joint_1..``, degrees)."""
+    """Joint values ``(N, n_joints)`` (rad; prismatic: length unit) from a CSV with
+    ``q1..qn`` (model angle unit; other columns ignored) or a laser-tracker export
+    (``joint_1..``, degrees)."""
     path = _resolve(path)
     if "joint_1" in _header(path):
         return read_measurements(path, model).q
     names = [f"q{i}" for i in range(1, model.n_joints + 1)]
     cols = read_table(path, names)
-    scale = np.pi / 180.0 if model.angle_unit == "deg" else 1.0
-    return np.column_stack([cols[n] for n in names]) * scale
+    return np.column_stack([cols[n] for n in names]) * model.joint_scale()
 
 
 def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
@@ -69,13 +69,13 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
     path = _resolve(path)
     header = _header(path)
     n = model.n_joints
-    scale = np.pi / 180.0 if model.angle_unit == "deg" else 1.0
+    scale = model.joint_scale()  # per joint column: revolute in the angle unit, prismatic length
     if "x_t" in header and "joint_1" in header:  # laser-tracker export (degrees)
         joints = [f"joint_{i}" for i in range(1, n + 1)]
         if f"joint_{n + 1}" in header:
             raise InputError(f"more joint columns than the model's {n} joints", file=path)
         cols = read_table(path, joints + ["x_t", "y_t", "z_t", "x_dif", "y_dif", "z_dif"])
-        q = np.deg2rad(np.column_stack([cols[c] for c in joints]))
+        q = np.column_stack([cols[c] for c in joints]) * model.joint_scale("deg")
         xyz = np.column_stack([cols[f"{a}_t"] + cols[f"{a}_dif"] for a in "xyz"])
         return Measurements(q, xyz, None, str(path))
     qcols = [c for c in header if c.startswith("q") and c[1:].isdigit()]
@@ -115,9 +115,9 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
 
 
 def write_measurements(path: str | Path, data: Measurements, model: SerialModel) -> None:
-    """Write `data` in kinecal's CSV format (joint values in the model's angle unit)."""
-    scale = 180.0 / np.pi if model.angle_unit == "deg" else 1.0
-    q = np.asarray(data.q) * scale
+    """Write `data` in kinecal's CSV format (revolute joint values in the model's angle
+    unit, prismatic ones in its length unit)."""
+    q = np.asarray(data.q) / model.joint_scale()
     columns = {f"q{i + 1}": q[:, i] for i in range(q.shape[1])}
     columns.update({c: np.asarray(data.xyz)[:, k] for k, c in enumerate("xyz")})
     if data.rotations is not None:

@@ -3,19 +3,27 @@
 A model file (see ``docs/file-formats.md``)::
 
     name: irb120
-    convention: hayati            # dh | craig | hayati
+    convention: hayati            # dh | craig | hayati | urdf
     length_unit: mm
     angle_unit: deg               # deg | rad: every angle in this file
     joints:
       - {theta: 0, d: 290, a: 0, alpha: -90}
       - {theta: -90, d: 0, a: 270, alpha: 0, beta: 0}
+      - {frame: bracket, x: 0, y: 0, z: 50, rx: 0, ry: 0, rz: 90}   # a fixed frame
+      - {theta: 0, d: 0, a: 0, alpha: 0, type: prismatic}            # d is the joint
     base: [x, y, z, rx, ry, rz]   # optional: robot base in the measurement frame
     tool: [x, y, z]               # optional: tool point in the flange frame (or 6 values)
-    joint_limits: [[-165, 165], ...]   # optional
+    joint_limits: [[-165, 165], ...]   # optional; prismatic joints in the length unit
     tolerances: {length: 0.25, angle: 0.05}
     fixed: [tool.x]               # optional: parameters held at nominal by default
 
-Bundled models live in ``kinecal/robots/NAME.yaml`` and are loaded by name.
+A ``urdf`` model's joints are URDF joints: ``{name, type: revolute|continuous|prismatic,
+x, y, z, roll, pitch, yaw, offset, axis: [ax, ay, az]}`` (optional ``parent``/``child``
+link names), fixed frames ``{frame, x, y, z, roll, pitch, yaw}``. A fixed frame is held at
+nominal unless it says ``calibrate: true``.
+
+Bundled models live in ``kinecal/robots/NAME.yaml`` and are loaded by name; a ``.urdf``
+path is read by `kinecal.io.urdf.load_urdf`.
 """
 
 from __future__ import annotations
@@ -34,22 +42,73 @@ from kinecal.kinematics.serial import SerialModel
 
 __all__ = ["ModelFile", "bundled_models", "load_model", "model_path", "read_yaml", "save_model"]
 
+_STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)  # NaN/inf: exit 2
+
 
 class JointSpec(BaseModel):
-    """One joint: D-H values (length unit, angle unit of the file)."""
+    """One D-H-family joint (dh, craig, hayati): length unit, angle unit of the file."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = _STRICT
     theta: float = 0.0
     d: float
     a: float
     alpha: float
     beta: float | None = None
+    type: Literal["revolute", "prismatic"] = "revolute"
+
+
+class URDFJointSpec(BaseModel):
+    """One joint of a ``urdf`` model: origin, axis, offset (added to the reading)."""
+
+    model_config = _STRICT
+    name: str
+    type: Literal["revolute", "continuous", "prismatic"] = "revolute"
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+    roll: float = 0.0
+    pitch: float = 0.0
+    yaw: float = 0.0
+    offset: float = 0.0
+    axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    parent: str | None = None
+    child: str | None = None
+
+
+class FrameSpec(BaseModel):
+    """A fixed frame between joints (dh, craig, hayati): x, y, z, rx, ry, rz."""
+
+    model_config = _STRICT
+    frame: str
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+    rx: float = 0.0
+    ry: float = 0.0
+    rz: float = 0.0
+    calibrate: bool = False
+
+
+class URDFFrameSpec(BaseModel):
+    """A fixed frame of a ``urdf`` model (a URDF fixed joint): x, y, z, roll, pitch, yaw."""
+
+    model_config = _STRICT
+    frame: str
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+    roll: float = 0.0
+    pitch: float = 0.0
+    yaw: float = 0.0
+    calibrate: bool = False
+    parent: str | None = None
+    child: str | None = None
 
 
 class Tolerances(BaseModel):
     """Half-widths of the metaheuristics' search box around nominal."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = _STRICT
     length: float = 1.0
     angle: float = 1.0
 
@@ -62,16 +121,16 @@ class Tolerances(BaseModel):
 
 
 class ModelFile(BaseModel):
-    """Schema of a serial-arm model file."""
+    """Schema of a serial-arm model file (entries of `joints` checked by `entry_spec`)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = _STRICT
     name: str
     description: str = ""
     source: str = ""
-    convention: Literal["dh", "craig", "hayati"]
+    convention: Literal["dh", "craig", "hayati", "urdf"]
     length_unit: Literal["mm", "m"] = "mm"
     angle_unit: Literal["deg", "rad"]
-    joints: list[JointSpec]
+    joints: list[dict]
     base: list[float] | None = None
     tool: list[float] | None = None
     joint_limits: list[tuple[float, float]] | None = None
@@ -80,7 +139,7 @@ class ModelFile(BaseModel):
 
     @field_validator("joints")
     @classmethod
-    def _some_joints(cls, v: list[JointSpec]) -> list[JointSpec]:
+    def _some_joints(cls, v: list[dict]) -> list[dict]:
         if not v:
             raise ValueError("at least one joint is required")
         return v
@@ -98,6 +157,30 @@ class ModelFile(BaseModel):
         if v is not None and len(v) not in (3, 6):
             raise ValueError(f"expected 3 values [x, y, z] or 6 with rx, ry, rz, got {len(v)}")
         return v
+
+
+def entry_spec(convention: str, entry: dict) -> type[BaseModel]:
+    """The schema of one chain entry: a fixed frame (``frame`` key) or a joint."""
+    urdf = convention == "urdf"
+    if "frame" in entry:
+        return URDFFrameSpec if urdf else FrameSpec
+    return URDFJointSpec if urdf else JointSpec
+
+
+#: angle-valued keys of chain entries (a urdf joint's offset only when it rotates)
+_ANGLE_KEYS = frozenset(("theta", "alpha", "beta", "rx", "ry", "rz", "roll", "pitch", "yaw"))
+
+
+def _angle_keys(entry: dict) -> frozenset[str]:
+    if "name" in entry and entry.get("type") != "prismatic":
+        return _ANGLE_KEYS | {"offset"}
+    return _ANGLE_KEYS
+
+
+def _convert_entry(entry: dict, scale: float) -> dict:
+    """`entry` with its angles multiplied by `scale` (non-numeric keys kept)."""
+    keys = _angle_keys(entry)
+    return {k: (float(v) * scale if k in keys else v) for k, v in entry.items()}
 
 
 def bundled_models() -> list[str]:
@@ -121,16 +204,25 @@ def _validation_message(exc: ValidationError) -> str:
     return f"{loc}: {err['msg']}"
 
 
-def load_model(name_or_path: str | Path) -> SerialModel:
-    """Load a serial-arm model from a bundled name (``irb120``) or a YAML path.
+def load_model(name_or_path: str | Path, *, base_link: str | None = None,
+               tip_link: str | None = None) -> SerialModel:
+    """Load a serial-arm model from a bundled name (``irb120``), a YAML path or a URDF.
 
-    Angles are converted to radians; lengths stay in the file's unit.
+    Angles are converted to radians; lengths stay in the file's unit. A ``.urdf`` path is
+    read by `kinecal.io.urdf.load_urdf` (chain from `base_link` to `tip_link`).
 
     Raises
     ------
     InputError
         Unknown name, unreadable file, or a schema violation (named key and reason).
     """
+    if str(name_or_path).lower().endswith((".urdf", ".xacro")):
+        from kinecal.io.urdf import load_urdf
+
+        return load_urdf(name_or_path, base_link=base_link, tip_link=tip_link)
+    for option, value in (("--base-link", base_link), ("--tip-link", tip_link)):
+        if value is not None:
+            raise InputError(f"{option} applies to URDF models only", option=option)
     path = model_path(name_or_path)
     data = read_yaml(path)
     try:
@@ -139,25 +231,39 @@ def load_model(name_or_path: str | Path) -> SerialModel:
         raise InputError(f"invalid model file: {_validation_message(exc)}", file=path) from None
     scale = np.pi / 180.0 if spec.angle_unit == "deg" else 1.0
     joints = []
-    for j in spec.joints:
-        joint = {"theta": j.theta * scale, "d": j.d, "a": j.a, "alpha": j.alpha * scale}
-        if j.beta is not None:
-            if spec.convention != "hayati":
-                raise InputError(
-                    "invalid model file: beta is only allowed with convention hayati", file=path
-                )
-            joint["beta"] = j.beta * scale
-        joints.append(joint)
+    for k, raw in enumerate(spec.joints):
+        try:
+            entry = entry_spec(spec.convention, raw).model_validate(raw)
+        except ValidationError as exc:
+            raise InputError(f"invalid model file: joints.{k}.{_validation_message(exc)}",
+                             file=path) from None
+        values = entry.model_dump(exclude_none=True)
+        if "beta" in values and spec.convention != "hayati":
+            raise InputError(
+                "invalid model file: beta is only allowed with convention hayati", file=path
+            )
+        if values.get("type") == "revolute" and "frame" not in values and \
+                spec.convention != "urdf":
+            del values["type"]  # the default
+        if not values.get("calibrate", True):
+            del values["calibrate"]
+        if "axis" in values:
+            values["axis"] = list(values["axis"])
+        joints.append(_convert_entry(values, scale))
     base = None if spec.base is None else np.r_[spec.base[:3], np.asarray(spec.base[3:]) * scale]
     tool = None
     if spec.tool is not None:
         tool = np.r_[spec.tool[:3], np.asarray(spec.tool[3:]) * scale]
-    limits = None if spec.joint_limits is None else np.asarray(spec.joint_limits) * scale
-    if limits is not None and limits.shape[0] != len(joints):
-        raise InputError(
-            f"invalid model file: joint_limits has {limits.shape[0]} rows, expected {len(joints)}",
-            file=path,
-        )
+    n = sum("frame" not in j for j in joints)
+    limits = None
+    if spec.joint_limits is not None:
+        limits = np.asarray(spec.joint_limits, dtype=float)
+        if limits.shape[0] != n:
+            raise InputError(
+                f"invalid model file: joint_limits has {limits.shape[0]} rows, expected {n} "
+                "(one per moving joint)", file=path)
+        prismatic = np.array([j.get("type") == "prismatic" for j in joints if "frame" not in j])
+        limits = limits * np.where(prismatic, 1.0, scale)[:, None]
     try:
         return SerialModel(
             name=spec.name, convention=spec.convention, joints=joints, base=base, tool=tool,
@@ -172,9 +278,12 @@ def load_model(name_or_path: str | Path) -> SerialModel:
 def model_to_dict(model: SerialModel, angle_unit: str = "deg") -> dict:
     """The model-file mapping of `model` (angles in `angle_unit`)."""
     s = 180.0 / np.pi if angle_unit == "deg" else 1.0
-    angle_keys = ("theta", "alpha", "beta")
-    joints = [{k: float(v) * (s if k in angle_keys else 1.0) for k, v in j.items()}
-              for j in model.joints]
+    joints = []
+    for j in model.joints:
+        entry = _convert_entry(dict(j), s)
+        if "axis" in entry:
+            entry["axis"] = [float(v) for v in entry["axis"]]
+        joints.append(entry)
     data: dict = {
         "name": model.name,
         "description": model.description,
@@ -189,7 +298,9 @@ def model_to_dict(model: SerialModel, angle_unit: str = "deg") -> dict:
     if model.tool is not None:
         t = np.asarray(model.tool, dtype=float)
         data["tool"] = [float(x) for x in np.r_[t[:3], t[3:] * s]]
-    data["joint_limits"] = [[float(lo * s), float(hi * s)] for lo, hi in model.joint_limits]
+    to_file = 1.0 / model.joint_scale(angle_unit)
+    data["joint_limits"] = [[float(lo * f), float(hi * f)]
+                            for (lo, hi), f in zip(model.joint_limits, to_file, strict=True)]
     tol = model.tolerances or {}
     data["tolerances"] = {"length": float(tol["length"]), "angle": float(tol["angle"] * s)}
     if model.fixed:

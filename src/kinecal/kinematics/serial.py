@@ -1,164 +1,84 @@
 """Serial-arm kinematics: `SerialModel`, batch forward kinematics, identification Jacobian.
 
 Every geometric parameter enters the chain as one *elementary motion*: a rotation about,
-or a translation along, one axis of the moving frame. A convention is therefore a
-function that lists a joint's elementary motions in order (see ``docs/conventions.md``):
+or a translation along, one axis of the moving frame (`kinecal.kinematics.motions`). A
+convention lists a joint's elementary motions in order (see ``docs/conventions.md``):
 
 * `dh_motions` (standard D-H, paper 000 eq. 1): ``Rz(theta + q) Tz(d) Tx(a) Rx(alpha)``
 * `craig_motions` (modified / proximal D-H): ``Rx(alpha) Tx(a) Rz(theta + q) Tz(d)``
 * `hayati_motions` (paper 002): ``Rz(theta + q) Tz(d) Tx(a) Rx(alpha) Ry(beta)``
+* `urdf_motions`: ``Tx(x) Ty(y) Tz(z) Rz(yaw) Ry(pitch) Rx(roll)`` then the motion about
+  or along the joint's unit axis by ``offset + q``
 
+Prismatic joints add their reading to a translation (``d`` in the D-H family); fixed
+frames anywhere in the chain are six more motions (`kinecal.kinematics.chain`).
 The base frame is ``Tx(x) Ty(y) Tz(z) Rz(rz) Ry(ry) Rx(rx)`` (a pose in roll-pitch-yaw),
 the tool ``Tx(x) Ty(y) Tz(z)`` followed by ``Rz Ry Rx`` for a tool frame.
 
 Forward kinematics composes the motions on axis-vector stacks of shape
 ``(3, P, N)`` (component, population, poses), without Python loops over poses or
-parameter vectors. The identification Jacobian follows from the same sweep: a rotation
-about a unit axis ``u`` through ``o`` moves the tool point ``p`` by ``u x (p - o)`` per
-radian, a translation along ``u`` moves it by ``u``.
+parameter vectors. The identification Jacobian follows from the same sweep
+(`kinecal.kinematics.sweep`): a rotation about a unit axis ``u`` through ``o`` moves the
+tool point ``p`` by ``u x (p - o)`` per radian, a translation along ``u`` moves it by ``u``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
+from kinecal.kinematics.chain import BASE_NAMES, TOOL_NAMES, Chain, build_chain, chain_entries
+from kinecal.kinematics.motions import (
+    CONVENTIONS,
+    PRISMATIC,
+    ROTATION,
+    TRANSLATION,
+    Motion,
+    craig_motions,
+    dh_motions,
+    hayati_motions,
+    rotate_axes,
+    urdf_motions,
+)
+from kinecal.kinematics.sweep import Sweep
 
 __all__ = [
+    "BASE_NAMES",
     "CONVENTIONS",
+    "TOOL_NAMES",
     "Motion",
     "SerialModel",
     "Sweep",
     "craig_motions",
     "dh_motions",
     "hayati_motions",
+    "urdf_motions",
 ]
 
 Array = NDArray[np.float64]
 
-ROTATION, TRANSLATION = "R", "T"
-X, Y, Z = 0, 1, 2
-
-
-@dataclass(frozen=True)
-class Motion:
-    """One elementary motion of the chain.
-
-    Attributes
-    ----------
-    kind : {"R", "T"}
-        Rotation about, or translation along, a local axis.
-    axis : int
-        0, 1, 2 for the x, y, z axis of the moving frame.
-    name : str
-        Parameter name (``theta1``, ``base.x``, ...).
-    joint : int or None
-        0-based joint index whose reading ``q`` adds to the angle (only for ``theta``).
-    """
-
-    kind: str
-    axis: int
-    name: str
-    joint: int | None = None
-
-
-def dh_motions(i: int, with_beta: bool = False) -> list[Motion]:
-    """Standard D-H joint ``i`` (1-based): ``Rz(theta + q) Tz(d) Tx(a) Rx(alpha)``.
-
-    Paper 000 eq. (1) writes ``Rotate(Z, theta) Transfer(0, 0, h) Transfer(d, 0, 0)
-    Rotate(X, alpha)``: its (d, h) are our (a, d).
-    """
-    if with_beta:
-        raise InputError(f"joint {i}: beta is only defined for the hayati convention")
-    return [
-        Motion(ROTATION, Z, f"theta{i}", i - 1),
-        Motion(TRANSLATION, Z, f"d{i}"),
-        Motion(TRANSLATION, X, f"a{i}"),
-        Motion(ROTATION, X, f"alpha{i}"),
-    ]
-
-
-def craig_motions(i: int, with_beta: bool = False) -> list[Motion]:
-    """Modified (proximal, Craig) D-H joint ``i``: ``Rx(alpha) Tx(a) Rz(theta + q) Tz(d)``."""
-    if with_beta:
-        raise InputError(f"joint {i}: beta is only defined for the hayati convention")
-    return [
-        Motion(ROTATION, X, f"alpha{i}"),
-        Motion(TRANSLATION, X, f"a{i}"),
-        Motion(ROTATION, Z, f"theta{i}", i - 1),
-        Motion(TRANSLATION, Z, f"d{i}"),
-    ]
-
-
-def hayati_motions(i: int, with_beta: bool = False) -> list[Motion]:
-    """Hayati joint ``i`` (paper 002): ``Rz(theta + q) Tz(d) Tx(a) Rx(alpha) [Ry(beta)]``.
-
-    ``beta`` is present only on joints that declare it (nearly parallel consecutive axes).
-    """
-    motions = [
-        Motion(ROTATION, Z, f"theta{i}", i - 1),
-        Motion(TRANSLATION, Z, f"d{i}"),
-        Motion(TRANSLATION, X, f"a{i}"),
-        Motion(ROTATION, X, f"alpha{i}"),
-    ]
-    if with_beta:
-        motions.append(Motion(ROTATION, Y, f"beta{i}"))
-    return motions
-
-
-CONVENTIONS: dict[str, Callable[[int, bool], list[Motion]]] = {
-    "dh": dh_motions,
-    "craig": craig_motions,
-    "hayati": hayati_motions,
-}
-
-BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
-TOOL_NAMES = ("tool.x", "tool.y", "tool.z", "tool.rx", "tool.ry", "tool.rz")
-
-
-def _base_motions() -> list[Motion]:
-    return [
-        Motion(TRANSLATION, X, "base.x"),
-        Motion(TRANSLATION, Y, "base.y"),
-        Motion(TRANSLATION, Z, "base.z"),
-        Motion(ROTATION, Z, "base.rz"),
-        Motion(ROTATION, Y, "base.ry"),
-        Motion(ROTATION, X, "base.rx"),
-    ]
-
-
-def _tool_motions(frame: bool) -> list[Motion]:
-    motions = [
-        Motion(TRANSLATION, X, "tool.x"),
-        Motion(TRANSLATION, Y, "tool.y"),
-        Motion(TRANSLATION, Z, "tool.z"),
-    ]
-    if frame:
-        motions += [
-            Motion(ROTATION, Z, "tool.rz"),
-            Motion(ROTATION, Y, "tool.ry"),
-            Motion(ROTATION, X, "tool.rx"),
-        ]
-    return motions
-
 
 @dataclass
 class SerialModel:
-    """Kinematic model of a serial arm with revolute joints.
+    """Kinematic model of a serial arm: revolute and prismatic joints, fixed frames.
 
     Parameters
     ----------
     name : str
         Model name.
-    convention : {"dh", "craig", "hayati"}
+    convention : {"dh", "craig", "hayati", "urdf"}
         Joint convention (see module docstring).
     joints : sequence of dict
-        One dict per joint with ``theta, d, a, alpha`` (and ``beta`` for hayati joints that
-        use it). Lengths in `length_unit`, angles in radians.
+        The chain from base to flange, one dict per entry (`kinecal.kinematics.chain`):
+        a moving joint (``theta, d, a, alpha`` and ``beta`` for hayati joints that use it;
+        urdf: ``name, x, y, z, roll, pitch, yaw, offset, axis``), with ``type:
+        prismatic`` for a prismatic joint (urdf also ``continuous``); or a fixed frame
+        ``{frame: NAME, x, y, z, rx, ry, rz}`` (urdf: roll, pitch, yaw), held at nominal
+        unless it says ``calibrate: True``. Lengths in `length_unit`, angles in radians.
     base : array_like, shape (6,), optional
         Base frame in the measurement frame: x, y, z (length unit), rx, ry, rz (rad),
         ``R = Rz Ry Rx``. Absent: the measurements are in the robot base frame and the six
@@ -169,10 +89,12 @@ class SerialModel:
     length_unit : str
         ``"mm"`` or ``"m"``; informative, every length uses it.
     angle_unit : {"rad", "deg"}
-        Unit of angles in this model's files (model file, joint columns of measurement CSVs).
-        The Python API always uses radians.
+        Unit of angles in this model's files (model file, revolute joint columns of
+        measurement CSVs; prismatic columns are in the length unit). The Python API always
+        uses radians.
     joint_limits : array_like, shape (n_joints, 2), optional
-        Joint ranges in rad (default ``[-pi, pi]`` each).
+        Joint ranges, rad for revolute and length unit for prismatic joints (default
+        ``[-pi, pi]`` for revolute joints; prismatic joints need limits).
     tolerances : dict, optional
         ``{"length": L, "angle": A}``: half-width of the metaheuristics' search box around
         nominal (length unit, rad). Default 1 length unit and 0.02 rad.
@@ -194,48 +116,24 @@ class SerialModel:
     motions: list[Motion] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        if self.convention not in CONVENTIONS:
-            raise InputError(
-                f"unknown convention {self.convention!r}; expected one of {', '.join(CONVENTIONS)}"
-            )
-        if len(self.joints) < 1:
-            raise InputError("a model needs at least one joint")
-        make = CONVENTIONS[self.convention]
-        motions: list[Motion] = _base_motions()
-        values: dict[str, float] = dict.fromkeys(BASE_NAMES, 0.0)
-        if self.base is not None:
-            base = np.asarray(self.base, dtype=float)
-            if base.shape != (6,):
-                raise InputError(f"base: expected 6 values (x, y, z, rx, ry, rz), got {base.size}")
-            values.update(zip(BASE_NAMES, base, strict=True))
-        for i, joint in enumerate(self.joints, start=1):
-            with_beta = "beta" in joint
-            jm = make(i, with_beta)
-            motions += jm
-            for m in jm:
-                key = m.name.rstrip("0123456789")
-                if key not in joint:
-                    raise InputError(f"joint {i}: missing {key!r}")
-                values[m.name] = float(joint[key])
-        tool = np.zeros(3) if self.tool is None else np.asarray(self.tool, dtype=float)
-        if tool.shape not in ((3,), (6,)):
-            raise InputError(f"tool: expected 3 (point) or 6 (frame) values, got {tool.size}")
-        motions += _tool_motions(tool.shape == (6,))
-        values.update(zip(TOOL_NAMES, tool, strict=False))
-        self.motions = motions
-        # Parameter vector: per joint in motion order, then base, then tool.
-        joint_names = [m.name for m in motions if not m.name.startswith(("base.", "tool."))]
-        tool_names = [m for m in TOOL_NAMES[: tool.size]]
-        self._names = tuple(joint_names + list(BASE_NAMES) + tool_names)
+        if self.angle_unit not in ("rad", "deg"):
+            raise InputError(f"angle_unit: expected rad or deg, got {self.angle_unit!r}")
+        chain = build_chain(self.convention, self.joints, self.base, self.tool)
+        self._chain: Chain = chain
+        self.motions = list(chain.motions)
+        self._names = chain.names
         self._index = {n: k for k, n in enumerate(self._names)}
-        self._nominal = np.array([values[n] for n in self._names])
-        self._motion_index = np.array([self._index[m.name] for m in motions])
+        self._nominal = np.array([chain.values[n] for n in self._names])
+        self._motion_index = np.array([self._index[m.name] for m in self.motions])
         # parameter carrying each joint's reading (the motion whose value adds q_j)
-        joint_param = {m.joint: self._index[m.name] for m in motions if m.joint is not None}
-        self._joint_columns = np.array([joint_param[j] for j in range(len(self.joints))],
+        joint_param = {m.joint: self._index[m.name] for m in self.motions
+                       if m.joint is not None}
+        self._joint_columns = np.array([joint_param[j] for j in range(len(chain.kinds))],
                                        dtype=np.intp)
-        self._rotation_mask = np.array([m.kind == ROTATION for m in motions])
-        fixed = set(self.fixed)
+        self._rotation_mask = np.array([m.kind == ROTATION for m in self.motions])
+        self._angle_mask = np.zeros(len(self._names), dtype=bool)
+        self._angle_mask[self._motion_index[self._rotation_mask]] = True
+        fixed = set(self.fixed) | chain.frozen
         if self.base is None:
             fixed |= set(BASE_NAMES)
         if self.tool is None:
@@ -244,20 +142,48 @@ class SerialModel:
         if unknown:
             raise InputError(f"fixed: unknown parameter(s) {sorted(unknown)}")
         self._fixed = frozenset(fixed)
-        n = len(self.joints)
+        n = self.n_joints
+        prismatic = self.is_prismatic()
         if self.joint_limits is None:
+            if prismatic.any():
+                raise InputError(f"joint_limits: prismatic joint(s) "
+                                 f"{(np.flatnonzero(prismatic) + 1).tolist()} need limits "
+                                 f"(length unit)")
             self.joint_limits = np.tile([-np.pi, np.pi], (n, 1))
         self.joint_limits = np.asarray(self.joint_limits, dtype=float)
         lim = self.joint_limits
-        if lim.shape != (n, 2) or (lim[:, 0] >= lim[:, 1]).any():
+        if lim.shape != (n, 2) or not np.isfinite(lim).all() or (lim[:, 0] >= lim[:, 1]).any():
             raise InputError(f"joint_limits: expected {n} pairs [low, high] with low < high")
         self.tolerances = {"length": 1.0, "angle": 0.02, **(self.tolerances or {})}
 
     # ------------------------------------------------------------------ parameters
     @property
     def n_joints(self) -> int:
-        """Number of joints."""
-        return len(self.joints)
+        """Number of moving joints (fixed frames not counted)."""
+        return len(self._chain.kinds)
+
+    @property
+    def joint_kinds(self) -> tuple[str, ...]:
+        """``"revolute"`` or ``"prismatic"`` per joint."""
+        return self._chain.kinds
+
+    def is_prismatic(self) -> NDArray[np.bool_]:
+        """Mask ``(n_joints,)``: True for prismatic joints (readings in the length unit)."""
+        return np.array([k == PRISMATIC for k in self._chain.kinds])
+
+    def joint_scale(self, angle_unit: str | None = None) -> Array:
+        """Factor per joint column from file units to the API's units ``(n_joints,)``.
+
+        ``q_api = q_file * joint_scale()``: ``pi / 180`` for a revolute joint when the
+        angle unit (default: the model's) is ``deg``, 1 for ``rad`` and for prismatic
+        joints (length unit in files and API alike). Every reader and writer of joint
+        columns, and joint limits in model files, use it.
+        """
+        unit = self.angle_unit if angle_unit is None else angle_unit
+        if unit not in ("deg", "rad"):
+            raise InputError(f"angle unit: expected deg or rad, got {unit!r}")
+        rev = np.pi / 180.0 if unit == "deg" else 1.0
+        return np.where(self.is_prismatic(), 1.0, rev)
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -294,19 +220,18 @@ class SerialModel:
         return np.array([self._index[n] for n in names], dtype=np.intp)
 
     def is_angle(self) -> NDArray[np.bool_]:
-        """Mask ``(n_params,)``: True where the parameter is an angle (rad)."""
-        return np.array([n.split(".")[-1].rstrip("0123456789") in
-                         ("theta", "alpha", "beta", "rx", "ry", "rz") for n in self._names])
+        """Mask ``(n_params,)``: True where the parameter is an angle (rad), i.e. the value
+        of a rotation (``theta, alpha, beta, rx .. rz, roll .. yaw``, a revolute urdf
+        joint's ``offset``)."""
+        return self._angle_mask.copy()
 
     def with_params(self, params: ArrayLike, name: str | None = None) -> SerialModel:
         """A copy of the model whose nominal values are `params` ``(n_params,)``."""
         p = self._check_params(params)
         if p.ndim != 1:
             raise InputError("with_params expects one parameter vector")
-        values = dict(zip(self._names, p, strict=True))
-        joints = []
-        for i, joint in enumerate(self.joints, start=1):
-            joints.append({k: values[f"{k}{i}"] for k in joint})
+        values = dict(zip(self._names, p.tolist(), strict=True))
+        joints = chain_entries(self._chain, self.joints, values)
         base = [values[n] for n in BASE_NAMES]
         if self.base is None and not any(base):
             base = None
@@ -314,8 +239,9 @@ class SerialModel:
         tool = [values[n] for n in TOOL_NAMES[:n_tool]]
         if self.tool is None and not any(tool):
             tool = None
-        # Keep what was fixed by the model's design, including frames that were absent.
-        fixed = tuple(n for n in self._names if n in self._fixed)
+        # Keep what was fixed by the model's design, including frames that were absent
+        # (fixed frames' own defaults come back with their entries).
+        fixed = tuple(n for n in self._names if n in self._fixed and n not in self._chain.frozen)
         return SerialModel(
             name=name or self.name, convention=self.convention, joints=joints, base=base,
             tool=tool, length_unit=self.length_unit, angle_unit=self.angle_unit,
@@ -371,18 +297,23 @@ class SerialModel:
         # one parameter vector: plain floats (cheaper than 0-d arrays in the loop below)
         values = p.tolist() if p.ndim == 1 else None
         for m, k in zip(self.motions, self._motion_index, strict=True):
+            # a general (urdf) axis is a combination of the frame's axes
+            u = axes[m.axis] if m.direction is None else m.vector(axes)
             if record:  # arrays are replaced, never modified in place: no copies needed
-                frames.append((axes[m.axis], o))
+                frames.append((u, o))
             if m.joint is None and not nonzero[k]:
                 continue
             # (*batch, 1): broadcast over poses
             value = values[k] if values is not None else p[..., k][..., None]
-            u = axes[m.axis]
+            if m.joint is not None:  # revolute: an angle, prismatic: a length
+                value = value + q[:, m.joint]
             if m.kind == TRANSLATION:
                 o = o + value * u
                 continue
-            angle = value + q[:, m.joint] if m.joint is not None else value
-            c, s_ = np.cos(angle), np.sin(angle)
+            c, s_ = np.cos(value), np.sin(value)
+            if m.direction is not None:  # Rodrigues step about the general axis
+                axes = rotate_axes(axes, u, m.direction, c, s_)
+                continue
             j, l = (m.axis + 1) % 3, (m.axis + 2) % 3
             vj, vl = axes[j], axes[l]
             axes[j] = c * vj + s_ * vl
@@ -488,52 +419,3 @@ class SerialModel:
             raise InputError("identification_jacobian expects one parameter vector")
         R, o_end, frames = self._sweep(q, p, record=True)
         return Sweep(self, o_end, frames, R)
-
-
-class Sweep:
-    """Result of `SerialModel.sweep`: tool poses and the frames before each motion."""
-
-    def __init__(self, model: SerialModel, o_end: Array, frames: list, R: Array) -> None:
-        self.model = model
-        self.positions = o_end  # (N, 3)
-        self.rotations = R  # (N, 3, 3): tool frame orientation in the measurement frame
-        self.frames = frames
-
-    def joint_jacobian_t(self, outputs: str = "pose") -> Array:
-        """Geometric Jacobian ``(n_joints, 6 or 3, N)`` with respect to the joint readings.
-
-        A joint's reading adds to the value of one motion of the chain, so its column is
-        that motion's parameter column of `jacobian_t`.
-        """
-        return self.jacobian_t(outputs, columns=self.model._joint_columns)
-
-    def jacobian_t(self, outputs: str = "position", columns: ArrayLike | None = None) -> Array:
-        """Identification Jacobian ``(n, 3 or 6, N)`` (see `identification_jacobian`).
-
-        `columns` (parameter indices) restricts the rows to those parameters, in that
-        order; only their motions are differentiated.
-        """
-        if outputs not in ("position", "pose"):
-            raise InputError(f"outputs: expected 'position' or 'pose', got {outputs!r}")
-        model = self.model
-        cols = np.arange(model.n_params) if columns is None else np.asarray(columns)
-        row_of = np.full(model.n_params, -1)
-        row_of[cols] = np.arange(cols.size)
-        p_end = self.positions.T  # (3, N)
-        rows = 3 if outputs == "position" else 6
-        Jt = np.zeros((cols.size, rows, p_end.shape[1]))
-        for (u, o), k, is_rot in zip(self.frames, model._motion_index, model._rotation_mask,
-                                     strict=True):
-            r_ = row_of[k]
-            if r_ < 0:
-                continue
-            if not is_rot:  # a translation moves the point along its axis
-                Jt[r_, :3] = u
-                continue
-            d = p_end - o  # a rotation about u through o: u x (p - o)
-            Jt[r_, 0] = u[1] * d[2] - u[2] * d[1]
-            Jt[r_, 1] = u[2] * d[0] - u[0] * d[2]
-            Jt[r_, 2] = u[0] * d[1] - u[1] * d[0]
-            if rows == 6:
-                Jt[r_, 3:] = u
-        return Jt
