@@ -38,3 +38,20 @@ def test_strict_raises_input_error():
     with collect() as found, strict(), pytest.raises(InputError, match=r"too few \[few\]"):
         warn("few", "too few")
     assert found == []
+
+
+def test_cli_warnings_scope_prints_and_merges(capsys):
+    from kinecal.cli._common import warnings_scope, with_warnings
+
+    with pytest.raises(RuntimeError), warnings_scope() as found:
+        warn("late-code", "printed even when the command fails")
+        raise RuntimeError("boom")
+    err = capsys.readouterr().err
+    assert err == "kinecal: warning: printed even when the command fails [late-code]\n"
+    merged = with_warnings({"warnings": [{"code": "a", "message": "m"}]},
+                           [Diagnostic("a", "m"), *found])
+    assert merged["warnings"] == [{"code": "a", "message": "m"},
+                                  {"code": "late-code",
+                                   "message": "printed even when the command fails"}]
+    with pytest.raises(InputError), warnings_scope(strict=True):
+        warn("x", "y")

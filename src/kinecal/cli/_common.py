@@ -18,8 +18,12 @@ __all__ = [
     "check_paths",
     "echo_json",
     "progress",
+    "quiet_option",
     "resolve_data_path",
+    "strict_option",
     "to_jsonable",
+    "warnings_scope",
+    "with_warnings",
     "write_json",
 ]
 
@@ -110,6 +114,58 @@ def check_paths(
                 raise InputError(f"{path} is also given to {other}: two outputs cannot share "
                                  "a path", option=opt)
         seen[opt] = path
+
+
+def strict_option() -> Any:
+    """The ``--strict`` option every command that can warn shares."""
+    import typer
+
+    return typer.Option(False, "--strict",
+                        help="Treat every plausibility warning as an error (exit 2).")
+
+
+def quiet_option() -> Any:
+    """The ``--quiet`` option: no progress and no summary text; warnings still print."""
+    import typer
+
+    return typer.Option(False, "--quiet",
+                        help="No progress bar or summary (warnings are still printed).")
+
+
+@contextlib.contextmanager
+def warnings_scope(strict: bool = False) -> Iterator[list]:
+    """Collect a command's plausibility diagnostics and print them on stderr.
+
+    Every `kinecal.diagnostics.warn` raised inside the block (readers, calibrations,
+    checks) is collected once, in order; when the block ends, normally or by an error,
+    each is printed as one ``kinecal: warning: MESSAGE [CODE]`` line on stderr (``--quiet``
+    never silences them). Under `strict` the first warning raises `InputError` instead
+    (exit status 2 before any output is written).
+
+    Yields
+    ------
+    list of Diagnostic
+        The diagnostics found so far; put them into JSON output with `with_warnings`.
+    """
+    from kinecal import diagnostics
+
+    with diagnostics.collect() as found, diagnostics.strict(strict):
+        try:
+            yield found
+        finally:
+            for d in found:
+                sys.stderr.write(diagnostics.format_warning(d) + "\n")
+
+
+def with_warnings(obj: dict, found: list) -> dict:
+    """`obj` with ``warnings: [{code, message}]``: its own and those in `found`, no repeats."""
+    own = list(obj.get("warnings") or [])
+    seen = {(w["code"], w["message"]) for w in own}
+    for d in found:
+        if (d.code, d.message) not in seen:
+            own.append(d.to_dict())
+            seen.add((d.code, d.message))
+    return {**obj, "warnings": own}
 
 
 def quiet_requested(quiet: bool) -> bool:
