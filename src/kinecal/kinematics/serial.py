@@ -15,9 +15,10 @@ frames anywhere in the chain are six more motions (`kinecal.kinematics.chain`).
 The base frame is ``Tx(x) Ty(y) Tz(z) Rz(rz) Ry(ry) Rx(rx)`` (a pose in roll-pitch-yaw),
 the tool ``Tx(x) Ty(y) Tz(z)`` followed by ``Rz Ry Rx`` for a tool frame.
 
-Forward kinematics composes the motions on axis-vector stacks of shape
-``(3, P, N)`` (component, population, poses), without Python loops over poses or
-parameter vectors. The identification Jacobian follows from the same sweep
+Forward kinematics composes the motions over cache-sized chunks of poses (and a whole
+population of parameter vectors at once), without Python loops over poses or parameter
+vectors (`kinecal.kinematics.compose`: positions from the tool point backwards, frames
+forwards). The identification Jacobian follows from the frames of the forward sweep
 (`kinecal.kinematics.sweep`): a rotation about a unit axis ``u`` through ``o`` moves the
 tool point ``p`` by ``u x (p - o)`` per radian, a translation along ``u`` moves it by ``u``.
 """
@@ -32,19 +33,18 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
 from kinecal.kinematics.chain import BASE_NAMES, TOOL_NAMES, Chain, build_chain, chain_entries
+from kinecal.kinematics.compose import chunks, frame_chain, positions, transforms
 from kinecal.kinematics.motions import (
     CONVENTIONS,
     PRISMATIC,
     ROTATION,
-    TRANSLATION,
     Motion,
     craig_motions,
     dh_motions,
     hayati_motions,
-    rotate_axes,
     urdf_motions,
 )
-from kinecal.kinematics.sweep import Sweep
+from kinecal.kinematics.sweep import Sweep, chunked_jacobian_t
 
 __all__ = [
     "BASE_NAMES",
@@ -274,53 +274,6 @@ class SerialModel:
             raise InputError("joint values contain NaN or infinite entries")
         return q
 
-    def _sweep(self, q: Array, p: Array, record: bool) -> tuple[Array, Array, list]:
-        """Compose all motions on frame stacks.
-
-        The frame is kept as three axis arrays and an origin, each ``(3, *batch, N)``
-        (component first, so that per-pose factors broadcast without reshaping). A motion
-        whose value is exactly zero for every row (and no joint reading) is the identity and
-        is skipped; its recorded frame is the current one.
-
-        Returns R ``(*batch, N, 3, 3)``, o ``(*batch, N, 3)`` and, if `record`, the list of
-        (axis vector ``(3, *batch, N)``, origin ``(3, *batch, N)``) before each motion.
-        """
-        batch = p.shape[:-1]
-        N = q.shape[0]
-        shape = (3, *batch, N)
-        axes = [np.zeros(shape), np.zeros(shape), np.zeros(shape)]
-        for i in range(3):
-            axes[i][i] = 1.0
-        o = np.zeros(shape)
-        frames = []
-        nonzero = np.any(p != 0.0, axis=tuple(range(p.ndim - 1))) if p.ndim > 1 else p != 0.0
-        # one parameter vector: plain floats (cheaper than 0-d arrays in the loop below)
-        values = p.tolist() if p.ndim == 1 else None
-        for m, k in zip(self.motions, self._motion_index, strict=True):
-            # a general (urdf) axis is a combination of the frame's axes
-            u = axes[m.axis] if m.direction is None else m.vector(axes)
-            if record:  # arrays are replaced, never modified in place: no copies needed
-                frames.append((u, o))
-            if m.joint is None and not nonzero[k]:
-                continue
-            # (*batch, 1): broadcast over poses
-            value = values[k] if values is not None else p[..., k][..., None]
-            if m.joint is not None:  # revolute: an angle, prismatic: a length
-                value = value + q[:, m.joint]
-            if m.kind == TRANSLATION:
-                o = o + value * u
-                continue
-            c, s_ = np.cos(value), np.sin(value)
-            if m.direction is not None:  # Rodrigues step about the general axis
-                axes = rotate_axes(axes, u, m.direction, c, s_)
-                continue
-            j, l = (m.axis + 1) % 3, (m.axis + 2) % 3
-            vj, vl = axes[j], axes[l]
-            axes[j] = c * vj + s_ * vl
-            axes[l] = c * vl - s_ * vj
-        R = np.stack([np.moveaxis(a, 0, -1) for a in axes], axis=-1)
-        return R, np.moveaxis(o, 0, -1), frames
-
     def fk(self, q: ArrayLike, params: ArrayLike | None = None) -> Array:
         """Tool (or flange) frame in the measurement frame.
 
@@ -336,20 +289,16 @@ class SerialModel:
         ndarray, shape (N, 4, 4) or (P, N, 4, 4)
             ``tool2base`` transforms (lengths in the model unit).
         """
-        q = self._check_q(q)
-        p = self._check_params(params)
-        R, o, _ = self._sweep(q, p, record=False)
-        T = np.zeros(R.shape[:-2] + (4, 4))
-        T[..., :3, :3] = R
-        T[..., :3, 3] = o
-        T[..., 3, 3] = 1.0
-        return T
+        return transforms(self.motions, self._motion_index, self._check_q(q),
+                          self._check_params(params))
 
     def positions(self, q: ArrayLike, params: ArrayLike | None = None) -> Array:
-        """Tool-point positions ``(N, 3)`` or ``(P, N, 3)``; see `fk`."""
-        q = self._check_q(q)
-        p = self._check_params(params)
-        return self._sweep(q, p, record=False)[1]
+        """Tool-point positions ``(N, 3)`` or ``(P, N, 3)``; see `fk`.
+
+        Composed from the tool point backwards, chunk by chunk: no rotation stacks.
+        """
+        return positions(self.motions, self._motion_index, self._check_q(q),
+                         self._check_params(params))
 
     def identification_jacobian(
         self, q: ArrayLike, params: ArrayLike | None = None, outputs: str = "position"
@@ -374,13 +323,16 @@ class SerialModel:
         return np.ascontiguousarray(self.jacobian_t(q, params, outputs).transpose(2, 1, 0))
 
     def jacobian_t(
-        self, q: ArrayLike, params: ArrayLike | None = None, outputs: str = "position"
+        self, q: ArrayLike, params: ArrayLike | None = None, outputs: str = "position",
+        columns: ArrayLike | None = None,
     ) -> Array:
         """`identification_jacobian` in parameter-major layout ``(n_params, 3 or 6, N)``.
 
-        Cheaper for solvers that select parameter rows before reshaping.
+        Cheaper for solvers that select parameter rows before reshaping; `columns`
+        (parameter indices) keeps only those rows, in that order. Built chunk by chunk.
         """
-        return self.sweep(q, params).jacobian_t(outputs)
+        return chunked_jacobian_t(self, self._check_q(q), self._one_vector(params), outputs,
+                                  columns)
 
     def joint_jacobian(
         self, q: ArrayLike, params: ArrayLike | None = None, outputs: str = "pose"
@@ -403,19 +355,24 @@ class SerialModel:
             The geometric Jacobian: length unit per rad (and rad per rad) for a revolute
             joint.
         """
-        Jt = self.sweep(q, params).joint_jacobian_t(outputs)
+        Jt = self.jacobian_t(q, params, outputs, columns=self._joint_columns)
         return np.ascontiguousarray(Jt.transpose(2, 1, 0))
+
+    def _one_vector(self, params: ArrayLike | None) -> Array:
+        p = self._check_params(params)
+        if p.ndim != 1:
+            raise InputError("identification_jacobian expects one parameter vector")
+        return p
 
     def sweep(self, q: ArrayLike, params: ArrayLike | None = None) -> Sweep:
         """Forward kinematics of one parameter vector, keeping what the Jacobian needs.
 
         A solver that needs the positions at ``x`` and then, if the step is accepted, the
         Jacobian at the same ``x`` computes the chain once: ``s = model.sweep(q, p)``,
-        ``s.positions``, later ``s.jacobian_t()``.
+        ``s.positions``, later ``s.jacobian_t()``. One pass over all of `q` (callers with
+        many poses sweep chunks of them, as `kinecal.calibration.rows` does).
         """
-        q = self._check_q(q)
-        p = self._check_params(params)
-        if p.ndim != 1:
-            raise InputError("identification_jacobian expects one parameter vector")
-        R, o_end, frames = self._sweep(q, p, record=True)
-        return Sweep(self, o_end, frames, R)
+        q, p = self._check_q(q), self._one_vector(params)
+        _, (axes, o, frames) = next(chunks(self.motions, self._motion_index, q, p,
+                                           frame_chain, True, elements=0))
+        return Sweep(self, axes, o, frames, q.shape[0])

@@ -15,33 +15,81 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
+from kinecal.kinematics.compose import chunks, frame_chain
 
 if TYPE_CHECKING:
     from kinecal.kinematics.serial import SerialModel
 
-__all__ = ["Sweep"]
+__all__ = ["JACOBIAN_ELEMENTS", "Sweep", "chunked_jacobian_t"]
 
 Array = NDArray[np.float64]
+#: poses per chunk of the Jacobian sweeps (the frames before every motion are kept)
+JACOBIAN_ELEMENTS = 2048
+
+
+def chunked_jacobian_t(model: SerialModel, q: Array, p: Array, outputs: str = "position",
+                       columns: ArrayLike | None = None) -> Array:
+    """Identification Jacobian ``(k, 3 or 6, N)`` of `columns` (default all parameters),
+    one `Sweep` per chunk of `JACOBIAN_ELEMENTS` poses (see
+    `SerialModel.jacobian_t`)."""
+    if outputs not in ("position", "pose"):
+        raise InputError(f"outputs: expected 'position' or 'pose', got {outputs!r}")
+    cols = np.arange(model.n_params) if columns is None else np.asarray(columns)
+    out = np.zeros((cols.size, 6 if outputs == "pose" else 3, q.shape[0]))
+    for sel, (axes, o, frames) in chunks(model.motions, model._motion_index, q, p,
+                                         frame_chain, True, elements=JACOBIAN_ELEMENTS):
+        Sweep(model, axes, o, frames, sel.stop - sel.start).jacobian_t(
+            outputs, cols, out=out[..., sel])
+    return out
 
 
 class Sweep:
     """Result of `SerialModel.sweep`: tool poses and the frames before each motion.
+
+    Parameters
+    ----------
+    model : SerialModel
+    axes : list of 3 lists of 3
+        Tool frame axes (``axes[a][k]``: component k of axis a), arrays ``(N,)`` or floats
+        (`kinecal.kinematics.compose.frame_chain`).
+    origin : list of 3
+        Tool point coordinates, arrays ``(N,)`` or floats.
+    frames : list of (list of 3, list of 3)
+        Axis of each motion and origin of the moving frame before it, as coordinates.
+    n : int
+        Number of poses N.
 
     Attributes
     ----------
     positions : ndarray, shape (N, 3)
         Tool points in the measurement frame (length unit).
     rotations : ndarray, shape (N, 3, 3)
-        Tool-frame orientations in the measurement frame.
-    frames : list of (ndarray (3, N), ndarray (3, N))
-        Axis of each motion and origin of the moving frame before it.
+        Tool-frame orientations in the measurement frame (built on first use).
     """
 
-    def __init__(self, model: SerialModel, o_end: Array, frames: list, R: Array) -> None:
+    def __init__(self, model: SerialModel, axes: list, origin: list, frames: list, n: int
+                 ) -> None:
         self.model = model
-        self.positions = o_end  # (N, 3)
-        self.rotations = R  # (N, 3, 3): tool frame orientation in the measurement frame
         self.frames = frames
+        self._axes = axes
+        self._origin = origin
+        self.n = n
+        P = np.empty((n, 3))
+        for k in range(3):
+            P[:, k] = origin[k]
+        self.positions = P
+        self._rotations: Array | None = None
+
+    @property
+    def rotations(self) -> Array:
+        """Tool-frame orientations ``(N, 3, 3)`` in the measurement frame."""
+        if self._rotations is None:
+            R = np.empty((self.n, 3, 3))
+            for a in range(3):
+                for k in range(3):
+                    R[:, k, a] = self._axes[a][k]
+            self._rotations = R
+        return self._rotations
 
     def joint_jacobian_t(self, outputs: str = "pose") -> Array:
         """Geometric Jacobian ``(n_joints, 6 or 3, N)`` with respect to the joint readings.
@@ -52,12 +100,14 @@ class Sweep:
         """
         return self.jacobian_t(outputs, columns=self.model._joint_columns)
 
-    def jacobian_t(self, outputs: str = "position", columns: ArrayLike | None = None) -> Array:
+    def jacobian_t(self, outputs: str = "position", columns: ArrayLike | None = None,
+                   out: Array | None = None) -> Array:
         """Identification Jacobian ``(n, 3 or 6, N)`` (see
         `SerialModel.identification_jacobian`).
 
         `columns` (parameter indices) restricts the rows to those parameters, in that
-        order; only their motions are differentiated.
+        order; only their motions are differentiated. `out`: a zero-filled array of the
+        result's shape to write into.
         """
         if outputs not in ("position", "pose"):
             raise InputError(f"outputs: expected 'position' or 'pose', got {outputs!r}")
@@ -65,21 +115,22 @@ class Sweep:
         cols = np.arange(model.n_params) if columns is None else np.asarray(columns)
         row_of = np.full(model.n_params, -1)
         row_of[cols] = np.arange(cols.size)
-        p_end = self.positions.T  # (3, N)
+        p_end = self._origin
         rows = 3 if outputs == "position" else 6
-        Jt = np.zeros((cols.size, rows, p_end.shape[1]))
+        Jt = np.zeros((cols.size, rows, self.n)) if out is None else out
         for (u, o), k, is_rot in zip(self.frames, model._motion_index, model._rotation_mask,
                                      strict=True):
             r_ = row_of[k]
             if r_ < 0:
                 continue
+            J = Jt[r_]
             if not is_rot:  # a translation moves the point along its axis
-                Jt[r_, :3] = u
+                J[0], J[1], J[2] = u
                 continue
-            d = p_end - o  # a rotation about u through o: u x (p - o)
-            Jt[r_, 0] = u[1] * d[2] - u[2] * d[1]
-            Jt[r_, 1] = u[2] * d[0] - u[0] * d[2]
-            Jt[r_, 2] = u[0] * d[1] - u[1] * d[0]
+            d0, d1, d2 = (p_end[i] - o[i] for i in range(3))  # rotation about u through o
+            J[0] = u[1] * d2 - u[2] * d1
+            J[1] = u[2] * d0 - u[0] * d2
+            J[2] = u[0] * d1 - u[1] * d0
             if rows == 6:
-                Jt[r_, 3:] = u
+                J[3], J[4], J[5] = u
         return Jt

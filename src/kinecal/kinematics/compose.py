@@ -1,0 +1,335 @@
+"""Kernels that compose a serial chain's elementary motions over a chunk of poses.
+
+`SerialModel` hands each kernel one chunk of joint readings (sized for the cache by
+`chunk_size`) and writes the chunk's result into its output; nothing here holds more
+than one chunk. Three kernels share one representation:
+
+* `point_chain` (positions only): the tool point is carried from the flange back to the
+  measurement frame, ``p = M_1 (M_2 (... M_m p_tool))``. A translation along a frame
+  axis is then one addition on one coordinate and a rotation four products on two, where
+  composing frames forwards moves three axes and an origin (about 3.5x fewer operations
+  for a D-H chain); no rotation stacks are built.
+* `frame_chain` (poses, and the frames the identification Jacobian needs): the moving
+  frame's three axes and origin carried forwards from the measurement frame, optionally
+  recording the axis and origin before every motion.
+* `joint_trig`: cosine and sine of every revolute joint's angle for the whole chunk in a
+  few vectorised calls, by the tangent half-angle formulas ``t = tan(x / 2)``,
+  ``cos x = (1 - t^2) / (1 + t^2)``, ``sin x = 2 t / (1 + t^2)``: one tangent instead of a
+  sine and a cosine (numpy vectorises the float64 tangent; its float64 sine and cosine
+  run element by element, 8x slower). Absolute error below 3e-16 against 6e-17 for
+  libm's sine and cosine, i.e. 3e-13 mm at a one-metre reach.
+
+Every coordinate is either an array broadcastable to ``(*batch, n)`` or a plain float;
+operations with an exact float zero (or one) are folded away, so the constant part of a
+chain (a base frame before the first joint, a tool point on a joint axis, the identity
+frame at the start) costs nothing per pose.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.kinematics.motions import ROTATION, TRANSLATION, Motion
+
+__all__ = ["CHUNK_ELEMENTS", "chunk_size", "chunks", "frame_chain", "joint_trig",
+           "motion_values", "point_chain", "positions", "transforms"]
+
+Array = NDArray[np.float64]
+#: poses (times parameter vectors) per chunk: a few hundred bytes of live coordinates per
+#: pose stay inside a 1-2 MB L2 cache; measured best for the UR5 between 4096 and 16384
+CHUNK_ELEMENTS = 8192
+
+
+def chunk_size(n_poses: int, batch: int = 1, elements: int = CHUNK_ELEMENTS) -> int:
+    """Poses per chunk for `batch` parameter vectors (at least 16; `elements` 0: all)."""
+    if elements <= 0:
+        return max(n_poses, 1)
+    return max(16, min(n_poses, elements // max(batch, 1)))
+
+
+# ---------------------------------------------------------------- folded arithmetic
+def _zero(x) -> bool:
+    return isinstance(x, float) and x == 0.0
+
+
+def _mul(a, x):
+    if _zero(x) or _zero(a):
+        return 0.0
+    if isinstance(a, float) and a == 1.0:
+        return x
+    return a * x
+
+
+def _add(x, y):
+    if _zero(x):
+        return y
+    if _zero(y):
+        return x
+    return x + y
+
+
+def _sub(x, y):
+    if _zero(y):
+        return x
+    if _zero(x):
+        return -y
+    return x - y
+
+
+def _turn(c, s, x, y):
+    """``(c x - s y, s x + c y)``: a plane rotation of the coordinate pair (x, y)."""
+    return _sub(_mul(c, x), _mul(s, y)), _add(_mul(s, x), _mul(c, y))
+
+
+# ---------------------------------------------------------------- values and trig
+def motion_values(motions: Sequence[Motion], motion_index: NDArray[np.intp], p: Array
+                  ) -> tuple[list, list]:
+    """Per motion: its parameter value and whether it can be skipped.
+
+    Parameters
+    ----------
+    motions : sequence of Motion
+    motion_index : ndarray, shape (m,)
+        Parameter index of each motion.
+    p : ndarray, shape (n_params,) or (P, n_params)
+
+    Returns
+    -------
+    values : list
+        Plain floats for one parameter vector, arrays ``(P, 1)`` for a population.
+    skip : list of bool
+        True where the motion is the identity for every parameter vector (value exactly
+        zero and no joint reading).
+    """
+    if p.ndim == 1:
+        flat = p.tolist()
+        values = [flat[k] for k in motion_index]
+        nonzero = [v != 0.0 for v in values]
+    else:
+        cols = p[..., motion_index]  # (P, m)
+        values = [cols[..., i][..., None] for i in range(len(motions))]
+        nonzero = np.any(cols != 0.0, axis=0).tolist()
+    skip = [m.joint is None and not nz for m, nz in zip(motions, nonzero, strict=True)]
+    return values, skip
+
+
+def joint_trig(motions: Sequence[Motion], values: list, qT: Array) -> dict[int, tuple]:
+    """Cosine and sine of every revolute joint's angle ``value + q`` over a chunk.
+
+    Parameters
+    ----------
+    motions : sequence of Motion
+    values : list
+        From `motion_values`.
+    qT : ndarray, shape (n_joints, n)
+        Joint readings of the chunk, joint-major.
+
+    Returns
+    -------
+    dict
+        Motion position -> ``(cos, sin)``, each ``(*batch, n)``.
+    """
+    rot = [i for i, m in enumerate(motions) if m.joint is not None and m.kind == ROTATION]
+    if not rot:
+        return {}
+    joints = [motions[i].joint for i in rot]
+    offsets = [values[i] for i in rot]
+    if isinstance(offsets[0], float):
+        half = qT[joints] + np.array(offsets)[:, None]  # (r, n)
+    else:
+        half = qT[joints] + np.stack(offsets, axis=-2)  # (P, r, n)
+    half *= 0.5
+    t = np.tan(half, out=half)
+    t2 = t * t
+    d = t2 + 1.0
+    np.reciprocal(d, out=d)
+    c = 1.0 - t2
+    c *= d
+    s = t * d
+    s *= 2.0
+    return {i: (c[..., r, :], s[..., r, :]) for r, i in enumerate(rot)}
+
+
+def _cos_sin(value) -> tuple:
+    # numpy's for floats too: a parameter vector gives the same bits alone or in a population
+    if isinstance(value, float):
+        return float(np.cos(value)), float(np.sin(value))
+    return np.cos(value), np.sin(value)
+
+
+def _motion_cs(i: int, m: Motion, values: list, trig: dict) -> tuple:
+    return trig[i] if m.joint is not None else _cos_sin(values[i])
+
+
+def _motion_shift(m: Motion, value, qT: Array):
+    return value if m.joint is None else qT[m.joint] + value
+
+
+# ---------------------------------------------------------------- kernels
+def point_chain(motions: Sequence[Motion], values: list, skip: list, qT: Array,
+                trig: dict, point: Sequence | None = None) -> list:
+    """Tool point in the measurement frame, composed from the flange backwards.
+
+    Parameters
+    ----------
+    motions, values, skip
+        The chain (`motion_values`).
+    qT : ndarray, shape (n_joints, n)
+        Joint readings of the chunk.
+    trig : dict
+        `joint_trig` of the chunk.
+    point : sequence of 3, optional
+        Start point beyond the last motion (floats or per-pose arrays; default the
+        origin: the tool point is part of the motions).
+
+    Returns
+    -------
+    list of 3
+        x, y, z coordinates (arrays broadcastable to ``(*batch, n)``, or floats).
+    """
+    p = [0.0, 0.0, 0.0] if point is None else list(point)
+    for i in range(len(motions) - 1, -1, -1):
+        if skip[i]:
+            continue
+        m = motions[i]
+        if m.kind == TRANSLATION:
+            v = _motion_shift(m, values[i], qT)
+            if m.direction is None:
+                p[m.axis] = _add(p[m.axis], v)
+            else:
+                p = [_add(p[k], _mul(v, m.direction[k])) for k in range(3)]
+            continue
+        c, s = _motion_cs(i, m, values, trig)
+        if m.direction is None:
+            a, b = (m.axis + 1) % 3, (m.axis + 2) % 3
+            p[a], p[b] = _turn(c, s, p[a], p[b])
+            continue
+        # Rodrigues about the unit axis d of the moving frame: c p + s (d x p) + (1-c)(d.p) d
+        d = m.direction
+        cross = [_sub(_mul(d[1], p[2]), _mul(d[2], p[1])),
+                 _sub(_mul(d[2], p[0]), _mul(d[0], p[2])),
+                 _sub(_mul(d[0], p[1]), _mul(d[1], p[0]))]
+        along = _mul(_sub(1.0, c), _add(_add(_mul(d[0], p[0]), _mul(d[1], p[1])),
+                                         _mul(d[2], p[2])))
+        p = [_add(_add(_mul(c, p[k]), _mul(s, cross[k])), _mul(along, d[k]))
+             for k in range(3)]
+    return p
+
+
+def frame_chain(motions: Sequence[Motion], values: list, skip: list, qT: Array,
+                trig: dict, record: bool = False) -> tuple[list, list, list]:
+    """Tool frame in the measurement frame, composed from the base forwards.
+
+    Parameters
+    ----------
+    motions, values, skip, qT, trig
+        As in `point_chain`.
+    record : bool
+        Keep the axis and origin before each motion (for the Jacobian).
+
+    Returns
+    -------
+    axes : list of 3 lists of 3
+        ``axes[a][k]``: component k of the tool frame's axis a (floats or arrays).
+    origin : list of 3
+        The tool point.
+    frames : list of (list of 3, list of 3)
+        If `record`: per motion, its axis ``u`` and the origin ``o`` before it, each as 3
+        coordinates (coordinates are replaced, never modified in place, so no copies).
+    """
+    axes = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    o = [0.0, 0.0, 0.0]
+    frames: list = []
+    for i, m in enumerate(motions):
+        if m.direction is None:
+            u = axes[m.axis]
+        else:
+            d = m.direction
+            u = [_add(_add(_mul(d[0], axes[0][k]), _mul(d[1], axes[1][k])),
+                      _mul(d[2], axes[2][k])) for k in range(3)]
+        if record:
+            frames.append((u, o))
+        if skip[i]:
+            continue
+        if m.kind == TRANSLATION:
+            v = _motion_shift(m, values[i], qT)
+            o = [_add(o[k], _mul(v, u[k])) for k in range(3)]
+            continue
+        c, s = _motion_cs(i, m, values, trig)
+        if m.direction is None:
+            a, b = (m.axis + 1) % 3, (m.axis + 2) % 3
+            va, vb = axes[a], axes[b]
+            axes[a] = [_add(_mul(c, va[k]), _mul(s, vb[k])) for k in range(3)]
+            axes[b] = [_sub(_mul(c, vb[k]), _mul(s, va[k])) for k in range(3)]
+            continue
+        # Rodrigues on each axis: v' = c v + s (u x v) + (1 - c)(u . v) u, with u . a_k =
+        # d_k and u x a_k written through the right-handed frame
+        d = m.direction
+        a0, a1, a2 = axes
+        k1 = _sub(1.0, c)
+        lin = [(a1, a2, d[2], d[1]), (a2, a0, d[0], d[2]), (a0, a1, d[1], d[0])]
+        axes = [[_add(_add(_mul(c, v[k]), _mul(s, _sub(_mul(p, x[k]), _mul(r, y[k])))),
+                      _mul(_mul(k1, d[j]), u[k])) for k in range(3)]
+                for j, (v, (x, y, p, r)) in enumerate(zip(axes, lin, strict=True))]
+    return axes, o, frames
+
+
+# ---------------------------------------------------------------- drivers
+def chunks(motions: Sequence[Motion], motion_index: NDArray[np.intp], q: Array, p: Array,
+           kernel, *args, elements: int = CHUNK_ELEMENTS):
+    """Run `kernel` (`point_chain` or `frame_chain`) over chunks of poses.
+
+    Parameters
+    ----------
+    motions, motion_index
+        The chain (`motion_values`).
+    q : ndarray, shape (N, n_joints)
+        Joint readings (checked).
+    p : ndarray, shape (n_params,) or (P, n_params)
+        Parameter vector(s).
+    kernel : callable
+        ``kernel(motions, values, skip, qT, trig, *args)``.
+    elements : int
+        Poses times parameter vectors per chunk (`chunk_size`; 0: one chunk).
+
+    Yields
+    ------
+    sel : slice
+        The chunk's poses.
+    result
+        The kernel's result for them.
+    """
+    values, skip = motion_values(motions, motion_index, p)
+    N = q.shape[0]
+    step = chunk_size(N, int(np.prod(p.shape[:-1], dtype=int)), elements)
+    for s0 in range(0, max(N, 1), step):
+        sel = slice(s0, min(s0 + step, N))
+        qT = np.ascontiguousarray(q[sel].T)
+        yield sel, kernel(motions, values, skip, qT, joint_trig(motions, values, qT), *args)
+
+
+def positions(motions: Sequence[Motion], motion_index: NDArray[np.intp], q: Array, p: Array,
+              elements: int = CHUNK_ELEMENTS) -> Array:
+    """Tool points ``(*batch, N, 3)`` by `point_chain`, chunk by chunk (see `chunks`)."""
+    out = np.empty((*p.shape[:-1], q.shape[0], 3))
+    for sel, point in chunks(motions, motion_index, q, p, point_chain, elements=elements):
+        for k in range(3):
+            out[..., sel, k] = point[k]
+    return out
+
+
+def transforms(motions: Sequence[Motion], motion_index: NDArray[np.intp], q: Array, p: Array,
+               elements: int = CHUNK_ELEMENTS) -> Array:
+    """Tool frames ``(*batch, N, 4, 4)`` by `frame_chain`, chunk by chunk (see `chunks`)."""
+    T = np.zeros((*p.shape[:-1], q.shape[0], 4, 4))
+    for sel, (axes, o, _) in chunks(motions, motion_index, q, p, frame_chain,
+                                    elements=elements):
+        for a in range(3):
+            for k in range(3):
+                T[..., sel, k, a] = axes[a][k]
+            T[..., sel, a, 3] = o[a]
+    T[..., 3, 3] = 1.0
+    return T
