@@ -269,12 +269,20 @@ def matrix_from_rpy(rpy: ArrayLike) -> Array:
 def rpy_from_matrix(R: ArrayLike) -> Array:
     """Inverse of `matrix_from_rpy`: ``(..., 3, 3)`` -> (rx, ry, rz) ``(..., 3)``.
 
-    ``ry`` is returned in ``[-pi/2, pi/2]``.
+    ``ry`` is returned in ``[-pi/2, pi/2]``. Accurate to round-off everywhere, also next to
+    ``ry = +-pi/2`` (URDF tool frames are often at pitch ``pi/2``): ``ry`` comes from
+    ``atan2`` (not ``arcsin``), ``rz`` from the first column, and ``rx`` from what is left
+    of ``R`` after undoing ``rz`` and ``ry``, so that ``matrix_from_rpy`` reproduces ``R``
+    to round-off even where ``rx`` and ``rz`` are not separable (gimbal lock).
     """
     R = np.asarray(R, dtype=float)
-    ry = np.arcsin(np.clip(-R[..., 2, 0], -1.0, 1.0))
-    rx = np.arctan2(R[..., 2, 1], R[..., 2, 2])
+    ry = np.arctan2(-R[..., 2, 0], np.hypot(R[..., 0, 0], R[..., 1, 0]))
     rz = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    cz, sz, cy, sy = np.cos(rz), np.sin(rz), np.cos(ry), np.sin(ry)
+    # M = Ry(ry)^T Rz(rz)^T R = Rx(rx): rx from M[2, 1] and M[1, 1]
+    a01 = cz * R[..., 0, 1] + sz * R[..., 1, 1]
+    a11 = cz * R[..., 1, 1] - sz * R[..., 0, 1]
+    rx = np.arctan2(sy * a01 + cy * R[..., 2, 1], a11)
     return np.stack([rx, ry, rz], axis=-1)
 
 

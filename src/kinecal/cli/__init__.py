@@ -57,6 +57,7 @@ _COMMAND_MODULES = [
     "kinecal.cli.batch",
     "kinecal.cli.demo",
     "kinecal.cli.bench",
+    "kinecal.cli.export",
 ]
 
 

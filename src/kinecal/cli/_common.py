@@ -15,12 +15,15 @@ from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
 
 __all__ = [
+    "base_link_option",
     "check_paths",
     "echo_json",
+    "load_model_arg",
     "progress",
     "quiet_option",
     "resolve_data_path",
     "strict_option",
+    "tip_link_option",
     "to_jsonable",
     "warnings_scope",
     "with_warnings",
@@ -114,6 +117,34 @@ def check_paths(
                 raise InputError(f"{path} is also given to {other}: two outputs cannot share "
                                  "a path", option=opt)
         seen[opt] = path
+
+
+#: help text of a MODEL argument of every command that takes a serial-arm model
+MODEL_HELP = "Bundled model name, model YAML or URDF file (see --base-link, --tip-link)."
+
+
+def base_link_option() -> Any:
+    """The ``--base-link`` option of commands that take a MODEL (URDF models only)."""
+    import typer
+
+    return typer.Option(None, "--base-link", help="URDF model: first link of the chain "
+                        "(default: the root link).")
+
+
+def tip_link_option() -> Any:
+    """The ``--tip-link`` option of commands that take a MODEL (URDF models only)."""
+    import typer
+
+    return typer.Option(None, "--tip-link", help="URDF model: last link of the chain "
+                        "(default: the end of the one branch with moving joints).")
+
+
+def load_model_arg(model: str, base_link: str | None = None, tip_link: str | None = None):
+    """Load a MODEL argument: bundled name, model YAML, or URDF with its chain ends
+    (`base_link_option`, `tip_link_option`; an error when given for a non-URDF model)."""
+    from kinecal.io.models import load_model
+
+    return load_model(model, base_link=base_link, tip_link=tip_link)
 
 
 def strict_option() -> Any:

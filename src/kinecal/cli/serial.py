@@ -9,7 +9,14 @@ import numpy as np
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import echo_json, resolve_data_path
+from kinecal.cli._common import (
+    MODEL_HELP,
+    base_link_option,
+    echo_json,
+    load_model_arg,
+    resolve_data_path,
+    tip_link_option,
+)
 from kinecal.errors import InputError
 
 
@@ -81,16 +88,17 @@ def models(json_out: bool = typer.Option(False, "--json", help="Print JSON.")) -
 
 @app.command()
 def fk(
-    model: str = typer.Argument(..., help="Bundled model name or model YAML path."),
+    model: str = typer.Argument(..., help=MODEL_HELP),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
     joints: str = typer.Argument(..., help="CSV with q1..qn (model angle unit) or NAME:PART."),
     pose: bool = typer.Option(False, "--pose", help="Also print qw,qx,qy,qz of the tool frame."),
     params: Path | None = typer.Option(None, "--params", help="Calibration result JSON."),
 ) -> None:
     """Forward kinematics: tool-point positions (CSV on stdout)."""
-    from kinecal.io.models import load_model
     from kinecal.spatial import quaternion_from_matrix
 
-    m = load_model(model)
+    m = load_model_arg(model, base_link, tip_link)
     from kinecal.io.measurements import read_joints
 
     q = read_joints(resolve_data_path(joints, "JOINTS"), m)
@@ -116,7 +124,9 @@ def _free_option(free: str) -> str | list[str]:
 
 @app.command()
 def simulate(
-    model: str = typer.Argument(..., help="Bundled model name or model YAML path."),
+    model: str = typer.Argument(..., help=MODEL_HELP),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
     poses: int = typer.Option(..., "--poses", help="Number of random poses."),
     noise: float = typer.Option(0.0, "--noise", help="Gaussian noise sigma per coordinate."),
     errors: str = typer.Option("random", "--errors", help="zero, random or TRUTH.json."),
@@ -132,9 +142,8 @@ def simulate(
     from kinecal.calibration.simulate import read_truth, write_truth
     from kinecal.calibration.simulate import simulate as run
     from kinecal.io.measurements import write_measurements
-    from kinecal.io.models import load_model
 
-    m = load_model(model)
+    m = load_model_arg(model, base_link, tip_link)
     if errors in ("zero", "random"):
         err: object = errors
     else:
@@ -153,7 +162,9 @@ def simulate(
 
 @app.command()
 def identifiability(
-    model: str = typer.Argument(..., help="Bundled model name or model YAML path."),
+    model: str = typer.Argument(..., help=MODEL_HELP),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
     data: str | None = typer.Option(None, "--data", help="Measurement CSV (poses to analyse)."),
     poses: int = typer.Option(50, "--poses", help="Random poses when no --data is given."),
     free: str = typer.Option("all", "--free", help="all, identifiable or comma-separated names."),
@@ -164,9 +175,8 @@ def identifiability(
     from kinecal.calibration.problem import resolve_free
     from kinecal.calibration.simulate import simulate as run
     from kinecal.io.measurements import read_measurements
-    from kinecal.io.models import load_model
 
-    m = load_model(model)
+    m = load_model_arg(model, base_link, tip_link)
     if data is not None:
         meas = read_measurements(resolve_data_path(data, "--data"), m)
     else:
@@ -186,7 +196,9 @@ def identifiability(
 
 @app.command()
 def calibrate(
-    model: str = typer.Argument(..., help="Bundled model name or model YAML path."),
+    model: str = typer.Argument(..., help=MODEL_HELP),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
     data: str = typer.Argument(..., help="Measurement CSV or NAME:PART."),
     method: str = typer.Option("lm", "--method", help="lm, householder, a metaheuristic "
                                "(ga, pso, afsa, sa-iafsa, gwo, igwo, dlh-gwo-de, de) or hybrid-*."),
@@ -211,7 +223,6 @@ def calibrate(
     from kinecal.calibration.serial import calibrate as run
     from kinecal.cli._common import progress
     from kinecal.io.measurements import read_measurements
-    from kinecal.io.models import load_model
 
     if method not in CALIBRATION_METHODS:
         raise InputError(f"unknown method {method!r}; expected one of "
@@ -219,7 +230,7 @@ def calibrate(
     if maxiter is not None and maxiter < 1:
         raise InputError(f"expected a positive iteration budget, got {maxiter}",
                          option="--maxiter")
-    m = load_model(model)
+    m = load_model_arg(model, base_link, tip_link)
     meas = read_measurements(resolve_data_path(data, "DATA"), m)
     val = None
     if validate is not None:
@@ -244,7 +255,9 @@ def calibrate(
 
 @app.command("select-poses")
 def select_poses_cmd(
-    model: str = typer.Argument(..., help="Bundled model name or model YAML path."),
+    model: str = typer.Argument(..., help=MODEL_HELP),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
     count: int = typer.Option(..., "--count", help="Number of poses to select."),
     candidates: int = typer.Option(2000, "--candidates", help="Random candidate poses."),
     seed: int = typer.Option(0, "--seed", help="Random seed for the candidates."),
@@ -256,9 +269,8 @@ def select_poses_cmd(
     from kinecal.calibration.simulate import random_configurations
     from kinecal.data import Measurements
     from kinecal.io.csvtable import write_table
-    from kinecal.io.models import load_model
 
-    m = load_model(model)
+    m = load_model_arg(model, base_link, tip_link)
     if candidates < 1:
         raise InputError(f"expected a positive number, got {candidates}", option="--candidates")
     q = random_configurations(m, candidates, np.random.default_rng(seed))

@@ -19,7 +19,8 @@ A model file (see ``docs/file-formats.md``)::
 
 A ``urdf`` model's joints are URDF joints: ``{name, type: revolute|continuous|prismatic,
 x, y, z, roll, pitch, yaw, offset, axis: [ax, ay, az]}`` (optional ``parent``/``child``
-link names), fixed frames ``{frame, x, y, z, roll, pitch, yaw}``. A fixed frame is held at
+link names, and ``effort``/``velocity`` limits in URDF units, kept for URDF export), fixed
+frames ``{frame, x, y, z, roll, pitch, yaw}``. A fixed frame is held at
 nominal unless it says ``calibrate: true``.
 
 Bundled models live in ``kinecal/robots/NAME.yaml`` and are loaded by name; a ``.urdf``
@@ -73,6 +74,8 @@ class URDFJointSpec(BaseModel):
     axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
     parent: str | None = None
     child: str | None = None
+    effort: float | None = None
+    velocity: float | None = None
 
 
 class FrameSpec(BaseModel):

@@ -163,6 +163,12 @@ class SerialModel:
         return len(self._chain.kinds)
 
     @property
+    def chain(self) -> Chain:
+        """The chain's motions, their owners (entry index, ``"base"``, ``"tool"``), parameter
+        names and nominal values (`kinecal.kinematics.chain.Chain`)."""
+        return self._chain
+
+    @property
     def joint_kinds(self) -> tuple[str, ...]:
         """``"revolute"`` or ``"prismatic"`` per joint."""
         return self._chain.kinds

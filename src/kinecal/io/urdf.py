@@ -1,0 +1,295 @@
+"""URDF import: a serial chain of a URDF file as a ``urdf``-convention `SerialModel`.
+
+The file is parsed by yourdfpy (the maintained URDF parser of the Python robotics stack;
+``pip install kinecal[urdf]``); meshes are never loaded. The chain runs from `base_link`
+(default: the root link) to `tip_link` (default: the end of the one branch that carries
+moving joints, see `chain_path`). Each joint on it becomes one chain entry
+(`kinecal.kinematics.motions.urdf_motions`):
+
+* ``revolute``, ``continuous``, ``prismatic``: a moving joint ``{name, type, x, y, z,
+  roll, pitch, yaw, offset: 0, axis}`` whose origin components and offset are named
+  parameters ``<joint>.x .. <joint>.yaw, <joint>.offset``;
+* ``fixed``: a fixed frame ``{frame: <joint>, x .. yaw}`` (held at nominal unless the
+  model file says ``calibrate: true``).
+
+Units stay the URDF's: metres, and radians in the API. The model's ``angle_unit`` is
+``deg`` so that measurement CSVs carry revolute joint readings in degrees like every
+kinecal model (prismatic readings in metres). The model gets a base frame and a tool
+point (both zero, both calibratable): a laser tracker never sits in ``base_link`` and its
+target never at the tip link's origin; the identifiability analysis decides which of the
+many origin parameters are free.
+
+Mimic joints, floating and planar joints on the chain, several roots, and branching
+without `tip_link` raise `InputError` naming the joints or links involved.
+"""
+
+from __future__ import annotations
+
+import logging
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from kinecal import diagnostics
+from kinecal.errors import InputError
+from kinecal.kinematics.serial import SerialModel
+from kinecal.spatial import xyz_rpy_from_transform
+
+__all__ = ["MOVING", "chain_path", "load_urdf", "read_urdf", "urdf_entries"]
+
+MOVING = ("revolute", "continuous", "prismatic")
+_UNSUPPORTED = ("floating", "planar")
+_RESERVED = ("base", "tool")
+#: metaheuristics' search box of an imported URDF: 1 mm and 0.3 degrees
+URDF_TOLERANCES = {"length": 1e-3, "angle": np.deg2rad(0.3)}
+
+
+def _yourdfpy():
+    try:
+        import yourdfpy
+    except ImportError:  # pragma: no cover - yourdfpy is a dev dependency
+        raise InputError("reading URDF files needs yourdfpy: pip install kinecal[urdf]"
+                         ) from None
+    return yourdfpy
+
+
+def read_urdf(path: str | Path):
+    """Parse a URDF file with yourdfpy (no meshes, no scene graph).
+
+    Returns
+    -------
+    yourdfpy.URDF
+
+    Raises
+    ------
+    InputError
+        Missing file, a xacro file, XML that does not parse (with the line), or a URDF that
+        yourdfpy finds incomplete (first error).
+    """
+    path = Path(path)
+    if path.suffix.lower() == ".xacro" or path.name.lower().endswith(".urdf.xacro"):
+        raise InputError("a xacro file: expand it first (xacro robot.urdf.xacro > robot.urdf)",
+                         file=path)
+    if not path.is_file():
+        raise InputError("file not found", file=path)
+    try:  # a clean message with the line before yourdfpy's recovering parser sees it
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise InputError(f"not well-formed XML: {exc}", file=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc}", file=path) from None
+    if root.tag != "robot":
+        raise InputError(f"root element <{root.tag}>, expected <robot>", file=path)
+    for k, joint in enumerate(root.findall("joint")):
+        missing = [t for t in ("parent", "child") if joint.find(t) is None
+                   or not joint.find(t).get("link")]
+        if joint.get("name") is None or missing:
+            what = "a name" if joint.get("name") is None else " and ".join(
+                f"<{t} link=...>" for t in missing)
+            raise InputError(f"joint {joint.get('name') or k + 1}: missing {what}", file=path)
+        if joint.get("type") in ("revolute", "prismatic") and joint.find("limit") is None:
+            raise InputError(f"{joint.get('type')} joint {joint.get('name')}: missing <limit "
+                             "lower=... upper=... effort=... velocity=...> (URDF requires it)",
+                             file=path)
+    yourdfpy = _yourdfpy()
+    log = logging.getLogger("yourdfpy")
+    level = log.level
+    log.setLevel(logging.CRITICAL)  # yourdfpy logs and recovers; kinecal raises instead
+    try:
+        urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
+                                  load_collision_meshes=False,
+                                  build_collision_scene_graph=False)
+    except Exception as exc:  # yourdfpy raises whatever its XML handling meets
+        raise InputError(f"not a readable URDF: {type(exc).__name__}: {exc}",
+                         file=path) from None
+    finally:
+        log.setLevel(level)
+    urdf.validate(validation_fn=lambda errors: not errors)
+    # limits are judged by urdf_entries (for the chain's joints only, as urdfdom does)
+    errors = [e for e in urdf.errors if "<limit>" not in str(e)]
+    if errors:
+        raise InputError(f"invalid URDF: {errors[0]}", file=path)
+    return urdf
+
+
+def _tree(joints, path: Path) -> tuple[dict, dict, str]:
+    """Joint by child link, joints by parent link, and the single root link."""
+    by_child: dict = {}
+    by_parent: dict = {}
+    for j in joints:
+        if j.child in by_child:
+            raise InputError(f"link {j.child!r} is the child of two joints "
+                             f"({by_child[j.child].name}, {j.name}): not a tree", file=path)
+        by_child[j.child] = j
+        by_parent.setdefault(j.parent, []).append(j)
+    links = set(by_child) | set(by_parent)
+    roots = sorted(links - set(by_child))
+    if len(roots) != 1:
+        raise InputError(f"{len(roots)} root links ({', '.join(roots) or 'a cycle'}), "
+                         "expected one", file=path)
+    return by_child, by_parent, roots[0]
+
+
+def _moving_below(link: str, by_parent: Mapping) -> bool:
+    stack = [link]
+    while stack:
+        for j in by_parent.get(stack.pop(), []):
+            if j.type != "fixed":
+                return True
+            stack.append(j.child)
+    return False
+
+
+def _leaves(link: str, by_parent: Mapping) -> list[str]:
+    out, stack = [], [link]
+    while stack:
+        cur = stack.pop()
+        kids = by_parent.get(cur, [])
+        if not kids:
+            out.append(cur)
+        stack += [j.child for j in kids]
+    return sorted(out)
+
+
+def chain_path(urdf, base_link: str | None = None, tip_link: str | None = None,
+               path: str | Path = "") -> list:
+    """The joints from `base_link` to `tip_link`, base first.
+
+    Without `tip_link` the chain follows, at every link with several children, the one
+    branch that carries moving joints; branches made of fixed joints only (sensor frames,
+    ROS-Industrial's ``base``) are side frames and left out. Two moving branches, or
+    several fixed-only branches and no moving one, are ambiguous: `InputError` listing the
+    candidate tip links.
+    """
+    path = Path(path)
+    by_child, by_parent, root = _tree(urdf.robot.joints, path)
+    links = sorted(set(by_child) | set(by_parent) | {lk.name for lk in urdf.robot.links})
+    for option, link in (("--base-link", base_link), ("--tip-link", tip_link)):
+        if link is not None and link not in links:
+            shown = ", ".join(links[:12]) + (" ..." if len(links) > 12 else "")
+            raise InputError(f"no link {link!r} in {path.name}; links: {shown}",
+                             option=option)
+    base = root if base_link is None else base_link
+    if tip_link is not None:
+        chain, cur = [], tip_link
+        while cur != base:
+            if cur not in by_child:
+                raise InputError(f"link {tip_link!r} is not below {base!r}: no chain "
+                                 "between them", option="--tip-link")
+            chain.append(by_child[cur])
+            cur = by_child[cur].parent
+        return chain[::-1]
+    chain, cur = [], base
+    while by_parent.get(cur):
+        kids = by_parent[cur]
+        moving = [j for j in kids if j.type != "fixed" or _moving_below(j.child, by_parent)]
+        if len(moving) == 1:
+            nxt = moving[0]
+        elif not moving and len(kids) == 1:
+            nxt = kids[0]
+        else:
+            branches = moving or kids
+            tips = sorted({t for j in branches for t in _leaves(j.child, by_parent)})
+            raise InputError(
+                f"link {cur!r} branches ({', '.join(j.name for j in branches)}): choose the "
+                f"chain's end with --tip-link (one of {', '.join(tips)})", file=path)
+        chain.append(nxt)
+        cur = nxt.child
+    return chain
+
+
+def _origin(joint) -> list[float]:
+    T = np.eye(4) if joint.origin is None else np.asarray(joint.origin, dtype=float)
+    return [float(v) + 0.0 for v in xyz_rpy_from_transform(T)]  # no -0.0
+
+
+def urdf_entries(chain: list, path: str | Path = "") -> tuple[list[dict], np.ndarray]:
+    """Chain entries of the joints in `chain` and the moving joints' limits ``(n, 2)``
+    (rad; prismatic: metres)."""
+    path = Path(path)
+    entries, limits = [], []
+    for j in chain:
+        if j.mimic is not None:
+            raise InputError(f"joint {j.name} mimics joint {j.mimic.joint}: coupled joints are "
+                             "not supported; end the chain before it with --tip-link", file=path)
+        if j.type in _UNSUPPORTED:
+            raise InputError(f"joint {j.name} is {j.type}: kinecal models revolute, continuous, "
+                             "prismatic and fixed joints", file=path)
+        x, y, z, roll, pitch, yaw = _origin(j)
+        pose = {"x": x, "y": y, "z": z, "roll": roll, "pitch": pitch, "yaw": yaw,
+                "parent": j.parent, "child": j.child}
+        if j.type == "fixed":
+            name = f"{j.name}_frame" if j.name in _RESERVED else j.name
+            entries.append({"frame": name, **pose})
+            continue
+        axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=float)
+        entry = {"name": j.name, "type": j.type, **pose, "offset": 0.0,
+                 "axis": [float(v) for v in axis]}
+        lim = j.limit
+        for key in ("effort", "velocity"):
+            value = None if lim is None else getattr(lim, key)
+            if value is not None:
+                entry[key] = float(value)
+        entries.append(entry)
+        lo = None if lim is None else lim.lower
+        hi = None if lim is None else lim.upper
+        if j.type == "continuous":
+            limits.append([-np.pi, np.pi])
+        elif lo is None or hi is None or not lo < hi:
+            if j.type == "prismatic":
+                raise InputError(f"prismatic joint {j.name}: expected <limit lower=... "
+                                 "upper=...> with lower < upper (metres)", file=path)
+            diagnostics.warn("urdf-joint-limits",
+                             f"{path.name}: revolute joint {j.name} has no usable limits "
+                             f"(lower={lo}, upper={hi}); using [-180, 180] deg")
+            limits.append([-np.pi, np.pi])
+        else:
+            limits.append([float(lo), float(hi)])
+    return entries, np.asarray(limits, dtype=float).reshape(-1, 2)
+
+
+def load_urdf(path: str | Path, *, base_link: str | None = None,
+              tip_link: str | None = None) -> SerialModel:
+    """Load the serial chain `base_link` -> `tip_link` of a URDF file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.urdf`` file (xacro must be expanded first).
+    base_link, tip_link : str, optional
+        Ends of the chain (defaults: the root link; the end of the one branch with moving
+        joints, `chain_path`).
+
+    Returns
+    -------
+    SerialModel
+        Convention ``urdf``, lengths in metres, ``angle_unit: deg`` (revolute readings in
+        measurement files), a calibratable base frame and tool point, both zero.
+
+    Raises
+    ------
+    InputError
+        Unreadable or invalid URDF, unknown links, branching, mimic / floating / planar
+        joints on the chain, a chain without moving joints.
+    """
+    path = Path(path)
+    urdf = read_urdf(path)
+    chain = chain_path(urdf, base_link, tip_link, path)
+    entries, limits = urdf_entries(chain, path)
+    if len(limits) == 0:
+        start = chain[0].parent if chain else base_link or "the root link"
+        end = chain[-1].child if chain else tip_link or start
+        raise InputError(f"no moving joint between {start} and {end}", file=path)
+    start, end = chain[0].parent, chain[-1].child
+    try:
+        return SerialModel(
+            name=urdf.robot.name or path.stem, convention="urdf", joints=entries,
+            base=np.zeros(6), tool=np.zeros(3), length_unit="m", angle_unit="deg",
+            joint_limits=limits, tolerances=dict(URDF_TOLERANCES),
+            description=f"URDF {path.name}: chain {start} -> {end} "
+                        f"({len(limits)} moving joints)",
+        )
+    except InputError as exc:
+        raise InputError(exc.message, file=path) from None
