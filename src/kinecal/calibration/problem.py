@@ -54,9 +54,15 @@ def column_scale(
     model: SerialModel, data: Measurements, names: Sequence[str], params=None,
     positions: Array | None = None,
 ) -> Array:
-    """Column factors ``(k,)``: 1 for lengths, ``1 / L`` for angles (`characteristic_length`)."""
+    """Column factors ``(k,)``: 1 for lengths, ``1 / L`` for angles (`characteristic_length`),
+    ``1 / (L rms(dq/dc))`` for joint-error coefficients (`JointErrorTerms.effect_scale`)."""
     L = characteristic_length(model, data, params, positions)
-    return np.where(model.is_angle()[model.index(list(names))], 1.0 / L, 1.0)
+    idx = model.index(list(names))
+    scale = np.where(model.is_angle()[idx], 1.0 / L, 1.0)
+    terms, n_geo = model._joint_terms, model._n_geometric
+    if terms is not None and (idx >= n_geo).any():  # joint-error coefficients: by effect
+        scale[idx >= n_geo] = terms.effect_scale(data.q, L)[idx[idx >= n_geo] - n_geo]
+    return scale
 
 
 def identification_rows(

@@ -34,6 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 from kinecal.errors import InputError
 from kinecal.kinematics.chain import BASE_NAMES, TOOL_NAMES, Chain, build_chain, chain_entries
 from kinecal.kinematics.compose import chunks, frame_chain, positions, transforms
+from kinecal.kinematics.joint_errors import JointErrors, JointErrorTerms
 from kinecal.kinematics.motions import (
     CONVENTIONS,
     PRISMATIC,
@@ -100,6 +101,9 @@ class SerialModel:
         nominal (length unit, rad). Default 1 length unit and 0.02 rad.
     fixed : sequence of str, optional
         Parameters held at nominal unless explicitly freed (by the model's design).
+    joint_errors : JointErrors, optional
+        Non-geometric joint-angle corrections (`kinecal.kinematics.joint_errors`); their
+        coefficients are appended to the parameter vector, after base and tool.
     """
 
     name: str
@@ -113,6 +117,7 @@ class SerialModel:
     tolerances: dict | None = None
     fixed: Sequence[str] = ()
     description: str = ""
+    joint_errors: JointErrors | None = None
     motions: list[Motion] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -133,6 +138,14 @@ class SerialModel:
         self._rotation_mask = np.array([m.kind == ROTATION for m in self.motions])
         self._angle_mask = np.zeros(len(self._names), dtype=bool)
         self._angle_mask[self._motion_index[self._rotation_mask]] = True
+        self._n_geometric = len(self._names)
+        self._joint_terms: JointErrorTerms | None = None
+        if self.joint_errors is not None:  # coefficients appended after base and tool
+            terms = self._joint_terms = JointErrorTerms(self, self.joint_errors)
+            self._names = self._names + terms.names
+            self._index = {n: k for k, n in enumerate(self._names)}
+            self._nominal = np.r_[self._nominal, terms.nominal]
+            self._angle_mask = np.r_[self._angle_mask, terms.is_angle()]
         fixed = set(self.fixed) | chain.frozen
         if self.base is None:
             fixed |= set(BASE_NAMES)
@@ -248,12 +261,16 @@ class SerialModel:
         # Keep what was fixed by the model's design, including frames that were absent
         # (fixed frames' own defaults come back with their entries).
         fixed = tuple(n for n in self._names if n in self._fixed and n not in self._chain.frozen)
+        je = self._joint_terms
+        if je is not None:
+            je = self.joint_errors.with_values(
+                dict(zip(je.names, p[self._n_geometric:].tolist(), strict=True)), je.reference)
         return SerialModel(
             name=name or self.name, convention=self.convention, joints=joints, base=base,
             tool=tool, length_unit=self.length_unit, angle_unit=self.angle_unit,
             joint_limits=self.joint_limits,
             tolerances=dict(self.tolerances or {}), fixed=fixed,
-            description=self.description,
+            description=self.description, joint_errors=je,
         )
 
     # ------------------------------------------------------------------ kinematics
@@ -295,16 +312,20 @@ class SerialModel:
         ndarray, shape (N, 4, 4) or (P, N, 4, 4)
             ``tool2base`` transforms (lengths in the model unit).
         """
-        return transforms(self.motions, self._motion_index, self._check_q(q),
-                          self._check_params(params))
+        q, p = self._check_q(q), self._check_params(params)
+        if self._joint_terms is not None and p.ndim == 2:  # corrections differ per vector
+            return np.stack([self.fk(q, row) for row in p])
+        return transforms(self.motions, self._motion_index, self._corrected(q, p), p)
 
     def positions(self, q: ArrayLike, params: ArrayLike | None = None) -> Array:
         """Tool-point positions ``(N, 3)`` or ``(P, N, 3)``; see `fk`.
 
         Composed from the tool point backwards, chunk by chunk: no rotation stacks.
         """
-        return positions(self.motions, self._motion_index, self._check_q(q),
-                         self._check_params(params))
+        q, p = self._check_q(q), self._check_params(params)
+        if self._joint_terms is not None and p.ndim == 2:  # corrections differ per vector
+            return np.stack([self.positions(q, row) for row in p])
+        return positions(self.motions, self._motion_index, self._corrected(q, p), p)
 
     def identification_jacobian(
         self, q: ArrayLike, params: ArrayLike | None = None, outputs: str = "position"
@@ -361,8 +382,18 @@ class SerialModel:
             The geometric Jacobian: length unit per rad (and rad per rad) for a revolute
             joint.
         """
-        Jt = self.jacobian_t(q, params, outputs, columns=self._joint_columns)
+        q, p = self._check_q(q), self._one_vector(params)
+        Jt = self.jacobian_t(q, p, outputs, columns=self._joint_columns)
+        if self._joint_terms is not None:  # through the corrections q + dq(q)
+            Jt = self._joint_terms.through_corrections(Jt, q, p[self._n_geometric:])
         return np.ascontiguousarray(Jt.transpose(2, 1, 0))
+
+    def _corrected(self, q: Array, p: Array) -> Array:
+        """The joint values the chain composes: ``q + dq(q, c)`` with joint errors
+        (`kinecal.kinematics.joint_errors`), else `q` itself; one parameter vector."""
+        if self._joint_terms is None:
+            return q
+        return q + self._joint_terms.dq(q, p[self._n_geometric:])
 
     def _one_vector(self, params: ArrayLike | None) -> Array:
         p = self._check_params(params)
@@ -379,6 +410,7 @@ class SerialModel:
         many poses sweep chunks of them, as `kinecal.calibration.rows` does).
         """
         q, p = self._check_q(q), self._one_vector(params)
-        _, (axes, o, frames) = next(chunks(self.motions, self._motion_index, q, p,
-                                           frame_chain, True, elements=0))
-        return Sweep(self, axes, o, frames, q.shape[0])
+        _, (axes, o, frames) = next(chunks(self.motions, self._motion_index,
+                                           self._corrected(q, p), p, frame_chain, True,
+                                           elements=0))
+        return Sweep(self, axes, o, frames, q.shape[0], q, p)

@@ -36,9 +36,10 @@ def chunked_jacobian_t(model: SerialModel, q: Array, p: Array, outputs: str = "p
         raise InputError(f"outputs: expected 'position' or 'pose', got {outputs!r}")
     cols = np.arange(model.n_params) if columns is None else np.asarray(columns)
     out = np.zeros((cols.size, 6 if outputs == "pose" else 3, q.shape[0]))
-    for sel, (axes, o, frames) in chunks(model.motions, model._motion_index, q, p,
-                                         frame_chain, True, elements=JACOBIAN_ELEMENTS):
-        Sweep(model, axes, o, frames, sel.stop - sel.start).jacobian_t(
+    for sel, (axes, o, frames) in chunks(model.motions, model._motion_index,
+                                         model._corrected(q, p), p, frame_chain, True,
+                                         elements=JACOBIAN_ELEMENTS):
+        Sweep(model, axes, o, frames, sel.stop - sel.start, q[sel], p).jacobian_t(
             outputs, cols, out=out[..., sel])
     return out
 
@@ -58,6 +59,9 @@ class Sweep:
         Axis of each motion and origin of the moving frame before it, as coordinates.
     n : int
         Number of poses N.
+    q, p : ndarray, optional
+        Raw joint readings ``(N, n_joints)`` and the parameter vector, for the chain rule
+        through joint-error corrections (`kinecal.kinematics.joint_errors`).
 
     Attributes
     ----------
@@ -67,9 +71,10 @@ class Sweep:
         Tool-frame orientations in the measurement frame (built on first use).
     """
 
-    def __init__(self, model: SerialModel, axes: list, origin: list, frames: list, n: int
-                 ) -> None:
+    def __init__(self, model: SerialModel, axes: list, origin: list, frames: list, n: int,
+                 q: Array | None = None, p: Array | None = None) -> None:
         self.model = model
+        self.q, self.p = q, p
         self.frames = frames
         self._axes = axes
         self._origin = origin
@@ -98,7 +103,11 @@ class Sweep:
         that motion's parameter column of `jacobian_t` (a rotation for a revolute joint,
         a translation for a prismatic one).
         """
-        return self.jacobian_t(outputs, columns=self.model._joint_columns)
+        Jt = self.jacobian_t(outputs, columns=self.model._joint_columns)
+        terms = self.model._joint_terms
+        if terms is None:
+            return Jt
+        return terms.through_corrections(Jt, self.q, self.p[self.model._n_geometric:])
 
     def jacobian_t(self, outputs: str = "position", columns: ArrayLike | None = None,
                    out: Array | None = None) -> Array:
@@ -113,6 +122,14 @@ class Sweep:
             raise InputError(f"outputs: expected 'position' or 'pose', got {outputs!r}")
         model = self.model
         cols = np.arange(model.n_params) if columns is None else np.asarray(columns)
+        n_geo = model._n_geometric
+        if (cols >= n_geo).any():  # joint-error coefficients: chain rule through dq / dc
+            Jq = self.jacobian_t(outputs, columns=model._joint_columns)
+            Jt = np.zeros((cols.size, Jq.shape[1], self.n)) if out is None else out
+            geo = cols < n_geo
+            Jt[geo] = self.jacobian_t(outputs, columns=cols[geo])
+            Jt[~geo] = model._joint_terms.chain_rule_t(Jq, self.q, cols[~geo] - n_geo)
+            return Jt
         row_of = np.full(model.n_params, -1)
         row_of[cols] = np.arange(cols.size)
         p_end = self._origin

@@ -1,0 +1,172 @@
+"""K-fold cross-validation of nested calibration models on the calibration poses.
+
+Every candidate model is a set of columns of one identification Jacobian (the geometric
+free parameters plus some joint-error coefficients), linearised at the geometric
+calibration ``x_g`` of all calibration poses. For fold ``f`` the training fit is the
+Gauss-Newton step from ``x_g`` on the other folds' rows,
+
+    dx_f = -(A - A_f)^-1 (b - b_f),   A = J^T W J,  b = J^T W r  (per-fold sums A_f, b_f),
+
+and the held-out error of a pose ``i`` in fold ``f`` is the distance ``|r_i + J_i dx_f|``.
+For a model linear in its parameters this is exactly K-fold cross-validation (the
+training fit does not depend on where it starts); calibration models are linear to
+second order in the corrections (the UR5 geometry moves by < 1 mm on a 1 m arm), and
+``benchmarks/bench_error_models.py`` compares the step with full refits.
+
+One pass over the poses accumulates the per-fold Gram matrices of all columns; every
+candidate and fold is then ``(k, k)`` algebra, plus a second pass for the held-out
+distances. Memory stays linear in the poses.
+
+Folds are deterministic: a fixed permutation (seed 0, independent of the user's seed)
+dealt round-robin into ``K`` folds of equal size (+-1).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import NDArray
+
+from kinecal.calibration.rows import PoseRows
+from kinecal.data import Measurements
+from kinecal.errors import InputError
+from kinecal.kinematics.serial import SerialModel
+
+__all__ = ["CVScore", "cross_validate", "fold_of", "one_standard_error"]
+
+Array = NDArray[np.float64]
+#: seed of the fold permutation (fixed: the folds never depend on the user's seed)
+FOLD_SEED = 0
+#: per-pose Jacobian rows kept between the two passes up to this many numbers
+_KEEP_ELEMENTS = 8_000_000
+
+
+@dataclass(frozen=True)
+class CVScore:
+    """Cross-validation score of one candidate.
+
+    Attributes
+    ----------
+    mean : float
+        Mean held-out distance error over all calibration poses (length unit).
+    se : float
+        Standard error of `mean`: the standard deviation of the per-fold means over
+        ``sqrt(K)``.
+    fold_means : ndarray, shape (K,)
+        Mean held-out distance error of each fold.
+    """
+
+    mean: float
+    se: float
+    fold_means: Array
+
+
+def fold_of(n: int, k: int) -> NDArray[np.intp]:
+    """Fold index ``(n,)`` of every pose: a fixed permutation dealt round-robin."""
+    if k < 2 or k > n:
+        raise InputError(f"cross-validation: expected 2 <= folds <= {n} poses, got {k}",
+                         option="--folds")
+    perm = np.random.default_rng(FOLD_SEED).permutation(n)
+    folds = np.empty(n, dtype=np.intp)
+    folds[perm] = np.arange(n) % k
+    return folds
+
+
+def _solve(A: Array, b: Array) -> Array:
+    try:
+        c = scipy.linalg.cho_factor(A, check_finite=False)
+        return scipy.linalg.cho_solve(c, b, check_finite=False)
+    except np.linalg.LinAlgError:  # a fold that leaves the set rank-deficient
+        return np.linalg.lstsq(A, b, rcond=None)[0]
+
+
+def cross_validate(model: SerialModel, data: Measurements, params: Array,
+                   columns: Sequence[int], candidates: Sequence[Sequence[int]], k: int = 10,
+                   rotation_weight: float = 0.0) -> list[CVScore]:
+    """K-fold cross-validation scores of nested candidates (module docstring).
+
+    Parameters
+    ----------
+    model : SerialModel
+        The model holding every candidate's parameters.
+    data : Measurements
+        Calibration poses.
+    params : ndarray, shape (n_params,)
+        Linearisation point (the fit of the smallest model on all poses).
+    columns : sequence of int
+        Parameter indices of the union of all candidates' columns.
+    candidates : sequence of sequence of int
+        Each candidate's columns, as positions in `columns`.
+    k : int
+        Number of folds.
+    rotation_weight : float
+        Length units per rad of the rotation rows (measured orientations only).
+
+    Returns
+    -------
+    list of CVScore
+        One per candidate.
+    """
+    cols = np.asarray(columns, dtype=np.intp)
+    m = cols.size
+    n = len(data)
+    folds = fold_of(n, k)
+    rows = PoseRows(model, data, rotation_weight, weighted=True)
+    sw = (np.ones(n) if data.weights is None
+          else np.sqrt(np.asarray(data.weights, dtype=float)))
+    G = np.zeros((k, m + 1, m + 1))
+    keep = n * rows.rows * m <= _KEEP_ELEMENTS
+    kept: list = []
+    for sel in rows.chunks(m):
+        e, Jt, _ = rows.evaluate(params, sel, cols)
+        if keep:
+            kept.append((sel, e, Jt))
+        f = folds[sel]
+        for fold in np.unique(f):
+            at = np.flatnonzero(f == fold)
+            B = np.concatenate([Jt[:, :, at].reshape(m, -1),
+                                np.ascontiguousarray(e[at].T).reshape(1, -1)])
+            G[fold] += B @ B.T
+    total = G.sum(axis=0)
+    steps = []  # per candidate: (K, len(S)) training steps
+    for S in candidates:
+        S = np.asarray(S, dtype=np.intp)
+        dx = np.zeros((k, S.size))
+        for fold in range(k):
+            A = total[np.ix_(S, S)] - G[fold][np.ix_(S, S)]
+            b = total[S, m] - G[fold][S, m]
+            dx[fold] = -_solve(A, b) if S.size else dx[fold]
+        steps.append((S, dx))
+    dist = np.zeros((len(candidates), n))
+    chunks = kept if keep else ((sel, *rows.evaluate(params, sel, cols)[:2])
+                                for sel in rows.chunks(m))
+    for sel, e, Jt in chunks:
+        f = folds[sel]
+        for c, (S, dx) in enumerate(steps):
+            # held-out prediction r_i + J_i dx_f of each pose with its own fold's step
+            step = np.einsum("krn,nk->nr", Jt[S][:, :3], dx[f]) if S.size else 0.0
+            dist[c, sel] = np.linalg.norm(e[:, :3] + step, axis=1) / sw[sel]
+    scores = []
+    for c in range(len(candidates)):
+        means = np.array([dist[c, folds == fold].mean() for fold in range(k)])
+        scores.append(CVScore(float(dist[c].mean()), float(means.std(ddof=1) / np.sqrt(k)),
+                              means))
+    return scores
+
+
+def one_standard_error(scores: Sequence[CVScore], sizes: Sequence[int]) -> tuple[int, int]:
+    """The one-standard-error rule (Breiman et al. 1984; Hastie, Tibshirani, Friedman,
+    *The Elements of Statistical Learning*, 2nd ed., sec. 7.10).
+
+    Returns the index of the best-scoring candidate and of the chosen one: the fewest
+    parameters (`sizes`) whose score is within one standard error of the best (ties in
+    size: the lower score).
+    """
+    best = int(np.argmin([s.mean for s in scores]))
+    limit = scores[best].mean + scores[best].se
+    ok = [i for i, s in enumerate(scores) if s.mean <= limit]
+    chosen = min(ok, key=lambda i: (sizes[i], scores[i].mean, i))
+    return best, chosen

@@ -1,0 +1,279 @@
+"""Calibration with non-geometric error models chosen by cross-validation.
+
+``calibrate_error_model(model, data, error_model)`` wraps `kinecal.calibrate`:
+
+``geometric``
+    `calibrate` itself (a model without joint errors is unchanged, bit for bit).
+``compliance``, ``harmonic``, ``scale``, ``full``, or a ``+``-joined list of families
+    The geometry plus the joint-error terms of those families
+    (`kinecal.kinematics.joint_errors`; ``full`` = all three, harmonics of order
+    `harmonics`).
+``auto``
+    Every combination of the families, harmonics of order 1 to `harmonics`, scored by
+    K-fold cross-validation on the calibration poses only (deterministic folds,
+    `kinecal.calibration.cross_validation`); the one-standard-error rule picks the
+    smallest model whose score is within one standard error of the best. The validation
+    poses are never seen by the choice.
+
+In every case the identifiable coefficients are chosen after the geometry: first the
+geometric calibration and its identifiable parameters (as `calibrate` does), then the
+coefficients that keep a component above the rank threshold once the geometric columns
+are projected out (`kinecal.calibration.joint_identifiability`). A coefficient confounded with the
+geometry (e.g. a harmonic that the joint offset and link lengths reproduce) is held at
+its nominal value and reported with the combination that mimics it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from kinecal.calibration.cross_validation import cross_validate, one_standard_error
+from kinecal.calibration.identifiability import IdentifiabilityReport
+from kinecal.calibration.joint_identifiability import CoefficientAnalysis, correlated_with
+from kinecal.calibration.result import CalibrationResult
+from kinecal.calibration.serial import CALIBRATION_RANK_TOL, calibrate
+from kinecal.data import Measurements
+from kinecal.errors import InputError
+from kinecal.kinematics.joint_errors import FAMILIES, JointErrors, joint_errors_for
+from kinecal.kinematics.serial import SerialModel
+
+__all__ = ["ERROR_MODELS", "calibrate_error_model", "candidates", "parse_error_model"]
+
+#: the choices of ``--error-model`` (``+``-joined family lists are accepted as well)
+ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto")
+#: default harmonic order of the fixed choices, and the largest order ``auto`` tries
+DEFAULT_HARMONICS = 2
+AUTO_HARMONICS = 3
+#: default number of cross-validation folds
+DEFAULT_FOLDS = 10
+#: the methods that fit joint-error terms (the metaheuristics search a box of geometric
+#: tolerances, which has no meaning for compliance coefficients)
+LSQ_METHODS = ("lm", "householder")
+
+
+def parse_error_model(spec: str) -> tuple[str, ...] | None:
+    """Families of an ``--error-model`` value; None for ``auto``.
+
+    ``geometric`` -> (), ``full`` -> all families, ``compliance+harmonic`` -> both.
+    """
+    if spec == "auto":
+        return None
+    if spec == "geometric":
+        return ()
+    if spec == "full":
+        return FAMILIES
+    parts = [p.strip() for p in spec.split("+") if p.strip()]
+    bad = [p for p in parts if p not in FAMILIES]
+    if not parts or bad:
+        raise InputError(f"unknown error model {spec!r}; expected one of "
+                         f"{', '.join(ERROR_MODELS)} or families joined by '+' "
+                         f"({', '.join(FAMILIES)})", option="--error-model")
+    return tuple(f for f in FAMILIES if f in parts)
+
+
+def candidates(max_harmonics: int) -> list[tuple[str, tuple[str, ...], int]]:
+    """``auto``'s candidates ``(label, families, harmonic order)``, smallest first."""
+    out: list[tuple[str, tuple[str, ...], int]] = []
+    orders = [0, *range(1, max_harmonics + 1)]
+    for h in orders:
+        for comp in (False, True):
+            for scale in (False, True):
+                fam = (("compliance",) if comp else ()) + (("harmonic",) if h else ()) \
+                    + (("scale",) if scale else ())
+                label = "+".join(
+                    (["compliance"] if comp else []) + ([f"harmonic{h}"] if h else [])
+                    + (["scale"] if scale else [])) or "geometric"
+                out.append((label, fam, h))
+    return out
+
+
+def _label(families: Sequence[str], h: int) -> str:
+    parts = [f"harmonic{h}" if f == "harmonic" else f for f in families]
+    return "+".join(parts) or "geometric"
+
+
+def _with_terms(model: SerialModel, spec: JointErrors | None) -> SerialModel:
+    """`model` with the joint-error terms `spec` (values kept where the names exist)."""
+    plain = dataclasses.replace(model, joint_errors=None)
+    if spec is None:
+        return plain
+    names = dataclasses.replace(plain, joint_errors=dataclasses.replace(spec, values={}))
+    known = set(names.parameter_names)
+    values = {k: v for k, v in spec.values.items() if k in known}
+    return dataclasses.replace(plain, joint_errors=dataclasses.replace(spec, values=values))
+
+
+def calibrate_error_model(
+    model: SerialModel,
+    data: Measurements,
+    error_model: str = "auto",
+    *,
+    method: str = "lm",
+    free: str | Sequence[str] = "identifiable",
+    validate: Measurements | None = None,
+    harmonics: int | None = None,
+    folds: int = DEFAULT_FOLDS,
+    rank_tol: float = CALIBRATION_RANK_TOL,
+    rotation_weight: float | None = None,
+    **kwargs: Any,
+) -> CalibrationResult:
+    """Calibrate geometry and joint-error terms; ``auto`` chooses the terms by K-fold CV.
+
+    Parameters
+    ----------
+    model : SerialModel
+        Nominal model (any joint-error terms it has are replaced by the chosen ones; their
+        values are the starting point).
+    data : Measurements
+        Calibration poses (the only poses the choice sees).
+    error_model : str
+        One of `ERROR_MODELS` or families joined by ``+`` (module docstring).
+    method : {"lm", "householder"}
+        Least-squares solver (``geometric`` accepts every method of `calibrate`).
+    free : {"identifiable", "all"} or sequence of str
+        Free geometric parameters, as in `calibrate`.
+    validate : Measurements, optional
+        Held-out poses for the before/after statistics (never used for the choice).
+    harmonics : int, optional
+        Harmonic order of the fixed choices (default 2); the largest order ``auto`` tries
+        (default 3).
+    folds : int
+        Number of cross-validation folds (``auto``).
+    rank_tol : float
+        Relative pivot threshold of the identifiability analyses.
+    rotation_weight : float, optional
+        As in `calibrate`.
+    **kwargs
+        Passed to `calibrate` (``loss``, ``f_scale``, ``maxiter``, ``rng``, ...).
+
+    Returns
+    -------
+    CalibrationResult
+        The calibration of the chosen model; ``extra["error_model"]`` holds the choice and
+        (``auto``) the cross-validation table, ``extra["joint_errors"]`` the terms and what
+        each unidentifiable coefficient is confounded with.
+    """
+    families = parse_error_model(error_model)
+    if families == ():
+        return calibrate(_with_terms(model, None) if model.joint_errors is None else model,
+                         data, method, free=free, validate=validate, rank_tol=rank_tol,
+                         rotation_weight=rotation_weight, **kwargs)
+    if method not in LSQ_METHODS:
+        raise InputError(f"--error-model {error_model} needs a least-squares method "
+                         f"({', '.join(LSQ_METHODS)}), got {method!r}", option="--method")
+    if harmonics is not None and (harmonics < 1 or harmonics > 12):
+        raise InputError(f"expected a harmonic order 1..12, got {harmonics}",
+                         option="--harmonics")
+    t0 = time.perf_counter()
+    order = harmonics or (AUTO_HARMONICS if families is None else DEFAULT_HARMONICS)
+    plain = _with_terms(model, None)
+    geo = calibrate(plain, data, method, free=free, validate=validate, rank_tol=rank_tol,
+                    rotation_weight=rotation_weight, **kwargs)
+    union_families = FAMILIES if families is None else families
+    union = _with_terms(model, joint_errors_for(plain, union_families, order,
+                                                base=model.joint_errors))
+    n_geo = plain.n_params
+    params = np.r_[geo.params, union.nominal[n_geo:]]
+    coef_names = list(union.parameter_names[n_geo:])
+    rw = _rotation_weight(geo, data, rotation_weight)
+    analysis = CoefficientAnalysis(union, data, geo.free, coef_names, params, rw)
+    table: list[dict] = []
+    chosen_families, chosen_order = union_families, order
+    if families is None:
+        cands = candidates(order)
+        sets, sizes = [], []
+        for _, fam, h in cands:
+            names = [n for n in coef_names if _in_candidate(union, n, fam, h)]
+            ident = analysis.report(names, rank_tol)
+            sets.append(list(geo.free) + ident.identifiable)
+            sizes.append(len(sets[-1]))
+        cols = list(geo.free) + coef_names
+        pos = {n: i for i, n in enumerate(cols)}
+        scores = cross_validate(union, data, params, union.index(cols),
+                                [[pos[n] for n in s] for s in sets], folds, rw)
+        best, pick = one_standard_error(scores, sizes)
+        for i, ((label, fam, h), sc) in enumerate(zip(cands, scores, strict=True)):
+            table.append({"model": label, "parameters": sizes[i],
+                          "coefficients": sizes[i] - len(geo.free),
+                          "cv_mean": sc.mean, "cv_se": sc.se,
+                          "best": i == best, "chosen": i == pick})
+        chosen_families, chosen_order = cands[pick][1], cands[pick][2]
+        if not chosen_families:
+            geo.seconds = time.perf_counter() - t0
+            geo.extra["error_model"] = _choice(error_model, "geometric", folds, table, geo)
+            return geo
+    spec = joint_errors_for(plain, chosen_families, chosen_order, base=model.joint_errors)
+    final_model = _with_terms(model, spec)
+    names = [n for n in final_model.parameter_names[n_geo:]]
+    ident = analysis.report(names, rank_tol)
+    free_names = list(geo.free) + ident.identifiable
+    res = calibrate(final_model, data, method, free=free_names, validate=validate,
+                    rank_tol=rank_tol, rotation_weight=rotation_weight, **kwargs)
+    res.identifiability = _merged_report(geo.identifiability, ident, res.identifiability)
+    res.seconds = time.perf_counter() - t0
+    label = _label(chosen_families, chosen_order)
+    res.extra["error_model"] = _choice(error_model, label, folds if table else None, table,
+                                       geo)
+    res.extra["joint_errors"] = {
+        "terms": list(names),
+        "identifiable": ident.identifiable,
+        "unidentifiable": ident.unidentifiable,
+        "confounded_with": ident.confounded_with,
+        "correlated_with": correlated_with(res, ident.identifiable),
+    }
+    res.geometric = geo  # type: ignore[attr-defined]  # for residual maps in reports
+    return res
+
+
+def _in_candidate(model: SerialModel, name: str, families: Sequence[str], h: int) -> bool:
+    """Does coefficient `name` belong to a candidate with `families` and order `h`?"""
+    family = model._joint_terms.families[model.index([name])[0] - model._n_geometric]
+    if family != "harmonic":
+        return family in families
+    order = int(name.rsplit(".", 1)[1][3:])  # dq{j}.sin{h} / dq{j}.cos{h}
+    return "harmonic" in families and order <= h
+
+
+def _rotation_weight(geo: CalibrationResult, data: Measurements,
+                     rotation_weight: float | None) -> float:
+    if data.rotations is None:
+        return 0.0
+    if rotation_weight is not None:
+        return float(rotation_weight)
+    from kinecal.calibration.problem import characteristic_length
+
+    return characteristic_length(geo.nominal_model, data)
+
+
+def _choice(error_model: str, label: str, folds: int | None, table: list[dict],
+            geo: CalibrationResult) -> dict:
+    """The ``error_model`` entry of the result JSON."""
+    out: dict[str, Any] = {"requested": error_model, "selected": label}
+    if table:
+        out.update({"folds": folds, "rule": "one standard error", "candidates": table})
+    g = {"calibration_mean": float(np.mean(geo.errors_after)), "seconds": float(geo.seconds)}
+    if geo.val_after is not None:
+        g["validation_mean"] = float(np.mean(geo.val_after))
+    out["geometric"] = g
+    return out
+
+
+def _merged_report(geo: IdentifiabilityReport, coef: IdentifiabilityReport,
+                   final: IdentifiabilityReport) -> IdentifiabilityReport:
+    """One report over geometry and coefficients: geometric candidates and coefficients
+    as analysed in turn, condition number and observability of the final free set."""
+    return IdentifiabilityReport(
+        names=list(geo.names) + list(coef.names),
+        rank=len(final.identifiable),
+        identifiable=list(final.identifiable),
+        unidentifiable=list(geo.unidentifiable) + list(coef.unidentifiable),
+        confounded_with={**geo.confounded_with, **coef.confounded_with},
+        condition_number=final.condition_number,
+        singular_values=final.singular_values,
+        observability=final.observability,
+    )
