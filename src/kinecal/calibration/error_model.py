@@ -197,7 +197,7 @@ def calibrate_error_model(
         scores = cross_validate(union, data, params, union.index(cols),
                                 [[pos[n] for n in s] for s in sets], folds, rw)
         best, pick = one_standard_error(scores, sizes)
-        for i, ((label, fam, h), sc) in enumerate(zip(cands, scores, strict=True)):
+        for i, ((label, _, _), sc) in enumerate(zip(cands, scores, strict=True)):
             table.append({"model": label, "parameters": sizes[i],
                           "coefficients": sizes[i] - len(geo.free),
                           "cv_mean": sc.mean, "cv_se": sc.se,
