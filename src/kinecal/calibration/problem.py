@@ -28,6 +28,7 @@ from kinecal.spatial import axis_angle_from_matrix, left_jacobian_inverse
 __all__ = [
     "CalibrationProblem",
     "analyse_poses",
+    "candidate_names",
     "characteristic_length",
     "column_scale",
     "identification_rows",
@@ -94,10 +95,18 @@ def resolve_free(
     design); ``identifiable`` keeps the subset that pivoted QR finds identifiable from
     `data`'s poses. The identifiability report of the candidate set is returned as well.
     """
+    names = candidate_names(model, free)
+    report = analyse_poses(model, data, names, params, tol=tol)
+    if free == "identifiable":
+        names = report.identifiable
+    return names, report
+
+
+def candidate_names(model: SerialModel, free: str | Sequence[str]) -> list[str]:
+    """The parameters `resolve_free` analyses: every calibratable one for ``"all"`` and
+    ``"identifiable"``, else the names given (a list, or one comma-separated string)."""
     if isinstance(free, str):
-        if free == "all":
-            names = list(model.calibratable)
-        elif free == "identifiable":
+        if free in ("all", "identifiable"):
             names = list(model.calibratable)
         else:
             names = [n.strip() for n in free.split(",") if n.strip()]
@@ -114,10 +123,7 @@ def resolve_free(
         raise InputError(exc.message, option="--free") from None
     if len(set(names)) != len(names):
         raise InputError("free: a parameter is listed twice", option="--free")
-    report = analyse_poses(model, data, names, params, tol=tol)
-    if free == "identifiable":
-        names = report.identifiable
-    return names, report
+    return names
 
 
 def analyse_poses(

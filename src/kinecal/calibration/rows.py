@@ -141,20 +141,24 @@ class PoseRows:
             g += J2 @ np.ascontiguousarray(e.T).ravel()
         return r.ravel(), A, g
 
-    def gram(self, p: Array, columns: Array, keep: Array | None = None
-             ) -> tuple[Array, Array | None]:
+    def gram(self, p: Array, columns: Array, keep: Array | None = None,
+             residuals: bool = False) -> tuple:
         """Gram matrix ``(k + 1, k + 1)`` of ``[J | r]`` and positions ``(N, 3)`` at `p`.
 
         With `keep` (pose indices) only those poses' rows enter and no positions are
-        returned.
+        returned. With `residuals`, the residual vector ``(rows * N,)`` (pose-major) is
+        returned third.
         """
         k = len(columns)
         G = np.zeros((k + 1, k + 1))
         P = np.empty((self.n_poses, 3)) if keep is None else None
+        r = np.empty((self.n_poses, self.rows)) if residuals and keep is None else None
         for sel in self.chunks(k, keep):
             e, Jt, Pc = self.evaluate(p, sel, columns)
             if P is not None:
                 P[sel] = Pc
+            if r is not None:
+                r[sel] = e
             J2 = Jt.reshape(k, -1)
             ev = np.ascontiguousarray(e.T).ravel()
             Jr = J2 @ ev
@@ -162,6 +166,8 @@ class PoseRows:
             G[:k, k] += Jr
             G[k, :k] += Jr
             G[k, k] += ev @ ev
+        if residuals:
+            return G, P, None if r is None else r.ravel()
         return G, P
 
     def factor(self, p: Array, columns: Array) -> tuple[Array, Array, Array]:

@@ -14,30 +14,21 @@ any metaheuristic of `kinecal.optimize` (``ga``, ``pso``, ``afsa``, ``sa-iafsa``
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-import scipy.linalg
-from scipy.special import fdtri
 
 from kinecal.calibration.covariance import parameter_covariance
-from kinecal.calibration.identifiability import analyse_factor
-from kinecal.calibration.problem import (
-    CalibrationProblem,
-    column_scale,
-    resolve_free,
-)
+from kinecal.calibration.problem import CalibrationProblem, resolve_free
 from kinecal.calibration.result import CalibrationResult
-from kinecal.calibration.rows import PoseRows
+from kinecal.calibration.solve import solve_lm
 from kinecal.calibration.stats import error_stats
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial import SerialModel
 from kinecal.optimize import METHODS, minimize
-from kinecal.optimize.factor import gram_root
 from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
 from kinecal.optimize.lsq import householder_gauss_newton, levenberg_marquardt
 from kinecal.spatial import rotation_angle
@@ -48,10 +39,6 @@ CALIBRATION_METHODS: tuple[str, ...] = ("lm", "householder", *METHODS, *hybrid_m
 
 #: robust-loss outlier rule: distance error above median + OUTLIER_K * 1.4826 * MAD
 OUTLIER_K = 5.0
-#: rank threshold for parameters that become identifiable at the identified geometry: they
-#: are freed only when well separated (pivot above 1e-4 of the largest), so that a
-#: second-order effect never makes the problem ill-conditioned
-GROWTH_TOL = 1e-4
 #: default rank threshold of calibrate's free="identifiable": a direction whose pivot is
 #: below 1e-4 of the largest (a condition number beyond ~1e4 on unit-norm columns) is
 #: identifiable in exact arithmetic but not from real data; freeing it only slows the
@@ -90,89 +77,6 @@ def _rotation_stats(model: SerialModel, data: Measurements, params: np.ndarray) 
         err = np.degrees(rotation_angle(model.fk(data.q, p)[:, :3, :3] @ R_meas))
         out[when] = error_stats(err)
     return out
-
-
-def _grow_identifiable(model, data, problem, res, report, tol, monitor):
-    """Free the parameters that became identifiable at the identified geometry.
-
-    Identifiability is local: directions confounded at the nominal geometry can separate
-    at the identified one (e.g. large angle errors make the IRB-120's rank 23 instead of
-    20). Candidates are the held parameters whose unit-norm columns keep a component
-    above `tol` after projecting out the free set's columns (the free set only grows, it
-    never swaps a confounded pair). The larger model is kept only if it lowers the residual
-    sum of squares significantly (extra-sum-of-squares F-test at the 1 % level), so noise
-    is never fitted with weakly identifiable parameters.
-
-    One chunked pass at the identified geometry gives the Gram matrix of the candidates'
-    identification rows and the residual; everything else is ``(p, p)`` algebra on it. The
-    F-test is first taken on the linearised fit (the Gauss-Newton reduction of the RSS
-    from the current solution): when even that is not significant, no second solve runs.
-    Otherwise LM continues from the current solution on the larger set (its first normal
-    equations come from the same pass) and the F-test is taken on the actual fit.
-    """
-    names = list(problem.free)
-    held = [n for n in report.names if n not in names]
-    if not held:
-        return problem, res, names, report
-    params = problem.full(res.x)
-    cand = names + held
-    plain = PoseRows(model, data, problem.rotation_weight, weighted=False)
-    G, P = plain.gram(params, model.index(cand))
-    kf, kc = len(names), len(cand)
-    # the same physical column scale as the analysis, threshold relative to the free set
-    scale = column_scale(model, data, cand, params, positions=P)
-    B = gram_root(G[:kc, :kc] * scale[:, None] * scale[None, :])  # B^T B = (J D)^T (J D)
-    Q, Rf = np.linalg.qr(B[:, :kf])
-    rest = B[:, kf:] - Q @ (Q.T @ B[:, kf:])
-    _, R, piv = scipy.linalg.qr(rest, mode="economic", pivoting=True)
-    diag = np.abs(np.diag(R))
-    ref = np.abs(np.diag(Rf)).max()
-    added = [held[k] for k in np.sort(piv[: int((diag > tol * ref).sum())])]
-    if not added:
-        return problem, res, names, report
-    grown = [n for n in report.names if n in names or n in added]
-    k = len(added)
-    dof = problem.rows * len(data) - len(grown)
-    if problem.weighted:  # the F-test weighs the rows like the fit
-        Gw = problem.gram(res.x, grown)
-    else:
-        pos = [cand.index(n) for n in grown] + [kc]
-        Gw = G[np.ix_(pos, pos)]
-    A, g = Gw[:-1, :-1], Gw[:-1, -1]
-    free_pos = [grown.index(n) for n in names]
-    rss0 = 2.0 * res.fun
-    reduction = (g @ np.linalg.lstsq(A, g, rcond=None)[0]
-                 - g[free_pos] @ np.linalg.lstsq(A[np.ix_(free_pos, free_pos)], g[free_pos],
-                                                 rcond=None)[0])
-    if not _significant(rss0, rss0 - reduction, k, dof):
-        return problem, res, names, report
-    bigger = CalibrationProblem(model, data, grown, problem.rotation_weight or None)
-    res2 = levenberg_marquardt(bigger.residuals, bigger.jacobian, params[bigger.index],
-                               monitor=monitor, normal_equations=bigger.normal_equations,
-                               start=(res.residual, A, g))
-    if not _significant(rss0, 2.0 * res2.fun, k, dof):
-        return problem, res, names, report
-    res2.nfev += res.nfev
-    res2.nit += res.nit
-    res2.history = list(res.history) + list(res2.history)
-    P2 = bigger.positions_from_residuals(res2.residual)
-    sub = analyse_factor(gram_root(res2.normal_matrix), grown, bigger.rows * len(data),
-                         scale=column_scale(model, data, grown, positions=P2))
-    new_report = dataclasses.replace(
-        report, rank=len(grown), identifiable=grown,
-        unidentifiable=[n for n in report.names if n not in grown],
-        confounded_with={n: c for n, c in report.confounded_with.items() if n not in grown},
-        condition_number=sub.condition_number, observability=sub.observability,
-    )
-    return bigger, res2, grown, new_report
-
-
-def _significant(rss0: float, rss1: float, k: int, dof: int) -> bool:
-    """Extra-sum-of-squares F-test at the 1 % level: does adding `k` parameters (leaving
-    `dof` degrees of freedom) lower the RSS from `rss0` to `rss1` significantly?"""
-    if rss1 <= 0.0:
-        return True
-    return dof > 0 and (rss0 - rss1) / k > float(fdtri(k, dof, 0.99)) * rss1 / dof
 
 
 def calibrate(
@@ -242,8 +146,12 @@ def calibrate(
         raise InputError("no calibration poses")
     seed = int(rng) if isinstance(rng, int | np.integer) else None
     t0 = time.perf_counter()
-    names, report = resolve_free(model, data, free, tol=rank_tol)
-    problem = CalibrationProblem(model, data, names, rotation_weight)
+    if method == "lm":  # analysis, fit and growth in few passes (kinecal.calibration.solve)
+        sol = solve_lm(model, data, free, rank_tol=rank_tol, rotation_weight=rotation_weight)
+        problem, res, names, report = sol.problem, sol.result, sol.names, sol.report
+    else:
+        names, report = resolve_free(model, data, free, tol=rank_tol)
+        problem = CalibrationProblem(model, data, names, rotation_weight)
     monitor = problem.mean_distance_from_residuals
     outliers: list[int] = []
     options = dict(options or {})
@@ -254,11 +162,6 @@ def calibrate(
         return False
 
     if method == "lm":
-        res = levenberg_marquardt(problem.residuals, problem.jacobian, problem.x0,
-                                  monitor=monitor, normal_equations=problem.normal_equations)
-        if free == "identifiable":
-            problem, res, names, report = _grow_identifiable(
-                model, data, problem, res, report, max(GROWTH_TOL, rank_tol), monitor)
         if loss != "linear":
             d = problem.distances(res.x)
             scale = f_scale if f_scale is not None else 3.0 * max(float(np.median(d)), 1e-12)

@@ -147,6 +147,7 @@ def levenberg_marquardt(
     monitor: Callable[[Array], float] | None = None,
     normal_equations: NormalEquations | None = None,
     start: tuple[Array, Array, Array] | None = None,
+    damping: float | tuple[float, float] = 1e-3,
 ) -> OptimizeResult:
     """Levenberg-Marquardt with the analytic Jacobian.
 
@@ -173,21 +174,33 @@ def levenberg_marquardt(
         kinecal solver; `residual` and `jacobian` still serve MINPACK and robust losses.
     start : tuple of ndarray, optional
         ``(r, J^T J, J^T r)`` already known at `x0` (kinecal solver): saves one evaluation.
+    damping : float or (float, float)
+        Initial damping ``mu`` of the kinecal solver, relative to ``diag(J^T J)``. The
+        default suits a start far from the solution. A pair ``(first, fallback)`` tries
+        the first step with ``first`` and, if that step fails, continues from
+        ``fallback``: a start where the linearisation is probably good (continuing a fit
+        on more parameters) tries a near Gauss-Newton step (``first`` = 1e-9) at the risk
+        of one evaluation. With weakly identifiable directions (condition ``c``) each
+        accepted step divides ``mu`` by at most 3: a large ``mu`` costs about
+        ``log3(c^2 mu)`` iterations before those directions move.
 
     Returns
     -------
     OptimizeResult
         ``x, fun (0.5 sum rho(r^2)), nit, nfev, njev, history, residual, jac, success,
         status, message``; the kinecal solver also returns ``normal_matrix`` (``J^T J``)
-        and ``gradient`` (``J^T r``) at ``x``, and ``jac`` only without `normal_equations`;
+        and ``gradient`` (``J^T r``) at ``x`` and its last ``damping``, and ``jac`` only
+        without `normal_equations`;
         ``history`` is the monitored cost (default RMS residual) after each accepted step,
         ``history[0]`` at `x0`.
 
     Notes
     -----
     Stopping (kinecal solver; defaults 1e-12): relative cost reduction of an accepted step
-    ``<= ftol``, step ``<= xtol (||x|| + xtol)``, gradient ``max |J^T r| <= gtol ||r||``, a
-    zero residual, or no decrease possible at round-off level. MINPACK defaults: 1e-15.
+    ``<= ftol``, or predicted and actual relative reductions of a trial step both
+    ``<= ftol`` (the cost's round-off floor), step ``<= xtol (||x|| + xtol)``, gradient
+    ``max |J^T r| <= gtol ||r||``, a zero residual, or no decrease possible at round-off
+    level. MINPACK defaults: 1e-15.
     """
     if loss not in LOSSES:
         raise InputError(f"loss: expected one of {', '.join(LOSSES)}, got {loss!r}",
@@ -201,7 +214,7 @@ def levenberg_marquardt(
         else:
             evaluate, linearize = _plain_normal_equations(residual, jacobian)
         return _lm_normal_equations(evaluate, linearize, np.asarray(x0, dtype=float),
-                                    start=start,
+                                    start=start, damping=damping,
                                     max_nfev=max_nfev or 200 * (np.size(x0) + 1),
                                     ftol=1e-12 if ftol is None else ftol,
                                     xtol=1e-12 if xtol is None else xtol,
@@ -261,6 +274,7 @@ def _lm_normal_equations(
     evaluate: Residual, linearize: Callable, x: Array, *, max_nfev: int, ftol: float,
     xtol: float, gtol: float, monitor: Callable[[Array], float],
     start: tuple[Array, Array, Array] | None = None,
+    damping: float | tuple[float, float] = 1e-3,
 ) -> OptimizeResult:
     """Levenberg-Marquardt on the normal equations (see `levenberg_marquardt`).
 
@@ -277,7 +291,8 @@ def _lm_normal_equations(
     F = 0.5 * float(r @ r)
     nfev, njev, nit = 1, 1, 0
     history = [monitor(r)]
-    mu = 1e-3  # dimensionless: the damping is mu * diag(J^T J) (Marquardt scaling)
+    # dimensionless: the damping is mu * diag(J^T J) (Marquardt scaling)
+    mu, fallback = (damping, None) if np.isscalar(damping) else damping
     nu = 2.0
     status, message = 0, "maximum number of function evaluations reached"
     while nfev < max_nfev:
@@ -305,6 +320,17 @@ def _lm_normal_equations(
         F_new = 0.5 * float(r_new @ r_new)
         predicted = 0.5 * float(h @ (mu * d * h - g))
         rho = (F - F_new) / predicted if predicted > 0 else -1.0
+        if predicted <= ftol * F and abs(F - F_new) <= ftol * F:
+            # both reductions at round-off level (MINPACK's ftol test): converged; a
+            # further step would only trade round-off for evaluations
+            if F_new < F:
+                x, r, F = x_new, r_new, F_new
+                A, g, J = linearize(x, r)
+                njev += 1
+                nit += 1
+                history.append(monitor(r))
+            status, message = 3, "relative reduction of the cost below ftol"
+            break
         if rho > 0 and np.isfinite(F_new):
             reduction = F - F_new
             x, r, F = x_new, r_new, F_new
@@ -314,12 +340,15 @@ def _lm_normal_equations(
             history.append(monitor(r))
             mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
             nu = 2.0
+            fallback = None
             if reduction <= ftol * F_new:
                 status, message = 3, "relative reduction of the cost below ftol"
                 break
         else:
             mu *= nu
             nu *= 2.0
+            if fallback is not None:  # the near Gauss-Newton first step failed
+                mu, fallback = max(mu, fallback), None
             if mu > 1e30:
                 status, message = 4, "no further decrease possible (round-off level)"
                 break
@@ -327,5 +356,5 @@ def _lm_normal_equations(
     return make_result(
         x, F, nit=nit, nfev=nfev, success=status > 0, status=status, message=message,
         history=history, elapsed=time.perf_counter() - t0, njev=njev, residual=r,
-        normal_matrix=A, gradient=g, **extra,
+        normal_matrix=A, gradient=g, damping=mu, **extra,
     )
