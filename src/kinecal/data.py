@@ -34,6 +34,11 @@ class Measurements:
     rotations : ndarray, shape (N, 3, 3) or None
         Measured tool-frame orientations in the measurement frame (6-DoF trackers, camera
         poses); None for position-only measurements.
+    marker : ndarray of int, shape (N,) or None
+        Which marker each pose measured (several tool points on one flange): an index into
+        `marker_names`; None when the arm carries one tool point.
+    marker_names : tuple of str
+        Names of the markers `marker` indexes (the model's markers, in its order).
     """
 
     q: NDArray[np.float64]
@@ -41,6 +46,8 @@ class Measurements:
     weights: NDArray[np.float64] | None = None
     source: str = ""
     rotations: NDArray[np.float64] | None = None
+    marker: NDArray[np.intp] | None = None
+    marker_names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         q = np.asarray(self.q, dtype=float)
@@ -60,6 +67,15 @@ class Measurements:
             if R.shape != (q.shape[0], 3, 3):
                 raise InputError(f"rotations: expected shape ({q.shape[0]}, 3, 3), got {R.shape}")
             check_rotation(R, tol=1e-6, name="measured rotation")
+        if self.marker is not None:
+            m = np.asarray(self.marker)
+            if m.shape != (q.shape[0],) or not np.issubdtype(m.dtype, np.integer):
+                raise InputError(f"marker: expected {q.shape[0]} integer indices, got {m.shape}")
+            if m.size and (m.min() < 0 or m.max() >= len(self.marker_names)):
+                raise InputError(f"marker: indices must lie in 0..{len(self.marker_names) - 1} "
+                                 f"(marker_names {list(self.marker_names)})")
+        elif self.marker_names:
+            raise InputError("marker_names without marker indices")
 
     def __len__(self) -> int:
         return int(np.shape(self.q)[0])
@@ -68,5 +84,6 @@ class Measurements:
         """The poses selected by `index`."""
         w = None if self.weights is None else np.asarray(self.weights)[index]
         R = None if self.rotations is None else np.asarray(self.rotations)[index]
+        m = None if self.marker is None else np.asarray(self.marker)[index]
         return Measurements(np.asarray(self.q)[index], np.asarray(self.xyz)[index], w,
-                            f"{self.source}[subset]", R)
+                            f"{self.source}[subset]", R, m, self.marker_names)

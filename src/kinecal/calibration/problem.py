@@ -46,7 +46,7 @@ def characteristic_length(model: SerialModel, data: Measurements, params=None,
     scale that makes angle and length parameters comparable. `positions` ``(N, 3)``: the
     tool points at `params` when already known (saves a forward-kinematics pass).
     """
-    P = model.positions(data.q, params) if positions is None else positions
+    P = model.positions(data.q, params, data.marker) if positions is None else positions
     L = float(np.sqrt((np.linalg.norm(P - P.mean(axis=0), axis=1) ** 2).mean()))
     return L if L > 0 else 1.0
 
@@ -78,8 +78,9 @@ def identification_rows(
     """
     idx = model.index(list(names))
     if data.rotations is None:
-        return model.identification_jacobian(data.q, params)[:, :, idx].reshape(-1, idx.size)
-    J = model.identification_jacobian(data.q, params, outputs="pose")[:, :, idx]
+        J = model.identification_jacobian(data.q, params, marker=data.marker)
+        return J[:, :, idx].reshape(-1, idx.size)
+    J = model.identification_jacobian(data.q, params, "pose", data.marker)[:, :, idx]
     w = characteristic_length(model, data, params) if rotation_weight is None else rotation_weight
     J[:, 3:] *= w
     return J.reshape(-1, idx.size)
@@ -139,7 +140,7 @@ def analyse_poses(
     p = model.nominal if params is None else np.asarray(params, dtype=float)
     P = None
     if rotation_weight is None and data.rotations is not None:
-        P = model.positions(data.q, p)
+        P = model.positions(data.q, p, data.marker)
         rotation_weight = characteristic_length(model, data, p, P)
     rows = PoseRows(model, data, rotation_weight or 0.0, weighted=False)
     k = len(names)
@@ -203,6 +204,7 @@ class CalibrationProblem:
         self._cache: tuple | None = None
         self.q = np.asarray(data.q, dtype=float)
         self.xyz = np.asarray(data.xyz, dtype=float)
+        self.marker = data.marker  # per-pose marker (several tool points) or None
         angle = model.is_angle()[self.index]
         tol = model.tolerances or {}
         self.half_width = np.where(angle, tol.get("angle", 0.02), tol.get("length", 1.0))
@@ -224,7 +226,7 @@ class CalibrationProblem:
         x = np.asarray(x, dtype=float)
         if self._cache is not None and np.array_equal(self._cache[0], x):
             return self._cache[1]
-        sweep = self.model.sweep(self.q, self.full(x))
+        sweep = self.model.sweep(self.q, self.full(x), self.marker)
         self._cache = (x.copy(), sweep)
         return sweep
 
@@ -233,7 +235,7 @@ class CalibrationProblem:
         x = np.asarray(x, dtype=float)
         if x.ndim == 1 and self._cache is not None and np.array_equal(self._cache[0], x):
             return self._cache[1].positions - self.xyz
-        return self.model.positions(self.q, self.full(x)) - self.xyz
+        return self.model.positions(self.q, self.full(x), self.marker) - self.xyz
 
     def distances(self, x: Array) -> Array:
         """Euclidean distance errors ``(N,)`` (or ``(P, N)``) in the length unit."""

@@ -49,6 +49,8 @@ class CalibrationResult:
         Distance errors on the validation poses.
     q_calibration, q_validation : ndarray, shape (N, n_joints), optional
         Joint angles (rad) of the calibration and validation poses.
+    marker_calibration, marker_validation : ndarray of int, shape (N,), optional
+        Marker index of each of those poses (models with several markers).
     """
 
     model: SerialModel
@@ -75,6 +77,8 @@ class CalibrationResult:
     extra: dict[str, Any] = field(default_factory=dict)
     q_calibration: Array | None = None
     q_validation: Array | None = None
+    marker_calibration: NDArray[np.intp] | None = None
+    marker_validation: NDArray[np.intp] | None = None
 
     # ------------------------------------------------------------------ numbers
     @property
@@ -108,33 +112,35 @@ class CalibrationResult:
         before, after = s["before"]["mean"], s["after"]["mean"]
         return float(100.0 * (before - after) / before) if before > 0 else 0.0
 
-    def position_covariance(self, q: Array) -> Array:
+    def position_covariance(self, q: Array, marker: NDArray[np.intp] | None = None) -> Array:
         """Covariance ``(N, 3, 3)`` of the calibrated model's tool positions at `q`.
 
         First-order propagation of the parameter covariance: ``J C J^T`` with ``J`` the
         identification Jacobian of the free parameters at the identified values (length
         unit squared). It is the uncertainty the calibration leaves in the model, not the
-        instrument's noise.
+        instrument's noise. `marker`: the marker index per pose (several markers).
         """
         idx = self.nominal_model.index(self.free)
-        J = self.nominal_model.identification_jacobian(q, self.params)[:, :, idx]
+        J = self.nominal_model.identification_jacobian(q, self.params, marker=marker)[:, :, idx]
         return J @ self.covariance @ np.swapaxes(J, 1, 2)
 
-    def predicted_position_error(self, q: Array) -> Array:
+    def predicted_position_error(self, q: Array, marker: NDArray[np.intp] | None = None
+                                 ) -> Array:
         """RMS distance error ``(N,)`` of the calibrated model at `q` due to the parameter
         uncertainty: ``sqrt(trace(J C J^T))`` (length unit); checked by Monte Carlo in the
         tests."""
-        return np.sqrt(np.clip(np.trace(self.position_covariance(q), axis1=1, axis2=2), 0, None))
+        C = self.position_covariance(q, marker)
+        return np.sqrt(np.clip(np.trace(C, axis1=1, axis2=2), 0, None))
 
     def predicted_error_summary(self) -> dict[str, float | None]:
         """Mean `predicted_position_error` over the calibration and validation poses."""
         out: dict[str, float | None] = {"calibration_mean": None, "validation_mean": None}
         if not np.isfinite(self.covariance).all():
             return out
-        for key, q in (("calibration_mean", self.q_calibration),
-                       ("validation_mean", self.q_validation)):
+        for key, q, m in (("calibration_mean", self.q_calibration, self.marker_calibration),
+                          ("validation_mean", self.q_validation, self.marker_validation)):
             if q is not None and len(q):
-                out[key] = float(self.predicted_position_error(q).mean())
+                out[key] = float(self.predicted_position_error(q, m).mean())
         return out
 
     def _unit_scale(self) -> Array:

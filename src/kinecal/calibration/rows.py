@@ -53,6 +53,7 @@ class PoseRows:
         self.model = model
         self.q = np.asarray(data.q, dtype=float)
         self.xyz = np.asarray(data.xyz, dtype=float)
+        self.marker = data.marker  # per-pose marker index (several tool points) or None
         self.R_meas_t = (None if data.rotations is None
                          else np.swapaxes(np.asarray(data.rotations, dtype=float), 1, 2))
         self.rows = 3 if self.R_meas_t is None else 6
@@ -92,13 +93,14 @@ class PoseRows:
             Model tool positions.
         """
         q = self.q[sel]
+        marker = None if self.marker is None else self.marker[sel]
         if columns is None and self.R_meas_t is None:
-            P = self.model.positions(q, p)
+            P = self.model.positions(q, p, marker)
             e = P - self.xyz[sel]
             if self.sqrt_w is not None:
                 e = e * self.sqrt_w[sel][:, None]
             return e, None, P
-        sweep = self.model.sweep(q, p)
+        sweep = self.model.sweep(q, p, marker)
         P = sweep.positions
         e = P - self.xyz[sel]
         Jt = None

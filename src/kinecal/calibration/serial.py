@@ -14,6 +14,7 @@ any metaheuristic of `kinecal.optimize` (``ga``, ``pso``, ``afsa``, ``sa-iafsa``
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -27,6 +28,7 @@ from kinecal.calibration.solve import solve_lm
 from kinecal.calibration.stats import error_stats
 from kinecal.data import Measurements
 from kinecal.errors import InputError
+from kinecal.kinematics.markers import model_for_markers, remap_markers
 from kinecal.kinematics.serial import SerialModel
 from kinecal.optimize import METHODS, minimize
 from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
@@ -74,9 +76,17 @@ def _rotation_stats(model: SerialModel, data: Measurements, params: np.ndarray) 
     R_meas = np.swapaxes(np.asarray(data.rotations), 1, 2)
     out = {}
     for when, p in (("before", None), ("after", params)):
-        err = np.degrees(rotation_angle(model.fk(data.q, p)[:, :3, :3] @ R_meas))
+        err = np.degrees(rotation_angle(model.fk(data.q, p, data.marker)[:, :3, :3] @ R_meas))
         out[when] = error_stats(err)
     return out
+
+
+def _with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
+    """`data` with its marker indices into `model`'s markers (matched by name)."""
+    if data.marker is None or data.marker_names == model.marker_names:
+        return data
+    marker = remap_markers(data.marker, data.marker_names, model.marker_names)
+    return dataclasses.replace(data, marker=marker, marker_names=model.marker_names)
 
 
 def calibrate(
@@ -144,6 +154,9 @@ def calibrate(
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
     if len(data) < 1:
         raise InputError("no calibration poses")
+    model = model_for_markers(model, data.marker_names)  # one tool point per marker seen
+    data = _with_model_markers(data, model)
+    validate = None if validate is None else _with_model_markers(validate, model)
     seed = int(rng) if isinstance(rng, int | np.integer) else None
     t0 = time.perf_counter()
     if method == "lm":  # analysis, fit and growth in few passes (kinecal.calibration.solve)
@@ -196,8 +209,9 @@ def calibrate(
     x_nom = problem.x0
     val_before = val_after = None
     if validate is not None:
-        val_before = np.linalg.norm(model.positions(validate.q) - validate.xyz, axis=1)
-        val_after = np.linalg.norm(model.positions(validate.q, params) - validate.xyz, axis=1)
+        vq, vm = validate.q, validate.marker
+        val_before = np.linalg.norm(model.positions(vq, None, vm) - validate.xyz, axis=1)
+        val_after = np.linalg.norm(model.positions(vq, params, vm) - validate.xyz, axis=1)
     rotation = {}
     if data.rotations is not None:
         rotation["calibration"] = _rotation_stats(model, data, params)
@@ -238,4 +252,6 @@ def calibrate(
         extra=extra,
         q_calibration=np.asarray(data.q),
         q_validation=None if validate is None else np.asarray(validate.q),
+        marker_calibration=data.marker,
+        marker_validation=None if validate is None else validate.marker,
     )

@@ -94,6 +94,7 @@ def simulate(
     q: Array | None = None,
     orientation: bool = False,
     angle_noise: float = 0.0,
+    marker: NDArray[np.intp] | None = None,
 ) -> Simulation:
     """Measurements of a true arm = `model` + `errors`, at random (or given) poses.
 
@@ -116,6 +117,10 @@ def simulate(
         Also measure the tool frame's orientation (a 6-DoF instrument).
     angle_noise : float
         Standard deviation (rad) of the orientation noise, a random rotation vector per pose.
+    marker : ndarray of int, shape (N,), optional
+        Models with several markers: the marker each row of `q` measures. Default: every
+        configuration is measured at every marker (``N * M`` rows, markers in turn), as a
+        tracker measures all reflectors on the flange.
     """
     gen = np.random.default_rng(rng)
     if q is None:
@@ -143,7 +148,11 @@ def simulate(
     if not angle_noise >= 0:
         raise InputError(f"angle noise: expected >= 0, got {angle_noise}", option="--angle-noise")
     true_params = model.nominal + e
-    T = model.fk(q, true_params)
+    if model.marker_names and marker is None:
+        n_markers = len(model.marker_names)
+        marker = np.tile(np.arange(n_markers), len(q))
+        q = np.repeat(q, n_markers, axis=0)
+    T = model.fk(q, true_params, marker)
     exact = T[:, :3, 3]
     xyz = exact + gen.normal(0.0, noise, exact.shape) if noise > 0 else exact.copy()
     rotations = None
@@ -152,7 +161,8 @@ def simulate(
         if angle_noise > 0:
             turn = matrix_from_axis_angle(gen.normal(0.0, angle_noise, exact.shape))
             rotations = turn @ rotations
-    data = Measurements(q, xyz, None, f"simulated {model.name}", rotations)
+    data = Measurements(q, xyz, None, f"simulated {model.name}", rotations, marker,
+                        model.marker_names if marker is not None else ())
     return Simulation(data, true_params, exact)
 
 

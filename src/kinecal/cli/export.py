@@ -59,7 +59,7 @@ def model_and_params(source: str, nominal: str | None, base_link: str | None,
     result the nominal model is `nominal`, or the bundled model the result names.
     """
     from kinecal._files import read_json
-    from kinecal.cli.serial import parameters_from_result
+    from kinecal.cli.serial import model_for_result, parameters_from_result
 
     if not source.lower().endswith(".json"):
         if nominal is not None:
@@ -80,7 +80,7 @@ def model_and_params(source: str, nominal: str | None, base_link: str | None,
                              "--nominal MODEL (the model file or URDF it was calibrated from)",
                              option="--nominal")
         nominal = str(name)
-    model = load_model_arg(nominal, base_link, tip_link)
+    model = model_for_result(load_model_arg(nominal, base_link, tip_link), path)
     _check_nominal(model, data, path)
     return model, parameters_from_result(model, path)
 

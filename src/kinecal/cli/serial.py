@@ -20,6 +20,24 @@ from kinecal.cli._common import (
 from kinecal.errors import InputError
 
 
+def result_markers(params: dict) -> list[str]:
+    """Marker names of a result's ``tool.NAME.x`` parameters (several markers)."""
+    return [n[5:-2] for n in params if n.startswith("tool.") and n.endswith(".x")
+            and n.count(".") >= 2]
+
+
+def model_for_result(model, path: Path):
+    """`model`, given one tool point per marker when the result has several markers."""
+    from kinecal._files import read_json
+    from kinecal.kinematics.markers import model_for_markers
+
+    data = read_json(path)
+    params = data.get("parameters") if isinstance(data, dict) else None
+    if not isinstance(params, dict):
+        raise InputError("expected a calibration result with a 'parameters' mapping", file=path)
+    return model_for_markers(model, result_markers(params))
+
+
 def parameters_from_result(model, path: Path) -> np.ndarray:
     """Full parameter vector from a calibration result JSON (``identified`` values)."""
     from kinecal._files import read_json
@@ -96,14 +114,17 @@ def fk(
     params: Path | None = typer.Option(None, "--params", help="Calibration result JSON."),
 ) -> None:
     """Forward kinematics: tool-point positions (CSV on stdout)."""
+    from kinecal.io.measurements import read_joints, read_markers
     from kinecal.spatial import quaternion_from_matrix
 
     m = load_model_arg(model, base_link, tip_link)
-    from kinecal.io.measurements import read_joints
-
-    q = read_joints(resolve_data_path(joints, "JOINTS"), m)
+    if params is not None:
+        m = model_for_result(m, params)
+    path = resolve_data_path(joints, "JOINTS")
+    q = read_joints(path, m)
+    marker = read_markers(path, m)[0] if m.marker_names else None
     p = None if params is None else parameters_from_result(m, params)
-    T = m.fk(q, p)
+    T = m.fk(q, p, marker)
     header = ["x", "y", "z"] + (["qw", "qx", "qy", "qz"] if pose else [])
     out = T[:, :3, 3]
     if pose:
@@ -127,7 +148,8 @@ def simulate(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
-    poses: int = typer.Option(..., "--poses", help="Number of random poses."),
+    poses: int = typer.Option(..., "--poses", help="Number of random poses (a model with "
+                              "markers measures every marker at each: poses x markers rows)."),
     noise: float = typer.Option(0.0, "--noise", help="Gaussian noise sigma per coordinate."),
     errors: str = typer.Option("random", "--errors", help="zero, random or TRUTH.json."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
@@ -175,6 +197,7 @@ def identifiability(
     from kinecal.calibration.problem import resolve_free
     from kinecal.calibration.simulate import simulate as run
     from kinecal.io.measurements import read_measurements
+    from kinecal.kinematics.markers import model_for_markers
 
     m = load_model_arg(model, base_link, tip_link)
     if data is not None:
@@ -184,6 +207,7 @@ def identifiability(
             raise InputError(f"expected a positive number of poses, got {poses}",
                              option="--poses")
         meas = run(m, poses, errors="zero", rng=seed).data
+    m = model_for_markers(m, meas.marker_names)  # one tool point per marker measured
     _, report = resolve_free(m, meas, _free_option(free))
     if json_out:
         echo_json(report.to_dict())

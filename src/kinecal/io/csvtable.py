@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from kinecal._files import atomic_open
 from kinecal.errors import InputError
 
-__all__ = ["read_table", "write_table"]
+__all__ = ["read_column", "read_table", "write_table"]
 
 
 def read_table(
@@ -90,11 +90,40 @@ def read_table(
     return {name: data[:, k] for k, name in enumerate(wanted)}
 
 
-def write_table(path: str | Path, columns: dict[str, NDArray[np.float64]]) -> None:
-    """Write equal-length columns as CSV with a header, full float precision, atomically."""
+def read_column(path: str | Path, name: str) -> list[str] | None:
+    """The cells of text column `name` (stripped, one per non-blank data row, as
+    `read_table` counts rows), or None when the header has no such column."""
+    path = Path(path)
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
+    except FileNotFoundError:
+        raise InputError("file not found", file=path) from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"cannot read CSV: {exc}", file=path) from None
+    header = [h.strip() for h in rows[0]] if rows else []
+    if name not in header:
+        return None
+    k = header.index(name)
+    out = []
+    for r, row in enumerate(rows[1:], start=1):
+        if len(row) != len(header):
+            raise InputError(f"{len(row)} fields, expected {len(header)} as in the header",
+                             file=path, row=r)
+        out.append(row[k].strip())
+    return out
+
+
+def write_table(path: str | Path, columns: dict[str, NDArray]) -> None:
+    """Write equal-length columns as CSV with a header, atomically: numbers with full float
+    precision, text columns (names without commas or quotes) as they are."""
     names = list(columns)
-    data = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
+    cols = []
+    for n in names:
+        c = np.asarray(columns[n])
+        cols.append([str(v) for v in c] if c.dtype.kind in "USO"
+                    else [repr(float(v)) for v in c.astype(float)])
     with atomic_open(path, "w") as fh:
         fh.write(",".join(names) + "\n")
-        for row in data:
-            fh.write(",".join(repr(float(v)) for v in row) + "\n")
+        for row in zip(*cols, strict=True):
+            fh.write(",".join(row) + "\n")

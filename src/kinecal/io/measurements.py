@@ -5,6 +5,11 @@ kinecal's format (``docs/file-formats.md``): header ``q1..qn,x,y,z``, optional
 optional ``weight`` column; joint values in the model's angle unit, positions in its length unit.
 The laser-tracker export of the bundled UR5 dataset (``joint_1..joint_n, x_t, y_t, z_t,
 x_dif, y_dif, z_dif``; degrees, mm) is read as well: measured = target + dif.
+
+An optional ``marker`` column says which marker (tool point) each row measured: a name of
+the model's ``markers`` or its number 1..M in the model's order. A model without markers
+takes the names the file uses (`kinecal.kinematics.markers.model_for_markers` then gives
+it one tool point per name).
 """
 
 from __future__ import annotations
@@ -15,14 +20,16 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal import diagnostics
 from kinecal.data import Measurements
 from kinecal.errors import InputError
-from kinecal.io.csvtable import read_table, write_table
+from kinecal.io.csvtable import read_column, read_table, write_table
 from kinecal.kinematics.serial import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
 # Measurements (kinecal.data) is re-exported here
-__all__ = ["Measurements", "read_joints", "read_measurements", "write_measurements"]
+__all__ = ["Measurements", "read_joints", "read_markers", "read_measurements",
+           "write_measurements"]
 
 
 def _header(path: Path) -> list[str]:
@@ -44,6 +51,45 @@ def _resolve(path: str | Path) -> Path:
 
         path = bundled_csv(spec)
     return path
+
+
+def read_markers(path: str | Path, model: SerialModel
+                 ) -> tuple[NDArray[np.intp] | None, tuple[str, ...]]:
+    """The ``marker`` column: per-row indices ``(N,)`` and the names they index.
+
+    With a model that has markers, a cell is one of its marker names or a number 1..M (in
+    the model's order) and the names are the model's; without, the names are those in the
+    file, in order of first appearance. No column: ``(None, ())`` (and a warning when the
+    model has several markers: every row is then taken as the first).
+    """
+    path = _resolve(path)
+    cells = read_column(path, "marker")
+    known = model.marker_names
+    if cells is None:
+        if len(known) > 1:
+            diagnostics.warn("no-marker-column",
+                             f"{path.name}: model {model.name!r} has markers "
+                             f"{', '.join(known)} but the file has no marker column: every "
+                             f"row is taken as marker {known[0]}")
+        return None, ()
+    names = list(known)
+    lookup = {n: i for i, n in enumerate(names)}
+    idx = np.empty(len(cells), dtype=np.intp)
+    for r, cell in enumerate(cells, start=1):
+        if cell in lookup:
+            idx[r - 1] = lookup[cell]
+        elif known and cell.isdigit() and 1 <= int(cell) <= len(known):
+            idx[r - 1] = int(cell) - 1
+        elif known or not cell or any(c in cell for c in " \t\"'"):
+            expected = (f"one of the model's markers {', '.join(known)} or a number "
+                        f"1..{len(known)}" if known else "a marker name (no spaces or quotes)")
+            raise InputError(f"column marker: {cell!r}, expected {expected}", file=path,
+                             row=r)
+        else:
+            lookup[cell] = len(names)
+            names.append(cell)
+            idx[r - 1] = lookup[cell]
+    return idx, tuple(names)
 
 
 def read_joints(path: str | Path, model: SerialModel) -> NDArray[np.float64]:
@@ -111,7 +157,8 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
             raise InputError(f"qw, qx, qy, qz: norm {norm[row - 1]:.6f}, expected a unit "
                              "quaternion", file=path, row=row)
         rotations = matrix_from_quaternion(qv)
-    return Measurements(q, xyz, weights, str(path), rotations)
+    marker, names = read_markers(path, model)
+    return Measurements(q, xyz, weights, str(path), rotations, marker, names)
 
 
 def write_measurements(path: str | Path, data: Measurements, model: SerialModel) -> None:
@@ -125,4 +172,6 @@ def write_measurements(path: str | Path, data: Measurements, model: SerialModel)
         columns.update({c: qv[:, k] for k, c in enumerate(("qw", "qx", "qy", "qz"))})
     if data.weights is not None:
         columns["weight"] = np.asarray(data.weights)
+    if data.marker is not None:
+        columns["marker"] = np.asarray(data.marker_names, dtype=str)[np.asarray(data.marker)]
     write_table(path, columns)

@@ -13,6 +13,7 @@ A model file (see ``docs/file-formats.md``)::
       - {theta: 0, d: 0, a: 0, alpha: 0, type: prismatic}            # d is the joint
     base: [x, y, z, rx, ry, rz]   # optional: robot base in the measurement frame
     tool: [x, y, z]               # optional: tool point in the flange frame (or 6 values)
+    markers: {A: [x, y, z], B: [x, y, z]}   # or several tool points, one per marker
     joint_limits: [[-165, 165], ...]   # optional; prismatic joints in the length unit
     tolerances: {length: 0.25, angle: 0.05}
     fixed: [tool.x]               # optional: parameters held at nominal by default
@@ -136,6 +137,7 @@ class ModelFile(BaseModel):
     joints: list[dict]
     base: list[float] | None = None
     tool: list[float] | None = None
+    markers: dict[str, list[float]] | None = None
     joint_limits: list[tuple[float, float]] | None = None
     tolerances: Tolerances = Tolerances()
     fixed: list[str] = []
@@ -159,6 +161,17 @@ class ModelFile(BaseModel):
     def _tool36(cls, v: list[float] | None) -> list[float] | None:
         if v is not None and len(v) not in (3, 6):
             raise ValueError(f"expected 3 values [x, y, z] or 6 with rx, ry, rz, got {len(v)}")
+        return v
+
+    @field_validator("markers")
+    @classmethod
+    def _markers3(cls, v: dict[str, list[float]] | None) -> dict[str, list[float]] | None:
+        if v is not None:
+            if not v:
+                raise ValueError("expected at least one marker NAME: [x, y, z]")
+            bad = [k for k, p in v.items() if len(p) != 3]
+            if bad:
+                raise ValueError(f"marker {bad[0]}: expected 3 values [x, y, z]")
         return v
 
 
@@ -228,6 +241,8 @@ def load_model(name_or_path: str | Path, *, base_link: str | None = None,
             raise InputError(f"{option} applies to URDF models only", option=option)
     path = model_path(name_or_path)
     data = read_yaml(path)
+    if isinstance(data.get("markers"), dict):  # YAML reads marker names 1, 2, 3 as numbers
+        data["markers"] = {str(k): v for k, v in data["markers"].items()}
     try:
         spec = ModelFile.model_validate(data)
     except ValidationError as exc:
@@ -272,7 +287,7 @@ def load_model(name_or_path: str | Path, *, base_link: str | None = None,
             name=spec.name, convention=spec.convention, joints=joints, base=base, tool=tool,
             length_unit=spec.length_unit, angle_unit=spec.angle_unit, joint_limits=limits,
             tolerances={"length": spec.tolerances.length, "angle": spec.tolerances.angle * scale},
-            fixed=tuple(spec.fixed), description=spec.description,
+            fixed=tuple(spec.fixed), description=spec.description, markers=spec.markers,
         )
     except InputError as exc:
         raise InputError(f"invalid model file: {exc.message}", file=path) from None
@@ -301,6 +316,8 @@ def model_to_dict(model: SerialModel, angle_unit: str = "deg") -> dict:
     if model.tool is not None:
         t = np.asarray(model.tool, dtype=float)
         data["tool"] = [float(x) for x in np.r_[t[:3], t[3:] * s]]
+    if model.markers:
+        data["markers"] = {str(n): [float(v) for v in p] for n, p in model.markers.items()}
     to_file = 1.0 / model.joint_scale(angle_unit)
     data["joint_limits"] = [[float(lo * f), float(hi * f)]
                             for (lo, hi), f in zip(model.joint_limits, to_file, strict=True)]

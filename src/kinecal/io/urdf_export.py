@@ -19,7 +19,8 @@ The URDF is built from the chain's actual joint frames, not from a D-H -> URDF f
 Tree: ``world`` (the measurement frame; only when the base frame is not the identity)
 -> ``base_joint`` -> the base link -> one joint per moving joint and per fixed frame ->
 ``flange_joint`` -> ``flange`` (when the last joint frame is not the flange frame) ->
-``tool_joint`` -> ``tool`` (the tool point or frame). Lengths are written in metres and
+``tool_joint`` -> ``tool`` (the tool point or frame; with several markers one
+``tool_NAME_joint`` -> ``tool_NAME`` per marker). Lengths are written in metres and
 angles in radians whatever the model's units, floats with the digits that round-trip.
 """
 
@@ -34,6 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
+from kinecal.kinematics.markers import marker_parameter_names
 from kinecal.kinematics.motions import PRISMATIC, ROTATION, Motion
 from kinecal.kinematics.serial import SerialModel
 from kinecal.spatial import matrix_from_axis_angle, rot_x, rot_y, rot_z, xyz_rpy_from_transform
@@ -184,6 +186,12 @@ def urdf_joints(model: SerialModel, params: ArrayLike | None = None) -> list[URD
         child = names("flange")
         out.append(URDFJoint("flange_joint", "fixed", parent, child, pending))
         parent = child
+    if model.marker_names:  # several markers: one tool link each
+        for marker in model.marker_names:
+            xyz = p[model.index(marker_parameter_names(marker))]
+            out.append(URDFJoint(f"tool_{marker}_joint", "fixed", parent,
+                                 names(f"tool_{marker}"), _translation(xyz)))
+        return out
     out.append(URDFJoint("tool_joint", "fixed", parent, names("tool"),
                          product(groups["tool"])))
     return out

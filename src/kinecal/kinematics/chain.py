@@ -10,7 +10,9 @@ A chain is a list of entries (dicts), in order from the base to the flange:
   nominal unless ``calibrate`` is true.
 
 The base frame (``base.x ... base.rz``) comes first, the tool (``tool.x, tool.y, tool.z``
-and optionally ``tool.rx, tool.ry, tool.rz``) last.
+and optionally ``tool.rx, tool.ry, tool.rz``) last; a model with several markers has
+instead one tool point per marker, ``tool.NAME.x, tool.NAME.y, tool.NAME.z``
+(`kinecal.kinematics.markers`).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kinecal.errors import InputError
+from kinecal.kinematics.markers import check_markers, marker_parameter_names
 from kinecal.kinematics.motions import (
     CONTINUOUS,
     CONVENTIONS,
@@ -59,6 +62,8 @@ class Chain:
         ``"revolute"`` or ``"prismatic"`` per moving joint.
     frozen : frozenset of str
         Parameters of fixed frames that are not calibrated by default.
+    markers : tuple of str
+        Marker names (several tool points), empty for a single tool point.
     """
 
     motions: tuple[Motion, ...]
@@ -67,6 +72,7 @@ class Chain:
     values: dict
     kinds: tuple[str, ...]
     frozen: frozenset
+    markers: tuple[str, ...] = ()
 
 
 def _check_name(name: object, what: str) -> str:
@@ -93,7 +99,7 @@ def _value(entry: Mapping, key: str, where: str, default: float | None) -> float
 
 
 def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | None,
-                tool: ArrayLike | None) -> Chain:
+                tool: ArrayLike | None, markers: Mapping | None = None) -> Chain:
     """Motions, parameter names and nominal values of a chain.
 
     Parameters
@@ -107,6 +113,9 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
         Base frame x, y, z, rx, ry, rz (None: zeros).
     tool : array_like, shape (3,) or (6,), or None
         Tool point or frame (None: the flange origin).
+    markers : mapping of str to (3,), optional
+        Several tool points, one per marker (instead of `tool`); the tool translations'
+        values are then per pose (`kinecal.kinematics.markers`).
 
     Raises
     ------
@@ -161,16 +170,30 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
         owners += [e] * len(em)
     if not kinds:
         raise InputError("a model needs at least one moving joint")
-    t = np.zeros(3) if tool is None else np.asarray(tool, dtype=float)
-    if t.shape not in ((3,), (6,)):
-        raise InputError(f"tool: expected 3 (point) or 6 (frame) values, got {t.size}")
-    tm = pose_motions("tool", RXYZ)
-    tm = tm[:3] + (tm[3:] if t.size == 6 else [])
+    if markers is not None:
+        if tool is not None:
+            raise InputError("give either tool (one tool point) or markers (several), not both")
+        points = check_markers(markers)
+        tm = pose_motions(f"tool.{next(iter(points))}", RXYZ)[:3]
+        tool_names = [n for name in points for n in marker_parameter_names(name)]
+        values.update(zip(tool_names, np.concatenate(list(points.values())).tolist(),
+                          strict=True))
+    else:
+        t = np.zeros(3) if tool is None else np.asarray(tool, dtype=float)
+        if t.shape not in ((3,), (6,)):
+            raise InputError(f"tool: expected 3 (point) or 6 (frame) values, got {t.size}")
+        tm = pose_motions("tool", RXYZ)
+        tm = tm[:3] + (tm[3:] if t.size == 6 else [])
+        tool_names = list(TOOL_NAMES[: t.size])
+        values.update(zip(TOOL_NAMES, t.tolist(), strict=False))
     motions += tm
     owners += ["tool"] * len(tm)
-    values.update(zip(TOOL_NAMES, t.tolist(), strict=False))
-    names = (*chain_names, *BASE_NAMES, *TOOL_NAMES[: t.size])
-    return Chain(tuple(motions), tuple(owners), names, values, tuple(kinds), frozenset(frozen))
+    names = (*chain_names, *BASE_NAMES, *tool_names)
+    duplicate = sorted(set(chain_names) & set(tool_names))
+    if duplicate:
+        raise InputError(f"parameter {duplicate[0]!r} appears twice in the chain")
+    return Chain(tuple(motions), tuple(owners), names, values, tuple(kinds), frozenset(frozen),
+                 tuple(points) if markers is not None else ())
 
 
 def chain_entries(chain: Chain, entries: Sequence[Mapping], values: Mapping[str, float]

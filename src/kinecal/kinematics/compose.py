@@ -279,7 +279,7 @@ def frame_chain(motions: Sequence[Motion], values: list, skip: list, qT: Array,
 
 # ---------------------------------------------------------------- drivers
 def chunks(motions: Sequence[Motion], motion_index: NDArray[np.intp], q: Array, p: Array,
-           kernel, *args, elements: int = CHUNK_ELEMENTS):
+           kernel, *args, elements: int = CHUNK_ELEMENTS, pose_values: dict | None = None):
     """Run `kernel` (`point_chain` or `frame_chain`) over chunks of poses.
 
     Parameters
@@ -294,6 +294,9 @@ def chunks(motions: Sequence[Motion], motion_index: NDArray[np.intp], q: Array, 
         ``kernel(motions, values, skip, qT, trig, *args)``.
     elements : int
         Poses times parameter vectors per chunk (`chunk_size`; 0: one chunk).
+    pose_values : dict, optional
+        Motion position -> values ``(*batch, N)`` that differ per pose (the tool point of
+        each pose's marker, `kinecal.kinematics.markers`); sliced with the chunk.
 
     Yields
     ------
@@ -308,25 +311,31 @@ def chunks(motions: Sequence[Motion], motion_index: NDArray[np.intp], q: Array, 
     for s0 in range(0, max(N, 1), step):
         sel = slice(s0, min(s0 + step, N))
         qT = np.ascontiguousarray(q[sel].T)
-        yield sel, kernel(motions, values, skip, qT, joint_trig(motions, values, qT), *args)
+        vals, sk = values, skip
+        if pose_values:
+            vals, sk = list(values), list(skip)
+            for i, v in pose_values.items():
+                vals[i], sk[i] = v[..., sel], False
+        yield sel, kernel(motions, vals, sk, qT, joint_trig(motions, vals, qT), *args)
 
 
 def positions(motions: Sequence[Motion], motion_index: NDArray[np.intp], q: Array, p: Array,
-              elements: int = CHUNK_ELEMENTS) -> Array:
+              elements: int = CHUNK_ELEMENTS, pose_values: dict | None = None) -> Array:
     """Tool points ``(*batch, N, 3)`` by `point_chain`, chunk by chunk (see `chunks`)."""
     out = np.empty((*p.shape[:-1], q.shape[0], 3))
-    for sel, point in chunks(motions, motion_index, q, p, point_chain, elements=elements):
+    for sel, point in chunks(motions, motion_index, q, p, point_chain, elements=elements,
+                             pose_values=pose_values):
         for k in range(3):
             out[..., sel, k] = point[k]
     return out
 
 
 def transforms(motions: Sequence[Motion], motion_index: NDArray[np.intp], q: Array, p: Array,
-               elements: int = CHUNK_ELEMENTS) -> Array:
+               elements: int = CHUNK_ELEMENTS, pose_values: dict | None = None) -> Array:
     """Tool frames ``(*batch, N, 4, 4)`` by `frame_chain`, chunk by chunk (see `chunks`)."""
     T = np.zeros((*p.shape[:-1], q.shape[0], 4, 4))
     for sel, (axes, o, _) in chunks(motions, motion_index, q, p, frame_chain,
-                                    elements=elements):
+                                    elements=elements, pose_values=pose_values):
         for a in range(3):
             for k in range(3):
                 T[..., sel, k, a] = axes[a][k]

@@ -35,6 +35,13 @@ from kinecal.errors import InputError
 from kinecal.kinematics.chain import BASE_NAMES, TOOL_NAMES, Chain, build_chain, chain_entries
 from kinecal.kinematics.compose import chunks, frame_chain, positions, transforms
 from kinecal.kinematics.joint_errors import JointErrors, JointErrorTerms
+from kinecal.kinematics.markers import (
+    MarkerSet,
+    check_marker,
+    marker_parameter_names,
+    marker_points,
+    with_markers,
+)
 from kinecal.kinematics.motions import (
     CONVENTIONS,
     PRISMATIC,
@@ -104,6 +111,10 @@ class SerialModel:
     joint_errors : JointErrors, optional
         Non-geometric joint-angle corrections (`kinecal.kinematics.joint_errors`); their
         coefficients are appended to the parameter vector, after base and tool.
+    markers : mapping of str to (3,), optional
+        Several tool points, one per marker (flange frame, length unit), instead of `tool`:
+        parameters ``tool.NAME.x .. z``; the kinematics take a per-pose marker index
+        (`kinecal.kinematics.markers`).
     """
 
     name: str
@@ -118,12 +129,13 @@ class SerialModel:
     fixed: Sequence[str] = ()
     description: str = ""
     joint_errors: JointErrors | None = None
+    markers: dict | None = None
     motions: list[Motion] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.angle_unit not in ("rad", "deg"):
             raise InputError(f"angle_unit: expected rad or deg, got {self.angle_unit!r}")
-        chain = build_chain(self.convention, self.joints, self.base, self.tool)
+        chain = build_chain(self.convention, self.joints, self.base, self.tool, self.markers)
         self._chain: Chain = chain
         self.motions = list(chain.motions)
         self._names = chain.names
@@ -149,8 +161,14 @@ class SerialModel:
         fixed = set(self.fixed) | chain.frozen
         if self.base is None:
             fixed |= set(BASE_NAMES)
-        if self.tool is None:
+        if self.tool is None and not chain.markers:
             fixed |= set(TOOL_NAMES[:3])
+        self._marker_set = None
+        if chain.markers:
+            self._marker_set = MarkerSet(
+                chain.markers,
+                np.array([self.index(marker_parameter_names(n)) for n in chain.markers]),
+                tuple(len(self.motions) - 3 + c for c in range(3)))
         unknown = fixed - set(self._names)
         if unknown:
             raise InputError(f"fixed: unknown parameter(s) {sorted(unknown)}")
@@ -180,6 +198,23 @@ class SerialModel:
         """The chain's motions, their owners (entry index, ``"base"``, ``"tool"``), parameter
         names and nominal values (`kinecal.kinematics.chain.Chain`)."""
         return self._chain
+
+    @property
+    def marker_names(self) -> tuple[str, ...]:
+        """Names of the markers (several tool points), empty for a single tool point."""
+        return self._chain.markers
+
+    def with_markers(self, markers) -> SerialModel:
+        """This model with several markers instead of one tool point: `markers` is
+        ``{name: [x, y, z]}`` or names, each then starting at the model's tool point."""
+        return with_markers(self, markers)
+
+    def _marker(self, marker: ArrayLike | None, n: int) -> NDArray[np.intp] | None:
+        """Checked per-pose marker indices (None for a model with one tool point)."""
+        return check_marker(self, marker, n)
+
+    def _pose_values(self, marker: NDArray[np.intp] | None, p: Array) -> dict | None:
+        return None if marker is None else self._marker_set.pose_values(marker, p)
 
     @property
     def joint_kinds(self) -> tuple[str, ...]:
@@ -255,8 +290,9 @@ class SerialModel:
         if self.base is None and not any(base):
             base = None
         n_tool = 3 if self.tool is None else np.asarray(self.tool).size
-        tool = [values[n] for n in TOOL_NAMES[:n_tool]]
-        if self.tool is None and not any(tool):
+        markers = marker_points(self.marker_names, values) if self.marker_names else None
+        tool = None if markers else [values[n] for n in TOOL_NAMES[:n_tool]]
+        if self.tool is None and not any(tool or ()):
             tool = None
         # Keep what was fixed by the model's design, including frames that were absent
         # (fixed frames' own defaults come back with their entries).
@@ -270,7 +306,7 @@ class SerialModel:
             tool=tool, length_unit=self.length_unit, angle_unit=self.angle_unit,
             joint_limits=self.joint_limits,
             tolerances=dict(self.tolerances or {}), fixed=fixed,
-            description=self.description, joint_errors=je,
+            description=self.description, joint_errors=je, markers=markers,
         )
 
     # ------------------------------------------------------------------ kinematics
@@ -297,7 +333,8 @@ class SerialModel:
             raise InputError("joint values contain NaN or infinite entries")
         return q
 
-    def fk(self, q: ArrayLike, params: ArrayLike | None = None) -> Array:
+    def fk(self, q: ArrayLike, params: ArrayLike | None = None,
+           marker: ArrayLike | None = None) -> Array:
         """Tool (or flange) frame in the measurement frame.
 
         Parameters
@@ -306,6 +343,9 @@ class SerialModel:
             Joint angles (rad).
         params : array_like, shape (n_params,) or (P, n_params), optional
             Parameter vector(s); nominal if omitted.
+        marker : array_like of int, shape (N,), optional
+            Models with several markers: the marker index of each pose (into
+            `marker_names`; default the first marker).
 
         Returns
         -------
@@ -314,21 +354,25 @@ class SerialModel:
         """
         q, p = self._check_q(q), self._check_params(params)
         if self._joint_terms is not None and p.ndim == 2:  # corrections differ per vector
-            return np.stack([self.fk(q, row) for row in p])
-        return transforms(self.motions, self._motion_index, self._corrected(q, p), p)
+            return np.stack([self.fk(q, row, marker) for row in p])
+        return transforms(self.motions, self._motion_index, self._corrected(q, p), p,
+                          pose_values=self._pose_values(self._marker(marker, len(q)), p))
 
-    def positions(self, q: ArrayLike, params: ArrayLike | None = None) -> Array:
+    def positions(self, q: ArrayLike, params: ArrayLike | None = None,
+                  marker: ArrayLike | None = None) -> Array:
         """Tool-point positions ``(N, 3)`` or ``(P, N, 3)``; see `fk`.
 
         Composed from the tool point backwards, chunk by chunk: no rotation stacks.
         """
         q, p = self._check_q(q), self._check_params(params)
         if self._joint_terms is not None and p.ndim == 2:  # corrections differ per vector
-            return np.stack([self.positions(q, row) for row in p])
-        return positions(self.motions, self._motion_index, self._corrected(q, p), p)
+            return np.stack([self.positions(q, row, marker) for row in p])
+        return positions(self.motions, self._motion_index, self._corrected(q, p), p,
+                         pose_values=self._pose_values(self._marker(marker, len(q)), p))
 
     def identification_jacobian(
-        self, q: ArrayLike, params: ArrayLike | None = None, outputs: str = "position"
+        self, q: ArrayLike, params: ArrayLike | None = None, outputs: str = "position",
+        marker: ArrayLike | None = None,
     ) -> Array:
         """Analytic derivative of the tool pose with respect to every parameter.
 
@@ -341,28 +385,33 @@ class SerialModel:
         outputs : {"position", "pose"}
             ``position``: d(x, y, z); ``pose``: additionally the small-rotation vector of the
             tool frame expressed in the measurement frame (rad per unit parameter).
+        marker : array_like of int, shape (N,), optional
+            Marker index per pose (see `fk`).
 
         Returns
         -------
         ndarray, shape (N, 3, n_params) or (N, 6, n_params)
             Length unit per length unit for lengths, length unit per rad for angles.
         """
-        return np.ascontiguousarray(self.jacobian_t(q, params, outputs).transpose(2, 1, 0))
+        Jt = self.jacobian_t(q, params, outputs, marker=marker)
+        return np.ascontiguousarray(Jt.transpose(2, 1, 0))
 
     def jacobian_t(
         self, q: ArrayLike, params: ArrayLike | None = None, outputs: str = "position",
-        columns: ArrayLike | None = None,
+        columns: ArrayLike | None = None, marker: ArrayLike | None = None,
     ) -> Array:
         """`identification_jacobian` in parameter-major layout ``(n_params, 3 or 6, N)``.
 
         Cheaper for solvers that select parameter rows before reshaping; `columns`
         (parameter indices) keeps only those rows, in that order. Built chunk by chunk.
         """
-        return chunked_jacobian_t(self, self._check_q(q), self._one_vector(params), outputs,
-                                  columns)
+        q = self._check_q(q)
+        return chunked_jacobian_t(self, q, self._one_vector(params), outputs, columns,
+                                  self._marker(marker, len(q)))
 
     def joint_jacobian(
-        self, q: ArrayLike, params: ArrayLike | None = None, outputs: str = "pose"
+        self, q: ArrayLike, params: ArrayLike | None = None, outputs: str = "pose",
+        marker: ArrayLike | None = None,
     ) -> Array:
         """Derivative of the tool pose with respect to the joint readings.
 
@@ -383,7 +432,7 @@ class SerialModel:
             joint.
         """
         q, p = self._check_q(q), self._one_vector(params)
-        Jt = self.jacobian_t(q, p, outputs, columns=self._joint_columns)
+        Jt = self.jacobian_t(q, p, outputs, columns=self._joint_columns, marker=marker)
         if self._joint_terms is not None:  # through the corrections q + dq(q)
             Jt = self._joint_terms.through_corrections(Jt, q, p[self._n_geometric:])
         return np.ascontiguousarray(Jt.transpose(2, 1, 0))
@@ -401,7 +450,8 @@ class SerialModel:
             raise InputError("identification_jacobian expects one parameter vector")
         return p
 
-    def sweep(self, q: ArrayLike, params: ArrayLike | None = None) -> Sweep:
+    def sweep(self, q: ArrayLike, params: ArrayLike | None = None,
+              marker: ArrayLike | None = None) -> Sweep:
         """Forward kinematics of one parameter vector, keeping what the Jacobian needs.
 
         A solver that needs the positions at ``x`` and then, if the step is accepted, the
@@ -410,7 +460,8 @@ class SerialModel:
         many poses sweep chunks of them, as `kinecal.calibration.rows` does).
         """
         q, p = self._check_q(q), self._one_vector(params)
+        m = self._marker(marker, len(q))
         _, (axes, o, frames) = next(chunks(self.motions, self._motion_index,
                                            self._corrected(q, p), p, frame_chain, True,
-                                           elements=0))
-        return Sweep(self, axes, o, frames, q.shape[0], q, p)
+                                           elements=0, pose_values=self._pose_values(m, p)))
+        return Sweep(self, axes, o, frames, q.shape[0], q, p, m)

@@ -28,19 +28,21 @@ JACOBIAN_ELEMENTS = 2048
 
 
 def chunked_jacobian_t(model: SerialModel, q: Array, p: Array, outputs: str = "position",
-                       columns: ArrayLike | None = None) -> Array:
+                       columns: ArrayLike | None = None, marker: Array | None = None) -> Array:
     """Identification Jacobian ``(k, 3 or 6, N)`` of `columns` (default all parameters),
     one `Sweep` per chunk of `JACOBIAN_ELEMENTS` poses (see
-    `SerialModel.jacobian_t`)."""
+    `SerialModel.jacobian_t`; `marker`: per-pose marker indices, checked)."""
     if outputs not in ("position", "pose"):
         raise InputError(f"outputs: expected 'position' or 'pose', got {outputs!r}")
     cols = np.arange(model.n_params) if columns is None else np.asarray(columns)
     out = np.zeros((cols.size, 6 if outputs == "pose" else 3, q.shape[0]))
     for sel, (axes, o, frames) in chunks(model.motions, model._motion_index,
                                          model._corrected(q, p), p, frame_chain, True,
-                                         elements=JACOBIAN_ELEMENTS):
-        Sweep(model, axes, o, frames, sel.stop - sel.start, q[sel], p).jacobian_t(
-            outputs, cols, out=out[..., sel])
+                                         elements=JACOBIAN_ELEMENTS,
+                                         pose_values=model._pose_values(marker, p)):
+        Sweep(model, axes, o, frames, sel.stop - sel.start, q[sel], p,
+              None if marker is None else marker[sel]).jacobian_t(outputs, cols,
+                                                                  out=out[..., sel])
     return out
 
 
@@ -62,6 +64,8 @@ class Sweep:
     q, p : ndarray, optional
         Raw joint readings ``(N, n_joints)`` and the parameter vector, for the chain rule
         through joint-error corrections (`kinecal.kinematics.joint_errors`).
+    marker : ndarray, shape (N,), optional
+        Marker index per pose (models with several markers).
 
     Attributes
     ----------
@@ -72,8 +76,10 @@ class Sweep:
     """
 
     def __init__(self, model: SerialModel, axes: list, origin: list, frames: list, n: int,
-                 q: Array | None = None, p: Array | None = None) -> None:
+                 q: Array | None = None, p: Array | None = None,
+                 marker: NDArray[np.intp] | None = None) -> None:
         self.model = model
+        self.marker = marker
         self.q, self.p = q, p
         self.frames = frames
         self._axes = axes
@@ -150,4 +156,7 @@ class Sweep:
             J[2] = u[0] * d1 - u[1] * d0
             if rows == 6:
                 J[3], J[4], J[5] = u
+        if model._marker_set is not None:  # tool points per marker: columns masked by marker
+            marker = np.zeros(self.n, np.intp) if self.marker is None else self.marker
+            model._marker_set.fill_jacobian(Jt, self.frames, row_of, marker)
         return Jt
