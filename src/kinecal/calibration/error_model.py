@@ -8,6 +8,8 @@
     The geometry plus the joint-error terms of those families
     (`kinecal.kinematics.joint_errors`; ``full`` = all three, harmonics of order
     `harmonics`).
+``model``
+    The terms the model (file) declares (`kinecal.io.joint_errors_file`), as they are.
 ``auto``
     Every combination of the families, harmonics of order 1 to `harmonics`, scored by
     K-fold cross-validation on the calibration poses only (deterministic folds,
@@ -45,10 +47,11 @@ from kinecal.kinematics.serial import SerialModel
 __all__ = ["ERROR_MODELS", "calibrate_error_model", "candidates", "parse_error_model"]
 
 #: the choices of ``--error-model`` (``+``-joined family lists are accepted as well)
-ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto")
+ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto", "model")
 #: default harmonic order of the fixed choices, and the largest order ``auto`` tries
 DEFAULT_HARMONICS = 2
 AUTO_HARMONICS = 3
+MAX_HARMONICS = 12
 #: default number of cross-validation folds
 DEFAULT_FOLDS = 10
 #: the methods that fit joint-error terms (the metaheuristics search a box of geometric
@@ -57,11 +60,11 @@ LSQ_METHODS = ("lm", "householder")
 
 
 def parse_error_model(spec: str) -> tuple[str, ...] | None:
-    """Families of an ``--error-model`` value; None for ``auto``.
+    """Families of an ``--error-model`` value; None for ``auto`` and ``model``.
 
     ``geometric`` -> (), ``full`` -> all families, ``compliance+harmonic`` -> both.
     """
-    if spec == "auto":
+    if spec in ("auto", "model"):
         return None
     if spec == "geometric":
         return ()
@@ -159,75 +162,90 @@ def calibrate_error_model(
         each unidentifiable coefficient is confounded with.
     """
     families = parse_error_model(error_model)
+    if error_model == "model" and model.joint_errors is None:
+        families = ()  # the model has no joint-error terms: a geometric calibration
     if families == ():
-        return calibrate(_with_terms(model, None) if model.joint_errors is None else model,
-                         data, method, free=free, validate=validate, rank_tol=rank_tol,
+        return calibrate(model, data, method, free=free, validate=validate, rank_tol=rank_tol,
                          rotation_weight=rotation_weight, **kwargs)
     if method not in LSQ_METHODS:
         raise InputError(f"--error-model {error_model} needs a least-squares method "
                          f"({', '.join(LSQ_METHODS)}), got {method!r}", option="--method")
-    if harmonics is not None and (harmonics < 1 or harmonics > 12):
-        raise InputError(f"expected a harmonic order 1..12, got {harmonics}",
+    if harmonics is not None and not 1 <= harmonics <= MAX_HARMONICS:
+        raise InputError(f"expected a harmonic order 1..{MAX_HARMONICS}, got {harmonics}",
                          option="--harmonics")
     t0 = time.perf_counter()
-    order = harmonics or (AUTO_HARMONICS if families is None else DEFAULT_HARMONICS)
+    auto = error_model == "auto"
+    order = harmonics or (AUTO_HARMONICS if auto else DEFAULT_HARMONICS)
     plain = _with_terms(model, None)
+    if error_model == "model":
+        union_spec = model.joint_errors
+    else:
+        union_spec = joint_errors_for(plain, FAMILIES if auto else families, order,
+                                      base=model.joint_errors)
+    union = _with_terms(model, union_spec)
+    # 1. the geometry, as `calibrate` identifies it (coefficients held at their values)
     geo = calibrate(plain, data, method, free=free, validate=validate, rank_tol=rank_tol,
                     rotation_weight=rotation_weight, **kwargs)
-    union_families = FAMILIES if families is None else families
-    union = _with_terms(model, joint_errors_for(plain, union_families, order,
-                                                base=model.joint_errors))
     n_geo = plain.n_params
     params = np.r_[geo.params, union.nominal[n_geo:]]
-    coef_names = list(union.parameter_names[n_geo:])
+    coef_names = [n for n in union.parameter_names[n_geo:] if n not in model.fixed_names]
     rw = _rotation_weight(geo, data, rotation_weight)
     analysis = CoefficientAnalysis(union, data, geo.free, coef_names, params, rw)
+    # 2. auto: K-fold cross-validation of every candidate, one-standard-error rule
     table: list[dict] = []
-    chosen_families, chosen_order = union_families, order
-    if families is None:
+    final_spec = union_spec
+    if auto:
         cands = candidates(order)
-        sets, sizes = [], []
-        for _, fam, h in cands:
-            names = [n for n in coef_names if _in_candidate(union, n, fam, h)]
-            ident = analysis.report(names, rank_tol)
-            sets.append(list(geo.free) + ident.identifiable)
-            sizes.append(len(sets[-1]))
+        sets = [list(geo.free) + analysis.report(
+            [n for n in coef_names if _in_candidate(union, n, fam, h)], rank_tol).identifiable
+            for _, fam, h in cands]
+        sizes = [len(s_) for s_ in sets]
         cols = list(geo.free) + coef_names
         pos = {n: i for i, n in enumerate(cols)}
         scores = cross_validate(union, data, params, union.index(cols),
-                                [[pos[n] for n in s] for s in sets], folds, rw)
+                                [[pos[n] for n in s_] for s_ in sets], folds, rw)
         best, pick = one_standard_error(scores, sizes)
         for i, ((label, _, _), sc) in enumerate(zip(cands, scores, strict=True)):
             table.append({"model": label, "parameters": sizes[i],
                           "coefficients": sizes[i] - len(geo.free),
                           "cv_mean": sc.mean, "cv_se": sc.se,
                           "best": i == best, "chosen": i == pick})
-        chosen_families, chosen_order = cands[pick][1], cands[pick][2]
-        if not chosen_families:
+        chosen, chosen_order = cands[pick][1], cands[pick][2]
+        if not chosen:
             geo.seconds = time.perf_counter() - t0
             geo.extra["error_model"] = _choice(error_model, "geometric", folds, table, geo)
             return geo
-    spec = joint_errors_for(plain, chosen_families, chosen_order, base=model.joint_errors)
-    final_model = _with_terms(model, spec)
-    names = [n for n in final_model.parameter_names[n_geo:]]
+        final_spec = joint_errors_for(plain, chosen, chosen_order, base=model.joint_errors)
+    # 3. the chosen model: geometry and identifiable coefficients together
+    final_model = _with_terms(model, final_spec)
+    names = [n for n in final_model.parameter_names[n_geo:] if n not in model.fixed_names]
     ident = analysis.report(names, rank_tol)
-    free_names = list(geo.free) + ident.identifiable
-    res = calibrate(final_model, data, method, free=free_names, validate=validate,
-                    rank_tol=rank_tol, rotation_weight=rotation_weight, **kwargs)
+    res = calibrate(final_model, data, method, free=list(geo.free) + ident.identifiable,
+                    validate=validate, rank_tol=rank_tol, rotation_weight=rotation_weight,
+                    **kwargs)
     res.identifiability = _merged_report(geo.identifiability, ident, res.identifiability)
     res.seconds = time.perf_counter() - t0
-    label = _label(chosen_families, chosen_order)
-    res.extra["error_model"] = _choice(error_model, label, folds if table else None, table,
-                                       geo)
-    res.extra["joint_errors"] = {
-        "terms": list(names),
+    label = (_label(final_spec.families, final_spec.harmonics) if error_model != "model"
+             else "model")
+    res.extra["error_model"] = _choice(error_model, label, folds if auto else None, table, geo)
+    res.extra["joint_errors"] = _terms_entry(res, ident)
+    res.geometric = geo  # type: ignore[attr-defined]  # for the residual maps of reports
+    return res
+
+
+def _terms_entry(res: CalibrationResult, ident: IdentifiabilityReport) -> dict:
+    """The ``joint_errors`` entry of the result JSON: the terms (model-file section, read
+    back by ``kinecal fk --params``), which are identifiable and what the others equal."""
+    from kinecal.io.joint_errors_file import joint_errors_to_file
+
+    nom = res.nominal_model
+    return {
+        "model": joint_errors_to_file(nom, 180.0 / np.pi if nom.angle_unit == "deg" else 1.0),
         "identifiable": ident.identifiable,
         "unidentifiable": ident.unidentifiable,
         "confounded_with": ident.confounded_with,
         "correlated_with": correlated_with(res, ident.identifiable),
     }
-    res.geometric = geo  # type: ignore[attr-defined]  # for residual maps in reports
-    return res
 
 
 def _in_candidate(model: SerialModel, name: str, families: Sequence[str], h: int) -> bool:

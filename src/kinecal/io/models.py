@@ -17,6 +17,7 @@ A model file (see ``docs/file-formats.md``)::
     joint_limits: [[-165, 165], ...]   # optional; prismatic joints in the length unit
     tolerances: {length: 0.25, angle: 0.05}
     fixed: [tool.x]               # optional: parameters held at nominal by default
+    joint_errors: {compliance: all, harmonics: 2}  # optional, kinecal.io.joint_errors_file
 
 A ``urdf`` model's joints are URDF joints: ``{name, type: revolute|continuous|prismatic,
 x, y, z, roll, pitch, yaw, offset, axis: [ax, ay, az]}`` (optional ``parent``/``child``
@@ -30,6 +31,7 @@ path is read by `kinecal.io.urdf.load_urdf`.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Literal
 
@@ -141,6 +143,7 @@ class ModelFile(BaseModel):
     joint_limits: list[tuple[float, float]] | None = None
     tolerances: Tolerances = Tolerances()
     fixed: list[str] = []
+    joint_errors: dict | None = None  # checked by kinecal.io.joint_errors_file
 
     @field_validator("joints")
     @classmethod
@@ -283,12 +286,19 @@ def load_model(name_or_path: str | Path, *, base_link: str | None = None,
         prismatic = np.array([j.get("type") == "prismatic" for j in joints if "frame" not in j])
         limits = limits * np.where(prismatic, 1.0, scale)[:, None]
     try:
-        return SerialModel(
+        model = SerialModel(
             name=spec.name, convention=spec.convention, joints=joints, base=base, tool=tool,
             length_unit=spec.length_unit, angle_unit=spec.angle_unit, joint_limits=limits,
             tolerances={"length": spec.tolerances.length, "angle": spec.tolerances.angle * scale},
-            fixed=tuple(spec.fixed), description=spec.description, markers=spec.markers,
+            fixed=tuple(spec.fixed) if spec.joint_errors is None else (),
+            description=spec.description, markers=spec.markers,
         )
+        if spec.joint_errors is not None:  # coefficients may be named in `fixed`
+            from kinecal.io.joint_errors_file import joint_errors_from_file
+
+            je = joint_errors_from_file(model, spec.joint_errors, scale)
+            model = dataclasses.replace(model, fixed=tuple(spec.fixed), joint_errors=je)
+        return model
     except InputError as exc:
         raise InputError(f"invalid model file: {exc.message}", file=path) from None
 
@@ -325,6 +335,10 @@ def model_to_dict(model: SerialModel, angle_unit: str = "deg") -> dict:
     data["tolerances"] = {"length": float(tol["length"]), "angle": float(tol["angle"] * s)}
     if model.fixed:
         data["fixed"] = sorted(model.fixed)
+    if model.joint_errors is not None:
+        from kinecal.io.joint_errors_file import joint_errors_to_file
+
+        data["joint_errors"] = joint_errors_to_file(model, s)
     return data
 
 
