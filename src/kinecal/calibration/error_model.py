@@ -44,7 +44,8 @@ from kinecal.errors import InputError
 from kinecal.kinematics.joint_errors import FAMILIES, JointErrors, joint_errors_for
 from kinecal.kinematics.serial import SerialModel
 
-__all__ = ["ERROR_MODELS", "calibrate_error_model", "candidates", "parse_error_model"]
+__all__ = ["ERROR_MODELS", "calibrate_error_model", "candidates", "error_model_text",
+           "parse_error_model"]
 
 #: the choices of ``--error-model`` (``+``-joined family lists are accepted as well)
 ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto", "model")
@@ -295,3 +296,41 @@ def _merged_report(geo: IdentifiabilityReport, coef: IdentifiabilityReport,
         singular_values=final.singular_values,
         observability=final.observability,
     )
+
+
+def error_model_text(result: CalibrationResult) -> str:
+    """Plain-text lines on the error model of `result` ("" for a plain calibration): the
+    cross-validation table (``auto``), the step from the geometric calibration and the
+    coefficients that are not identifiable."""
+    info = result.extra.get("error_model")
+    if not info:
+        return ""
+    unit = result.nominal_model.length_unit
+    lines = ["", f"error model: {info['requested']} -> {info['selected']}"]
+    if info.get("candidates"):
+        lines[-1] += (f" ({info['folds']}-fold cross-validation on the calibration poses, "
+                      f"{info['rule']} rule)")
+        lines.append(f"{'candidate':34s} {'params':>6s} {'cv mean':>10s} {'cv se':>9s}")
+        for row in info["candidates"]:
+            mark = ("  <- chosen" if row["chosen"] else "") + ("  (best)" if row["best"] else "")
+            lines.append(f"{row['model']:34s} {row['parameters']:6d} {row['cv_mean']:10.5g} "
+                         f"{row['cv_se']:9.2g}{mark}")
+        lines.append(f"(cv: mean held-out distance error [{unit}])")
+    geo = info.get("geometric", {})
+    if "validation_mean" in geo and result.val_after is not None:
+        lines.append(f"validation mean: geometric {geo['validation_mean']:.4g} {unit} -> "
+                     f"{info['selected']} {float(np.mean(result.val_after)):.4g} {unit}")
+    else:
+        lines.append(f"calibration mean: geometric {geo['calibration_mean']:.4g} {unit} -> "
+                     f"{info['selected']} {float(np.mean(result.errors_after)):.4g} {unit}")
+    terms = result.extra.get("joint_errors")
+    if terms:
+        lines.append(f"joint-error coefficients: {len(terms['identifiable'])} identifiable, "
+                     f"{len(terms['unidentifiable'])} held at nominal")
+        for name in terms["unidentifiable"]:
+            combo = terms["confounded_with"].get(name, {})
+            top = sorted(combo.items(), key=lambda kv: -abs(kv[1]))[:3]
+            what = (", ".join(f"{c:+.3g} {n}" for n, c in top) + (" ..." if len(combo) > 3
+                                                                   else "")) or "no effect"
+            lines.append(f"  {name}: confounded with {what}")
+    return "\n".join(lines)

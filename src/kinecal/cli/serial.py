@@ -35,6 +35,7 @@ def model_for_result(model, path: Path):
     params = data.get("parameters") if isinstance(data, dict) else None
     if not isinstance(params, dict):
         raise InputError("expected a calibration result with a 'parameters' mapping", file=path)
+    model = _with_result_joint_errors(model, data, path)
     return model_for_markers(model, result_markers(params))
 
 
@@ -61,6 +62,25 @@ def parameters_from_result(model, path: Path) -> np.ndarray:
                              file=path) from None
         p[k] = value * scale if angle[k] else value
     return p
+
+
+def _with_result_joint_errors(model, data: dict, path: Path):
+    """`model` with the joint-error terms a calibration result JSON declares (``joint_errors.
+    model``, written by ``--error-model``), so that its parameters fit; else `model`."""
+    section = data.get("joint_errors")
+    if not isinstance(section, dict) or "model" not in section:
+        return model
+    import dataclasses
+
+    from kinecal.io.joint_errors_file import joint_errors_from_file
+
+    plain = dataclasses.replace(model, joint_errors=None)
+    scale = np.pi / 180.0 if model.angle_unit == "deg" else 1.0
+    try:
+        je = joint_errors_from_file(plain, section["model"], scale)
+    except InputError as exc:
+        raise InputError(exc.message, file=path) from None
+    return dataclasses.replace(plain, joint_errors=je)
 
 
 @app.command()
@@ -241,6 +261,13 @@ def calibrate(
     rotation_weight: float | None = typer.Option(
         None, "--rotation-weight", help="With measured orientations: length units per rad of "
         "rotation error (default: the workspace's characteristic length)."),
+    error_model: str | None = typer.Option(
+        None, "--error-model", help="geometric, compliance, harmonic, scale, full, auto "
+        "(chosen by cross-validation on the calibration poses) or families joined by '+' "
+        "(default: the model file's joint_errors, else geometric). See docs/error-models.md."),
+    harmonics: int | None = typer.Option(
+        None, "--harmonics", help="Harmonic order (default 2; auto tries 1..3)."),
+    folds: int = typer.Option(10, "--folds", help="Cross-validation folds (--error-model auto)."),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given)."""
     from kinecal.calibration.serial import CALIBRATION_METHODS
@@ -262,9 +289,16 @@ def calibrate(
     iterative = method not in ("lm",)
     with progress(f"calibrate {m.name} ({method})", maxiter if iterative else None,
                   quiet or json_out) as update:
-        res = run(m, meas, method, free=_free_option(free), validate=val, rng=seed, loss=loss,
-                  maxiter=maxiter, target=target, rotation_weight=rotation_weight,
+        kw = dict(free=_free_option(free), validate=val, rng=seed, loss=loss, maxiter=maxiter,
+                  target=target, rotation_weight=rotation_weight,
                   progress=(lambda it, best: update(1, best)) if iterative else None)
+        if error_model is None and m.joint_errors is None and harmonics is None:
+            res = run(m, meas, method, **kw)
+        else:
+            from kinecal.calibration.error_model import calibrate_error_model
+
+            res = calibrate_error_model(m, meas, error_model or "model", method=method,
+                                        harmonics=harmonics, folds=folds, **kw)
     if out is not None:
         res.to_json(out)
     if model_out is not None:
@@ -274,7 +308,9 @@ def calibrate(
     if json_out:
         echo_json(res.to_dict())
     else:
-        typer.echo(res.summary())
+        from kinecal.calibration.error_model import error_model_text
+
+        typer.echo(res.summary() + error_model_text(res))
 
 
 @app.command("select-poses")

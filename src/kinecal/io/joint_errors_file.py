@@ -28,7 +28,6 @@ from __future__ import annotations
 import dataclasses
 from typing import Literal
 
-import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from kinecal.errors import InputError
@@ -163,8 +162,9 @@ def joint_errors_from_file(model: SerialModel, raw: object, angle_scale: float) 
 def joint_errors_to_file(model: SerialModel, angle_scale: float) -> dict:
     """The ``joint_errors`` mapping of `model` (angles times `angle_scale`, rad to file).
 
-    Every coefficient's value is written (zeros included); ``reference`` only where the
-    gravity forces' geometry differs from the model's own.
+    Every coefficient's value is written (zeros included); ``reference`` only with
+    compliance terms whose gravity forces are computed on another geometry than the
+    model's own (a calibrated model: the geometry it was calibrated from).
     """
     je = model.joint_errors
     terms = model._joint_terms
@@ -190,7 +190,7 @@ def joint_errors_to_file(model: SerialModel, angle_scale: float) -> dict:
                      for k, n in enumerate(terms.names)}
     own = dict(zip(model.parameter_names[:n_geo], nominal[:n_geo].tolist(), strict=True))
     ref = terms.reference
-    if any(not np.isclose(ref[k], own[k], rtol=0, atol=0) for k in ref):
+    if je.compliance and any(ref[k] != own[k] for k in ref):
         out["reference"] = {k: float(v * (angle_scale if angle[model.index([k])[0]] else 1.0))
                             for k, v in ref.items() if not k.startswith("base.")}
     return out

@@ -1,0 +1,267 @@
+"""Error models: recovery of joint-error truths, cross-validated choice, files, CLI."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import kinecal
+from kinecal.calibration.cross_validation import (
+    CVScore,
+    cross_validate,
+    fold_of,
+    one_standard_error,
+)
+from kinecal.calibration.error_model import calibrate_error_model, parse_error_model
+from kinecal.calibration.serial import calibrate
+from kinecal.calibration.simulate import random_configurations, simulate
+from kinecal.cli import app
+from kinecal.data import Measurements
+from kinecal.errors import InputError
+from kinecal.io.models import load_model, save_model
+from kinecal.kinematics.joint_errors import joint_errors_for
+
+FAMILIES = ("compliance", "harmonic")
+
+
+def extended(model, families=FAMILIES, harmonics=2):
+    return dataclasses.replace(model, joint_errors=joint_errors_for(model, families, harmonics))
+
+
+def truth_for(model, free, rng, deflection=2e-4):
+    """A true error vector on the `free` parameters: geometry within a tenth of the
+    tolerances, each coefficient turning its joint by ~`deflection` rad (RMS)."""
+    q = random_configurations(model, 500, np.random.default_rng(99))
+    W = model._joint_terms.basis(q)
+    rms = np.sqrt((W ** 2).mean(axis=0))
+    e = np.zeros(model.n_params)
+    n_geo = model._n_geometric
+    angle = model.is_angle()
+    for k in model.index(free):
+        if k < n_geo:
+            e[k] = rng.uniform(-1, 1) * (0.002 if angle[k] else 0.1)
+        else:
+            e[k] = rng.uniform(-1, 1) * deflection / rms[k - n_geo]
+    return e
+
+
+@pytest.fixture(scope="module")
+def ur5():
+    return load_model("ur5")
+
+
+@pytest.fixture(scope="module")
+def identifiable(ur5):
+    """Free parameters of compliance + harmonic2 on 150 random UR5 poses."""
+    model = extended(ur5)
+    sim = simulate(model, 150, errors="zero", rng=1)
+    res = calibrate_error_model(ur5, sim.data, "compliance+harmonic", harmonics=2)
+    return res.free
+
+
+def test_noise_free_recovery_of_every_coefficient(ur5, identifiable):
+    model = extended(ur5)
+    e = truth_for(model, identifiable, np.random.default_rng(2))
+    sim = simulate(model, 150, errors=e, rng=1)
+    res = calibrate_error_model(ur5, sim.data, "compliance+harmonic", harmonics=2)
+    assert res.free == identifiable
+    n_geo = ur5.n_params
+    coef = res.nominal_model.index([n for n in res.free if res.nominal_model.index([n])[0]
+                                    >= n_geo])
+    assert coef.size > 20  # compliance and harmonics on several joints
+    # every coefficient to 1e-9: a joint deflection error below 1e-9 rad
+    W = model._joint_terms.basis(sim.data.q)
+    rms = np.sqrt((W ** 2).mean(axis=0))[coef - n_geo]
+    err = np.abs(res.params[coef] - sim.true_params[coef]) * rms
+    assert err.max() < 1e-9, dict(zip(np.array(model.parameter_names)[coef], err, strict=True))
+    geo = np.abs(res.params[:n_geo] - sim.true_params[:n_geo]).max()
+    assert geo < 1e-8
+    assert res.errors_after.max() < 1e-9
+
+
+def test_noisy_recovery_within_three_standard_errors(ur5, identifiable):
+    model = extended(ur5)
+    e = truth_for(model, identifiable, np.random.default_rng(3))
+    sim = simulate(model, 400, errors=e, noise=0.02, rng=4)
+    res = calibrate_error_model(ur5, sim.data, "compliance+harmonic", harmonics=2)
+    idx = res.nominal_model.index(res.free)
+    z = (res.params[idx] - sim.true_params[idx]) / res.std[idx]
+    assert np.abs(z).max() < 3.0, dict(zip(res.free, np.round(z, 2), strict=True))
+    assert 0.017 < res.sigma < 0.023  # the noise level, not model error
+
+
+def test_auto_keeps_geometry_when_the_truth_is_geometric(ur5):
+    truth = simulate(ur5, 300, errors="random", noise=0.02, rng=5)
+    val = simulate(ur5, 200, errors=truth.true_params - ur5.nominal, noise=0.0, rng=6).data
+    geo = calibrate(ur5, truth.data, validate=val)
+    auto = calibrate_error_model(ur5, truth.data, "auto", validate=val)
+    selected = auto.extra["error_model"]["selected"]
+    assert selected == "geometric" or auto.val_after.mean() <= 1.02 * geo.val_after.mean()
+    table = auto.extra["error_model"]["candidates"]
+    assert len(table) == 16 and sum(r["chosen"] for r in table) == 1
+    assert table[0]["model"] == "geometric"
+
+
+def test_auto_finds_harmonics_and_beats_geometry(ur5):
+    model = extended(ur5, ("harmonic",), 1)
+    e = np.zeros(model.n_params)
+    e[model.index(["dq2.sin1", "dq3.cos1", "dq4.sin1"])] = [3e-4, -2e-4, 4e-4]
+    e[:ur5.n_params] = simulate(ur5, 1, errors="random", rng=7).true_params - ur5.nominal
+    sim = simulate(model, 300, errors=e, noise=0.01, rng=8)
+    val = simulate(model, 100, errors=e, rng=9).data
+    geo = calibrate(ur5, sim.data, validate=val)
+    auto = calibrate_error_model(ur5, sim.data, "auto", validate=val)
+    assert "harmonic" in auto.extra["error_model"]["selected"]
+    assert auto.val_after.mean() < 0.5 * geo.val_after.mean()
+    # the validation poses were never seen: the same choice without them
+    blind = calibrate_error_model(ur5, sim.data, "auto")
+    assert blind.extra["error_model"]["candidates"] == auto.extra["error_model"]["candidates"]
+
+
+def test_linearised_cross_validation_equals_refits(ur5):
+    """The Gauss-Newton training step reproduces full refits of each fold."""
+    model = extended(ur5, ("harmonic",), 1)
+    e = np.zeros(model.n_params)
+    e[model.index(["dq2.cos1", "dq3.sin1"])] = [2e-4, -3e-4]
+    sim = simulate(model, 120, errors=e, noise=0.01, rng=10)
+    geo = calibrate(ur5, sim.data)
+    names = list(geo.free) + ["dq2.cos1", "dq2.sin1", "dq3.sin1", "dq3.cos1"]
+    params = np.r_[geo.params, np.zeros(model.n_params - ur5.n_params)]
+    cols = model.index(names)
+    scores = cross_validate(model, sim.data, params, cols,
+                            [list(range(len(geo.free))), list(range(len(names)))], k=5)
+    folds = fold_of(len(sim.data), 5)
+    for score, free in zip(scores, [list(geo.free), names], strict=True):
+        held = np.zeros(len(sim.data))
+        for f in range(5):
+            train, test = np.flatnonzero(folds != f), np.flatnonzero(folds == f)
+            fit = calibrate(model, sim.data.subset(train), free=free)
+            held[test] = np.linalg.norm(model.positions(sim.data.q[test], fit.params)
+                                        - sim.data.xyz[test], axis=1)
+        assert score.mean == pytest.approx(held.mean(), rel=1e-6)
+    assert scores[1].mean < scores[0].mean
+
+
+def test_folds_and_one_standard_error_rule():
+    f = fold_of(103, 10)
+    assert np.array_equal(f, fold_of(103, 10))
+    counts = np.bincount(f)
+    assert counts.size == 10 and counts.max() - counts.min() <= 1
+    with pytest.raises(InputError):
+        fold_of(5, 10)
+    scores = [CVScore(1.00, 0.02, np.zeros(3)), CVScore(0.95, 0.02, np.zeros(3)),
+              CVScore(0.90, 0.03, np.zeros(3)), CVScore(0.91, 0.01, np.zeros(3))]
+    best, chosen = one_standard_error(scores, [10, 20, 40, 30])
+    assert (best, chosen) == (2, 3)  # 0.91 <= 0.90 + 0.03 with fewer parameters
+    assert one_standard_error(scores, [10, 20, 30, 40]) == (2, 2)
+
+
+def test_geometric_error_model_is_calibrate_bit_for_bit(ur5):
+    sim = simulate(ur5, 60, errors="random", noise=0.01, rng=11)
+    a = calibrate(ur5, sim.data)
+    b = calibrate_error_model(ur5, sim.data, "geometric")
+    np.testing.assert_array_equal(a.params, b.params)
+    assert a.free == b.free and "error_model" not in b.extra
+
+
+def test_confounded_coefficients_are_named(ur5):
+    """A joint that never moves: its harmonics and scale are its theta offset."""
+    rng = np.random.default_rng(12)
+    q = random_configurations(ur5, 100, rng)
+    q[:, 3] = 0.7
+    data = Measurements(q, ur5.positions(q))
+    res = calibrate_error_model(ur5, data, "harmonic+scale", harmonics=1)
+    je = res.extra["joint_errors"]
+    assert {"dq4.sin1", "dq4.cos1", "dq4.scale"} <= set(je["unidentifiable"])
+    combo = je["confounded_with"]["dq4.cos1"]
+    assert combo == pytest.approx({"theta4": np.cos(0.7)}, rel=1e-6)
+    assert je["confounded_with"]["dq4.scale"] == pytest.approx({"theta4": 0.7}, rel=1e-6)
+    assert "dq4.cos1" in res.identifiability.unidentifiable
+    # the vertical first joint: gravity never loads it
+    comp = calibrate_error_model(ur5, data, "compliance")
+    dq1 = [n for n in comp.extra["joint_errors"]["unidentifiable"]
+           if n.startswith("dq1.compliance")]
+    assert len(dq1) == 7 and all(not comp.extra["joint_errors"]["confounded_with"][n]
+                                 or max(map(abs, comp.extra["joint_errors"]["confounded_with"]
+                                            [n].values())) < 1e-6 for n in dq1)
+
+
+def test_model_file_round_trip_and_fk_params(ur5, tmp_path):
+    model = extended(ur5, ("compliance", "harmonic", "scale"), 1)
+    e = truth_for(model, list(model.calibratable), np.random.default_rng(13), 1e-4)
+    sim = simulate(model, 200, errors=e, noise=0.005, rng=14)
+    res = calibrate_error_model(ur5, sim.data, "full", harmonics=1)
+    path = tmp_path / "cal.yaml"
+    res.save_model(path)
+    back = load_model(path)
+    q = random_configurations(ur5, 30, np.random.default_rng(15))
+    np.testing.assert_allclose(back.fk(q), res.nominal_model.fk(q, res.params), atol=1e-9)
+    assert back.parameter_names == res.nominal_model.parameter_names
+    text = path.read_text()
+    assert "joint_errors:" in text and "reference:" in text
+    # a model file read, written and read again stays the same
+    save_model(back, tmp_path / "again.yaml")
+    np.testing.assert_array_equal(load_model(tmp_path / "again.yaml").nominal, back.nominal)
+    # kinecal fk --params RESULT.json rebuilds the terms from the result
+    out = tmp_path / "r.json"
+    res.to_json(out)
+    joints = tmp_path / "q.csv"
+    deg = np.degrees(q)
+    joints.write_text("q1,q2,q3,q4,q5,q6\n" + "\n".join(",".join(f"{v:.17g}" for v in row)
+                                                      for row in deg) + "\n")
+    run = CliRunner().invoke(app, ["fk", "ur5", str(joints), "--params", str(out)])
+    assert run.exit_code == 0, run.output
+    xyz = np.loadtxt(run.output.splitlines()[1:], delimiter=",")
+    np.testing.assert_allclose(xyz, back.positions(q), atol=1e-6)
+    run = CliRunner().invoke(app, ["fk", str(path), str(joints)])
+    assert run.exit_code == 0
+    np.testing.assert_allclose(np.loadtxt(run.output.splitlines()[1:], delimiter=","),
+                               back.positions(q), atol=1e-6)
+
+
+def test_bad_model_file_sections(tmp_path):
+    base = (kinecal.io.models.model_path("ur5")).read_text()
+    for section, match in [("joint_errors: {harmonics: -1}", "harmonics"),
+                           ("joint_errors: {compliance: [9]}", "joints 1..6"),
+                           ("joint_errors: {values: {dq2.sin1: 1}}", "not a term"),
+                           ("joint_errors: {gravity: [0, 0, 0]}", "gravity"),
+                           ("joint_errors: {typo: 1}", "typo")]:
+        path = tmp_path / "m.yaml"
+        path.write_text(base + section + "\n")
+        with pytest.raises(InputError, match=match):
+            load_model(path)
+
+
+def test_cli_error_model(tmp_path):
+    runner = CliRunner()
+    out = tmp_path / "r.json"
+    run = runner.invoke(app, ["calibrate", "ur5", "ur5-laser-tracker:grid", "--validate",
+                              "ur5-laser-tracker:random", "--error-model", "auto", "--out",
+                              str(out)])
+    assert run.exit_code == 0, run.output
+    assert "cross-validation" in run.output and "<- chosen" in run.output
+    data = json.loads(out.read_text())
+    em = data["error_model"]
+    assert em["requested"] == "auto" and len(em["candidates"]) == 16
+    chosen = [r for r in em["candidates"] if r["chosen"]][0]
+    assert chosen["model"] == em["selected"]
+    # the bundled real data: the held-out mean below the geometric calibration's
+    assert data["validation"]["after"]["mean"] <= 0.090
+    assert em["geometric"]["validation_mean"] > 0.1
+    assert any(k.startswith("dq") for k in data["parameters"])
+    for args, option in [(["--error-model", "wobble"], "--error-model"),
+                         (["--error-model", "harmonic", "--harmonics", "0"], "--harmonics"),
+                         (["--error-model", "harmonic", "--method", "pso"], "--method")]:
+        run = runner.invoke(app, ["calibrate", "ur5", "ur5-laser-tracker:random", *args])
+        assert run.exit_code == 2 and option in run.output, run.output
+
+
+def test_parse_error_model():
+    assert parse_error_model("geometric") == ()
+    assert parse_error_model("full") == ("compliance", "harmonic", "scale")
+    assert parse_error_model("scale+harmonic") == ("harmonic", "scale")
+    assert parse_error_model("auto") is None
+    with pytest.raises(InputError):
+        parse_error_model("harmonic+gears")
