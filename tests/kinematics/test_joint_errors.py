@@ -159,11 +159,15 @@ def test_gravity_forces_are_derivatives_of_the_potential():
             sub = truncated(ur5, m)
             plus, minus = sub.positions((q + e)[:, :m]), sub.positions((q - e)[:, :m])
         dV = (plus - minus) @ g / 2e-6
-        np.testing.assert_allclose(W[:, k], dV, rtol=0, atol=1e-6, err_msg=name)
+        lever = model._joint_terms.lever  # forces per lever: coefficients are angles
+        np.testing.assert_allclose(W[:, k] * lever, dV, rtol=0, atol=1e-6, err_msg=name)
     # joint 1 of the UR5 is vertical: no torque with gravity along -z
     flat = with_terms(ur5, harmonics=0, gravity=(0, 0, -1))
     cols = [k for k, n in enumerate(flat._joint_terms.names) if n.startswith("dq1.compliance")]
-    assert np.abs(flat._joint_terms.basis(q)[:, cols]).max() < 1e-9
+    assert np.abs(flat._joint_terms.basis(q)[:, cols]).max() < 1e-12
+    # the lever: the UR5's translations summed (d1, a2, a3, d4, d5, d6 and the tool)
+    assert model._joint_terms.lever == pytest.approx(89.159 + 425 + 392.25 + 109.15 + 94.65
+                                                     + 82.3 + 0.07 + 31.0)
 
 
 def test_compliance_sags_along_gravity():
@@ -175,7 +179,7 @@ def test_compliance_sags_along_gravity():
     g = np.asarray(model.joint_errors.gravity)
     for j in (2, 3, 4):
         p = model.nominal.copy()
-        p[model.index([f"dq{j}.compliance.tool"])] = 1e-6
+        p[model.index([f"dq{j}.compliance.tool"])] = 1e-4
         sag = (model.positions(q, p) - model.positions(q)) @ g
         assert sag.min() > -1e-9 and sag.max() > 1e-3
 

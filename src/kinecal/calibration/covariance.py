@@ -31,10 +31,16 @@ def parameter_covariance(normal: Array, rss: float, dof: int) -> tuple[Array, fl
     Returns
     -------
     cov : ndarray, shape (k, k)
-        ``sigma^2 pinv(J^T W J)`` with ``sigma^2 = rss / dof`` (parameter units squared).
+        ``sigma^2 pinv(J^T W J)`` with ``sigma^2 = rss / dof`` (parameter units squared),
+        the pseudo-inverse taken on the unit-diagonal (equilibrated) matrix.
     sigma : float
         Standard deviation of unit weight (NaN without degrees of freedom).
     """
     sigma2 = float(rss) / dof if dof > 0 else float("nan")
-    cov = sigma2 * np.linalg.pinv(np.asarray(normal, dtype=float))
+    A = np.asarray(normal, dtype=float)
+    # equilibrated: the pseudo-inverse's cut-off must not depend on the parameters' units
+    # (a coefficient whose unit moves the tool by 1e-6 mm next to lengths in mm)
+    d = np.sqrt(np.clip(np.diag(A), 0.0, None)) if A.size else np.ones(0)
+    d = np.where(d > 0, d, 1.0)
+    cov = sigma2 * np.linalg.pinv(A / np.outer(d, d)) / np.outer(d, d)
     return cov, float(np.sqrt(sigma2))

@@ -6,14 +6,17 @@ Industrial calibration packages model both on top of the geometry. kinecal adds 
 corrections of the joint readings before the chain is composed, so the chain and its
 analytic Jacobian stay as they are and every term enters through the chain rule:
 
-* **gravity compliance** (family ``compliance``): ``dq_j = sum_m c_jm tau_jm(q)``, the
-  generalised gravity force of a point mass ``m`` on joint ``j``
-  (`kinecal.kinematics.gravity`), computed on the nominal kinematics. With a mass model
-  (link masses and centres of mass, a payload) there is one coefficient per joint,
-  ``dq_j = c_j sum_m mass_m tau_jm``, named ``dq{j}.compliance``; without one, a generic
-  basis of unit point masses at the link frames (end of each joint's entry) and the tool
-  point, one coefficient per (joint, mass): ``dq{j}.compliance.link{k}``,
-  ``dq{j}.compliance.tool``. Units: angle per (mass x length) for revolute joints.
+* **gravity compliance** (family ``compliance``): ``dq_j = sum_m c_jm tau_jm(q) / R``,
+  the generalised gravity force of a point mass ``m`` on joint ``j``
+  (`kinecal.kinematics.gravity`), computed on the nominal kinematics, per lever ``R`` (the
+  sum of the chain's translations, a bound of its reach; `JointErrorTerms.lever`). With
+  a mass model (link masses and centres of mass, a payload) there is one coefficient per
+  joint, ``dq_j = c_j sum_m mass_m tau_jm / R``, named ``dq{j}.compliance``; without one,
+  a generic basis of unit point masses at the link frames (end of each joint's entry) and
+  the tool point, one coefficient per (joint, mass): ``dq{j}.compliance.link{k}``,
+  ``dq{j}.compliance.tool``. A revolute joint's coefficient is an angle: its deflection
+  under a unit mass (mass model: its masses) at lever ``R``, i.e. ``c = g R / k`` for a
+  joint stiffness ``k``. A prismatic joint's is a length per unit mass.
 * **harmonic transmission errors** (family ``harmonic``, revolute joints): ``dq_j = sum_h
   a_jh sin(h q_j) + b_jh cos(h q_j)`` for ``h = 1..H``, named ``dq{j}.sin{h}``,
   ``dq{j}.cos{h}`` (angles).
@@ -44,7 +47,7 @@ from numpy.typing import NDArray
 
 from kinecal.errors import InputError
 from kinecal.kinematics.gravity import LoadPoint, chain_frames, gravity_forces
-from kinecal.kinematics.motions import PRISMATIC
+from kinecal.kinematics.motions import PRISMATIC, TRANSLATION
 
 if TYPE_CHECKING:
     from kinecal.kinematics.serial import SerialModel
@@ -242,6 +245,11 @@ class JointErrorTerms:
             ref.update({k: float(v) for k, v in spec.reference.items()})
         self.reference = ref
         self._ref_vector = np.array([ref[k] for k in geo_names])
+        # lever of the gravity forces: the chain's translations summed (a bound of the reach)
+        lever = sum(abs(ref[m.name]) for m, owner in zip(model.motions, self._owners,
+                                                          strict=True)
+                    if owner != "base" and m.kind == TRANSLATION and m.joint is None)
+        self.lever = float(lever) if lever > 0 else 1.0
         self._check_joints(spec)
         self._groups: list[tuple[int, int]] = []  # mass model: pairs summed per term
         self._loads, self._pairs, terms = self._gravity_terms(spec)
@@ -344,6 +352,11 @@ class JointErrorTerms:
         g = np.asarray(self.spec.gravity)
         raw_pairs = [(j, points[m]) for j, m in self._pairs]
         tau, dtau = gravity_forces(fr, self.kinds, g, raw_pairs, derivatives)
+        # torques per lever (revolute joints): compliance coefficients are then angles
+        per = np.array([1.0 if self.kinds[j] == PRISMATIC else 1.0 / self.lever
+                        for j, _ in self._pairs])
+        tau = tau * per
+        dtau = None if dtau is None else dtau * per[:, None]
         if self.spec.masses is None:
             return tau, dtau
         # mass model: one column per joint, the sum over the masses that load it
@@ -445,6 +458,11 @@ class JointErrorTerms:
         unit of the geometric length parameters (`kinecal.calibration.problem.column_scale`).
         """
         rms = np.sqrt(np.mean(np.square(self.basis(q)), axis=0)) if len(q) else np.ones(self.n)
-        rms = np.where(rms > 0, rms, 1.0)
+        # a basis that is zero but for round-off (a mass on its joint's axis) must stay
+        # negligible: no rms below 1e-6 of its family's largest
+        fam = np.array(self.families)
+        for f in set(self.families):
+            top = rms[fam == f].max()
+            rms[fam == f] = np.maximum(rms[fam == f], 1e-6 * top if top > 0 else 1.0)
         revolute = np.array([self.kinds[j] != PRISMATIC for j in self.joint_of], dtype=bool)
         return np.where(revolute, 1.0 / length, 1.0) / rms
