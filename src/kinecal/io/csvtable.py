@@ -1,9 +1,27 @@
-"""Strict numeric CSV tables: named columns, every cell a finite number, row numbers in errors."""
+"""Strict numeric CSV tables: named columns, every cell a finite number, row numbers in errors.
+
+Reading runs at C speed: numpy's `loadtxt` parser reads the whole file in one call and the
+checks (field count, finite values) are vectorised; a 200 MB table of 2.5 million rows
+reads in a few seconds and about twice its binary size in memory. Only when that fast
+pass fails (a bad cell, a wrong field count, NaN, or a cell that Python's ``float``
+accepts but numpy's parser does not, such as ``1_000`` or a blank line of spaces) is the
+file read again in blocks of lines: each block first by the C parser, and a block that
+fails cell by cell, which finds the first bad cell and reports its file, data row and
+column exactly as a cell-by-cell reader would.
+
+A table may hold text columns beside the numeric ones (a marker name per row):
+`read_table` ignores them unless asked for, and `read_column` returns one of them.
+
+Writing formats the floats in bulk (shortest round-trip representation, like ``repr``)
+a block of rows at a time.
+"""
 
 from __future__ import annotations
 
 import csv
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterable, Sequence
+from itertools import islice
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +31,11 @@ from kinecal._files import atomic_open
 from kinecal.errors import InputError
 
 __all__ = ["read_column", "read_table", "write_table"]
+
+#: lines per block of the checked (second) reading pass
+BLOCK_LINES = 65536
+#: rows per block of the writer
+WRITE_ROWS = 16384
 
 
 def read_table(
@@ -46,17 +69,7 @@ def read_table(
         1-based data row and column), or fewer than `min_rows` rows.
     """
     path = Path(path)
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            rows = list(csv.reader(fh))
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"cannot read CSV: {exc}", file=path) from None
-    rows = [r for r in rows if r and any(c.strip() for c in r)]
-    if not rows:
-        raise InputError(f"empty file; expected a header with {', '.join(required)}", file=path)
-    header = [h.strip() for h in rows[0]]
+    header, skip = _header(path, required)
     missing = [c for c in required if c not in header]
     if missing:
         raise InputError(
@@ -66,28 +79,145 @@ def read_table(
         )
     wanted = list(required) + [c for c in optional if c in header]
     cols = [header.index(c) for c in wanted]
-    data = np.empty((len(rows) - 1, len(wanted)))
-    for r, row in enumerate(rows[1:], start=1):
-        if len(row) != len(header):
-            raise InputError(
-                f"{len(row)} fields, expected {len(header)} as in the header", file=path, row=r
-            )
-        for k, c in enumerate(cols):
-            cell = row[c].strip()
-            try:
-                value = float(cell)
-            except ValueError:
-                raise InputError(
-                    f"column {wanted[k]}: {cell!r} is not a number", file=path, row=r
-                ) from None
-            if not np.isfinite(value):
-                raise InputError(
-                    f"column {wanted[k]}: {cell!r}, expected a finite number", file=path, row=r
-                )
-            data[r - 1, k] = value
+    data = _read_fast(path, skip, len(header), cols)
+    if data is None:
+        data = _read_checked(path, skip, header, wanted, cols)
     if data.shape[0] < min_rows:
         raise InputError(f"{data.shape[0]} data rows, expected at least {min_rows}", file=path)
     return {name: data[:, k] for k, name in enumerate(wanted)}
+
+
+def _open(path: Path):
+    try:
+        return open(path, newline="", encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise InputError("file not found", file=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read CSV: {exc}", file=path) from None
+
+
+def _header(path: Path, required: Sequence[str]) -> tuple[list[str], int]:
+    """The header cells and the number of lines up to and including the header line."""
+    with _open(path) as fh:
+        try:
+            for n, line in enumerate(fh, start=1):
+                row = next(csv.reader([line]), [])
+                if row and any(c.strip() for c in row):
+                    return [h.strip() for h in row], n
+        except (OSError, UnicodeDecodeError, csv.Error) as exc:
+            raise InputError(f"cannot read CSV: {exc}", file=path) from None
+    raise InputError(f"empty file; expected a header with {', '.join(required)}", file=path)
+
+
+def _parse(lines, skip: int = 0, usecols: list[int] | None = None) -> NDArray[np.float64]:
+    """numpy's C parser on a file or a list of lines; ValueError (or another exception)
+    on anything it does not read."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # "input contained no data"
+        return np.loadtxt(lines, dtype=float, delimiter=",", comments=None, quotechar='"',
+                          skiprows=skip, ndmin=2, encoding="utf-8", usecols=usecols)
+
+
+def _accept(a: NDArray[np.float64], n_fields: int, cols: list[int]) -> bool:
+    """Every row has the header's field count and finite values in the wanted columns."""
+    if a.shape[0] == 0:
+        return True
+    if a.shape[1] != n_fields:
+        return False
+    if len(set(cols)) == n_fields:
+        return bool(np.isfinite(a).all())
+    return all(np.isfinite(a[:, c]).all() for c in cols)
+
+
+def _columns(a: NDArray[np.float64], cols: list[int]) -> NDArray[np.float64]:
+    """The wanted columns of a parsed block (no copy when they are all, in order)."""
+    if a.shape[0] == 0:
+        return np.empty((0, len(cols)))
+    return a if cols == list(range(a.shape[1])) else a[:, cols]
+
+
+def _read_fast(path: Path, skip: int, n_fields: int, cols: list[int]
+               ) -> NDArray[np.float64] | None:
+    """The wanted columns ``(N, k)`` by one C-parser pass over the file, or None when the
+    file needs the checked pass (any doubt at all)."""
+    try:
+        a = _parse(path, skip)
+    except Exception:  # any failure: the checked pass explains it
+        return None
+    return _columns(a, cols) if _accept(a, n_fields, cols) else None
+
+
+def _read_checked(path: Path, skip: int, header: list[str], wanted: list[str],
+                  cols: list[int]) -> NDArray[np.float64]:
+    """The wanted columns ``(N, k)``, block by block; a block the C parser does not
+    accept is read cell by cell, which raises `InputError` at the first bad cell."""
+    blocks = []
+    row = 0  # data rows before the current block
+    with _open(path) as fh:
+        try:
+            for _ in range(skip):
+                next(fh)
+            while lines := list(islice(fh, BLOCK_LINES)):
+                b = _block(lines, len(header), cols)
+                if b is None:  # cell by cell: raises at the first bad cell
+                    b = _cells(lines, row, header, wanted, cols, path)
+                blocks.append(b)
+                row += b.shape[0]
+        except (OSError, UnicodeDecodeError, csv.Error) as exc:
+            raise InputError(f"cannot read CSV: {exc}", file=path) from None
+    return np.concatenate(blocks) if blocks else np.empty((0, len(wanted)))
+
+
+def _block(lines: list[str], n_fields: int, cols: list[int]) -> NDArray[np.float64] | None:
+    """The wanted columns of a block of lines by the C parser, or None.
+
+    All columns first (the parser then checks every row's field count); when that fails
+    and the header has columns that are not wanted (text, say), only the wanted ones,
+    after counting every line's fields (no quotes, whose commas would not separate).
+    """
+    try:
+        a = _parse(lines)
+        if _accept(a, n_fields, cols):
+            return _columns(a, cols)
+    except Exception:  # try the wanted columns alone, or the cell-by-cell reading
+        pass
+    if len(set(cols)) == n_fields or any('"' in line for line in lines):
+        return None
+    if any(line.count(",") != n_fields - 1 for line in lines if line.strip()):
+        return None
+    try:
+        a = _parse(lines, usecols=cols)
+    except Exception:  # the cell-by-cell reading explains it
+        return None
+    return a if a.shape[0] and np.isfinite(a).all() else None
+
+
+def _cells(lines: Iterable[str], row: int, header: list[str], wanted: list[str],
+           cols: list[int], path: Path) -> NDArray[np.float64]:
+    """Cell-by-cell reading of a block: blank rows skipped, Python's ``float`` per cell."""
+    out = []
+    for fields in csv.reader(lines):
+        if not fields or not any(c.strip() for c in fields):
+            continue
+        row += 1
+        if len(fields) != len(header):
+            raise InputError(
+                f"{len(fields)} fields, expected {len(header)} as in the header", file=path,
+                row=row)
+        values = []
+        for name, c in zip(wanted, cols, strict=True):
+            cell = fields[c].strip()
+            try:
+                value = float(cell)
+            except ValueError:
+                raise InputError(f"column {name}: {cell!r} is not a number", file=path,
+                                 row=row) from None
+            if not np.isfinite(value):
+                raise InputError(f"column {name}: {cell!r}, expected a finite number",
+                                 file=path, row=row)
+            values.append(value)
+        out.append(values)
+    return np.array(out, dtype=float).reshape(-1, len(wanted))
 
 
 def read_column(path: str | Path, name: str) -> list[str] | None:
@@ -95,35 +225,50 @@ def read_column(path: str | Path, name: str) -> list[str] | None:
     `read_table` counts rows), or None when the header has no such column."""
     path = Path(path)
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"cannot read CSV: {exc}", file=path) from None
-    header = [h.strip() for h in rows[0]] if rows else []
+        header, skip = _header(path, [name])
+    except InputError as exc:
+        if exc.message.startswith("empty file"):
+            return None
+        raise
     if name not in header:
         return None
     k = header.index(name)
     out = []
-    for r, row in enumerate(rows[1:], start=1):
-        if len(row) != len(header):
-            raise InputError(f"{len(row)} fields, expected {len(header)} as in the header",
-                             file=path, row=r)
-        out.append(row[k].strip())
+    with _open(path) as fh:
+        try:
+            for _ in range(skip):
+                next(fh)
+            for r, row in enumerate((f for f in csv.reader(fh)
+                                     if f and any(c.strip() for c in f)), start=1):
+                if len(row) != len(header):
+                    raise InputError(f"{len(row)} fields, expected {len(header)} as in the "
+                                     "header", file=path, row=r)
+                out.append(row[k].strip())
+        except (OSError, UnicodeDecodeError, csv.Error) as exc:
+            raise InputError(f"cannot read CSV: {exc}", file=path) from None
     return out
 
 
 def write_table(path: str | Path, columns: dict[str, NDArray]) -> None:
     """Write equal-length columns as CSV with a header, atomically: numbers with full float
-    precision, text columns (names without commas or quotes) as they are."""
+    precision, text columns (names without commas or quotes) as they are.
+
+    Each number is written in its shortest form that reads back to the same float (as
+    ``repr``), formatted in bulk a block of rows at a time.
+    """
     names = list(columns)
-    cols = []
-    for n in names:
-        c = np.asarray(columns[n])
-        cols.append([str(v) for v in c] if c.dtype.kind in "USO"
-                    else [repr(float(v)) for v in c.astype(float)])
+    arrays = [np.asarray(columns[n]) for n in names]
+    text = [a.dtype.kind in "USO" for a in arrays]
     with atomic_open(path, "w") as fh:
         fh.write(",".join(names) + "\n")
-        for row in zip(*cols, strict=True):
+        if not any(text):
+            data = np.column_stack([a.astype(float) for a in arrays])
+            for s in range(0, data.shape[0], WRITE_ROWS):
+                block = data[s:s + WRITE_ROWS].tolist()
+                # the list's repr formats every float like repr() in C, in one call
+                fh.write(str(block)[2:-2].replace("], [", "\n").replace(", ", ",") + "\n")
+            return
+        cells = [[str(v) for v in a] if t else [repr(float(v)) for v in a.astype(float)]
+                 for a, t in zip(arrays, text, strict=True)]
+        for row in zip(*cells, strict=True):
             fh.write(",".join(row) + "\n")

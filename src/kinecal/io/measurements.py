@@ -101,7 +101,9 @@ def read_joints(path: str | Path, model: SerialModel) -> NDArray[np.float64]:
         return read_measurements(path, model).q
     names = [f"q{i}" for i in range(1, model.n_joints + 1)]
     cols = read_table(path, names)
-    return np.column_stack([cols[n] for n in names]) * model.joint_scale()
+    q = np.column_stack([cols[n] for n in names])
+    q *= model.joint_scale()
+    return q
 
 
 def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
@@ -121,7 +123,8 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
         if f"joint_{n + 1}" in header:
             raise InputError(f"more joint columns than the model's {n} joints", file=path)
         cols = read_table(path, joints + ["x_t", "y_t", "z_t", "x_dif", "y_dif", "z_dif"])
-        q = np.column_stack([cols[c] for c in joints]) * model.joint_scale("deg")
+        q = np.column_stack([cols[c] for c in joints])
+        q *= model.joint_scale("deg")
         xyz = np.column_stack([cols[f"{a}_t"] + cols[f"{a}_dif"] for a in "xyz"])
         return Measurements(q, xyz, None, str(path))
     qcols = [c for c in header if c.startswith("q") and c[1:].isdigit()]
@@ -141,7 +144,8 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
             file=path,
         )
     cols = read_table(path, joints + ["x", "y", "z"], optional=["weight", *quat])
-    q = np.column_stack([cols[c] for c in joints]) * scale
+    q = np.column_stack([cols[c] for c in joints])
+    q *= scale
     xyz = np.column_stack([cols[c] for c in "xyz"])
     weights = cols.get("weight")
     if weights is not None and not (weights > 0).all():
