@@ -1,0 +1,242 @@
+"""The Levenberg-Marquardt iterations behind `kinecal.kinematics.ik.solve_ik`.
+
+Batch layout: every array has the targets first; an iteration works on the targets still
+active (index array), with a damping factor, a step acceptance and a stopping decision
+per target. Only the model's public kinematics is used (`fk`, `joint_jacobian`,
+`joint_limits`, `is_prismatic`).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.spatial import axis_angle_from_matrix
+
+if TYPE_CHECKING:
+    from kinecal.kinematics.serial import SerialModel
+
+__all__ = ["CONVERGED", "Problem", "condition_numbers", "pose_error", "run"]
+
+Array = NDArray[np.float64]
+
+#: statuses of converged targets
+CONVERGED = ("converged", "near-singular")
+
+_MU0 = 1e-2       # initial damping factor (lam = mu |e| L)
+_MU_MIN = 1e-12   # smallest damping factor
+_MU_MAX = 1e12    # beyond: no acceptable step left (stationary)
+_STALL = 6        # iterations without a relative cost decrease of _FTOL -> stationary
+_FTOL = 1e-10
+
+
+def pose_error(target: Array, T: Array) -> tuple[Array, Array | None]:
+    """Error of tool frames `T` ``(N, 4, 4)`` to `target` ``(N, 3)`` or ``(N, 4, 4)``.
+
+    Returns
+    -------
+    dp : ndarray, shape (N, 3)
+        ``p_target - p`` (length unit).
+    dr : ndarray, shape (N, 3) or None
+        ``log(R_target R^T)``, the rotation vector (rad, measurement frame) that turns the
+        tool frame onto the target; None for position targets.
+    """
+    if target.ndim == 2:
+        return target - T[:, :3, 3], None
+    dp = target[:, :3, 3] - T[:, :3, 3]
+    return dp, _rotation_log(target[:, :3, :3] @ np.swapaxes(T[:, :3, :3], 1, 2))
+
+
+def _rotation_log(M: Array) -> Array:
+    """Rotation vectors ``(N, 3)`` of rotations `M` ``(N, 3, 3)``.
+
+    ``theta = atan2(|s|, c)`` from the antisymmetric part ``s`` and ``c = (tr - 1) / 2``:
+    exact to round-off at small angles (where IK ends); rotations near pi, where the axis
+    of the antisymmetric part loses digits, go through the quaternion.
+    """
+    s = 0.5 * np.stack([M[:, 2, 1] - M[:, 1, 2], M[:, 0, 2] - M[:, 2, 0],
+                        M[:, 1, 0] - M[:, 0, 1]], axis=1)
+    c = 0.5 * (M[:, 0, 0] + M[:, 1, 1] + M[:, 2, 2] - 1.0)
+    sn = np.sqrt(np.einsum("ij,ij->i", s, s))
+    theta = np.arctan2(sn, c)
+    pos = sn > 0.0
+    out = s * np.where(pos, theta / np.where(pos, sn, 1.0), 1.0)[:, None]
+    near_pi = (c < 0.0) & (sn < 0.5)
+    if near_pi.any():
+        out[near_pi] = axis_angle_from_matrix(M[near_pi])
+    return out
+
+
+class Problem:
+    """The scaled least-squares problem of one `solve_ik` call (shared by its restarts)."""
+
+    def __init__(self, model: SerialModel, params: Array | None, targets: Array,
+                 rotation_weight: float, length: float) -> None:
+        self.model = model
+        self.params = params
+        self.targets = targets
+        self.pose = targets.ndim == 3
+        self.rows = 6 if self.pose else 3
+        self.w = rotation_weight
+        self.length = length
+        lim = np.asarray(model.joint_limits, dtype=float)
+        self.lo, self.hi = lim[:, 0], lim[:, 1]
+        # scaled joints: a prismatic joint in units of the arm's length, so that every
+        # column of the scaled Jacobian is a length per (dimensionless) joint step
+        self.col = np.where(model.is_prismatic(), length, 1.0)
+        # revolute joints whose range spans a full turn: q and q +- 2 pi are the same
+        # joint position, so a step across a limit wraps into the range instead of stopping
+        self.wrap = ~model.is_prismatic() & (self.hi - self.lo >= 2.0 * np.pi - 1e-9)
+
+    def project(self, q: Array) -> Array:
+        """Joints `q` ``(M, n)`` brought into the limits: full-turn revolute joints wrapped
+        by multiples of 2 pi, the others clipped."""
+        if self.wrap.any():
+            out = self.wrap & ((q < self.lo) | (q > self.hi))
+            if out.any():
+                q = np.where(out, self.lo + np.mod(q - self.lo, 2.0 * np.pi), q)
+        return np.clip(q, self.lo, self.hi)
+
+    def errors(self, q: Array, idx: NDArray[np.intp]) -> tuple[Array, Array, Array]:
+        """Weighted error vectors ``(M, rows)``, position and rotation errors ``(M,)``."""
+        T = self.model.fk(q, self.params)
+        dp, dr = pose_error(self.targets[idx], T)
+        pos = np.sqrt(np.einsum("ij,ij->i", dp, dp))
+        if dr is None:
+            return dp, pos, np.zeros_like(pos)
+        rot = np.sqrt(np.einsum("ij,ij->i", dr, dr))
+        return np.concatenate([dp, self.w * dr], axis=1), pos, rot
+
+    def jacobian(self, q: Array) -> Array:
+        """Scaled, weighted joint Jacobian ``(M, rows, n_joints)``."""
+        outputs = "pose" if self.pose else "position"
+        J = self.model.joint_jacobian(q, self.params, outputs)
+        if self.pose:
+            J[:, 3:] *= self.w
+        return J * self.col
+
+
+def _solve(A: Array, b: Array) -> Array:
+    """Batched ``A x = b``; a (numerically) singular system falls back to least squares."""
+    try:
+        return np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        return np.stack([np.linalg.lstsq(Ai, bi, rcond=None)[0] for Ai, bi in zip(A, b,
+                                                                                 strict=True)])
+
+
+def _step(J: Array, e: Array, lam: Array, primal: bool = False) -> Array:
+    """Damped least-squares steps ``(M, n)``: ``J^T (J J^T + lam I)^-1 e`` (minimum norm)
+    when rows <= joints, else (or if `primal`) ``(J^T J + lam I)^-1 J^T e``."""
+    _, r, n = J.shape
+    Jt = np.swapaxes(J, 1, 2)
+    if r <= n and not primal:
+        A = J @ Jt
+        k = np.arange(r)
+        # floor: keeps the system numerically regular (relative damping >= 1e-14)
+        A[:, k, k] += np.maximum(lam, 1e-14 * np.trace(A, axis1=1, axis2=2))[:, None]
+        return (Jt @ _solve(A, e[:, :, None]))[:, :, 0]
+    A = Jt @ J
+    k = np.arange(n)
+    A[:, k, k] += np.maximum(lam, 1e-14 * np.trace(A, axis1=1, axis2=2))[:, None]
+    return _solve(A, Jt @ e[:, :, None])[:, :, 0]
+
+
+def _bounded_step(prob: Problem, J: Array, e: Array, lam: Array, q: Array) -> Array:
+    """`_step`, then again without the joints that sit at a limit and would leave it
+    (their columns frozen: the other joints take over the motion)."""
+    ds = _step(J, e, lam)
+    out = ds * prob.col
+    blocked = (((q <= prob.lo) & (out < 0)) | ((q >= prob.hi) & (out > 0))) & ~prob.wrap
+    rows = np.flatnonzero(blocked.any(axis=1))
+    if rows.size:
+        Jb = J[rows] * (~blocked[rows])[:, None, :]
+        ds[rows] = _step(Jb, e[rows], lam[rows], primal=True)
+    return ds
+
+
+def _trial(prob: Problem, J: Array, e: Array, cost: Array, q: Array, lam: Array,
+           idx: NDArray[np.intp]) -> tuple[Array, Array, Array, Array, Array, Array]:
+    """One damped step from `q` and the true errors there: joints, error vectors, position
+    and rotation errors, cost, and the cost decrease the linear model predicted."""
+    ds = _bounded_step(prob, J, e, lam, q)
+    qt = prob.project(q + ds * prob.col)
+    # the step actually taken (a wrapped joint moved by its own step)
+    dsp = np.where(prob.wrap, ds, (qt - q) / prob.col)
+    lin = e - np.einsum("mrn,mn->mr", J, dsp)
+    pred = cost - np.einsum("ij,ij->i", lin, lin)
+    et, post, rott = prob.errors(qt, idx)
+    ct = np.einsum("ij,ij->i", et, et)
+    return qt, et, post, rott, ct, pred
+
+
+def run(prob: Problem, q: Array, tol_p: float, tol_r: float, max_iter: int
+         ) -> tuple[Array, Array, Array, NDArray[np.int_], NDArray[np.str_]]:
+    """Levenberg-Marquardt from seeds `q` ``(N, n)``; every target has its own damping,
+    acceptance and stopping. Returns q, position and rotation errors, iterations, status."""
+    N = q.shape[0]
+    q = q.copy()
+    idx_all = np.arange(N)
+    e, pos, rot = prob.errors(q, idx_all)
+    cost = np.einsum("ij,ij->i", e, e)
+    iters = np.zeros(N, dtype=int)
+    status = np.full(N, "max-iterations", dtype="<U14")
+    mu = np.full(N, _MU0)
+    nu = np.full(N, 2.0)
+    stall = np.zeros(N, dtype=int)
+    done = (pos <= tol_p) & (rot <= tol_r)
+    status[done] = "converged"
+    active = np.flatnonzero(~done)
+    J = np.empty((N, prob.rows, q.shape[1]))
+    if active.size:
+        J[active] = prob.jacobian(q[active])
+    for _ in range(max_iter):
+        if active.size == 0:
+            break
+        a = active
+        Ja, ea, qa = J[a], e[a], q[a]
+        lam = mu[a] * np.sqrt(cost[a]) * prob.length
+        qt, et, post, rott, ct, pred = _trial(prob, Ja, ea, cost[a], qa, lam, a)
+        iters[a] += 1
+        gain = cost[a] - ct
+        rho = np.where(pred > 0, gain / np.where(pred > 0, pred, 1.0), -1.0)
+        accept = (gain > 0) & (rho > 1e-4)
+        mu_a = mu[a]
+        # Nielsen's update: smooth in the gain ratio, doubling the damping on rejections
+        nu_a = nu[a]
+        fac = np.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+        mu_a = np.where(accept, np.maximum(mu_a * fac, _MU_MIN), mu_a * nu_a)
+        nu[a] = np.where(accept, 2.0, nu_a * 2.0)
+        mu[a] = mu_a
+        progress = accept & (gain > _FTOL * cost[a])
+        stall[a] = np.where(progress, 0, stall[a] + 1)
+        acc = a[accept]
+        q[acc], e[acc], cost[acc] = qt[accept], et[accept], ct[accept]
+        pos[acc], rot[acc] = post[accept], rott[accept]
+        ok = accept & (post <= tol_p) & (rott <= tol_r)
+        status[a[ok]] = "converged"
+        stuck = ~ok & ((stall[a] >= _STALL) | (mu[a] > _MU_MAX))
+        status[a[stuck]] = "unreachable"
+        keep = ~(ok | stuck)
+        refresh = a[accept & keep]
+        if refresh.size:
+            J[refresh] = prob.jacobian(q[refresh])
+        active = a[keep]
+    return q, pos, rot, iters, status
+
+
+def condition_numbers(prob: Problem, q: Array) -> Array:
+    """Condition number of the scaled Jacobian ``(N,)`` (inf where singular)."""
+    J = prob.jacobian(q)
+    r, n = J.shape[1:]
+    G = J @ np.swapaxes(J, 1, 2) if r <= n else np.swapaxes(J, 1, 2) @ J
+    ev = np.linalg.eigvalsh(G)
+    hi = ev[:, -1]
+    lo = np.maximum(ev[:, 0], 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = np.sqrt(hi / lo)
+    return np.where((lo > 0) & (hi > 0), c, np.inf)
+
+
