@@ -29,7 +29,7 @@ _MU0 = 1e-2       # initial damping factor (lam = mu |e| L)
 _MU_MIN = 1e-12   # smallest damping factor
 _MU_MAX = 1e12    # beyond: no acceptable step left (stationary)
 _STALL = 6        # iterations without a relative cost decrease of _FTOL -> stationary
-_FTOL = 1e-10
+_FTOL = 1e-6
 
 
 def pose_error(target: Array, T: Array) -> tuple[Array, Array | None]:
