@@ -25,6 +25,7 @@ _LAZY = {
     "StewartPlatform": "kinecal.kinematics.stewart",
     "load_geometry": "kinecal.io.geometry",
     "calibrate_handeye": "kinecal.calibration.handeye",
+    "compensate": "kinecal.calibration.compensate",
 }
 
 __all__ = ["InputError", "__version__", *_LAZY]

@@ -58,6 +58,7 @@ _COMMAND_MODULES = [
     "kinecal.cli.demo",
     "kinecal.cli.bench",
     "kinecal.cli.export",
+    "kinecal.cli.compensate",
 ]
 
 

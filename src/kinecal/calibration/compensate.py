@@ -1,0 +1,474 @@
+"""Compensation: put a calibrated model to work on a robot program.
+
+A controller runs its *nominal* model; the arm moves like the *calibrated* one. Two kinds
+of program are compensated (the job of RoboDK's "filter program" / "filter targets"):
+
+* a **joint program** ``q_prog`` (what the controller was told): the intent is the nominal
+  model's tool pose at those joints; the compensated joints make the calibrated model reach
+  that pose (`solve_ik` seeded with the program's own joints, so the arm stays on its
+  branch);
+* **Cartesian targets** (positions, or poses): the joints an uncompensated controller would
+  command are the nominal inverse kinematics of the targets (seeded with the program's seed
+  joints when given); the compensated joints make the calibrated model reach the targets,
+  and the **filtered targets** are the nominal model's poses at the compensated joints:
+  what to send to a controller that still runs its nominal model.
+
+Every result carries, per row, the joint correction, the Cartesian size of the correction
+(how far the commanded pose moves; to first order the error the uncompensated program
+would have on the real arm), whether the calibrated model reaches the intent within the IK
+tolerances, and the remaining residual.
+
+The calibrated and the nominal model must describe the same arm: the same convention,
+joints and parameters, every chain and tool parameter within a few percent of the arm's
+size (`check_same_arm`). The base frame is the calibrated one unless ``base="nominal"``: a
+base far from nominal usually means the measurements were taken in an instrument's frame
+(a warning says so), where the program's poses do not live.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from kinecal import diagnostics
+from kinecal.errors import InputError
+from kinecal.kinematics.ik import IKResult, characteristic_length, pose_error, solve_ik
+from kinecal.kinematics.serial import SerialModel
+from kinecal.spatial import check_transform, transform_from_pq
+
+__all__ = ["CompensationResult", "check_same_arm", "compensate"]
+
+Array = NDArray[np.float64]
+
+#: largest chain / tool length difference between calibrated and nominal, relative to the
+#: arm's characteristic length, and largest angle difference (rad), of the same arm
+SAME_ARM_LENGTH = 0.05
+SAME_ARM_ANGLE = 0.35
+#: calibrated base this far from nominal (fraction of the arm's length, rad): warn
+BASE_FAR_LENGTH = 0.05
+BASE_FAR_ANGLE = 0.1
+#: fractions of the calibration applied in turn when the direct solve misses a row
+CONTINUATION_STEPS = (0.25, 0.5, 0.75, 1.0)
+
+
+@dataclass(frozen=True)
+class CompensationResult:
+    """Outcome of `compensate`, one row per program line.
+
+    Attributes
+    ----------
+    kind : {"joints", "targets"}
+        What the program gave.
+    outputs : {"pose", "position"}
+        What was compensated: the full tool pose, or the tool point only.
+    q : ndarray, shape (N, n_joints)
+        Joints to command (rad; prismatic joints in the length unit).
+    q_nominal : ndarray, shape (N, n_joints)
+        Joints an uncompensated controller commands: the program's joints, or the nominal
+        inverse kinematics of the targets.
+    dq : ndarray, shape (N, n_joints)
+        ``q - q_nominal``.
+    intended : ndarray, shape (N, 4, 4) or (N, 3)
+        The poses (or points) the program means, in the program's frame.
+    filtered : ndarray, shape (N, 4, 4) or (N, 3)
+        Nominal model at `q`: the targets to send to a controller running its nominal model.
+    correction, correction_rotation : ndarray, shape (N,)
+        Distance (length unit) and angle (rad; NaN for position compensation) between
+        `filtered` and `intended`.
+    error_before, error_before_rotation : ndarray, shape (N,)
+        Calibrated model at `q_nominal` against `intended`: the error the uncompensated
+        program is predicted to have.
+    residual, residual_rotation : ndarray, shape (N,)
+        Calibrated model at `q` against `intended` (the IK residual).
+    converged : ndarray of bool, shape (N,)
+        The calibrated model reaches the intent at `q` within the IK tolerances.
+    status : ndarray of str, shape (N,)
+        IK status per row (`kinecal.kinematics.ik.STATUS`).
+    nominal_converged : ndarray of bool, shape (N,)
+        Targets only: the nominal inverse kinematics converged (all True for joint programs).
+    ik : IKResult
+        The inverse kinematics on the calibrated model.
+    length_unit : str
+    """
+
+    kind: str
+    outputs: str
+    q: Array
+    q_nominal: Array
+    dq: Array
+    intended: Array
+    filtered: Array
+    correction: Array
+    correction_rotation: Array
+    error_before: Array
+    error_before_rotation: Array
+    residual: Array
+    residual_rotation: Array
+    converged: NDArray[np.bool_]
+    status: NDArray[np.str_]
+    nominal_converged: NDArray[np.bool_]
+    ik: IKResult
+    length_unit: str = ""
+
+    def __len__(self) -> int:
+        return int(self.q.shape[0])
+
+    def summary(self) -> str:
+        """A few lines: rows, convergence, size of the corrections and of the residuals."""
+        n, unit = len(self), self.length_unit or "length unit"
+        ok = self.converged
+        lines = [f"compensated {n} {'joint-program rows' if self.kind == 'joints' else 'targets'}"
+                 f" ({self.outputs}): {int(ok.sum())} converged"]
+        if n:
+            c = self.correction
+            lines.append(f"correction: mean {c.mean():.4g} {unit}, max {c.max():.4g} {unit}; "
+                         f"joints up to {np.degrees(np.abs(self.dq).max()):.4g} deg")
+            if self.outputs == "pose":
+                a = np.degrees(self.correction_rotation)
+                lines.append(f"correction angle: mean {a.mean():.4g} deg, max {a.max():.4g} deg")
+            if ok.any():
+                lines.append(f"residual (converged rows): max {self.residual[ok].max():.3g} {unit}"
+                             + (f", {self.residual_rotation[ok].max():.3g} rad"
+                                if self.outputs == "pose" else ""))
+        for s, k in self.ik.counts().items():
+            if k and s != "converged":
+                lines.append(f"  {s}: {k} rows")
+        return "\n".join(lines)
+
+    def stats(self) -> dict[str, Any]:
+        """JSON-ready statistics: counts, corrections, residuals."""
+        def s(x: Array) -> dict[str, float] | None:
+            x = x[np.isfinite(x)]
+            if x.size == 0:
+                return None
+            return {"mean": float(x.mean()), "rms": float(np.sqrt(np.mean(x ** 2))),
+                    "max": float(x.max())}
+
+        return {"kind": self.kind, "outputs": self.outputs, "rows": len(self),
+                "converged": int(self.converged.sum()), "status": self.ik.counts(),
+                "length_unit": self.length_unit,
+                "correction": s(self.correction),
+                "correction_rotation_rad": s(self.correction_rotation),
+                "error_before": s(self.error_before),
+                "residual": s(self.residual[self.converged]),
+                "joint_correction_rad": s(np.abs(self.dq).max(axis=1)) if len(self) else None}
+
+
+def _lengths_mask(model: SerialModel) -> NDArray[np.bool_]:
+    return ~model.is_angle()
+
+
+def check_same_arm(nominal: SerialModel, calibrated: SerialModel) -> None:
+    """Refuse a calibrated model of another arm than `nominal`.
+
+    Same convention, joint kinds and parameter names, and every chain and tool parameter
+    within `SAME_ARM_LENGTH` of the arm's characteristic length (lengths) or
+    `SAME_ARM_ANGLE` rad (angles) of nominal; the base frame may differ (see `compensate`).
+
+    Raises
+    ------
+    InputError
+        Naming the first difference found.
+    """
+    what = f"calibrated model {calibrated.name!r} and nominal model {nominal.name!r}"
+    if calibrated.convention != nominal.convention:
+        raise InputError(f"{what} use different conventions ({calibrated.convention} vs "
+                         f"{nominal.convention}): not the same arm")
+    if tuple(calibrated.joint_kinds) != tuple(nominal.joint_kinds):
+        raise InputError(f"{what} have different joints ({calibrated.n_joints} vs "
+                         f"{nominal.n_joints}): not the same arm")
+    if tuple(calibrated.parameter_names) != tuple(nominal.parameter_names):
+        extra = sorted(set(calibrated.parameter_names) ^ set(nominal.parameter_names))
+        raise InputError(f"{what} have different parameters ({', '.join(extra[:4]) or 'order'}"
+                         "): not the same arm")
+    compare_parameters(nominal, calibrated.nominal, what)
+
+
+def compare_parameters(nominal: SerialModel, params: Array, what: str) -> None:
+    """`InputError` when `params` are too far from `nominal` to be a calibration of it."""
+    names = nominal.parameter_names
+    base = np.array([n.startswith("base.") for n in names])
+    diff = np.abs(np.asarray(params, dtype=float) - nominal.nominal)
+    L = characteristic_length(nominal)
+    limit = np.where(nominal.is_angle(), SAME_ARM_ANGLE, SAME_ARM_LENGTH * L)
+    bad = np.flatnonzero((diff > limit) & ~base)
+    if bad.size:
+        k = int(bad[np.argmax(diff[bad] / limit[bad])])
+        unit = "rad" if nominal.is_angle()[k] else nominal.length_unit
+        raise InputError(f"{what}: parameter {names[k]} differs by {diff[k]:.4g} {unit} "
+                         f"(a calibration changes it by less than {limit[k]:.3g} {unit}): "
+                         "not a calibration of the same arm")
+
+
+def _base_check(nominal: SerialModel, calibrated: SerialModel) -> None:
+    idx = nominal.index(["base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz"])
+    d = calibrated.nominal[idx] - nominal.nominal[idx]
+    L = characteristic_length(nominal)
+    shift, turn = float(np.linalg.norm(d[:3])), float(np.linalg.norm(d[3:]))
+    if shift > BASE_FAR_LENGTH * L or turn > BASE_FAR_ANGLE:
+        diagnostics.warn(
+            "base-frame-far",
+            f"the calibrated base frame is {shift:.4g} {nominal.length_unit} and "
+            f"{np.degrees(turn):.3g} deg from the nominal one: the measurements were probably "
+            "taken in an instrument's frame, not the robot's; compensate with base='nominal' "
+            "(--base nominal) unless the program's poses are in that frame")
+
+
+def _as_models(calibrated: Any, nominal: SerialModel | None) -> tuple[SerialModel, SerialModel]:
+    """(nominal, calibrated) from a model, a CalibrationResult or a parameter vector."""
+    if hasattr(calibrated, "nominal_model") and hasattr(calibrated, "model"):  # a result
+        nom = calibrated.nominal_model if nominal is None else nominal
+        cal = calibrated.model
+    elif isinstance(calibrated, SerialModel):
+        if nominal is None:
+            raise InputError("compensate needs the nominal model (what the controller runs) "
+                             "beside a calibrated model", option="--nominal")
+        nom, cal = nominal, calibrated
+    else:
+        if nominal is None:
+            raise InputError("a calibrated parameter vector needs its nominal model",
+                             option="--nominal")
+        p = np.asarray(calibrated, dtype=float)
+        if p.shape != (nominal.n_params,) or not np.isfinite(p).all():
+            raise InputError(f"calibrated parameters: expected {nominal.n_params} finite "
+                             f"values, got shape {p.shape}")
+        nom = nominal
+        compare_parameters(nom, p, f"calibrated parameters for {nom.name!r}")
+        cal = nominal.with_params(p, name=f"{nominal.name}-calibrated")
+    if not isinstance(nom, SerialModel):
+        raise InputError(f"nominal: expected a SerialModel, got {type(nom).__name__}")
+    check_same_arm(nom, cal)
+    return nom, cal
+
+
+def _with_base(calibrated: SerialModel, nominal: SerialModel, base: str) -> SerialModel:
+    if base == "calibrated":
+        return calibrated
+    if base != "nominal":
+        raise InputError(f"base: expected 'calibrated' or 'nominal', got {base!r}",
+                         option="--base")
+    p = calibrated.nominal
+    idx = nominal.index(["base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz"])
+    p[idx] = nominal.nominal[idx]
+    return calibrated.with_params(p)
+
+
+def _targets(targets: ArrayLike) -> Array:
+    """(N, 3) points, (N, 7) x,y,z,qw,qx,qy,qz or (N, 4, 4) frames -> (N, 3) / (N, 4, 4)."""
+    t = np.asarray(targets, dtype=float)
+    if t.ndim == 2 and t.shape[1] == 7:
+        q = t[:, 3:]
+        norm = np.linalg.norm(q, axis=1)
+        bad = np.abs(norm - 1.0) > 1e-3
+        if bad.any() or not np.isfinite(t).all():
+            row = int(np.argmax(bad | ~np.isfinite(t).all(axis=1))) + 1
+            raise InputError("targets: qw, qx, qy, qz must be a unit quaternion", row=row)
+        return transform_from_pq(np.column_stack([t[:, :3], q / norm[:, None]]))
+    if t.ndim == 2 and t.shape[1] == 3:
+        if not np.isfinite(t).all():
+            raise InputError("targets contain NaN or infinite values")
+        return t
+    if t.ndim == 3 and t.shape[1:] == (4, 4):
+        return check_transform(t, name="target")
+    raise InputError(f"targets: expected (N, 3) points, (N, 7) x,y,z,qw,qx,qy,qz or (N, 4, 4) "
+                     f"frames, got shape {t.shape}")
+
+
+def _errors(intended: Array, T: Array) -> tuple[Array, Array]:
+    dp, dr = pose_error(intended, T)
+    pos = np.linalg.norm(dp, axis=1)
+    rot = np.full(pos.shape, np.nan) if dr is None else np.linalg.norm(dr, axis=1)
+    return pos, rot
+
+
+def _joints(model: SerialModel, q: ArrayLike, what: str) -> Array:
+    a = np.asarray(q, dtype=float)
+    if a.ndim == 1 and a.size == model.n_joints:
+        a = a[None]
+    if a.ndim != 2 or a.shape[1] != model.n_joints:
+        raise InputError(f"{what}: expected (N, {model.n_joints}) joint values, got shape "
+                         f"{np.shape(q)}")
+    if not np.isfinite(a).all():
+        raise InputError(f"{what} contain NaN or infinite values",
+                         row=int(np.argmax(~np.isfinite(a).all(axis=1))) + 1)
+    lim = model.joint_limits
+    out = (a < lim[:, 0]) | (a > lim[:, 1])
+    if out.any():
+        rows = np.flatnonzero(out.any(axis=1))
+        diagnostics.warn(
+            "joints-outside-limits",
+            f"{rows.size} row(s) of {what} (first: row {rows[0] + 1}) lie outside the model's "
+            "joint limits; the compensated joints are kept within them")
+    return a
+
+
+def compensate(
+    calibrated: Any,
+    nominal: SerialModel | None = None,
+    *,
+    joints: ArrayLike | None = None,
+    targets: ArrayLike | None = None,
+    seeds: ArrayLike | None = None,
+    outputs: str | None = None,
+    base: str = "calibrated",
+    restarts: int = 10,
+    rng: int | np.random.Generator | None = 0,
+    **ik_options: Any,
+) -> CompensationResult:
+    """Compensate a joint program or Cartesian targets with a calibrated model.
+
+    Parameters
+    ----------
+    calibrated : SerialModel, CalibrationResult or array_like (n_params,)
+        The calibrated arm: a model (e.g. ``load_model("calibrated.yaml")``), a calibration
+        result (its nominal model is used when `nominal` is None), or the calibrated
+        parameter vector of `nominal`.
+    nominal : SerialModel, optional
+        The model the controller runs (required unless `calibrated` is a result).
+    joints : array_like, shape (N, n_joints), optional
+        A joint program (rad; prismatic joints in the length unit).
+    targets : array_like, shape (N, 3), (N, 7) or (N, 4, 4), optional
+        Cartesian targets: tool points, ``x, y, z, qw, qx, qy, qz`` poses, or tool frames, in
+        the program's frame (length unit).
+    seeds : array_like, shape (N, n_joints), optional
+        Targets only: joints near the wanted configuration (the nearest branch is kept).
+        Without seeds the nominal inverse kinematics starts from the middle of the joint
+        limits with `restarts` random restarts (the branch is the solver's choice; a
+        warning says so).
+    outputs : {"pose", "position"}, optional
+        Compensate the full tool pose or the tool point only. Default: pose for joint
+        programs of arms with at least 6 joints and for targets with orientations,
+        position otherwise.
+    base : {"calibrated", "nominal"}
+        Base frame of the calibrated model used: its own (the program lives in the frame
+        the calibration measured in) or the nominal one (measurements taken in an
+        instrument's frame: base-frame errors are left to the user frame).
+    restarts, rng : int
+        Random restarts of the nominal IK of unseeded targets (same rng, same result).
+    **ik_options
+        Passed to `kinecal.kinematics.ik.solve_ik` (``tol_position``, ``tol_rotation``,
+        ``max_iterations``, ``singular_threshold``, ``rotation_weight``).
+
+    Returns
+    -------
+    CompensationResult
+
+    Raises
+    ------
+    InputError
+        Neither or both of `joints` and `targets`, bad shapes or values, a calibrated
+        model of another arm.
+    """
+    nom, cal = _as_models(calibrated, nominal)
+    if base == "calibrated":
+        _base_check(nom, cal)
+    cal = _with_base(cal, nom, base)
+    if (joints is None) == (targets is None):
+        raise InputError("give either a joint program (joints=) or Cartesian targets "
+                         "(targets=)")
+    if outputs not in (None, "pose", "position"):
+        raise InputError(f"outputs: expected 'pose' or 'position', got {outputs!r}")
+    if joints is not None:
+        if seeds is not None:
+            raise InputError("seeds apply to Cartesian targets; a joint program seeds itself")
+        kind = "joints"
+        q_nom = _joints(nom, joints, "program joints")
+        outputs = outputs or ("pose" if nom.n_joints >= 6 else "position")
+        T = nom.fk(q_nom)
+        intended = T if outputs == "pose" else T[:, :3, 3]
+        nominal_ok = np.ones(q_nom.shape[0], dtype=bool)
+    else:
+        kind = "targets"
+        t = _targets(targets)
+        outputs = outputs or ("pose" if t.ndim == 3 else "position")
+        if outputs == "pose" and t.ndim == 2:
+            raise InputError("pose compensation needs target orientations (qw, qx, qy, qz)")
+        intended = t if outputs == "pose" or t.ndim == 2 else t[:, :3, 3]
+        if seeds is None:
+            diagnostics.warn(
+                "no-seed-joints",
+                "targets without seed joints: the solver chose each target's configuration "
+                "(elbow, wrist); give seed joints (q1..qn columns) to keep the robot's own")
+            first = solve_ik(nom, intended, None, restarts=restarts, rng=rng, **ik_options)
+        else:
+            q0 = _joints(nom, seeds, "seed joints")
+            if q0.shape[0] != intended.shape[0]:
+                raise InputError(f"{q0.shape[0]} seed rows for {intended.shape[0]} targets")
+            first = solve_ik(nom, intended, q0, **ik_options)
+        q_nom, nominal_ok = first.q, first.converged
+    res = solve_ik(cal, intended, q_nom, **ik_options)
+    if not res.converged.all():
+        res = _continuation(nom, cal, intended, q_nom, res, ik_options)
+    filtered_T = nom.fk(res.q)
+    filtered = filtered_T if outputs == "pose" else filtered_T[:, :3, 3]
+    corr, corr_rot = _errors(intended, filtered_T)
+    before, before_rot = _errors(intended, cal.fk(q_nom))
+    out = CompensationResult(
+        kind=kind, outputs=outputs, q=res.q, q_nominal=q_nom, dq=res.q - q_nom,
+        intended=intended, filtered=filtered, correction=corr, correction_rotation=corr_rot,
+        error_before=before, error_before_rotation=before_rot, residual=res.position_error,
+        residual_rotation=res.rotation_error, converged=res.converged, status=res.status,
+        nominal_converged=nominal_ok, ik=res, length_unit=nom.length_unit)
+    _warn_rows(out)
+    return out
+
+
+def _continuation(nom: SerialModel, cal: SerialModel, intended: Array, q_nom: Array,
+                  res: IKResult, ik_options: dict) -> IKResult:
+    """Rows the direct solve missed, again by continuation from the nominal solution.
+
+    The parameters move from nominal to calibrated in `CONTINUATION_STEPS`; each step's
+    inverse kinematics starts from the previous step's joints. At the first step the
+    nominal joints are (almost) a solution, so the path follows the program's own branch
+    instead of jumping across a singularity. The better of the two answers is kept.
+    """
+    rows = np.flatnonzero(~res.converged)
+    p0, p1 = nom.nominal, cal.nominal
+    q = q_nom[rows]
+    for t in CONTINUATION_STEPS:
+        step = solve_ik(nom, intended[rows], q, params=p0 + t * (p1 - p0), **ik_options)
+        q = step.q
+    # the last step used exactly the calibrated parameters (t = 1): its errors are final
+    better = step.converged | (_cost(step, rows=None) < _cost(res, rows))
+    merged = {f: getattr(res, f).copy() for f in ("q", "converged", "status",
+                                                   "position_error", "rotation_error",
+                                                   "iterations", "condition")}
+    take = rows[better]
+    for f in merged:
+        merged[f][take] = getattr(step, f)[better]
+    merged["iterations"][rows] = res.iterations[rows] + step.iterations  # (last step's)
+    return replace(res, **merged)
+
+
+def _cost(r: IKResult, rows: NDArray[np.intp] | None) -> Array:
+    pos = r.position_error if rows is None else r.position_error[rows]
+    rot = r.rotation_error if rows is None else r.rotation_error[rows]
+    return pos + np.nan_to_num(rot) * 1e3
+
+
+def _warn_rows(res: CompensationResult) -> None:
+    n = len(res)
+    bad = int(np.count_nonzero(~res.converged))
+    if bad:
+        first = int(np.argmax(~res.converged)) + 1
+        diagnostics.warn(
+            "compensation-not-converged",
+            f"{bad} of {n} rows did not converge (first: row {first}, "
+            f"{res.status[first - 1]}): the calibrated arm does not reach them from the program's "
+            "configuration (near a singularity, a joint limit or out of reach); they are kept "
+            "with converged=false")
+    nom_bad = int(np.count_nonzero(~res.nominal_converged))
+    if nom_bad:
+        diagnostics.warn(
+            "nominal-ik-not-converged",
+            f"{nom_bad} of {n} targets are out of reach of the nominal model: check the "
+            "targets' frame and units")
+    sing = int(np.count_nonzero(res.status == "near-singular"))
+    if sing:
+        diagnostics.warn(
+            "near-singular",
+            f"{sing} of {n} rows are close to a singularity: their joint corrections are large "
+            "and sensitive to the calibration; move such points away from it if you can")

@@ -1,0 +1,227 @@
+"""``kinecal compensate``: a robot program rewritten for the calibrated arm.
+
+PROGRAM.csv is either a joint program (``q1..qn`` in the model's angle unit, what the
+controller was told) or Cartesian targets (``x,y,z`` and optionally ``qw,qx,qy,qz``, in the
+model's length unit, with optional seed joints ``q1..qn``). Every column of the program is
+written back in its place (``q1..qn`` hold the joints to command, added if absent), followed
+by the compensation columns (see ``docs/compensate.md``).
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from kinecal.cli._app import app
+from kinecal.cli._common import (
+    check_paths,
+    echo_json,
+    quiet_option,
+    resolve_data_path,
+    strict_option,
+    warnings_scope,
+    with_warnings,
+)
+from kinecal.errors import InputError
+
+QUATERNION = ("qw", "qx", "qy", "qz")
+_SUFFIX = "-calibrated"
+
+
+def load_calibrated(spec: str, nominal: str | None):
+    """(nominal model, calibrated parameter vector) from a model file or a result JSON.
+
+    A result JSON names its nominal model (``"model"``); a model file written by
+    ``calibrate --model-out`` is called ``NAME-calibrated``. Either gives the default of
+    `nominal` when that is a bundled model; otherwise ``--nominal`` is required.
+    """
+    from kinecal.calibration.compensate import check_same_arm, compare_parameters
+    from kinecal.io.models import bundled_models, load_model
+
+    path = Path(spec)
+    if not path.exists():
+        raise InputError(f"file not found: {spec}", option="CALIBRATED")
+    if path.suffix.lower() == ".json":
+        from kinecal._files import read_json
+        from kinecal.cli.serial import parameters_from_result
+
+        data = read_json(path)
+        named = data.get("model") if isinstance(data, dict) else None
+        if nominal is None:
+            if not (isinstance(named, str) and named in bundled_models()):
+                raise InputError(f"{path}: give --nominal MODEL (the model this result "
+                                 "calibrated)", option="--nominal")
+            nominal = named
+        nom = load_model(nominal)
+        if isinstance(named, str) and named != nom.name:
+            raise InputError(f"the result calibrated model {named!r}, not {nom.name!r}: "
+                             "refusing to compensate another arm", file=path)
+        params = parameters_from_result(nom, path)
+        compare_parameters(nom, params, f"result {path.name} for {nom.name!r}")
+        return nom, params
+    cal = load_model(path)
+    if nominal is None:
+        stem = cal.name[: -len(_SUFFIX)] if cal.name.endswith(_SUFFIX) else None
+        if stem is None or stem not in bundled_models():
+            raise InputError(f"{path}: give --nominal MODEL (the model the controller runs)",
+                             option="--nominal")
+        nominal = stem
+    nom = load_model(nominal)
+    try:
+        check_same_arm(nom, cal)
+    except InputError as exc:
+        raise InputError(exc.message, file=path) from None
+    return nom, cal.nominal
+
+
+def read_program(path: Path, n_joints: int) -> tuple[list[str], list[list[str]], dict]:
+    """Header, raw cells and the numeric columns of a program CSV (validated)."""
+    from kinecal.io.csvtable import read_table
+
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"cannot read CSV: {exc}", file=path) from None
+    if not rows:
+        raise InputError("empty file; expected a header with q1..qn or x,y,z", file=path)
+    header = [h.strip() for h in rows[0]]
+    joints = [f"q{i}" for i in range(1, n_joints + 1)]
+    qcols = [c for c in header if c.startswith("q") and c[1:].isdigit()]
+    if qcols and sorted(qcols) != sorted(joints):
+        raise InputError(f"joint columns {', '.join(qcols)}: the model has {n_joints} joints, "
+                         f"expected {', '.join(joints)}", file=path)
+    quat = [c for c in QUATERNION if c in header]
+    if quat and len(quat) != 4:
+        raise InputError(f"orientation columns {', '.join(quat)} without the others: expected "
+                         "all of qw, qx, qy, qz or none", file=path)
+    if all(c in header for c in "xyz"):
+        required = ["x", "y", "z", *quat]
+        optional = joints
+    elif any(c in header for c in "xyz"):
+        raise InputError("expected all of x, y, z (Cartesian targets) or none (a joint "
+                         "program)", file=path)
+    else:
+        if not qcols:
+            raise InputError(f"expected joint columns {', '.join(joints)} or target columns "
+                             "x, y, z", file=path)
+        required, optional = joints, []
+    table = read_table(path, required, optional)
+    return header, [[c.strip() for c in r] for r in rows[1:]], table
+
+
+def _fmt(v: float) -> str:
+    return repr(float(v))
+
+
+def write_program(path: Path, header: list[str], cells: list[list[str]], replace: dict,
+                  extra: dict) -> None:
+    """Original cells with `replace` columns overwritten (or appended), then `extra`."""
+    from kinecal._files import atomic_open
+
+    clash = [c for c in extra if c in header]
+    if clash:
+        raise InputError(f"program column(s) {', '.join(clash)} are written by compensate; "
+                         "rename them", option="PROGRAM")
+    cols = list(header) + [c for c in replace if c not in header] + list(extra)
+    with atomic_open(path, "w") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(cols)
+        for r, row in enumerate(cells):
+            values = dict(zip(header, row, strict=False))
+            for c, v in replace.items():
+                values[c] = _fmt(v[r])
+            for c, v in extra.items():
+                values[c] = v[r] if isinstance(v[r], str) else _fmt(v[r])
+            w.writerow([values.get(c, "") for c in cols])
+
+
+def _bool(v: np.ndarray) -> list[str]:
+    return ["true" if b else "false" for b in v]
+
+
+@app.command("compensate")
+def compensate_cmd(
+    calibrated: str = typer.Argument(..., help="Calibrated model (YAML from calibrate "
+                                     "--model-out) or calibration result JSON."),
+    program: str = typer.Argument(..., help="Program CSV: joints q1..qn, or targets x,y,z"
+                                  "[,qw,qx,qy,qz] with optional seed joints q1..qn."),
+    nominal: str | None = typer.Option(None, "--nominal", help="The model the controller runs "
+                                       "(bundled name or path); default: the one CALIBRATED "
+                                       "names."),
+    out: Path = typer.Option(..., "--out", help="Compensated program CSV to write."),
+    position_only: bool = typer.Option(False, "--position-only", help="Compensate the tool "
+                                       "point only (default: the full pose on arms with at "
+                                       "least 6 joints, or when targets have orientations)."),
+    base: str = typer.Option("calibrated", "--base", help="calibrated (the program lives in "
+                             "the measured frame) or nominal (measured in an instrument's "
+                             "frame)."),
+    json_out: bool = typer.Option(False, "--json", help="Print the statistics as JSON."),
+    strict: bool = strict_option(),
+    quiet: bool = quiet_option(),
+) -> None:
+    """Rewrite a joint program or Cartesian targets for the calibrated arm."""
+    from kinecal.calibration.compensate import compensate
+
+    check_paths({"CALIBRATED": calibrated, "PROGRAM": program, "--nominal": nominal},
+                {"--out": out})
+    if base not in ("calibrated", "nominal"):
+        raise InputError(f"expected calibrated or nominal, got {base!r}", option="--base")
+    with warnings_scope(strict) as found:
+        nom, params = load_calibrated(calibrated, nominal)
+        path = resolve_data_path(program, "PROGRAM")
+        header, cells, table = read_program(path, nom.n_joints)
+        scale = nom.joint_scale()  # file units -> API units per joint
+        joints = [f"q{i}" for i in range(1, nom.n_joints + 1)]
+        outputs = "position" if position_only else None
+        q_file = np.column_stack([table[c] for c in joints]) if joints[0] in table else None
+        if "x" in table:
+            xyz = np.column_stack([table[c] for c in "xyz"])
+            targets = (np.column_stack([xyz] + [table[c] for c in QUATERNION])
+                       if "qw" in table else xyz)
+            seeds = None if q_file is None else q_file * scale
+            res = compensate(params, nom, targets=targets, seeds=seeds, outputs=outputs,
+                             base=base)
+        else:
+            res = compensate(params, nom, joints=q_file * scale, outputs=outputs, base=base)
+        extra = _columns(res, nom, joints)
+        write_program(out, header, cells, {c: res.q[:, k] / scale[k]
+                                           for k, c in enumerate(joints)}, extra)
+    stats = {"program": str(program), "out": str(out), "model": nom.name,
+             "base": base, **res.stats()}
+    if json_out:
+        echo_json(with_warnings(stats, found))
+    elif not quiet:
+        typer.echo(res.summary())
+        typer.echo(f"wrote {len(res)} rows to {out}")
+
+
+def _columns(res, nom, joints: list[str]) -> dict:
+    """The compensation columns, in the model file's units."""
+    from kinecal.spatial import pq_from_transform
+
+    extra: dict = {}
+    deg = nom.angle_unit == "deg"
+    angle = (lambda a: np.degrees(a)) if deg else (lambda a: a)
+    if res.kind == "targets":
+        f = res.filtered
+        if f.ndim == 3:
+            pq = pq_from_transform(f)
+            names = ["x", "y", "z", *QUATERNION]
+        else:
+            pq, names = f, ["x", "y", "z"]
+        extra.update({f"filtered_{c}": pq[:, k] for k, c in enumerate(names)})
+    scale = nom.joint_scale()
+    extra.update({f"d{c}": res.dq[:, k] / scale[k] for k, c in enumerate(joints)})
+    extra["correction"] = res.correction
+    if res.outputs == "pose":
+        extra["correction_angle"] = angle(res.correction_rotation)
+    extra["converged"] = _bool(res.converged)
+    extra["residual"] = res.residual
+    if res.outputs == "pose":
+        extra["residual_angle"] = angle(res.residual_rotation)
+    extra["status"] = [str(s) for s in res.status]
+    return extra

@@ -1,0 +1,217 @@
+"""``kinecal compensate`` (DESIGN section 4 contract) and ``kinecal stewart ik`` with a
+calibrated geometry (the parallel CMM's compensation)."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from kinecal.calibration.simulate import random_configurations, read_truth
+from kinecal.cli import main
+from kinecal.io.geometry import load_geometry
+from kinecal.io.models import load_model
+from kinecal.spatial import quaternion_from_matrix
+
+
+def _read(path):
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    return {k: [r[k] for r in rows] for k in rows[0]}
+
+
+def _write(path, header, rows):
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(rows)
+    return path
+
+
+@pytest.fixture(scope="module")
+def calibrated(tmp_path_factory):
+    """UR5 simulated with random errors, calibrated: result JSON, model file, truth."""
+    d = tmp_path_factory.mktemp("comp")
+    assert main(["simulate", "ur5", "--poses", "60", "--noise", "0.01", "--seed", "1",
+                 "--out", str(d / "meas.csv"), "--truth-out", str(d / "truth.json")]) == 0
+    assert main(["calibrate", "ur5", str(d / "meas.csv"), "--out", str(d / "result.json"),
+                 "--model-out", str(d / "ur5-cal.yaml"), "--quiet"]) == 0
+    return d
+
+
+@pytest.fixture
+def program(tmp_path):
+    model = load_model("ur5")
+    q = np.round(np.degrees(random_configurations(model, 12, np.random.default_rng(3)) * 0.7), 6)
+    rows = [[f"P{k}", *r, 250, "note, with comma"] for k, r in enumerate(q)]
+    return _write(tmp_path / "prog.csv", ["label", "q1", "q2", "q3", "q4", "q5", "q6",
+                                          "speed", "comment"], rows), q
+
+
+def test_joint_program_from_a_model_file_and_a_result_json(calibrated, program, tmp_path,
+                                                           capsys):
+    path, q_deg = program
+    out1, out2 = tmp_path / "c1.csv", tmp_path / "c2.csv"
+    assert main(["compensate", str(calibrated / "ur5-cal.yaml"), str(path), "--out",
+                 str(out1)]) == 0
+    text = capsys.readouterr().out
+    assert "compensated 12 joint-program rows (pose)" in text and "wrote 12 rows" in text
+    assert main(["compensate", str(calibrated / "result.json"), str(path), "--nominal", "ur5",
+                 "--out", str(out2), "--quiet"]) == 0
+    a, b = _read(out1), _read(out2)
+    # the program's own columns come back in place, untouched except the joints
+    assert list(a)[:9] == ["label", "q1", "q2", "q3", "q4", "q5", "q6", "speed", "comment"]
+    assert a["label"] == [f"P{k}" for k in range(12)] and set(a["comment"]) == {
+        "note, with comma"}
+    for c in ("dq1", "correction", "correction_angle", "converged", "residual",
+              "residual_angle", "status"):
+        assert c in a
+    qa = np.array([[float(a[f"q{i}"][r]) for i in range(1, 7)] for r in range(12)])
+    qb = np.array([[float(b[f"q{i}"][r]) for i in range(1, 7)] for r in range(12)])
+    np.testing.assert_allclose(qa, qb, atol=1e-9)  # model file and result JSON agree
+    dq = np.array([[float(a[f"dq{i}"][r]) for i in range(1, 7)] for r in range(12)])
+    np.testing.assert_allclose(qa - q_deg, dq, atol=1e-9)  # degrees, like the program
+    # the true arm at the compensated joints reaches the program's intent
+    model = load_model("ur5")
+    true = read_truth(calibrated / "truth.json", model)
+    intended = model.positions(np.radians(q_deg))
+    ok = np.array(a["converged"]) == "true"
+    assert ok.mean() >= 0.9
+    after = np.linalg.norm(model.positions(np.radians(qa), true) - intended, axis=1)[ok]
+    before = np.linalg.norm(model.positions(np.radians(q_deg), true) - intended, axis=1)
+    assert after.max() < 0.05 and before.mean() > 2.0
+    assert float(max(a["residual"][k] for k in np.flatnonzero(ok))) <= 1e-9
+
+
+def test_cartesian_targets_with_seeds_and_filtered_targets(calibrated, tmp_path, capsys):
+    model = load_model("ur5")
+    q = random_configurations(model, 8, np.random.default_rng(4)) * 0.7
+    T = model.fk(q)
+    quat = quaternion_from_matrix(T[:, :3, :3])
+    rows = [[*T[k, :3, 3], *quat[k], *np.degrees(q[k])] for k in range(8)]
+    header = ["x", "y", "z", "qw", "qx", "qy", "qz", "q1", "q2", "q3", "q4", "q5", "q6"]
+    path = _write(tmp_path / "targets.csv", header, rows)
+    out = tmp_path / "t.csv"
+    assert main(["compensate", str(calibrated / "result.json"), str(path), "--out", str(out),
+                 "--json"]) == 0
+    stats = json.loads(capsys.readouterr().out)
+    assert stats["kind"] == "targets" and stats["outputs"] == "pose" and stats["rows"] == 8
+    assert stats["warnings"] == [] or all("code" in w for w in stats["warnings"])
+    t = _read(out)
+    for c in ("filtered_x", "filtered_qw", "dq6", "correction", "status"):
+        assert c in t
+    np.testing.assert_allclose([float(v) for v in t["x"]], T[:, 0, 3], rtol=1e-12)
+    qc = np.radians([[float(t[f"q{i}"][r]) for i in range(1, 7)] for r in range(8)])
+    filt = np.array([[float(t[f"filtered_{c}"][r]) for c in "xyz"] for r in range(8)])
+    np.testing.assert_allclose(filt, model.positions(qc), atol=1e-8)
+    # position targets without seeds: a warning, still solved; --position-only
+    pos = _write(tmp_path / "p.csv", ["x", "y", "z"], [list(r[:3]) for r in rows])
+    assert main(["compensate", str(calibrated / "result.json"), str(pos), "--out",
+                 str(tmp_path / "p-out.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "no-seed-joints" in err
+    assert "filtered_qw" not in _read(tmp_path / "p-out.csv")
+    assert main(["compensate", str(calibrated / "result.json"), str(pos), "--out",
+                 str(tmp_path / "p-out.csv"), "--strict"]) == 2
+    assert "no-seed-joints" in capsys.readouterr().err
+
+
+def test_rows_that_do_not_converge_are_kept_warned_and_strict_exits_2(calibrated, tmp_path,
+                                                                      capsys, recwarn):
+    # rows near singularities (random over +-180 deg) where the calibrated arm cannot reach
+    # the full pose on the program's branch: found with the Python API, then run by the CLI
+    from kinecal import compensate
+
+    model = load_model("ur5")
+    cal = load_model(calibrated / "ur5-cal.yaml")
+    q = random_configurations(model, 300, np.random.default_rng(0))
+    res = compensate(cal, model, joints=q)
+    bad, good = np.flatnonzero(~res.converged), np.flatnonzero(res.converged)
+    assert bad.size >= 1
+    rows = np.degrees(q[[good[0], bad[0], good[1]]])
+    path = _write(tmp_path / "prog.csv", ["q1", "q2", "q3", "q4", "q5", "q6"], rows)
+    out = tmp_path / "c.csv"
+    assert main(["compensate", str(calibrated / "ur5-cal.yaml"), str(path), "--out",
+                 str(out)]) == 0
+    err = capsys.readouterr().err
+    c = _read(out)
+    assert c["converged"] == ["true", "false", "true"] and c["status"][1] != "converged"
+    assert "1 of 3 rows did not converge" in err and "[compensation-not-converged]" in err
+    out.unlink()
+    assert main(["compensate", str(calibrated / "ur5-cal.yaml"), str(path), "--out",
+                 str(out), "--strict"]) == 2
+    assert not out.exists()  # nothing written
+    assert "compensation-not-converged" in capsys.readouterr().err
+    # --position-only: the point alone is reachable
+    assert main(["compensate", str(calibrated / "ur5-cal.yaml"), str(path), "--out",
+                 str(out), "--position-only", "--quiet"]) == 0
+    assert _read(out)["converged"] == ["true"] * 3 and "correction_angle" not in _read(out)
+
+
+def test_another_arm_and_bad_input_exit_2(calibrated, program, tmp_path, capsys):
+    path, _ = program
+    out = tmp_path / "c.csv"
+    cases = [
+        ([str(calibrated / "ur5-cal.yaml"), str(path), "--nominal", "irb120"], "same arm"),
+        ([str(calibrated / "result.json"), str(path), "--nominal", "puma560"], "ur5"),
+        ([str(calibrated / "ur5-cal.yaml"), str(tmp_path / "missing.csv")], "missing.csv"),
+        ([str(calibrated / "ur5-cal.yaml"), str(path), "--base", "tracker"], "--base"),
+        ([str(calibrated / "nothing.yaml"), str(path)], "CALIBRATED"),
+    ]
+    for args, needle in cases:
+        assert main(["compensate", *args, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("kinecal: error:") and needle in err and err.count("\n") == 1
+    bad = _write(tmp_path / "bad.csv", ["q1", "q2", "q3", "q4", "q5", "q6"],
+                 [[0, 0, 0, 0, 0, 0], [0, 0, "nan", 0, 0, 0]])
+    assert main(["compensate", str(calibrated / "ur5-cal.yaml"), str(bad), "--out",
+                 str(out)]) == 2
+    assert "row 2" in capsys.readouterr().err
+    five = _write(tmp_path / "five.csv", ["q1", "q2", "q3", "q4", "q5"], [[0] * 5])
+    assert main(["compensate", str(calibrated / "ur5-cal.yaml"), str(five), "--out",
+                 str(out)]) == 2
+    assert "q6" in capsys.readouterr().err
+    # an output over an input is refused before any work
+    assert main(["compensate", str(calibrated / "ur5-cal.yaml"), str(path), "--out",
+                 str(path)]) == 2
+    assert "overwrite" in capsys.readouterr().err
+    # a model file without a name that leads to its nominal needs --nominal
+    renamed = tmp_path / "arm.yaml"
+    renamed.write_text((calibrated / "ur5-cal.yaml").read_text().replace(
+        "name: ur5-calibrated", "name: cell-3-arm"))
+    assert main(["compensate", str(renamed), str(path), "--out", str(out)]) == 2
+    assert "--nominal" in capsys.readouterr().err
+    assert main(["compensate", str(renamed), str(path), "--nominal", "ur5", "--out", str(out),
+                 "--quiet"]) == 0
+
+
+def test_stewart_ik_with_a_calibrated_geometry_is_the_cmms_compensation(tmp_path, capsys):
+    d = tmp_path
+    assert main(["stewart", "simulate", "liu2008-cmm", "--poses", "40", "--errors", "1e-3",
+                 "--seed", "3", "--out", str(d / "data.csv"), "--truth-out",
+                 str(d / "true.yaml")]) == 0
+    assert main(["stewart", "calibrate", "liu2008-cmm", str(d / "data.csv"),
+                 "--geometry-out", str(d / "cal.yaml")]) == 0
+    capsys.readouterr()
+    pose = "0.01,0.02,0.93,2.0,-1.5,3.0"
+    (d / "poses.csv").write_text("x,y,z,alpha,beta,gamma\n" + pose + "\n")
+    legs = {}
+    for name, geom in (("nominal", "liu2008-cmm"), ("calibrated", str(d / "cal.yaml"))):
+        assert main(["stewart", "ik", geom, str(d / "poses.csv")]) == 0
+        out = _read_text(capsys.readouterr().out)
+        legs[name] = np.array([float(out[f"l{i}"][0]) for i in range(1, 7)])
+    true = load_geometry(d / "true.yaml")
+    from kinecal.kinematics.stewart import degrees_to_radians
+
+    want = degrees_to_radians(np.array([[float(v) for v in pose.split(",")]]))
+    reached = {k: true.forward(v[None], x0=want).poses[0] for k, v in legs.items()}
+    miss = {k: np.linalg.norm(v[:3] - want[0, :3]) for k, v in reached.items()}
+    assert miss["nominal"] > 1e-4 and miss["calibrated"] < 1e-5
+    np.testing.assert_allclose(legs["calibrated"], load_geometry(d / "cal.yaml").inverse(want)[0])
+
+
+def _read_text(text):
+    rows = list(csv.DictReader(text.splitlines()))
+    return {k: [r[k] for r in rows] for k in rows[0]}
