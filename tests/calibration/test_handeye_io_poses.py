@@ -22,6 +22,7 @@ from kinecal.io.handeye import (
     write_handeye_csv,
     write_handeye_yaml,
 )
+from kinecal.io.poses import canonical_poses
 from kinecal.spatial import (
     invert_transform,
     matrix_from_axis_angle,
@@ -52,7 +53,9 @@ def test_yaml_round_trip_and_opencv_reads_it(tmp_path):
     F, C = _poses(4, 3), _poses(4, 4)
     write_handeye_yaml(tmp_path / "p.yml", F, C)
     F2, C2 = read_handeye_pairs(tmp_path / "p.yml")
-    assert np.array_equal(F2, F) and np.array_equal(C2, C)
+    # every reader rebuilds the poses from translation and unit quaternion (io.poses)
+    assert np.array_equal(F2, canonical_poses(F)) and np.array_equal(C2, canonical_poses(C))
+    assert np.abs(F2 - F).max() < 1e-13 and np.abs(C2 - C).max() < 1e-13
     cv2 = pytest.importorskip("cv2")
     fs = cv2.FileStorage(str(tmp_path / "p.yml"), cv2.FILE_STORAGE_READ)
     assert np.array_equal(fs.getNode("T2_3").mat(), C[3])

@@ -8,7 +8,14 @@ import numpy as np
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import echo_json, write_json
+from kinecal.cli._common import (
+    check_paths,
+    echo_json,
+    strict_option,
+    warnings_scope,
+    with_warnings,
+    write_json,
+)
 from kinecal.errors import InputError
 
 #: bundled recordings addressable by name, with the setup they were recorded in
@@ -37,12 +44,55 @@ def _format_matrix(X: np.ndarray) -> str:
     return "\n".join("  [" + ", ".join(f"{v:12.6f}" for v in row) + "]" for row in X)
 
 
+_FORMAT_HELP = ("auto, quaternion, matrix (4x4), rotvec (UR), euler-zyx (KUKA A, B, C) or "
+                "rpy; append :deg for angles in degrees (e.g. euler-zyx:deg).")
+
+
+def read_pairs(pairs: str | None, robot_poses: Path | None, target_poses: Path | None,
+               robot_format: str, target_format: str, invert_robot: bool,
+               invert_target: bool):
+    """Pose pairs from PAIRS or from --robot-poses and --target-poses, in the formats and
+    directions the options give; returns ``(flange2base, target2cam, source, setup)``."""
+    from kinecal.io.handeye import read_handeye_files, read_handeye_pairs
+    from kinecal.io.poses import PoseFormat
+
+    robot = PoseFormat.parse(robot_format, invert_robot, "--robot-format")
+    target = PoseFormat.parse(target_format, invert_target, "--target-format")
+    if pairs is not None:
+        if robot_poses is not None or target_poses is not None:
+            raise InputError("give PAIRS or --robot-poses and --target-poses, not both",
+                             option="--robot-poses")
+        path, default_setup = resolve_pairs(pairs)
+        F, C = read_handeye_pairs(path, robot, target)
+        return F, C, str(path), default_setup
+    if robot_poses is None or target_poses is None:
+        raise InputError("expected PAIRS, or both --robot-poses and --target-poses",
+                         option="--target-poses" if robot_poses else "--robot-poses")
+    F, C = read_handeye_files(robot_poses, target_poses, robot, target)
+    return F, C, f"{robot_poses} + {target_poses}", None
+
+
 @app.command("handeye")
 def handeye(
-    pairs: str = typer.Argument(
-        ..., help="Pose pairs: CSV, OpenCV FileStorage YAML, or a bundled name "
-        "(handeye-camodocal)."
+    pairs: str | None = typer.Argument(
+        None, help="Pose pairs: CSV, OpenCV FileStorage YAML, or a bundled name "
+        "(handeye-camodocal). Or give --robot-poses and --target-poses."
     ),
+    robot_poses: Path | None = typer.Option(
+        None, "--robot-poses", help="Robot poses (flange2base; base2gripper with "
+        "--invert-robot), one per row of a CSV or a FileStorage list of 4x4 matrices."),
+    target_poses: Path | None = typer.Option(
+        None, "--target-poses", help="Target poses in the camera (target2cam; cam2target "
+        "with --invert-target), as --robot-poses, one per station in the same order."),
+    robot_format: str = typer.Option("auto", "--robot-format",
+                                     help="Rotation columns of the robot poses: " + _FORMAT_HELP),
+    target_format: str = typer.Option("auto", "--target-format",
+                                      help="Rotation columns of the target poses: "
+                                      + _FORMAT_HELP),
+    invert_robot: bool = typer.Option(False, "--invert-robot", help="The robot poses are "
+                                      "base2gripper (the base in the flange frame): invert."),
+    invert_target: bool = typer.Option(False, "--invert-target", help="The target poses are "
+                                       "cam2target: invert."),
     setup: str | None = typer.Option(
         None, "--setup", help="eye-in-hand (default) or eye-to-hand (default of the bundled "
         "camodocal recording)."
@@ -57,17 +107,21 @@ def handeye(
     json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),
     out: Path | None = typer.Option(None, "--out", help="Write the result JSON here."),
     report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
+    strict: bool = strict_option(),
 ) -> None:
     """Hand-eye calibration from (flange2base, target2cam) pose pairs."""
     from kinecal.calibration.handeye import calibrate_handeye
-    from kinecal.io.handeye import read_handeye_pairs
 
-    path, default_setup = resolve_pairs(pairs)
-    setup = setup or default_setup or "eye-in-hand"
-    F, C = read_handeye_pairs(path)
-    res = calibrate_handeye(F, C, setup=setup, method=method, refine=refine, pairs=pairs_mode,
-                            seed=seed)
-    result = {"file": str(path), **res.to_dict(), "seed": seed}
+    check_paths({"PAIRS": pairs, "--robot-poses": robot_poses, "--target-poses": target_poses},
+                {"--out": out, "--report": report})
+    with warnings_scope(strict) as found:
+        F, C, source, default_setup = read_pairs(pairs, robot_poses, target_poses,
+                                                 robot_format, target_format, invert_robot,
+                                                 invert_target)
+        setup = setup or default_setup or "eye-in-hand"
+        res = calibrate_handeye(F, C, setup=setup, method=method, refine=refine,
+                                pairs=pairs_mode, seed=seed)
+    result = with_warnings({"file": source, **res.to_dict(), "seed": seed}, found)
     if out is not None:
         write_json(out, result)
     if report is not None:
@@ -78,8 +132,10 @@ def handeye(
         echo_json(result)
         return
     frame = "cam2flange" if setup == "eye-in-hand" else "cam2base"
+    label = (Path(source).name if pairs is not None
+             else f"{Path(robot_poses).name} + {Path(target_poses).name}")
     lines = [
-        f"{path.name}: {len(F)} stations, {setup}, method {method}, refine {refine}",
+        f"{label}: {len(F)} stations, {setup}, method {method}, refine {refine}",
         f"X ({frame}):",
         _format_matrix(res.X),
         f"station residuals: rotation rms {res.rotation_rms_deg:.4g} deg, "

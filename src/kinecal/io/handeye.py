@@ -2,20 +2,29 @@
 
 CSV (DESIGN sec. 4): one row per station, columns ``flange_x, flange_y, flange_z,
 flange_qw, flange_qx, flange_qy, flange_qz`` (``flange2base``) and the same seven with
-prefix ``target_`` (``target2cam``); quaternions (w, x, y, z), lengths in one unit.
+prefix ``target_`` (``target2cam``); quaternions (w, x, y, z), lengths in one unit. The
+rotation columns may instead be any format of `kinecal.io.poses` (4x4 matrices, rotation
+vectors, ZYX Euler A, B, C, roll-pitch-yaw; degrees or radians), and a CSV without a header
+holds two row-major 4x4 matrices (32 numbers) per row.
 
 YAML: OpenCV FileStorage as written by ``cv::FileStorage`` (``%YAML:1.0``, matrices as
 ``!!opencv-matrix`` with ``rows, cols, dt, data``) holding ``frameCount`` and 4x4
 matrices ``T1_i`` (``flange2base``) and ``T2_i`` (``target2cam``), i = 0 .. frameCount-1,
 the layout of the handeye_calib_camodocal recordings (see docs/handeye.md for how the
-frame conventions of that recording were established).
+frame conventions of that recording were established); or two lists of 4x4 matrices named
+by their direction (``base2gripper`` is inverted to ``gripper2base``, see
+`read_handeye_pairs`). Robot and target poses may also come in two files
+(`read_handeye_files`), and either may be stored inverted (`PoseFormat.invert`).
 
-Every write is atomic; every bad input raises `InputError` naming the file and the row
-(CSV: 1-based data row; YAML: the station index i of ``T1_i``/``T2_i``).
+Every pose read is rebuilt from its translation and unit quaternion, so the same
+recording in any of these formats gives bit-identical results. Every write is atomic; every
+bad input raises `InputError` naming the file and the row (CSV: 1-based data row; YAML: the
+key of the matrix, ``T1_i`` or ``base2gripper[i]``).
 """
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import numpy as np
@@ -24,8 +33,16 @@ from numpy.typing import NDArray
 
 from kinecal._files import read_text, write_text_atomic
 from kinecal.errors import InputError
-from kinecal.io.csvtable import read_table, write_table
-from kinecal.spatial import check_rotation, pq_from_transform, transform_from_pq
+from kinecal.io.csvtable import write_table
+from kinecal.io.poses import (
+    PoseFormat,
+    check_matrices,
+    finish,
+    keyed_format,
+    read_csv_poses,
+    read_poses,
+)
+from kinecal.spatial import pq_from_transform
 
 Array = NDArray[np.float64]
 
@@ -34,8 +51,10 @@ __all__ = [
     "TARGET_COLUMNS",
     "pose_columns",
     "read_handeye_csv",
+    "read_handeye_files",
     "read_handeye_pairs",
     "read_handeye_yaml",
+    "read_matrix_lists",
     "write_handeye_csv",
     "write_handeye_yaml",
 ]
@@ -52,40 +71,64 @@ FLANGE_COLUMNS = pose_columns("flange")
 TARGET_COLUMNS = pose_columns("target")
 
 
-def read_handeye_pairs(path: str | Path) -> tuple[Array, Array]:
+def read_handeye_pairs(path: str | Path, robot: PoseFormat = PoseFormat(),
+                       target: PoseFormat = PoseFormat()) -> tuple[Array, Array]:
     """Read pose pairs from ``.csv`` or ``.yml``/``.yaml`` (OpenCV FileStorage).
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV with ``flange_*`` and ``target_*`` pose columns in any format of
+        `kinecal.io.poses` (or 32 numbers per row without a header: two row-major 4x4
+        matrices), or FileStorage YAML with ``T1_i``/``T2_i`` matrices or two lists of 4x4
+        matrices (``flange2base``/``gripper2base``/``base2flange``/``base2gripper`` and
+        ``target2cam``/``cam2target``; ``base2*`` and ``cam2target`` are inverted).
+    robot, target : PoseFormat
+        Rotation format, angle unit and direction of the robot and target poses.
+
+    Returns
+    -------
+    flange2base, target2cam : ndarray, shape (n, 4, 4)
+        Rebuilt from translation and unit quaternion (`kinecal.io.poses`).
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return read_handeye_csv(path, robot, target)
+    if suffix in (".yml", ".yaml"):
+        return read_handeye_yaml(path, robot, target)
+    raise InputError(f"unknown file type {suffix or '(none)'!r}; expected .csv, .yml or .yaml",
+                     file=path)
+
+
+def read_handeye_files(robot_path: str | Path, target_path: str | Path,
+                       robot: PoseFormat = PoseFormat(), target: PoseFormat = PoseFormat()
+                       ) -> tuple[Array, Array]:
+    """Pose pairs from two files, robot poses and target poses, one pose per row or
+    matrix (`kinecal.io.poses.read_poses`); both must hold the same number of stations.
 
     Returns
     -------
     flange2base, target2cam : ndarray, shape (n, 4, 4)
     """
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".csv":
-        return read_handeye_csv(path)
-    if suffix in (".yml", ".yaml"):
-        return read_handeye_yaml(path)
-    raise InputError(f"unknown file type {suffix or '(none)'!r}; expected .csv, .yml or .yaml",
-                     file=path)
+    F = read_poses(robot_path, robot, option="--robot-poses")
+    C = read_poses(target_path, target, option="--target-poses")
+    if len(F) != len(C):
+        raise InputError(f"{len(F)} robot poses ({Path(robot_path).name}) but {len(C)} target "
+                         f"poses ({Path(target_path).name}): expected one of each per station")
+    _enough(len(F), Path(robot_path))
+    return F, C
 
 
-def _poses_from_columns(cols: dict[str, Array], prefix: str, path: Path) -> Array:
-    pq = np.column_stack([cols[c] for c in pose_columns(prefix)])
-    norm = np.linalg.norm(pq[:, 3:], axis=1)
-    bad = np.flatnonzero(np.abs(norm - 1.0) > 1e-3)
-    if bad.size:
-        r = int(bad[0])
-        raise InputError(
-            f"{prefix} quaternion has norm {norm[r]:.6f}, expected a unit quaternion "
-            "(qw, qx, qy, qz)",
-            file=path,
-            row=r + 1,
-        )
-    return transform_from_pq(pq)
+def _enough(n: int, path: Path) -> None:
+    if n < 3:
+        raise InputError(f"{n} stations, expected at least 3", file=path)
 
 
-def read_handeye_csv(path: str | Path) -> tuple[Array, Array]:
-    """Read the hand-eye CSV (columns `FLANGE_COLUMNS` and `TARGET_COLUMNS`).
+def read_handeye_csv(path: str | Path, robot: PoseFormat = PoseFormat(),
+                     target: PoseFormat = PoseFormat()) -> tuple[Array, Array]:
+    """Read the hand-eye CSV (``flange_*`` and ``target_*`` pose columns, e.g.
+    `FLANGE_COLUMNS` and `TARGET_COLUMNS`; or 32 numbers per row without a header).
 
     Returns
     -------
@@ -93,8 +136,27 @@ def read_handeye_csv(path: str | Path) -> tuple[Array, Array]:
         Lengths in the file's unit.
     """
     path = Path(path)
-    cols = read_table(path, FLANGE_COLUMNS + TARGET_COLUMNS, min_rows=3)
-    return _poses_from_columns(cols, "flange", path), _poses_from_columns(cols, "target", path)
+    if _headerless_csv(path):
+        F, C = read_csv_poses(path, {"flange_": robot, "target_": target})
+    else:
+        F = read_csv_poses(path, {"flange_": robot}, option="--robot-format")[0]
+        C = read_csv_poses(path, {"target_": target}, option="--target-format")[0]
+    _enough(len(F), path)
+    return F, C
+
+
+def _headerless_csv(path: Path) -> bool:
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            first = next(csv.reader(fh), [])
+    except FileNotFoundError:
+        raise InputError("file not found", file=path) from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"cannot read CSV: {exc}", file=path) from None
+    try:
+        return bool(first) and all(np.isfinite(float(c)) for c in first)
+    except ValueError:
+        return False
 
 
 def write_handeye_csv(path: str | Path, flange2base: Array, target2cam: Array) -> None:
@@ -117,11 +179,8 @@ def _opencv_matrix(loader: yaml.SafeLoader, node: yaml.Node) -> dict:
 _OpenCVLoader.add_constructor("tag:yaml.org,2002:opencv-matrix", _opencv_matrix)
 
 
-def _matrix(doc: dict, key: str, path: Path, station: int) -> Array:
-    # The key (T1_<station>) locates the error in a FileStorage file: no row number.
-    node = doc.get(key)
-    if node is None:
-        raise InputError(f"missing matrix {key}", file=path)
+def _matrix_node(node, key: str, path: Path) -> Array:
+    # The key (T1_<station>, base2gripper[3]) locates the error in a FileStorage file.
     try:
         rows, cols = int(node["rows"]), int(node["cols"])
         data = np.asarray(node["data"], dtype=float)
@@ -134,24 +193,18 @@ def _matrix(doc: dict, key: str, path: Path, station: int) -> Array:
     T = data.reshape(4, 4)
     if not np.isfinite(T).all():
         raise InputError(f"{key}: contains NaN or infinite values", file=path)
-    if np.abs(T[3] - [0.0, 0.0, 0.0, 1.0]).max() > 1e-6:
-        raise InputError(f"{key}: last row must be (0, 0, 0, 1)", file=path)
-    try:
-        check_rotation(T[:3, :3], tol=1e-4, name=key)
-    except InputError as exc:
-        raise InputError(exc.message, file=path) from None
+    check_matrices(T[None], key, path, rows=[""])
     return T
 
 
-def read_handeye_yaml(path: str | Path) -> tuple[Array, Array]:
-    """Read an OpenCV FileStorage YAML with ``frameCount``, ``T1_i`` and ``T2_i``.
+def _matrix(doc: dict, key: str, path: Path) -> Array:
+    node = doc.get(key)
+    if node is None:
+        raise InputError(f"missing matrix {key}", file=path)
+    return _matrix_node(node, key, path)
 
-    Returns
-    -------
-    flange2base, target2cam : ndarray, shape (n, 4, 4)
-        ``T1_i`` and ``T2_i`` as stored (lengths in the file's unit).
-    """
-    path = Path(path)
+
+def _load_filestorage(path: Path) -> dict:
     lines = read_text(path).splitlines()
     if lines and lines[0].startswith("%YAML:"):  # OpenCV's non-standard directive
         lines = lines[1:]
@@ -160,16 +213,64 @@ def read_handeye_yaml(path: str | Path) -> tuple[Array, Array]:
     except yaml.YAMLError as exc:
         raise InputError(f"not valid YAML: {' '.join(str(exc).split())}", file=path) from None
     if not isinstance(doc, dict):
-        raise InputError("expected a mapping with frameCount, T1_i and T2_i", file=path)
-    try:
-        n = int(doc["frameCount"])
-    except (KeyError, TypeError, ValueError):
-        n = sum(1 for k in doc if str(k).startswith("T1_"))
-    if n < 3:
-        raise InputError(f"{n} stations, expected at least 3 (T1_i/T2_i pairs)", file=path)
-    F = np.stack([_matrix(doc, f"T1_{i}", path, i) for i in range(n)])
-    C = np.stack([_matrix(doc, f"T2_{i}", path, i) for i in range(n)])
-    return F, C
+        raise InputError("expected a mapping (OpenCV FileStorage)", file=path)
+    return doc
+
+
+def read_matrix_lists(path: str | Path) -> dict[str, Array]:
+    """Every list of 4x4 matrices in an OpenCV FileStorage YAML: ``{key: (n, 4, 4)}``, as
+    stored (``cv::FileStorage << "key" << std::vector<cv::Mat>``)."""
+    path = Path(path)
+    doc = _load_filestorage(path)
+    out = {}
+    for key, value in doc.items():
+        if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+            out[str(key)] = np.stack([_matrix_node(v, f"{key}[{i}]", path)
+                                      for i, v in enumerate(value)])
+    return out
+
+
+_ROBOT_LISTS = ("flange2base", "gripper2base", "base2flange", "base2gripper")
+_TARGET_LISTS = ("target2cam", "cam2target")
+
+
+def read_handeye_yaml(path: str | Path, robot: PoseFormat = PoseFormat(),
+                      target: PoseFormat = PoseFormat()) -> tuple[Array, Array]:
+    """Read an OpenCV FileStorage YAML: ``frameCount``, ``T1_i`` and ``T2_i``, or two lists
+    of 4x4 matrices (see `read_handeye_pairs`).
+
+    Returns
+    -------
+    flange2base, target2cam : ndarray, shape (n, 4, 4)
+        Rebuilt from translation and unit quaternion (lengths in the file's unit).
+    """
+    path = Path(path)
+    doc = _load_filestorage(path)
+    if "frameCount" in doc or "T1_0" in doc:
+        try:
+            n = int(doc["frameCount"])
+        except (KeyError, TypeError, ValueError):
+            n = sum(1 for k in doc if str(k).startswith("T1_"))
+        _enough(n, path)
+        F = np.stack([_matrix(doc, f"T1_{i}", path) for i in range(n)])
+        C = np.stack([_matrix(doc, f"T2_{i}", path) for i in range(n)])
+        return finish(F, robot), finish(C, target)
+    lists = read_matrix_lists(path)
+    found = {k.lower(): k for k in lists}
+    keys = [[found[k] for k in names if k in found] for names in (_ROBOT_LISTS, _TARGET_LISTS)]
+    if any(len(k) != 1 for k in keys):
+        raise InputError(
+            f"lists {', '.join(lists) or 'none'}: expected T1_i/T2_i matrices, or one robot "
+            f"list ({', '.join(_ROBOT_LISTS)}) and one target list ({', '.join(_TARGET_LISTS)})",
+            file=path)
+    F, C = lists[keys[0][0]], lists[keys[1][0]]
+    if len(F) != len(C):
+        raise InputError(f"{len(F)} robot poses but {len(C)} target poses: expected one of "
+                         "each per station", file=path)
+    _enough(len(F), path)
+    robot = keyed_format(robot, keys[0][0], path, "--invert-robot")
+    target = keyed_format(target, keys[1][0], path, "--invert-target")
+    return finish(F, robot), finish(C, target)
 
 
 def _fs_matrix(name: str, T: Array) -> str:
