@@ -35,7 +35,7 @@ from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial import SerialModel
 
-__all__ = ["CVScore", "cross_validate", "fold_of", "one_standard_error"]
+__all__ = ["CVScore", "FoldedRows", "cross_validate", "fold_of", "one_standard_error"]
 
 Array = NDArray[np.float64]
 #: seed of the fold permutation (fixed: the folds never depend on the user's seed)
@@ -83,10 +83,9 @@ def _solve(A: Array, b: Array) -> Array:
         return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
-def cross_validate(model: SerialModel, data: Measurements, params: Array,
-                   columns: Sequence[int], candidates: Sequence[Sequence[int]], k: int = 10,
-                   rotation_weight: float = 0.0) -> list[CVScore]:
-    """K-fold cross-validation scores of nested candidates (module docstring).
+class FoldedRows:
+    """One pass over the poses at `params`: per-fold Gram matrices of ``[J | r]`` for the
+    parameter indices `columns` (rows weighted like the fit), and the tool positions.
 
     Parameters
     ----------
@@ -98,63 +97,110 @@ def cross_validate(model: SerialModel, data: Measurements, params: Array,
         Linearisation point (the fit of the smallest model on all poses).
     columns : sequence of int
         Parameter indices of the union of all candidates' columns.
-    candidates : sequence of sequence of int
-        Each candidate's columns, as positions in `columns`.
     k : int
         Number of folds.
     rotation_weight : float
         Length units per rad of the rotation rows (measured orientations only).
+
+    Attributes
+    ----------
+    grams : ndarray, shape (k, m + 1, m + 1)
+        Per fold, the Gram matrix of its poses' rows ``[J | r]``.
+    total : ndarray, shape (m + 1, m + 1)
+        Their sum: the Gram matrix of all rows.
+    positions : ndarray, shape (N, 3)
+        Model tool positions at `params`.
+    """
+
+    def __init__(self, model: SerialModel, data: Measurements, params: Array,
+                 columns: Sequence[int], k: int = 10, rotation_weight: float = 0.0) -> None:
+        self.cols = np.asarray(columns, dtype=np.intp)
+        self.params = np.asarray(params, dtype=float)
+        m = self.cols.size
+        n = len(data)
+        self.k = k
+        self.folds = fold_of(n, k)
+        self.rows = PoseRows(model, data, rotation_weight, weighted=True)
+        self.sw = (np.ones(n) if data.weights is None
+                   else np.sqrt(np.asarray(data.weights, dtype=float)))
+        G = np.zeros((k, m + 1, m + 1))
+        self.positions = np.empty((n, 3))
+        keep = n * self.rows.rows * m <= _KEEP_ELEMENTS
+        self._kept: list | None = [] if keep else None
+        for sel in self.rows.chunks(m):
+            e, Jt, P = self.rows.evaluate(self.params, sel, self.cols)
+            self.positions[sel] = P
+            if self._kept is not None:
+                self._kept.append((sel, e, Jt))
+            f = self.folds[sel]
+            order = np.argsort(f, kind="stable")
+            bounds = np.searchsorted(f[order], np.arange(k + 1))
+            for fold in range(k):
+                at = order[bounds[fold]:bounds[fold + 1]]
+                if not at.size:
+                    continue
+                B = np.concatenate([Jt[:, :, at].reshape(m, -1),
+                                    np.ascontiguousarray(e[at].T).reshape(1, -1)])
+                G[fold] += B @ B.T
+        self.grams = G
+        self.total = G.sum(axis=0)
+
+    def scores(self, candidates: Sequence[Sequence[int]]) -> list[CVScore]:
+        """Cross-validation score of each candidate (its columns as positions in
+        `columns`)."""
+        k, m = self.k, self.cols.size
+        G, total = self.grams, self.total
+        steps = []  # per candidate: (K, len(S)) training steps
+        for S in candidates:
+            S = np.asarray(S, dtype=np.intp)
+            dx = np.zeros((k, S.size))
+            if S.size:  # the training normal equations of every fold at once
+                A = total[np.ix_(S, S)] - G[:, S][:, :, S]
+                b = total[S, m] - G[:, S, m]
+                try:
+                    dx = -np.linalg.solve(A, b[..., None])[..., 0]
+                except np.linalg.LinAlgError:  # a fold leaves the set rank-deficient
+                    dx = np.stack([-_solve(A[f], b[f]) for f in range(k)])
+            steps.append((S, dx))
+        n = self.folds.size
+        dist = np.zeros((len(candidates), n))
+        chunks = self._kept if self._kept is not None else (
+            (sel, *self.rows.evaluate(self.params, sel, self.cols)[:2])
+            for sel in self.rows.chunks(m))
+        for sel, e, Jt in chunks:
+            f = self.folds[sel]
+            J3 = Jt[:, :3]
+            for c, (S, dx) in enumerate(steps):
+                # held-out prediction r_i + J_i dx_f of each pose with its own fold's step
+                step = np.einsum("krn,nk->nr", J3[S], dx[f]) if S.size else 0.0
+                dist[c, sel] = np.linalg.norm(e[:, :3] + step, axis=1) / self.sw[sel]
+        out = []
+        counts = np.bincount(self.folds, minlength=k)
+        for c in range(len(candidates)):
+            means = np.bincount(self.folds, weights=dist[c], minlength=k) / counts
+            out.append(CVScore(float(dist[c].mean()), float(means.std(ddof=1) / np.sqrt(k)),
+                               means))
+        return out
+
+
+def cross_validate(model: SerialModel, data: Measurements, params: Array,
+                   columns: Sequence[int], candidates: Sequence[Sequence[int]], k: int = 10,
+                   rotation_weight: float = 0.0) -> list[CVScore]:
+    """K-fold cross-validation scores of nested candidates (module docstring).
+
+    Parameters
+    ----------
+    model, data, params, columns, k, rotation_weight
+        As in `FoldedRows`.
+    candidates : sequence of sequence of int
+        Each candidate's columns, as positions in `columns`.
 
     Returns
     -------
     list of CVScore
         One per candidate.
     """
-    cols = np.asarray(columns, dtype=np.intp)
-    m = cols.size
-    n = len(data)
-    folds = fold_of(n, k)
-    rows = PoseRows(model, data, rotation_weight, weighted=True)
-    sw = (np.ones(n) if data.weights is None
-          else np.sqrt(np.asarray(data.weights, dtype=float)))
-    G = np.zeros((k, m + 1, m + 1))
-    keep = n * rows.rows * m <= _KEEP_ELEMENTS
-    kept: list = []
-    for sel in rows.chunks(m):
-        e, Jt, _ = rows.evaluate(params, sel, cols)
-        if keep:
-            kept.append((sel, e, Jt))
-        f = folds[sel]
-        for fold in np.unique(f):
-            at = np.flatnonzero(f == fold)
-            B = np.concatenate([Jt[:, :, at].reshape(m, -1),
-                                np.ascontiguousarray(e[at].T).reshape(1, -1)])
-            G[fold] += B @ B.T
-    total = G.sum(axis=0)
-    steps = []  # per candidate: (K, len(S)) training steps
-    for S in candidates:
-        S = np.asarray(S, dtype=np.intp)
-        dx = np.zeros((k, S.size))
-        for fold in range(k):
-            A = total[np.ix_(S, S)] - G[fold][np.ix_(S, S)]
-            b = total[S, m] - G[fold][S, m]
-            dx[fold] = -_solve(A, b) if S.size else dx[fold]
-        steps.append((S, dx))
-    dist = np.zeros((len(candidates), n))
-    chunks = kept if keep else ((sel, *rows.evaluate(params, sel, cols)[:2])
-                                for sel in rows.chunks(m))
-    for sel, e, Jt in chunks:
-        f = folds[sel]
-        for c, (S, dx) in enumerate(steps):
-            # held-out prediction r_i + J_i dx_f of each pose with its own fold's step
-            step = np.einsum("krn,nk->nr", Jt[S][:, :3], dx[f]) if S.size else 0.0
-            dist[c, sel] = np.linalg.norm(e[:, :3] + step, axis=1) / sw[sel]
-    scores = []
-    for c in range(len(candidates)):
-        means = np.array([dist[c, folds == fold].mean() for fold in range(k)])
-        scores.append(CVScore(float(dist[c].mean()), float(means.std(ddof=1) / np.sqrt(k)),
-                              means))
-    return scores
+    return FoldedRows(model, data, params, columns, k, rotation_weight).scores(candidates)
 
 
 def one_standard_error(scores: Sequence[CVScore], sizes: Sequence[int]) -> tuple[int, int]:

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from kinecal.calibration.cross_validation import cross_validate, one_standard_error
+from kinecal.calibration.cross_validation import FoldedRows, one_standard_error
 from kinecal.calibration.identifiability import IdentifiabilityReport
 from kinecal.calibration.joint_identifiability import CoefficientAnalysis, correlated_with
 from kinecal.calibration.result import CalibrationResult
@@ -191,20 +191,25 @@ def calibrate_error_model(
     params = np.r_[geo.params, union.nominal[n_geo:]]
     coef_names = [n for n in union.parameter_names[n_geo:] if n not in model.fixed_names]
     rw = _rotation_weight(geo, data, rotation_weight)
-    analysis = CoefficientAnalysis(union, data, geo.free, coef_names, params, rw)
-    # 2. auto: K-fold cross-validation of every candidate, one-standard-error rule
     table: list[dict] = []
     final_spec = union_spec
-    if auto:
-        cands = candidates(order)
-        sets = [list(geo.free) + analysis.report(
-            [n for n in coef_names if _in_candidate(union, n, fam, h)], rank_tol).identifiable
-            for _, fam, h in cands]
-        sizes = [len(s_) for s_ in sets]
+    if not auto:
+        analysis = CoefficientAnalysis(union, data, geo.free, coef_names, params, rw)
+    else:
+        # 2. auto: one pass at the geometric calibration gives every fold's normal equations
+        # and the identifiability of every coefficient; each candidate is scored by K-fold
+        # cross-validation, the one-standard-error rule chooses
         cols = list(geo.free) + coef_names
+        folded = FoldedRows(union, data, params, union.index(cols), folds, rw)
+        analysis = CoefficientAnalysis(union, data, geo.free, coef_names, params, rw,
+                                       gram=folded.total, positions=folded.positions)
+        cands = candidates(order)
+        member = _membership(union, coef_names)
+        sets = [list(geo.free) + analysis.identifiable(
+            [n for n in coef_names if member(n, fam, h)], rank_tol) for _, fam, h in cands]
+        sizes = [len(s_) for s_ in sets]
         pos = {n: i for i, n in enumerate(cols)}
-        scores = cross_validate(union, data, params, union.index(cols),
-                                [[pos[n] for n in s_] for s_ in sets], folds, rw)
+        scores = folded.scores([[pos[n] for n in s_] for s_ in sets])
         best, pick = one_standard_error(scores, sizes)
         for i, ((label, _, _), sc) in enumerate(zip(cands, scores, strict=True)):
             table.append({"model": label, "parameters": sizes[i],
@@ -249,13 +254,21 @@ def _terms_entry(res: CalibrationResult, ident: IdentifiabilityReport) -> dict:
     }
 
 
-def _in_candidate(model: SerialModel, name: str, families: Sequence[str], h: int) -> bool:
-    """Does coefficient `name` belong to a candidate with `families` and order `h`?"""
-    family = model._joint_terms.families[model.index([name])[0] - model._n_geometric]
-    if family != "harmonic":
-        return family in families
-    order = int(name.rsplit(".", 1)[1][3:])  # dq{j}.sin{h} / dq{j}.cos{h}
-    return "harmonic" in families and order <= h
+def _membership(model: SerialModel, names: Sequence[str]):
+    """``member(name, families, h)``: does coefficient `name` belong to a candidate with
+    `families` and harmonic order `h`?"""
+    terms = model._joint_terms
+    n_geo = model._n_geometric
+    family = {n: terms.families[k - n_geo] for n, k in zip(names, model.index(list(names)),
+                                                           strict=True)}
+
+    def member(name: str, families: Sequence[str], h: int) -> bool:
+        if family[name] != "harmonic":
+            return family[name] in families
+        order = int(name.rsplit(".", 1)[1][3:])  # dq{j}.sin{h} / dq{j}.cos{h}
+        return "harmonic" in families and order <= h
+
+    return member
 
 
 def _rotation_weight(geo: CalibrationResult, data: Measurements,

@@ -239,7 +239,7 @@ def analyse_factor(
 
 
 def pivoted_qr_diagonal(
-    A: NDArray[np.float64], tie: float = TIE_TOL
+    A: NDArray[np.float64], tie: float = TIE_TOL, stop: float = 0.0
 ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     """``|diag(R)|`` and the column order of Householder QR with column pivoting of `A`.
 
@@ -256,6 +256,9 @@ def pivoted_qr_diagonal(
     A : ndarray, shape (m, n)
     tie : float
         Relative tolerance of a tie between remaining column norms.
+    stop : float
+        Stop once every remaining column norm is at most `stop` (their order is then
+        left as it is and their pivots are 0): a rank decision needs no more.
 
     Returns
     -------
@@ -271,7 +274,7 @@ def pivoted_qr_diagonal(
     for j in range(min(m, n)):
         norms = np.linalg.norm(W[j:, j:], axis=0)
         top = norms.max()
-        if top == 0.0:
+        if top <= stop:
             break
         near = np.flatnonzero(norms >= top * (1.0 - tie))
         c = j + near[np.argmax(piv[j + near])]

@@ -4,7 +4,9 @@ The geometry comes first: its identifiable parameters are those of the geometric
 calibration. A joint-error coefficient is identifiable when its (scaled) Jacobian column
 keeps a component above the rank threshold once the geometric columns are projected out;
 among the coefficients, column-pivoted QR of the projected columns decides (the exact tie
-rule of `kinecal.calibration.identifiability.pivoted_qr_diagonal`). So a coefficient
+rule of `kinecal.calibration.identifiability.pivoted_qr_diagonal`: of two coefficients with
+the same effect the later one is kept, a harmonic rather than a gravity force, which keeps
+the choice independent of round-off). So a coefficient
 never displaces a geometric parameter, and one that the geometry reproduces (a first
 harmonic that a joint offset and link lengths mimic on these poses, the gravity force of
 a joint whose axis is parallel to gravity) is reported with the combination of free
@@ -32,6 +34,7 @@ from kinecal.calibration.problem import column_scale
 from kinecal.calibration.rows import PoseRows
 from kinecal.data import Measurements
 from kinecal.kinematics.serial import SerialModel
+from kinecal.optimize.factor import gram_root
 
 __all__ = ["CoefficientAnalysis", "correlated_with"]
 
@@ -41,7 +44,8 @@ CORRELATION_REPORT = 0.9
 
 
 class CoefficientAnalysis:
-    """The R factor of the geometric free columns and candidate coefficients, once.
+    """The scaled R factor of the geometric free columns and candidate coefficients, once;
+    then `report` for any subset of the coefficients.
 
     Parameters
     ----------
@@ -57,58 +61,83 @@ class CoefficientAnalysis:
         Where to linearise (the geometric calibration, coefficients at nominal).
     rotation_weight : float
         Length units per rad of rotation rows (measured orientations only).
+    gram, positions : ndarray, optional
+        The Gram matrix ``(k + 1, k + 1)`` of ``[J | r]`` for ``geometric + coefficients``
+        and the tool positions ``(N, 3)`` at `params`, when a pass already made them
+        (`kinecal.calibration.cross_validation.FoldedRows`); its square root stands in for
+        the R factor (exact enough at thresholds from 1e-6). Otherwise one TSQR pass.
     """
 
     def __init__(self, model: SerialModel, data: Measurements, geometric: Sequence[str],
-                 coefficients: Sequence[str], params: Array, rotation_weight: float = 0.0
-                 ) -> None:
+                 coefficients: Sequence[str], params: Array, rotation_weight: float = 0.0,
+                 gram: Array | None = None, positions: Array | None = None) -> None:
         self.geometric = list(geometric)
         self.coefficients = list(coefficients)
         self.names = self.geometric + self.coefficients
-        rows = PoseRows(model, data, rotation_weight, weighted=False)
-        R, _, P = rows.factor(np.asarray(params, dtype=float), model.index(self.names))
         k = len(self.names)
-        self.scale = column_scale(model, data, self.names, params, positions=P)
-        self.Rs = R[:k, :k] * self.scale
+        rows = PoseRows(model, data, rotation_weight, weighted=False)
         self.n_rows = rows.rows * rows.n_poses
-        self._pos = {n: i for i, n in enumerate(self.names)}
+        if gram is None:
+            R, _, positions = rows.factor(np.asarray(params, dtype=float),
+                                          model.index(self.names))
+        self.scale = column_scale(model, data, self.names, params, positions=positions)
+        if gram is None:
+            self.Rs = R[:k, :k] * self.scale
+        else:
+            self.Rs = gram_root(gram[:k, :k] * np.outer(self.scale, self.scale))
+        kg = len(self.geometric)
+        self.norms = np.linalg.norm(self.Rs, axis=0)
+        self.geo_norm = float(self.norms[:kg].max(initial=0.0))
+        if kg:  # the coefficients' columns beyond the geometric span, once
+            Q, _ = np.linalg.qr(self.Rs[:, :kg])
+            self.rest = self.Rs[:, kg:] - Q @ (Q.T @ self.Rs[:, kg:])
+        else:
+            self.rest = self.Rs.copy()
+        self._pos = {n: i for i, n in enumerate(self.coefficients)}
 
-    def report(self, names: Sequence[str], tol: float) -> IdentifiabilityReport:
-        """Which of the coefficients `names` are identifiable beyond the geometry."""
+    def identifiable(self, names: Sequence[str], tol: float) -> list[str]:
+        """The identifiable coefficients among `names` (in the order of `names`)."""
+        return self.report(names, tol, confounding=False).identifiable
+
+    def report(self, names: Sequence[str], tol: float, confounding: bool = True
+               ) -> IdentifiabilityReport:
+        """Which of the coefficients `names` are identifiable beyond the geometry, and
+        (`confounding`) what each of the others equals."""
         names = list(names)
         kg = len(self.geometric)
-        cols = list(range(kg)) + [self._pos[n] for n in names]
-        Rs = self.Rs[:, cols]
-        f = self.scale[cols]
-        ref = float(np.linalg.norm(Rs, axis=0).max(initial=0.0))
-        if kg:
-            Q, _ = np.linalg.qr(Rs[:, :kg])
-            rest = Rs[:, kg:] - Q @ (Q.T @ Rs[:, kg:])
-        else:
-            rest = Rs.copy()
-        diag, piv = pivoted_qr_diagonal(rest) if names else (np.zeros(0), np.zeros(0, int))
-        rank = int((diag > tol * ref).sum()) if ref > 0 else 0
+        sub = np.array([self._pos[n] for n in names], dtype=np.intp)
+        ref = max(self.geo_norm, float(self.norms[kg + sub].max(initial=0.0)))
+        rank, piv = 0, np.arange(sub.size)
+        if sub.size and ref > 0:
+            # the exact tie rule (equal effects, e.g. a joint's first harmonic and the
+            # gravity force of a mass on its link: the later column, the harmonic, is kept)
+            # on the square factor of the projected columns (same norms and products)
+            R0 = np.linalg.qr(self.rest[:, sub], mode="r")
+            diag, piv = pivoted_qr_diagonal(R0, stop=tol * ref)
+            rank = int((diag > tol * ref).sum())
         kept = np.sort(piv[:rank])
         dropped = np.sort(piv[rank:])
+        cols = list(range(kg)) + [kg + int(sub[i]) for i in kept]
+        labels = self.geometric + [names[i] for i in kept]
         confounded: dict[str, dict[str, float]] = {}
-        basis = list(range(kg)) + [kg + i for i in kept]
-        labels = self.geometric + names
-        if dropped.size:
-            A = Rs[:, basis]
-            coef = np.linalg.lstsq(A, Rs[:, kg + dropped], rcond=None)[0] if basis else \
-                np.zeros((0, dropped.size))
-            coef = coef * f[basis][:, None] / f[kg + dropped][None, :]
+        if confounding and dropped.size:
+            f = self.scale
+            A = self.Rs[:, cols]
+            D = self.Rs[:, kg + sub[dropped]]
+            coef = (np.linalg.lstsq(A, D, rcond=None)[0] if cols
+                    else np.zeros((0, dropped.size)))
+            coef = coef * f[cols][:, None] / f[kg + sub[dropped]][None, :]
             for j, d in enumerate(dropped):
                 c = coef[:, j]
                 big = np.abs(c) > 1e-6 * max(np.abs(c).max(initial=0.0), 1e-300)
-                confounded[names[d]] = {labels[basis[i]]: float(c[i])
-                                        for i in np.flatnonzero(big)}
-        cond, s = conditioning(Rs[:, basis]) if basis else (float("inf"), np.zeros(0))
+                confounded[names[d]] = {labels[i]: float(c[i]) for i in np.flatnonzero(big)}
+        cond, s = (conditioning(self.Rs[:, cols]) if confounding and cols
+                   else (float("nan"), np.zeros(0)))
         return IdentifiabilityReport(
             names=names, rank=int(rank), identifiable=[names[i] for i in kept],
             unidentifiable=[names[i] for i in dropped], confounded_with=confounded,
             condition_number=cond, singular_values=s,
-            observability=observability_indices(s, self.n_rows),
+            observability=observability_indices(s, self.n_rows) if s.size else {},
         )
 
 
