@@ -21,18 +21,23 @@ from typing import Any
 
 import numpy as np
 
-from kinecal.calibration.covariance import parameter_covariance
-from kinecal.calibration.problem import CalibrationProblem, resolve_free
+from kinecal import diagnostics
+from kinecal.calibration.diagnostics.fit import check_serial_fit
+from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
+from kinecal.calibration.identifiability import analyse_factor
+from kinecal.calibration.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.result import CalibrationResult
 from kinecal.calibration.solve import solve_lm
 from kinecal.calibration.stats import error_stats
+from kinecal.calibration.uncertainty import Uncertainty, subspace_uncertainty
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.markers import model_for_markers, remap_markers
 from kinecal.kinematics.serial import SerialModel
 from kinecal.optimize import METHODS, minimize
 from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
-from kinecal.optimize.lsq import householder_gauss_newton, levenberg_marquardt
+from kinecal.optimize.factor import gram_root
+from kinecal.optimize.lsq import LOSSES, householder_gauss_newton, levenberg_marquardt
 from kinecal.spatial import rotation_angle
 
 __all__ = ["CALIBRATION_METHODS", "calibrate"]
@@ -56,19 +61,50 @@ def _outliers(d: np.ndarray) -> list[int]:
     return [int(i) for i in np.flatnonzero(d > med + OUTLIER_K * mad)]
 
 
-def _covariance(problem: CalibrationProblem, x: np.ndarray, keep: np.ndarray | None,
-                normal: np.ndarray | None = None, rss: float | None = None):
-    """Covariance of the free parameters at `x` (`parameter_covariance`).
+def _uncertainty(problem: CalibrationProblem, x: np.ndarray, outliers: list[int],
+                 unique_rows: np.ndarray | None, normal: np.ndarray | None, rss: float,
+                 rank: int) -> Uncertainty:
+    """Covariance of the free parameters at `x` on their identifiable subspace.
 
-    `normal` and `rss`: ``J^T W J`` and the weighted RSS at `x` when the solver already has
-    them (LM); otherwise one chunked pass over the poses (only `keep` when given).
+    The rows entering it: every pose but the robust loss' outliers, and of exact copies of a
+    row only the first (a copied row adds no information; counting it would shrink the
+    standard errors by the square root of the number of copies). `normal` and `rss`:
+    ``J^T W J`` and the weighted RSS at `x` when the solver already has them for all poses
+    (LM); otherwise one chunked pass over the kept poses.
     """
     k = problem.n_free
-    if normal is None or rss is None or keep is not None:
+    n = len(problem.data)
+    keep = None
+    if outliers or unique_rows is not None:
+        keep = np.arange(n) if unique_rows is None else np.asarray(unique_rows)
+        keep = np.setdiff1d(keep, outliers)
+    if normal is None or keep is not None:
         G = problem.gram(x, keep=keep)
         normal, rss = G[:k, :k], G[k, k]
-    n = len(problem.data) if keep is None else len(keep)
-    return parameter_covariance(normal, rss, problem.rows * n - k)
+    n_rows = problem.rows * (n if keep is None else len(keep))
+    P = problem.errors(x) + problem.xyz
+    scale = column_scale(problem.model, problem.data, problem.free, positions=P)
+    return subspace_uncertainty(normal, rss, n_rows, rank, scale)
+
+
+def _solution_report(problem: CalibrationProblem, x: np.ndarray, report, normal, tol: float):
+    """The identifiability report of an explicit free set, redone at the solution `x`.
+
+    Identifiability is local (large angle errors can separate parameters that are
+    confounded at nominal); the uncertainty and the words "not identifiable" must describe
+    the fit actually made.
+    """
+    k = problem.n_free
+    if normal is None:
+        normal = problem.gram(x)[:k, :k]
+    P = problem.errors(x) + problem.xyz
+    sub = analyse_factor(gram_root(normal), problem.free, problem.rows * len(problem.data),
+                         tol=tol, scale=column_scale(problem.model, problem.data, problem.free,
+                                                     positions=P))
+    return dataclasses.replace(
+        report, rank=sub.rank, identifiable=sub.identifiable, unidentifiable=sub.unidentifiable,
+        confounded_with=sub.confounded_with, condition_number=sub.condition_number,
+        singular_values=sub.singular_values, observability=sub.observability)
 
 
 def _rotation_stats(model: SerialModel, data: Measurements, params: np.ndarray) -> dict:
@@ -148,10 +184,31 @@ def calibrate(
     Returns
     -------
     CalibrationResult
+        With ``warnings``: the plausibility diagnostics of this calibration
+        (`kinecal.calibration.diagnostics`), also issued as `kinecal.diagnostics.KinecalWarning`
+        unless an outer collector (the command line) takes them.
+
+    Raises
+    ------
+    InputError
+        Bad arguments, or data that cannot give an answer (too few distinct poses).
     """
+    with diagnostics.collect(python_warnings=True) as found:
+        res = _calibrate(model, data, method, free=free, validate=validate, rng=rng, loss=loss,
+                         f_scale=f_scale, maxiter=maxiter, target=target, options=options,
+                         progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight)
+    res.warnings = list(found)
+    return res
+
+
+def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxiter, target,
+               options, progress, rank_tol, rotation_weight) -> CalibrationResult:
     if method not in CALIBRATION_METHODS:
         raise InputError(f"unknown method {method!r}; expected one of "
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
+    if loss not in LOSSES:  # before any work: a typo must not cost a calibration
+        raise InputError(f"loss: expected one of {', '.join(LOSSES)}, got {loss!r}",
+                         option="--loss")
     if len(data) < 1:
         raise InputError("no calibration poses")
     model = model_for_markers(model, data.marker_names)  # one tool point per marker seen
@@ -159,12 +216,22 @@ def calibrate(
     validate = None if validate is None else _with_model_markers(validate, model)
     seed = int(rng) if isinstance(rng, int | np.integer) else None
     t0 = time.perf_counter()
+    found: list[SerialDataInfo] = []
+
+    def check(names: list[str], report) -> None:  # the data checks, before the fit
+        found.append(check_serial_data(model, data, names, report, validate=validate,
+                                       rank_tol=rank_tol))
+        found.append(report)
+
     if method == "lm":  # analysis, fit and growth in few passes (kinecal.calibration.solve)
-        sol = solve_lm(model, data, free, rank_tol=rank_tol, rotation_weight=rotation_weight)
+        sol = solve_lm(model, data, free, rank_tol=rank_tol, rotation_weight=rotation_weight,
+                       check=check)
         problem, res, names, report = sol.problem, sol.result, sol.names, sol.report
     else:
         names, report = resolve_free(model, data, free, tol=rank_tol)
+        check(names, report)
         problem = CalibrationProblem(model, data, names, rotation_weight)
+    info, first_report = found
     monitor = problem.mean_distance_from_residuals
     outliers: list[int] = []
     options = dict(options or {})
@@ -197,14 +264,23 @@ def calibrate(
                        maxiter=maxiter, target=target, callback=callback,
                        options=options or None)
     x = np.asarray(res.x, dtype=float)
-    keep = None
-    if outliers:
-        keep = np.setdiff1d(np.arange(len(data)), outliers)
+    explicit = list(first_report.names) == list(names)
     normal = res.get("normal_matrix") if loss == "linear" else None
-    cov, sigma = _covariance(problem, x, keep, normal, 2.0 * float(res.fun))
+    if explicit:  # what the poses identify at the identified values, not at nominal
+        report = _solution_report(problem, x, report, normal, rank_tol)
+    unc = _uncertainty(problem, x, outliers, info.unique_rows, normal, 2.0 * float(res.fun),
+                       report.rank if explicit else len(names))
+    unc.estimable &= ~np.isin(names, report.unidentifiable)  # the report has the last word
     params = problem.full(x)
     std = np.zeros(model.n_params)
-    std[problem.index] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    std[problem.index] = unc.std
+    flagged = check_serial_fit(
+        problem, x, unc.std, unc.estimable, free_choice=free,
+        least_squares=method in ("lm", "householder"), robust=loss != "linear",
+        groups=info.groups if info.n_distinct < len(data) else None,
+        rank=int(unc.estimable.size - unc.null.shape[1]),
+        confounded_with=first_report.confounded_with)
+    outliers = outliers or flagged
     calibrated = model.with_params(params, name=f"{model.name}-calibrated")
     x_nom = problem.x0
     val_before = val_after = None
@@ -223,6 +299,10 @@ def calibrate(
         extra["singular_parameters"] = [names[i] for i in res.singular]
     if rotation:  # measured orientations: rotation errors in degrees
         extra["rotation_deg"] = rotation
+    if info.unique_rows is not None:  # exact copies of rows: counted once in the covariance
+        extra["independent_poses"] = int(len(info.unique_rows))
+    if loss != "linear":
+        extra["loss"] = loss
     if "ls_history" in res:  # hybrid: the least-squares stage before the metaheuristic
         extra["least_squares_history"] = [float(h) for h in res.ls_history]
         extra["least_squares_iterations"] = int(res.ls_iterations)
@@ -233,7 +313,7 @@ def calibrate(
         free=names,
         params=params,
         std=std,
-        covariance=cov,
+        covariance=unc.covariance,
         identifiability=report,
         errors_before=problem.distances(x_nom),
         errors_after=(problem.distances_from_residuals(res.residual)
@@ -248,10 +328,12 @@ def calibrate(
         outliers=outliers,
         message=str(res.message),
         success=bool(res.success),
-        sigma=sigma,
+        sigma=unc.sigma,
         extra=extra,
         q_calibration=np.asarray(data.q),
         q_validation=None if validate is None else np.asarray(validate.q),
         marker_calibration=data.marker,
         marker_validation=None if validate is None else validate.marker,
+        uncertainty=unc,
+        lost=list(info.lost),
     )

@@ -20,7 +20,7 @@ make as few as possible, none of them over more than a chunk of rows at a time:
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import scipy.linalg
@@ -66,13 +66,18 @@ class LMSolution:
 
 
 def solve_lm(model: SerialModel, data: Measurements, free: str | Sequence[str], *,
-             rank_tol: float, rotation_weight: float | None = None) -> LMSolution:
+             rank_tol: float, rotation_weight: float | None = None,
+             check: Callable[[list[str], IdentifiabilityReport], None] | None = None,
+             ) -> LMSolution:
     """Identifiability analysis and Levenberg-Marquardt fit (module docstring).
 
     Parameters
     ----------
     model, data, free, rank_tol, rotation_weight
         As in `kinecal.calibration.serial.calibrate`.
+    check : callable, optional
+        ``check(names, report)`` after the analysis, before the fit (the data checks of
+        `kinecal.calibration.diagnostics`; it may raise `InputError`).
 
     Returns
     -------
@@ -94,6 +99,8 @@ def solve_lm(model: SerialModel, data: Measurements, free: str | Sequence[str], 
     else:
         report = analyse_poses(model, data, cand, tol=rank_tol, rotation_weight=rotation_weight)
     names = report.identifiable if free == "identifiable" else cand
+    if check is not None:
+        check(list(names), report)
     problem = CalibrationProblem(model, data, names, rotation_weight)
     start = None
     if G is not None and not problem.weighted:  # the analysis' rows are the fit's rows

@@ -14,8 +14,13 @@ from kinecal.cli._common import (
     base_link_option,
     echo_json,
     load_model_arg,
+    quiet_option,
     resolve_data_path,
+    strict_option,
     tip_link_option,
+    warnings_scope,
+    with_warnings,
+    write_json,
 )
 from kinecal.errors import InputError
 
@@ -40,13 +45,24 @@ def model_for_result(model, path: Path):
 
 
 def parameters_from_result(model, path: Path) -> np.ndarray:
-    """Full parameter vector from a calibration result JSON (``identified`` values)."""
+    """Full parameter vector from a calibration result JSON (``identified`` values).
+
+    Refuses (`InputError`) a result without parameters, with a parameter the model does not
+    have, a value that is not a finite number, other units, or nominal values that differ
+    from the model's (a result of another model).
+    """
     from kinecal._files import read_json
 
     data = read_json(path)
     params = data.get("parameters") if isinstance(data, dict) else None
-    if not isinstance(params, dict):
-        raise InputError("expected a calibration result with a 'parameters' mapping", file=path)
+    if not isinstance(params, dict) or not params:
+        raise InputError("expected a calibration result with a non-empty 'parameters' mapping",
+                         file=path)
+    for key, mine in (("length_unit", model.length_unit), ("angle_unit", model.angle_unit)):
+        theirs = data.get(key)
+        if theirs is not None and theirs != mine:
+            raise InputError(f"the result's {key} is {theirs!r}, model {model.name!r} uses "
+                             f"{mine!r}: a result of another model", file=path)
     angle = model.is_angle()
     scale = np.pi / 180.0 if model.angle_unit == "deg" else 1.0
     p = model.nominal
@@ -55,12 +71,23 @@ def parameters_from_result(model, path: Path) -> np.ndarray:
         if k is None:
             raise InputError(f"parameter {name!r} does not belong to model {model.name!r}",
                              file=path)
+        conv = scale if angle[k] else 1.0
         try:
             value = float(entry["identified"] if isinstance(entry, dict) else entry)
+            nominal = float(entry["nominal"]) if isinstance(entry, dict) and entry.get(
+                "nominal") is not None else None
         except (KeyError, TypeError, ValueError):
             raise InputError(f"parameter {name!r}: expected a number 'identified'",
                              file=path) from None
-        p[k] = value * scale if angle[k] else value
+        if not np.isfinite(value) or (nominal is not None and not np.isfinite(nominal)):
+            raise InputError(f"parameter {name!r}: expected a finite number, got {value}",
+                             file=path)
+        mine = p[k] / conv
+        if nominal is not None and abs(nominal - mine) > 1e-6 * max(1.0, abs(mine)):
+            raise InputError(f"parameter {name!r} has nominal {nominal:.6g} in the result but "
+                             f"{mine:.6g} in model {model.name!r}: a result of another model",
+                             file=path)
+        p[k] = value * conv
     return p
 
 
@@ -132,18 +159,24 @@ def fk(
     joints: str = typer.Argument(..., help="CSV with q1..qn (model angle unit) or NAME:PART."),
     pose: bool = typer.Option(False, "--pose", help="Also print qw,qx,qy,qz of the tool frame."),
     params: Path | None = typer.Option(None, "--params", help="Calibration result JSON."),
+    strict: bool = strict_option(),
+    quiet: bool = quiet_option(),
 ) -> None:
     """Forward kinematics: tool-point positions (CSV on stdout)."""
+    from kinecal.calibration.diagnostics.serial import check_joint_limits, check_joint_units
     from kinecal.io.measurements import read_joints, read_markers
     from kinecal.spatial import quaternion_from_matrix
 
-    m = load_model_arg(model, base_link, tip_link)
-    if params is not None:
-        m = model_for_result(m, params)
-    path = resolve_data_path(joints, "JOINTS")
-    q = read_joints(path, m)
-    marker = read_markers(path, m)[0] if m.marker_names else None
-    p = None if params is None else parameters_from_result(m, params)
+    with warnings_scope(strict):
+        m = load_model_arg(model, base_link, tip_link)
+        if params is not None:
+            m = model_for_result(m, params)
+        path = resolve_data_path(joints, "JOINTS")
+        q = read_joints(path, m)
+        marker = read_markers(path, m)[0] if m.marker_names else None
+        check_joint_limits(m, q, "joint readings")
+        check_joint_units(m, q, "joint readings")
+        p = None if params is None else parameters_from_result(m, params)
     T = m.fk(q, p, marker)
     header = ["x", "y", "z"] + (["qw", "qx", "qy", "qz"] if pose else [])
     out = T[:, :3, 3]
@@ -179,27 +212,31 @@ def simulate(
                                      help="Also measure the tool orientation (qw..qz columns)."),
     angle_noise: float = typer.Option(0.0, "--angle-noise",
                                       help="Orientation noise sigma (model angle unit)."),
+    strict: bool = strict_option(),
+    quiet: bool = quiet_option(),
 ) -> None:
     """Simulate measurements of a model with true errors and noise."""
     from kinecal.calibration.simulate import read_truth, write_truth
     from kinecal.calibration.simulate import simulate as run
     from kinecal.io.measurements import write_measurements
 
-    m = load_model_arg(model, base_link, tip_link)
-    if errors in ("zero", "random"):
-        err: object = errors
-    else:
-        err = read_truth(Path(errors), m) - m.nominal
-    if angle_noise and not orientation:
-        raise InputError("--angle-noise needs --orientation", option="--angle-noise")
-    to_rad = np.pi / 180.0 if m.angle_unit == "deg" else 1.0
-    sim = run(m, poses, errors=err, noise=noise, rng=seed, orientation=orientation,
-              angle_noise=angle_noise * to_rad)
-    write_measurements(out, sim.data, m)
-    if truth_out is not None:
-        write_truth(truth_out, m, sim.true_params)
-    typer.echo(f"wrote {poses} poses to {out}" + (f", truth to {truth_out}" if truth_out else ""),
-               err=True)
+    with warnings_scope(strict):
+        m = load_model_arg(model, base_link, tip_link)
+        if errors in ("zero", "random"):
+            err: object = errors
+        else:
+            err = read_truth(Path(errors), m) - m.nominal
+        if angle_noise and not orientation:
+            raise InputError("--angle-noise needs --orientation", option="--angle-noise")
+        to_rad = np.pi / 180.0 if m.angle_unit == "deg" else 1.0
+        sim = run(m, poses, errors=err, noise=noise, rng=seed, orientation=orientation,
+                  angle_noise=angle_noise * to_rad)
+        write_measurements(out, sim.data, m)
+        if truth_out is not None:
+            write_truth(truth_out, m, sim.true_params)
+    if not quiet:
+        typer.echo(f"wrote {poses} poses to {out}"
+                   + (f", truth to {truth_out}" if truth_out else ""), err=True)
 
 
 @app.command()
@@ -212,25 +249,33 @@ def identifiability(
     free: str = typer.Option("all", "--free", help="all, identifiable or comma-separated names."),
     seed: int = typer.Option(0, "--seed", help="Random seed for the poses."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON."),
+    strict: bool = strict_option(),
+    quiet: bool = quiet_option(),
 ) -> None:
     """Rank, identifiable and unidentifiable parameters, condition number, O1-O5."""
+    from kinecal.calibration.diagnostics.serial import check_pose_set
     from kinecal.calibration.problem import resolve_free
     from kinecal.calibration.simulate import simulate as run
     from kinecal.io.measurements import read_measurements
     from kinecal.kinematics.markers import model_for_markers
 
-    m = load_model_arg(model, base_link, tip_link)
-    if data is not None:
-        meas = read_measurements(resolve_data_path(data, "--data"), m)
-    else:
-        if poses < 1:
-            raise InputError(f"expected a positive number of poses, got {poses}",
-                             option="--poses")
-        meas = run(m, poses, errors="zero", rng=seed).data
-    m = model_for_markers(m, meas.marker_names)  # one tool point per marker measured
-    _, report = resolve_free(m, meas, _free_option(free))
+    with warnings_scope(strict) as found:
+        m = load_model_arg(model, base_link, tip_link)
+        if data is not None:
+            meas = read_measurements(resolve_data_path(data, "--data"), m)
+        else:
+            if poses < 1:
+                raise InputError(f"expected a positive number of poses, got {poses}",
+                                 option="--poses")
+            meas = run(m, poses, errors="zero", rng=seed).data
+        m = model_for_markers(m, meas.marker_names)  # one tool point per marker measured
+        _, report = resolve_free(m, meas, _free_option(free))
+        if data is not None:
+            check_pose_set(m, meas, report)
     if json_out:
-        echo_json(report.to_dict())
+        echo_json(with_warnings(report.to_dict(), found))
+        return
+    if quiet:
         return
     typer.echo(report.explain())
     typer.echo("identifiable: " + ", ".join(report.identifiable))
@@ -257,7 +302,8 @@ def calibrate(
     model_out: Path | None = typer.Option(None, "--model-out", help="Calibrated model YAML."),
     report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
     json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
-    quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+    quiet: bool = quiet_option(),
+    strict: bool = strict_option(),
     rotation_weight: float | None = typer.Option(
         None, "--rotation-weight", help="With measured orientations: length units per rad of "
         "rotation error (default: the workspace's characteristic length)."),
@@ -281,33 +327,36 @@ def calibrate(
     if maxiter is not None and maxiter < 1:
         raise InputError(f"expected a positive iteration budget, got {maxiter}",
                          option="--maxiter")
-    m = load_model_arg(model, base_link, tip_link)
-    meas = read_measurements(resolve_data_path(data, "DATA"), m)
-    val = None
-    if validate is not None:
-        val = read_measurements(resolve_data_path(validate, "--validate"), m)
-    iterative = method not in ("lm",)
-    with progress(f"calibrate {m.name} ({method})", maxiter if iterative else None,
-                  quiet or json_out) as update:
-        kw = dict(free=_free_option(free), validate=val, rng=seed, loss=loss, maxiter=maxiter,
-                  target=target, rotation_weight=rotation_weight,
-                  progress=(lambda it, best: update(1, best)) if iterative else None)
-        if error_model is None and m.joint_errors is None and harmonics is None:
-            res = run(m, meas, method, **kw)
-        else:
-            from kinecal.calibration.error_model import calibrate_error_model
+    with warnings_scope(strict) as found:
+        m = load_model_arg(model, base_link, tip_link)
+        meas = read_measurements(resolve_data_path(data, "DATA"), m)
+        val = None
+        if validate is not None:
+            val = read_measurements(resolve_data_path(validate, "--validate"), m)
+        iterative = method not in ("lm",)
+        with progress(f"calibrate {m.name} ({method})", maxiter if iterative else None,
+                      quiet or json_out) as update:
+            kw = dict(free=_free_option(free), validate=val, rng=seed, loss=loss,
+                      maxiter=maxiter, target=target, rotation_weight=rotation_weight,
+                      progress=(lambda it, best: update(1, best)) if iterative else None)
+            if error_model is None and m.joint_errors is None and harmonics is None:
+                res = run(m, meas, method, **kw)
+            else:
+                from kinecal.calibration.error_model import calibrate_error_model
 
-            res = calibrate_error_model(m, meas, error_model or "model", method=method,
-                                        harmonics=harmonics, folds=folds, **kw)
-    if out is not None:
-        res.to_json(out)
-    if model_out is not None:
-        res.save_model(model_out)
-    if report is not None:
-        res.report(report)
+                res = calibrate_error_model(m, meas, error_model or "model", method=method,
+                                            harmonics=harmonics, folds=folds, **kw)
+        res.warnings = list(found)  # the readers' warnings as well as the calibration's
+        result = with_warnings(res.to_dict(), found)
+        if out is not None:
+            write_json(out, result)
+        if model_out is not None:
+            res.save_model(model_out)
+        if report is not None:
+            res.report(report)
     if json_out:
-        echo_json(res.to_dict())
-    else:
+        echo_json(result)
+    elif not quiet:
         from kinecal.calibration.error_model import error_model_text
 
         typer.echo(res.summary() + error_model_text(res))

@@ -1,0 +1,251 @@
+"""Plausibility checks of a serial-arm fit, run after it.
+
+Codes: ``unidentifiable-free``, ``parameter-tolerance``, ``residual-offset``,
+``lack-of-fit``, ``outliers`` (docs/diagnostics.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.special import fdtri
+
+from kinecal.calibration.diagnostics._common import (
+    ALPHA,
+    FitTest,
+    chi3_outliers,
+    plural,
+)
+from kinecal.diagnostics import warn
+from kinecal.kinematics.chain import BASE_NAMES
+from kinecal.kinematics.serial import SerialModel
+
+__all__ = [
+    "PRACTICAL_RSS_DROP",
+    "TOLERANCE_MULTIPLE",
+    "check_lack_of_fit",
+    "check_outliers",
+    "check_parameter_tolerance",
+    "check_residual_offset",
+    "check_unidentifiable_free",
+]
+
+Array = NDArray[np.float64]
+
+#: a parameter further from nominal than this many tolerances (beyond 3 standard errors)
+#: contradicts the model file: its tolerances say the real arm cannot be that different
+TOLERANCE_MULTIPLE = 5.0
+#: a structure in the residual is reported when it is significant (F-test at `ALPHA`) and
+#: dominates it: removing it would lower the residual sum of squares by at least this
+#: fraction (the RMS error at least halves)
+PRACTICAL_RSS_DROP = 0.75
+
+
+def _values(model: SerialModel, names: Sequence[str], values: Array) -> str:
+    """``name = value unit`` in the model file's units."""
+    angle = model.is_angle()[model.index(list(names))]
+    deg = model.angle_unit == "deg"
+    out = []
+    for n, v, a in zip(names, values, angle, strict=True):
+        if a:
+            out.append(f"{n} {np.degrees(v) if deg else v:+.3g} {model.angle_unit}")
+        else:
+            out.append(f"{n} {v:+.3g} {model.length_unit}")
+    return ", ".join(out)
+
+
+def check_unidentifiable_free(names: Sequence[str], free_choice: object) -> None:
+    """``unidentifiable-free``: free parameters the poses cannot identify individually."""
+    if not names:
+        return
+    how = "--free all" if free_choice == "all" else "the explicit free list"
+    warn("unidentifiable-free",
+         f"{how} frees {len(names)} parameter{'s' if len(names) > 1 else ''} these poses "
+         f"cannot identify ({', '.join(names)}): only combinations of them are determined, "
+         "their values are arbitrary and have no standard error; use --free identifiable")
+
+
+def check_parameter_tolerance(model: SerialModel, params: Array, std: Array,
+                              names: Sequence[str],
+                              confounded_with: dict[str, dict[str, float]] | None = None) -> None:
+    """``parameter-tolerance``: identified values far beyond the model's tolerances.
+
+    Checks the free, identifiable parameters except the base frame (the instrument's
+    frame is arbitrary). A free parameter also takes up the errors of the parameters
+    confounded with it (``d6`` of a tool point on the last axis moves ``a5`` by
+    ``d6 * alpha6``): its allowance is its own tolerance plus ``sum |c| * tolerance`` over
+    the confounded parameters (coefficients `confounded_with` of the identifiability
+    report). Warns on a change larger than `TOLERANCE_MULTIPLE` allowances plus three
+    standard errors. `params` is the full vector, `std` that of the free `names`
+    (``inf`` where not identifiable).
+    """
+    def tol_of(n: str) -> float:
+        a = model.is_angle()[model.index([n])[0]]
+        return float(model.tolerances["angle"] if a else model.tolerances["length"])
+
+    idx = model.index(list(names))
+    delta = np.asarray(params)[idx] - model.nominal[idx]
+    tol = np.array([tol_of(n) for n in names])
+    allow = tol.copy()
+    pos = {n: i for i, n in enumerate(names)}
+    for other, combo in (confounded_with or {}).items():
+        if other in pos:
+            continue
+        for n, c in combo.items():
+            if n in pos:
+                allow[pos[n]] += abs(c) * tol_of(other)
+    std = np.asarray(std, dtype=float)
+    base = np.array([n in BASE_NAMES for n in names])
+    bad = (np.isfinite(std) & ~base
+           & (np.abs(delta) > TOLERANCE_MULTIPLE * allow + 3.0 * std))
+    if not bad.any():
+        return
+    k = np.flatnonzero(bad)
+    worst = k[np.argsort(-np.abs(delta[k]) / allow[k])][:4]
+    shown = _values(model, [names[i] for i in worst], delta[worst])
+    times = np.abs(delta[worst[0]]) / tol[worst[0]]
+    warn("parameter-tolerance",
+         f"{plural(int(bad.sum()), 'identified parameter')} moved far beyond the model's "
+         f"tolerances ({shown}; {times:.0f} tolerances for the first): probably the wrong "
+         "model, wrong units or frame, or outliers; check them (or widen the tolerances if "
+         "the nominal values are only rough)")
+
+
+def check_residual_offset(problem, x: Array) -> None:
+    """``residual-offset``: structure in the residual that a free base frame would take.
+
+    The base-frame parameters that are not free (all six when the model has no base) are
+    added to the linearised fit at the solution; when they lower the residual sum of
+    squares significantly (extra-sum-of-squares F-test at level `ALPHA`) and by at least
+    `PRACTICAL_RSS_DROP`, the measurement frame is probably not the model's base frame.
+    """
+    from kinecal.calibration.problem import column_scale
+
+    model = problem.model
+    cand = [n for n in BASE_NAMES if n not in problem.free]
+    if not cand or len(problem.data) < 3:
+        return
+    names = list(problem.free) + cand
+    params = problem.full(x)
+    G, P = problem.pose_rows.gram(params, model.index(names))
+    scale = column_scale(model, problem.data, names, params, positions=P)
+    t = FitTest(G, problem.n_free, problem.rows * len(problem.data), scale)
+    if not t.significant or t.rss_full > (1.0 - PRACTICAL_RSS_DROP) * t.rss_free:
+        return
+    n = len(problem.data)
+    before = np.sqrt(t.rss_free / n)
+    after = np.sqrt(t.rss_full / n)
+    shown = _values(model, cand, t.step)
+    warn("residual-offset",
+         f"the residual holds a systematic offset that a free base (measurement) frame would "
+         f"take ({shown}): the RMS error per pose would fall from {before:.3g} to "
+         f"{after:.3g} {model.length_unit}; if the instrument's frame is not the robot's "
+         "base frame, add base: [0, 0, 0, 0, 0, 0] to the model (or free base.*)")
+
+
+def check_outliers(distances: Array, unit: str) -> list[int]:
+    """``outliers``: poses whose distance error after a least-squares fit is an outlier
+    (`chi3_outliers`). Returns their 0-based indices."""
+    out = chi3_outliers(distances)
+    if out:
+        d = np.asarray(distances, dtype=float)
+        shown = ", ".join(str(i) for i in out[:10]) + (", ..." if len(out) > 10 else "")
+        verb = "has an error" if len(out) == 1 else "have errors"
+        warn("outliers",
+             f"{plural(len(out), 'pose')} ({shown}; 0-based) {verb} of up to "
+             f"{d[out].max():.3g} {unit} against a median of {np.median(d):.3g} {unit}: they "
+             "pull the least-squares fit; check those measurements or calibrate with a "
+             "robust loss (--loss soft_l1)")
+    return out
+
+
+def check_lack_of_fit(errors: Array, groups: Array, n_params: int, unit: str) -> None:
+    """``lack-of-fit``: residual far above the repeatability of repeated poses.
+
+    Rows with the same joint readings but different measurements are replicates: their
+    scatter about their mean is pure measurement error. The classical lack-of-fit F-test
+    compares the rest of the residual with it (level `ALPHA`).
+
+    Parameters
+    ----------
+    errors : ndarray, shape (N, 3)
+        Position residual vectors after the fit.
+    groups : ndarray of int, shape (N,)
+        Pose group of each row (`repeat_groups` of the joint readings).
+    n_params : int
+        Rank of the fit.
+    unit : str
+        Length unit for the message.
+    """
+    e = np.asarray(errors, dtype=float)
+    groups = np.asarray(groups)
+    n, k = e.shape[0], int(groups.max()) + 1 if groups.size else 0
+    if k == n or k == 0:
+        return
+    counts = np.bincount(groups, minlength=k)
+    means = np.zeros((k, 3))
+    np.add.at(means, groups, e)
+    means /= counts[:, None]
+    ss_pe = float(((e - means[groups]) ** 2).sum())
+    dof_pe = 3 * (n - k)
+    dof_lof = 3 * k - n_params
+    ss_lof = float((e**2).sum()) - ss_pe
+    if ss_pe <= 0 or dof_lof <= 0 or dof_pe < 3:
+        return
+    f = (ss_lof / dof_lof) / (ss_pe / dof_pe)
+    if f > float(fdtri(dof_lof, dof_pe, 1.0 - ALPHA)):
+        rep = np.sqrt(ss_pe / (n - k))
+        warn("lack-of-fit",
+             f"the residual is {np.sqrt(f):.1f} times the repeatability seen on the "
+             f"{n - k} repeated measurements ({rep:.3g} {unit}): the model misses a "
+             "systematic error (base or tool frame, joint-dependent errors, wrong model)")
+
+
+def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_choice: object,
+                     least_squares: bool, robust: bool, groups: Array | None,
+                     rank: int, confounded_with: dict | None = None) -> list[int]:
+    """Every after-fit check of a serial calibration (the module docstring's codes).
+
+    Parameters
+    ----------
+    problem : CalibrationProblem
+        The fitted problem.
+    x : ndarray, shape (k,)
+        Solution (free parameters).
+    std, estimable : ndarray, shape (k,)
+        Standard errors and identifiability of the free parameters.
+    free_choice : str or sequence
+        What ``free`` the user asked for.
+    least_squares : bool
+        The solution minimises the sum of squares (lm, householder): the residual checks
+        apply.
+    robust : bool
+        A robust loss was used (outliers are then down-weighted, not warned about).
+    groups : ndarray of int, shape (N,) or None
+        Pose groups of the rows (replicates), None when every pose is distinct.
+    rank : int
+        Rank of the fit.
+    confounded_with : dict, optional
+        The identifiability report's confounding coefficients of the held parameters.
+
+    Returns
+    -------
+    list of int
+        Outlier poses found by the median/MAD rule after a least-squares fit.
+    """
+    model = problem.model
+    names = list(problem.free)
+    if free_choice != "identifiable":
+        check_unidentifiable_free([n for n, e in zip(names, estimable, strict=True) if not e],
+                                  free_choice)
+    check_parameter_tolerance(model, problem.full(x), std, names, confounded_with)
+    check_residual_offset(problem, x)
+    if not least_squares or robust:
+        return []
+    e = problem.errors(x)
+    out = check_outliers(np.linalg.norm(e, axis=1), model.length_unit)
+    if groups is not None:
+        check_lack_of_fit(e, groups, rank, model.length_unit)
+    return out
