@@ -35,8 +35,8 @@ from kinecal.errors import InputError
 from kinecal.kinematics.markers import model_for_markers, remap_markers
 from kinecal.kinematics.serial import SerialModel
 from kinecal.optimize import METHODS, minimize
-from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
 from kinecal.optimize.factor import gram_root
+from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
 from kinecal.optimize.lsq import LOSSES, householder_gauss_newton, levenberg_marquardt
 from kinecal.spatial import rotation_angle
 
@@ -300,7 +300,7 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
     if rotation:  # measured orientations: rotation errors in degrees
         extra["rotation_deg"] = rotation
     if info.unique_rows is not None:  # exact copies of rows: counted once in the covariance
-        extra["independent_poses"] = int(len(info.unique_rows))
+        extra["independent_poses"] = len(info.unique_rows)
     if loss != "linear":
         extra["loss"] = loss
     if "ls_history" in res:  # hybrid: the least-squares stage before the metaheuristic

@@ -155,8 +155,8 @@ def check_outliers(distances: Array, unit: str) -> list[int]:
         verb = "has an error" if len(out) == 1 else "have errors"
         warn("outliers",
              f"{plural(len(out), 'pose')} ({shown}; 0-based) {verb} of up to "
-             f"{d[out].max():.3g} {unit} against a median of {np.median(d):.3g} {unit}: they "
-             "pull the least-squares fit; check those measurements or calibrate with a "
+             f"{d[out].max():.3g} {unit} against a median of {np.median(d):.3g} {unit}: outliers "
+             "pull a least-squares fit; check those measurements or calibrate with a "
              "robust loss (--loss soft_l1)")
     return out
 

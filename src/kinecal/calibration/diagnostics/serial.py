@@ -116,8 +116,11 @@ def _reference(model: SerialModel, names: tuple[str, ...], rotations: bool,
 
     n = max(REFERENCE_POSES, 4 * model.n_params)
     q = random_configurations(model, n, np.random.default_rng(0))
-    T = model.fk(q)
-    ref = Measurements(q, T[:, :3, 3], None, "reference poses", T[:, :3, :3] if rotations else None)
+    marker = np.arange(n) % len(model.marker_names) if model.marker_names else None
+    T = model.fk(q, None, marker)
+    ref = Measurements(q, T[:, :3, 3], None, "reference poses", T[:, :3, :3] if rotations else None,
+                       marker=marker, marker_names=model.marker_names if marker is not None
+                       else ())
     rep = analyse_poses(model, ref, list(names), tol=tol)
     origin = model.nominal[model.index(list(BASE_NAMES[:3]))]
     reach = float(np.linalg.norm(T[:, :3, 3] - origin, axis=1).max())
@@ -127,7 +130,7 @@ def _reference(model: SerialModel, names: tuple[str, ...], rotations: bool,
         idx = model.index(cal)
         half = np.where(model.is_angle()[idx], model.tolerances["angle"],
                         model.tolerances["length"])
-        J = model.identification_jacobian(q)[:, :, idx]
+        J = model.identification_jacobian(q, marker=marker)[:, :, idx]
         err = float(np.sqrt((J**2 @ (half**2 / 3.0)).sum(axis=1).mean()))
     return Reference(rep, reach, err)
 
@@ -180,6 +183,13 @@ def check_pose_count(n_rows: int, n_distinct: int, rows_per_pose: int, n_free: i
              f"{-(-MIN_EQUATION_RATIO * n_free // rows_per_pose)} distinct poses")
 
 
+def _marker_column(data: Measurements) -> Array:
+    """The marker index of each pose as a column ``(N, 1)`` (zeros with one tool point): a
+    pose measured at another marker is another measurement, not a repeat."""
+    m = getattr(data, "marker", None)
+    return np.zeros((len(data), 1)) if m is None else np.asarray(m, dtype=float)[:, None]
+
+
 # ---------------------------------------------------------------- validation
 def check_validation_overlap(cal: Measurements, val: Measurements) -> None:
     """``validation-overlap``: validation rows whose joint readings repeat calibration rows."""
@@ -187,7 +197,8 @@ def check_validation_overlap(cal: Measurements, val: Measurements) -> None:
     qv = np.asarray(val.q, dtype=float)
     if qc.shape[1] != qv.shape[1] or not len(qv):
         return
-    groups, _ = repeat_groups(np.concatenate([qc, qv]))
+    mc, mv = _marker_column(cal), _marker_column(val)
+    groups, _ = repeat_groups(np.concatenate([qc, qv]), np.concatenate([mc, mv]))
     shared = np.isin(groups[len(qc):], groups[:len(qc)])
     n = int(shared.sum())
     if n:
@@ -258,11 +269,12 @@ def check_serial_data(model: SerialModel, data: Measurements, names: Sequence[st
     """
     q = np.asarray(data.q, dtype=float)
     rows = 3 if data.rotations is None else 6
-    groups, n_distinct = repeat_groups(q)
+    groups, n_distinct = repeat_groups(q, _marker_column(data))
     check_pose_count(len(q), n_distinct, rows, len(names))
     unique_rows = None
     if n_distinct < len(q):
-        parts = [q, data.xyz] + [x for x in (data.rotations, data.weights) if x is not None]
+        parts = [q, _marker_column(data), data.xyz] + [x for x in (data.rotations, data.weights)
+                                                       if x is not None]
         exact, n_exact = repeat_groups(*parts, resolution=0.0)
         if n_exact < len(q):
             unique_rows = np.sort(np.unique(exact, return_index=True)[1])
@@ -293,7 +305,7 @@ def check_pose_set(model: SerialModel, data: Measurements, report: Identifiabili
 
     tol = RANK_TOL if tol is None else tol
     q = np.asarray(data.q, dtype=float)
-    _, n_distinct = repeat_groups(q)
+    _, n_distinct = repeat_groups(q, _marker_column(data))
     if n_distinct < len(q):
         warn("duplicate-poses",
              f"{len(q) - n_distinct} of {len(q)} poses repeat the joint readings of another "

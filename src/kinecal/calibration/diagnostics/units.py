@@ -118,7 +118,8 @@ def check_frame_and_units(model: SerialModel, data: Measurements, ref,
     """
     q = np.asarray(data.q, dtype=float)
     xyz = np.asarray(data.xyz, dtype=float)
-    P0 = model.positions(q)
+    marker = getattr(data, "marker", None)
+    P0 = model.positions(q, None, marker)
     unit = model.length_unit
     explained = joint_units_warned
     aligned = rigid_rms(P0, xyz)
@@ -141,7 +142,7 @@ def check_frame_and_units(model: SerialModel, data: Measurements, ref,
                  "sign of that column")
             explained = True
     if not explained and (~model.is_prismatic()).any():
-        other = rigid_rms(model.positions(_other_angle_unit(model, q)), xyz)
+        other = rigid_rms(model.positions(_other_angle_unit(model, q), None, marker), xyz)
         if other * EXPLAINS_BETTER < aligned:
             file_unit = "rad" if model.angle_unit == "deg" else "deg"
             warn("joint-units",
