@@ -54,6 +54,17 @@ def _write_csv(header: list[str], rows: list[list]) -> None:
     sys.stdout.write("\n".join(out) + "\n")
 
 
+def _write_columns(header: list[str], columns: list) -> None:
+    """CSV on stdout from columns (float arrays, or lists of text), 15 significant digits;
+    one format string per row, written a block of rows at a time."""
+    fmt = ",".join("%s" if isinstance(c, list) else "%.15g" for c in columns)
+    cells = [c if isinstance(c, list) else np.asarray(c, dtype=float).tolist() for c in columns]
+    rows = list(zip(*cells, strict=True))
+    sys.stdout.write(",".join(header) + "\n")
+    for s in range(0, len(rows), 16384):
+        sys.stdout.write("".join([fmt % r + "\n" for r in rows[s:s + 16384]]))
+
+
 @stewart_app.command("ik")
 def ik(
     geometry: str = typer.Argument(..., help="Bundled geometry name or YAML path."),
@@ -68,7 +79,7 @@ def ik(
     legs = geom.inverse(x)
     if check_range:  # the row of the first pose whose legs leave the range
         geom.check_legs(legs, file=poses)
-    _write_csv(list(LEG_COLUMNS), legs.tolist())
+    _write_columns(list(LEG_COLUMNS), list(legs.T))
 
 
 @stewart_app.command("fk")
@@ -111,12 +122,8 @@ def fk(
         ]  # fmt: skip
         echo_json({"method": method, "elapsed": res.elapsed, "poses": rows})
         return
-    header = [*POSE_COLUMNS, "converged", "residual"]
-    rows = [
-        [*d.tolist(), "true" if c else "false", float(r)]
-        for d, c, r in zip(deg, res.converged, res.residual, strict=True)
-    ]
-    _write_csv(header, rows)
+    _write_columns([*POSE_COLUMNS, "converged", "residual"],
+                   [*deg.T, np.where(res.converged, "true", "false").tolist(), res.residual])
 
 
 def _fk_all(geom, L: np.ndarray, path: str, seed: int, json_out: bool) -> None:

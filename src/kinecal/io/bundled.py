@@ -1,25 +1,29 @@
 """Bundled machine files (``kinecal/robots/*.yaml``): listing them and resolving names.
 
 Serial-arm models and Stewart geometries share the folder; a file is a serial model when
-it has a ``convention`` key and a Stewart geometry when ``kind: stewart``.
+it has a top-level ``convention`` key and a Stewart geometry when it says ``kind: stewart``.
+
+The index of the folder (name -> kind) reads only those top-level keys of each file, as
+text, once per process: listing the bundled machines or resolving a name parses no YAML
+(the file finally loaded is parsed by its reader, which checks it in full).
 """
 
 from __future__ import annotations
 
+import functools
+import re
 from importlib import resources
 from pathlib import Path
 
-import yaml
-
 from kinecal.errors import InputError
 
-__all__ = ["bundled_names", "resolve_machine_file", "robots_dir"]
+__all__ = ["bundled_index", "bundled_names", "resolve_machine_file", "robots_dir"]
 
-#: kind -> (predicate on the file's mapping, what to call it in messages)
-KINDS = {
-    "model": (lambda d: d.get("convention") is not None, "model"),
-    "geometry": (lambda d: d.get("kind") == "stewart", "geometry"),
-}
+#: kind -> what to call it in messages
+KINDS = {"model": "model", "geometry": "geometry"}
+
+_CONVENTION = re.compile(r"^convention[ \t]*:[ \t]*(?!null\b|~|#|$)\S", re.MULTILINE)
+_STEWART = re.compile(r"""^kind[ \t]*:[ \t]*["']?stewart["']?[ \t]*(#.*)?$""", re.MULTILINE)
 
 
 def robots_dir() -> Path:
@@ -27,33 +31,48 @@ def robots_dir() -> Path:
     return Path(str(resources.files("kinecal") / "robots"))
 
 
-def bundled_names(kind: str) -> list[str]:
-    """Sorted names of the bundled files of `kind` (``model`` or ``geometry``)."""
-    accept, _ = KINDS[kind]
-    out = []
+def _kind(text: str) -> str | None:
+    """``model``, ``geometry`` or None, from a machine file's top-level keys."""
+    if _STEWART.search(text):
+        return "geometry"
+    if _CONVENTION.search(text):
+        return "model"
+    return None
+
+
+@functools.lru_cache(maxsize=1)
+def bundled_index() -> dict[str, str]:
+    """Name -> kind (``model`` or ``geometry``) of every bundled machine file, sorted."""
+    out = {}
     for p in sorted(robots_dir().glob("*.yaml")):
         try:
-            data = yaml.safe_load(p.read_text(encoding="utf-8"))
-        except (OSError, yaml.YAMLError):
+            kind = _kind(p.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError):
             continue
-        if isinstance(data, dict) and accept(data):
-            out.append(p.stem)
+        if kind is not None:
+            out[p.stem] = kind
     return out
+
+
+def bundled_names(kind: str) -> list[str]:
+    """Sorted names of the bundled files of `kind` (``model`` or ``geometry``)."""
+    if kind not in KINDS:
+        raise ValueError(f"kind: expected one of {', '.join(KINDS)}, got {kind!r}")
+    return [name for name, k in bundled_index().items() if k == kind]
 
 
 def resolve_machine_file(name_or_path: str | Path, kind: str, option: str | None = None) -> Path:
     """Path of a `kind` file given a bundled name or a path; `InputError` if neither."""
-    label = KINDS[kind][1]
+    label = KINDS[kind]
     path = Path(name_or_path)
     if path.suffix in (".yaml", ".yml") or path.exists():
         if not path.is_file():
             raise InputError(f"{label} file not found", file=path)
         return path
-    names = bundled_names(kind)
-    if str(name_or_path) in names:
+    if bundled_index().get(str(name_or_path)) == kind:
         return robots_dir() / f"{name_or_path}.yaml"
     raise InputError(
         f"unknown {label} {str(name_or_path)!r}: not a file and not a bundled {label} "
-        f"(bundled: {', '.join(names)})",
+        f"(bundled: {', '.join(bundled_names(kind))})",
         option=option,
     )

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
+from kinecal.kinematics import stewart_fk, stewart_modes
 from kinecal.spatial import matrix_from_rpy, rpy_from_matrix
 
 __all__ = [
@@ -303,17 +304,13 @@ class StewartPlatform:
 
     def workspace_box(self) -> Array:
         """Default pose box, shape (6, 2) (see `stewart_modes.workspace_box`)."""
-        from kinecal.kinematics.stewart_modes import workspace_box
-
-        return workspace_box(self)
+        return stewart_modes.workspace_box(self)
 
     def random_poses(
         self, n: int, rng: np.random.Generator | int | None = None, box: ArrayLike | None = None
     ) -> Array:
         """``n`` random reachable poses ``(n, 6)`` (see `stewart_modes.random_poses`)."""
-        from kinecal.kinematics.stewart_modes import random_poses
-
-        return random_poses(self, n, rng, box)
+        return stewart_modes.random_poses(self, n, rng, box)
 
     def forward(
         self,
@@ -353,8 +350,6 @@ class StewartPlatform:
             ``poses (N, 6)``, ``converged (N,)``, ``residual (N,)`` (max abs leg error),
             ``iterations (N,)``, ``elapsed`` (s).
         """
-        from kinecal.kinematics import stewart_fk
-
         L = self.check_legs(legs)
         if on_failure not in ("raise", "flag"):
             raise InputError("on_failure must be 'raise' or 'flag'", option="on_failure")
@@ -379,9 +374,7 @@ class StewartPlatform:
 
         See :func:`kinecal.kinematics.stewart_modes.forward_all`.
         """
-        from kinecal.kinematics.stewart_modes import forward_all
-
-        return forward_all(self, legs, **kwargs)
+        return stewart_modes.forward_all(self, legs, **kwargs)
 
 
 def leg_jacobian(R: Array, legs: Array, q: Array) -> Array:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -22,12 +22,10 @@ from numpy.typing import ArrayLike, NDArray
 from kinecal.errors import InputError
 from kinecal.spatial import matrix_from_rpy, rpy_from_matrix
 
-if TYPE_CHECKING:
-    from kinecal.kinematics.stewart import StewartPlatform
-
 __all__ = [
     "PSO_SETTINGS",
     "ForwardResult",
+    "StewartGeometry",
     "default_tol",
     "expmap",
     "forward_newton",
@@ -38,6 +36,32 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
+
+
+class StewartGeometry(Protocol):
+    """What the solvers here (and `kinecal.kinematics.stewart_modes`) read of a geometry:
+    `kinecal.kinematics.stewart.StewartPlatform` is one. A protocol, so that these
+    modules sit below the class that calls them (no import circle)."""
+
+    base_joints: Array
+    platform_joints: Array
+    leg_offsets: Array
+    leg_range: tuple[float, float]
+    probe_offset: float
+
+    @property
+    def tip_joints(self) -> Array: ...
+
+    @property
+    def probe_vector(self) -> Array: ...
+
+    def inverse(self, poses: ArrayLike) -> Array: ...
+
+    def neutral_pose(self) -> Array: ...
+
+    def check_legs(self, legs: ArrayLike, *, file: str | None = None,
+                   row_offset: int = 1) -> Array: ...
+
 
 #: rows per Newton block in `forward_newton` (cache-sized temporaries)
 CHUNK = 4096
@@ -214,7 +238,7 @@ def default_tol(lengths: Array) -> float:
 
 
 def random_starts(
-    geom: StewartPlatform, n: int, rng: np.random.Generator, *, below: bool = True
+    geom: StewartGeometry, n: int, rng: np.random.Generator, *, below: bool = True
 ) -> tuple[Array, Array]:
     """Random start poses for multi-start Newton.
 
@@ -242,7 +266,7 @@ def random_starts(
     return R, t
 
 
-def _start_poses(geom: StewartPlatform, x0: ArrayLike | None, n: int) -> tuple[Array, Array]:
+def _start_poses(geom: StewartGeometry, x0: ArrayLike | None, n: int) -> tuple[Array, Array]:
     x = geom.neutral_pose() if x0 is None else np.asarray(x0, dtype=float)
     if x.shape not in ((6,), (n, 6)) or not np.isfinite(x).all():
         raise InputError(f"x0 must be one finite pose (6,) or ({n}, 6), got {x.shape}", option="x0")
@@ -251,7 +275,7 @@ def _start_poses(geom: StewartPlatform, x0: ArrayLike | None, n: int) -> tuple[A
 
 
 def forward_newton(
-    geom: StewartPlatform,
+    geom: StewartGeometry,
     legs: Array,
     *,
     x0: ArrayLike | None = None,
@@ -264,7 +288,7 @@ def forward_newton(
 
     Parameters
     ----------
-    geom : StewartPlatform
+    geom : StewartGeometry
     legs : ndarray, shape (N, 6)
         Leg readings (length unit), already range-checked.
     x0 : array_like, shape (6,) or (N, 6), optional
@@ -320,7 +344,7 @@ def forward_newton(
     )
 
 
-def pso_bounds(geom: StewartPlatform) -> Array:
+def pso_bounds(geom: StewartGeometry) -> Array:
     """Search box of the PSO solver, shape (6, 2), in (m, m, m, deg, deg, deg).
 
     The box is centred on the neutral pose: ``x, y`` within +-R_p (the platform radius),
@@ -339,7 +363,7 @@ def pso_bounds(geom: StewartPlatform) -> Array:
 
 
 def forward_pso(
-    geom: StewartPlatform,
+    geom: StewartGeometry,
     legs: Array,
     *,
     rng: np.random.Generator | int | None = None,
@@ -350,7 +374,7 @@ def forward_pso(
 
     Parameters
     ----------
-    geom : StewartPlatform
+    geom : StewartGeometry
     legs : ndarray, shape (N, 6)
         Leg readings (length unit).
     rng : Generator or int, optional

@@ -15,17 +15,18 @@ planar).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
-from kinecal.kinematics.stewart_fk import default_tol, newton_batch, random_starts
+from kinecal.kinematics.stewart_fk import (
+    StewartGeometry,
+    default_tol,
+    newton_batch,
+    random_starts,
+)
 from kinecal.spatial import rotation_angle, rpy_from_matrix
-
-if TYPE_CHECKING:
-    from kinecal.kinematics.stewart import StewartPlatform
 
 __all__ = ["AssemblyModes", "forward_all", "random_poses", "workspace_box"]
 
@@ -65,7 +66,7 @@ class AssemblyModes:
 
 
 def forward_all(
-    geom: StewartPlatform,
+    geom: StewartGeometry,
     legs: ArrayLike,
     *,
     starts: int = 4096,
@@ -78,7 +79,7 @@ def forward_all(
 
     Parameters
     ----------
-    geom : StewartPlatform
+    geom : StewartGeometry
     legs : array_like, shape (6,)
         Leg readings (length unit), checked against the leg range.
     starts : int
@@ -141,7 +142,7 @@ def forward_all(
     )
 
 
-def workspace_box(geom: StewartPlatform) -> Array:
+def workspace_box(geom: StewartGeometry) -> Array:
     """Default pose box for random workspace poses, shape (6, 2) (length unit, rad).
 
     Centred on the neutral pose: ``|x|, |y| <= 0.3 R_b``, ``z`` within
@@ -158,7 +159,7 @@ def workspace_box(geom: StewartPlatform) -> Array:
 
 
 def random_poses(
-    geom: StewartPlatform,
+    geom: StewartGeometry,
     n: int,
     rng: np.random.Generator | int | None = None,
     box: ArrayLike | None = None,
@@ -167,7 +168,7 @@ def random_poses(
 
     Parameters
     ----------
-    geom : StewartPlatform
+    geom : StewartGeometry
     n : int
         Number of poses.
     rng : Generator or int, optional
