@@ -195,3 +195,47 @@ def test_stewart_compensation_calibrated_legs_reach_the_desired_poses():
     assert pos_c.mean() < 1e-5  # micrometres with the calibrated one
     assert pos_c.mean() < pos_n.mean() / 100
     assert rot_c.mean() < rot_n.mean() / 100
+
+
+def test_joint_error_calibrations_compensate_through_their_corrections(tmp_path):
+    """A true arm with harmonic joint errors: the error-model calibration's compensation
+    reaches the intent on it; its model file and result JSON work on the command line."""
+    import dataclasses
+
+    from kinecal.calibration.error_model import calibrate_error_model
+    from kinecal.cli import main
+    from kinecal.kinematics.joint_errors import joint_errors_for
+
+    ur5 = load_model("ur5")
+    model = dataclasses.replace(ur5, joint_errors=joint_errors_for(ur5, ("harmonic",), 1))
+    e = np.zeros(model.n_params)
+    e[model.index(["dq2.sin1", "dq3.cos1", "dq4.sin1"])] = [3e-4, -2e-4, 4e-4]
+    e[:ur5.n_params] = simulate(ur5, 1, errors="random", rng=7).true_params - ur5.nominal
+    sim = simulate(model, 300, errors=e, noise=0.005, rng=8)
+    geo = calibrate(ur5, sim.data)
+    res = calibrate_error_model(ur5, sim.data, "harmonic", harmonics=1)
+    true = model.with_params(model.nominal + e)
+    q = random_configurations(ur5, 150, np.random.default_rng(9)) * 0.6
+    intended = ur5.positions(q)
+    errs = {}
+    for name, r in (("geometric", geo), ("harmonic", res)):
+        c = compensate(r, joints=q, outputs="position")
+        assert c.converged.all()
+        errs[name] = _reached(true, c.q, intended).mean()
+    assert errs["harmonic"] < 0.3 * errs["geometric"]
+    assert errs["harmonic"] < 0.01  # mm: the noise floor of 5 um measurements
+    # files: the calibrated model (with its joint_errors section) and the result JSON
+    res.save_model(tmp_path / "cal.yaml")
+    res.to_json(tmp_path / "r.json")
+    prog = tmp_path / "p.csv"
+    prog.write_text("q1,q2,q3,q4,q5,q6\n" + "\n".join(",".join(f"{v:.17g}" for v in row)
+                                                     for row in np.degrees(q[:10])) + "\n")
+    outs = []
+    for spec in ("cal.yaml", "r.json"):
+        out = tmp_path / f"c-{spec}.csv"
+        assert main(["compensate", str(tmp_path / spec), str(prog), "--nominal", "ur5",
+                     "--out", str(out), "--position-only", "--quiet"]) == 0
+        outs.append(np.loadtxt(out, delimiter=",", skiprows=1, usecols=range(6)))
+    np.testing.assert_allclose(outs[0], outs[1], atol=1e-9)
+    c = compensate(res, joints=q[:10], outputs="position")
+    np.testing.assert_allclose(np.radians(outs[0]), c.q, atol=1e-12)

@@ -309,3 +309,35 @@ def test_bad_input_raises_input_error():
     # one target, one seed: shapes (3,) / (4, 4) and (n,) are accepted
     one = solve_ik(model, T[0], q[0] + 0.3)
     assert one.q.shape == (1, 6) and one.converged[0]
+
+
+def test_redundant_urdf_arm_checked_by_pinocchio():
+    """A 7-joint URDF arm (KUKA LBR iiwa 14 of rtb-data): pose targets are redundant; the
+    answers are checked by an independent forward kinematics (pinocchio) of the same URDF."""
+    from importlib import resources
+
+    import pinocchio as pin
+
+    path = str(resources.files("rtbdata") / "xacro" / "kuka_description" / "kuka_lbr_iiwa"
+               / "urdf" / "lbr_iiwa_14_r820.urdf")
+    model = load_model(path)
+    assert model.n_joints == 7 and model.length_unit == "m"
+    rng = np.random.default_rng(17)
+    q, q0 = neighbourhood(model, 1000, rng)
+    q0 = np.clip(q0, model.joint_limits[:, 0], model.joint_limits[:, 1])
+    T = model.fk(q)
+    res = solve_ik(model, T, q0)
+    assert res.tol_position == 1e-12  # 1e-9 mm in metres
+    assert res.converged.mean() >= 0.999
+    pm = pin.buildModelFromUrdf(path)
+    data = pm.createData()
+    frame = pm.getFrameId("tool0")
+    for k in np.flatnonzero(res.converged)[:200]:
+        pin.framesForwardKinematics(pm, data, res.q[k])
+        M = data.oMf[frame]
+        np.testing.assert_allclose(M.translation, T[k, :3, 3], atol=1e-11)
+        np.testing.assert_allclose(M.rotation, T[k, :3, :3], atol=1e-9)
+    # redundancy: the minimum-norm steps end no farther from the seed than the original
+    d_sol = np.linalg.norm(res.q - q0, axis=1)[res.converged]
+    d_orig = np.linalg.norm(q - q0, axis=1)[res.converged]
+    assert np.median(d_sol / d_orig) <= 1.0

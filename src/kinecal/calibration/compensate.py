@@ -27,7 +27,7 @@ base far from nominal usually means the measurements were taken in an instrument
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -50,8 +50,6 @@ SAME_ARM_ANGLE = 0.35
 #: calibrated base this far from nominal (fraction of the arm's length, rad): warn
 BASE_FAR_LENGTH = 0.05
 BASE_FAR_ANGLE = 0.1
-#: fractions of the calibration applied in turn when the direct solve misses a row
-CONTINUATION_STEPS = (0.25, 0.5, 0.75, 1.0)
 
 
 @dataclass(frozen=True)
@@ -157,14 +155,17 @@ class CompensationResult:
                 "joint_correction_rad": s(np.abs(self.dq).max(axis=1)) if len(self) else None}
 
 
-def _lengths_mask(model: SerialModel) -> NDArray[np.bool_]:
-    return ~model.is_angle()
+def geometric_names(model: SerialModel) -> tuple[str, ...]:
+    """The model's geometric parameters: its parameter vector without the coefficients of
+    non-geometric joint errors (`kinecal.kinematics.joint_errors`), which come last."""
+    return tuple(model.chain.names)
 
 
 def check_same_arm(nominal: SerialModel, calibrated: SerialModel) -> None:
     """Refuse a calibrated model of another arm than `nominal`.
 
-    Same convention, joint kinds and parameter names, and every chain and tool parameter
+    Same convention, joint kinds and geometric parameter names (the calibrated model may
+    add joint-error coefficients), one tool point each, and every chain and tool parameter
     within `SAME_ARM_LENGTH` of the arm's characteristic length (lengths) or
     `SAME_ARM_ANGLE` rad (angles) of nominal; the base frame may differ (see `compensate`).
 
@@ -180,24 +181,41 @@ def check_same_arm(nominal: SerialModel, calibrated: SerialModel) -> None:
     if tuple(calibrated.joint_kinds) != tuple(nominal.joint_kinds):
         raise InputError(f"{what} have different joints ({calibrated.n_joints} vs "
                          f"{nominal.n_joints}): not the same arm")
-    if tuple(calibrated.parameter_names) != tuple(nominal.parameter_names):
-        extra = sorted(set(calibrated.parameter_names) ^ set(nominal.parameter_names))
+    for m in (calibrated, nominal):
+        if m.marker_names:
+            raise InputError(f"model {m.name!r} has several markers "
+                             f"({', '.join(m.marker_names)}): a program is compensated for "
+                             "one tool point, give models with the program's tool")
+    if geometric_names(calibrated) != geometric_names(nominal):
+        extra = sorted(set(geometric_names(calibrated)) ^ set(geometric_names(nominal)))
         raise InputError(f"{what} have different parameters ({', '.join(extra[:4]) or 'order'}"
                          "): not the same arm")
-    compare_parameters(nominal, calibrated.nominal, what)
+    compare_parameters(calibrated, nominal_in(calibrated, nominal), calibrated.nominal, what)
 
 
-def compare_parameters(nominal: SerialModel, params: Array, what: str) -> None:
-    """`InputError` when `params` are too far from `nominal` to be a calibration of it."""
-    names = nominal.parameter_names
-    base = np.array([n.startswith("base.") for n in names])
-    diff = np.abs(np.asarray(params, dtype=float) - nominal.nominal)
-    L = characteristic_length(nominal)
-    limit = np.where(nominal.is_angle(), SAME_ARM_ANGLE, SAME_ARM_LENGTH * L)
-    bad = np.flatnonzero((diff > limit) & ~base)
+def nominal_in(calibrated: SerialModel, nominal: SerialModel) -> Array:
+    """The nominal arm as a parameter vector of `calibrated`: nominal geometry, and the
+    nominal model's joint-error coefficients where it has them (else 0: no correction)."""
+    p = np.zeros(calibrated.n_params)
+    own = dict(zip(nominal.parameter_names, nominal.nominal.tolist(), strict=True))
+    for k, name in enumerate(calibrated.parameter_names):
+        p[k] = own.get(name, 0.0)
+    return p
+
+
+def compare_parameters(model: SerialModel, reference: Array, params: Array, what: str) -> None:
+    """`InputError` when `params` (of `model`) are too far from `reference` to be a
+    calibration of the same arm; base-frame and joint-error parameters are not compared."""
+    names = model.parameter_names
+    n_geo = len(geometric_names(model))
+    skip = np.array([n.startswith("base.") for n in names]) | (np.arange(len(names)) >= n_geo)
+    diff = np.abs(np.asarray(params, dtype=float) - reference)
+    L = characteristic_length(model, reference)
+    limit = np.where(model.is_angle(), SAME_ARM_ANGLE, SAME_ARM_LENGTH * L)
+    bad = np.flatnonzero((diff > limit) & ~skip)
     if bad.size:
         k = int(bad[np.argmax(diff[bad] / limit[bad])])
-        unit = "rad" if nominal.is_angle()[k] else nominal.length_unit
+        unit = "rad" if model.is_angle()[k] else model.length_unit
         raise InputError(f"{what}: parameter {names[k]} differs by {diff[k]:.4g} {unit} "
                          f"(a calibration changes it by less than {limit[k]:.3g} {unit}): "
                          "not a calibration of the same arm")
@@ -236,7 +254,6 @@ def _as_models(calibrated: Any, nominal: SerialModel | None) -> tuple[SerialMode
             raise InputError(f"calibrated parameters: expected {nominal.n_params} finite "
                              f"values, got shape {p.shape}")
         nom = nominal
-        compare_parameters(nom, p, f"calibrated parameters for {nom.name!r}")
         cal = nominal.with_params(p, name=f"{nominal.name}-calibrated")
     if not isinstance(nom, SerialModel):
         raise InputError(f"nominal: expected a SerialModel, got {type(nom).__name__}")
@@ -400,8 +417,6 @@ def compensate(
             first = solve_ik(nom, intended, q0, **ik_options)
         q_nom, nominal_ok = first.q, first.converged
     res = solve_ik(cal, intended, q_nom, **ik_options)
-    if not res.converged.all():
-        res = _continuation(nom, cal, intended, q_nom, res, ik_options)
     filtered_T = nom.fk(res.q)
     filtered = filtered_T if outputs == "pose" else filtered_T[:, :3, 3]
     corr, corr_rot = _errors(intended, filtered_T)
@@ -414,39 +429,6 @@ def compensate(
         nominal_converged=nominal_ok, ik=res, length_unit=nom.length_unit)
     _warn_rows(out)
     return out
-
-
-def _continuation(nom: SerialModel, cal: SerialModel, intended: Array, q_nom: Array,
-                  res: IKResult, ik_options: dict) -> IKResult:
-    """Rows the direct solve missed, again by continuation from the nominal solution.
-
-    The parameters move from nominal to calibrated in `CONTINUATION_STEPS`; each step's
-    inverse kinematics starts from the previous step's joints. At the first step the
-    nominal joints are (almost) a solution, so the path follows the program's own branch
-    instead of jumping across a singularity. The better of the two answers is kept.
-    """
-    rows = np.flatnonzero(~res.converged)
-    p0, p1 = nom.nominal, cal.nominal
-    q = q_nom[rows]
-    for t in CONTINUATION_STEPS:
-        step = solve_ik(nom, intended[rows], q, params=p0 + t * (p1 - p0), **ik_options)
-        q = step.q
-    # the last step used exactly the calibrated parameters (t = 1): its errors are final
-    better = step.converged | (_cost(step, rows=None) < _cost(res, rows))
-    merged = {f: getattr(res, f).copy() for f in ("q", "converged", "status",
-                                                   "position_error", "rotation_error",
-                                                   "iterations", "condition")}
-    take = rows[better]
-    for f in merged:
-        merged[f][take] = getattr(step, f)[better]
-    merged["iterations"][rows] = res.iterations[rows] + step.iterations  # (last step's)
-    return replace(res, **merged)
-
-
-def _cost(r: IKResult, rows: NDArray[np.intp] | None) -> Array:
-    pos = r.position_error if rows is None else r.position_error[rows]
-    rot = r.rotation_error if rows is None else r.rotation_error[rows]
-    return pos + np.nan_to_num(rot) * 1e3
 
 
 def _warn_rows(res: CompensationResult) -> None:

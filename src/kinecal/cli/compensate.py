@@ -32,13 +32,14 @@ _SUFFIX = "-calibrated"
 
 
 def load_calibrated(spec: str, nominal: str | None):
-    """(nominal model, calibrated parameter vector) from a model file or a result JSON.
+    """(nominal model, calibrated model) from a model file or a result JSON.
 
     A result JSON names its nominal model (``"model"``); a model file written by
     ``calibrate --model-out`` is called ``NAME-calibrated``. Either gives the default of
-    `nominal` when that is a bundled model; otherwise ``--nominal`` is required.
+    `nominal` when that is a bundled model; otherwise ``--nominal`` is required. Joint-error
+    terms of a result (``--error-model``) come with it.
     """
-    from kinecal.calibration.compensate import check_same_arm, compare_parameters
+    from kinecal.calibration.compensate import check_same_arm
     from kinecal.io.models import bundled_models, load_model
 
     path = Path(spec)
@@ -46,7 +47,7 @@ def load_calibrated(spec: str, nominal: str | None):
         raise InputError(f"file not found: {spec}", option="CALIBRATED")
     if path.suffix.lower() == ".json":
         from kinecal._files import read_json
-        from kinecal.cli.serial import parameters_from_result
+        from kinecal.cli.serial import model_for_result, parameters_from_result
 
         data = read_json(path)
         named = data.get("model") if isinstance(data, dict) else None
@@ -59,22 +60,22 @@ def load_calibrated(spec: str, nominal: str | None):
         if isinstance(named, str) and named != nom.name:
             raise InputError(f"the result calibrated model {named!r}, not {nom.name!r}: "
                              "refusing to compensate another arm", file=path)
-        params = parameters_from_result(nom, path)
-        compare_parameters(nom, params, f"result {path.name} for {nom.name!r}")
-        return nom, params
-    cal = load_model(path)
-    if nominal is None:
-        stem = cal.name[: -len(_SUFFIX)] if cal.name.endswith(_SUFFIX) else None
-        if stem is None or stem not in bundled_models():
-            raise InputError(f"{path}: give --nominal MODEL (the model the controller runs)",
-                             option="--nominal")
-        nominal = stem
-    nom = load_model(nominal)
+        full = model_for_result(nom, path)
+        cal = full.with_params(parameters_from_result(full, path), name=f"{nom.name}{_SUFFIX}")
+    else:
+        cal = load_model(path)
+        if nominal is None:
+            stem = cal.name[: -len(_SUFFIX)] if cal.name.endswith(_SUFFIX) else None
+            if stem is None or stem not in bundled_models():
+                raise InputError(f"{path}: give --nominal MODEL (the model the controller "
+                                 "runs)", option="--nominal")
+            nominal = stem
+        nom = load_model(nominal)
     try:
         check_same_arm(nom, cal)
     except InputError as exc:
         raise InputError(exc.message, file=path) from None
-    return nom, cal.nominal
+    return nom, cal
 
 
 def read_program(path: Path, n_joints: int) -> tuple[list[str], list[list[str]], dict]:
@@ -171,7 +172,7 @@ def compensate_cmd(
     if base not in ("calibrated", "nominal"):
         raise InputError(f"expected calibrated or nominal, got {base!r}", option="--base")
     with warnings_scope(strict) as found:
-        nom, params = load_calibrated(calibrated, nominal)
+        nom, cal = load_calibrated(calibrated, nominal)
         path = resolve_data_path(program, "PROGRAM")
         header, cells, table = read_program(path, nom.n_joints)
         scale = nom.joint_scale()  # file units -> API units per joint
@@ -183,10 +184,10 @@ def compensate_cmd(
             targets = (np.column_stack([xyz] + [table[c] for c in QUATERNION])
                        if "qw" in table else xyz)
             seeds = None if q_file is None else q_file * scale
-            res = compensate(params, nom, targets=targets, seeds=seeds, outputs=outputs,
+            res = compensate(cal, nom, targets=targets, seeds=seeds, outputs=outputs,
                              base=base)
         else:
-            res = compensate(params, nom, joints=q_file * scale, outputs=outputs, base=base)
+            res = compensate(cal, nom, joints=q_file * scale, outputs=outputs, base=base)
         extra = _columns(res, nom, joints)
         write_program(out, header, cells, {c: res.q[:, k] / scale[k]
                                            for k, c in enumerate(joints)}, extra)
