@@ -239,3 +239,20 @@ def test_joint_error_calibrations_compensate_through_their_corrections(tmp_path)
     np.testing.assert_allclose(outs[0], outs[1], atol=1e-9)
     c = compensate(res, joints=q[:10], outputs="position")
     np.testing.assert_allclose(np.radians(outs[0]), c.q, atol=1e-12)
+
+
+def test_report_section_shows_the_compensation_of_the_validation_poses(study, tmp_path):
+    from kinecal.report.compensation import compensation_section
+
+    _, _, res, _, _ = study
+    text = compensation_section(res)
+    c = compensate(res, joints=res.q_validation, diagnose=False)
+    assert '<section id="compensation">' in text
+    assert f"{int(c.converged.sum())} of {len(c)}" in text
+    assert f"{c.correction.mean():.4g} / {c.correction.max():.4g}" in text
+    assert "kinecal compensate" in text
+    with collect() as found:  # the report does not raise the command's warnings
+        compensation_section(res)
+    assert not found
+    html = res.report(tmp_path / "r.html").read_text()
+    assert '<section id="compensation">' in html

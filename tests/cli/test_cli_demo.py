@@ -16,11 +16,16 @@ def test_demo_writes_everything_and_the_calibrated_model_round_trips(tmp_path, c
     assert main(["demo", "--out", str(out), "--quiet"]) == 0
     stdout = capsys.readouterr().out
     names = {"result.json", "ur5-calibrated.yaml", "report.html", "errors.png",
-             "validation.png", "histogram.png", "convergence.png"}
+             "validation.png", "histogram.png", "convergence.png", "compensated.csv"}
     assert {p.name for p in out.iterdir()} == names
     for name in names:
         assert str(out / name) in stdout
     assert "report.html in a browser" in stdout
+    # the demo ends by compensating the held-out poses: ~2.6 mm corrections, all converged
+    assert "compensation of the 20 held-out poses" in stdout and "20 of 20 converged" in stdout
+    comp = np.genfromtxt(out / "compensated.csv", delimiter=",", names=True, dtype=None,
+                         encoding="utf-8")
+    assert len(comp) == 20 and 2.0 < comp["correction"].mean() < 3.5
     res = json.loads((out / "result.json").read_text(encoding="utf-8"))
     assert res["model"] == "ur5" and res["calibration"]["n"] == 1000
     assert res["validation"]["n"] == 20

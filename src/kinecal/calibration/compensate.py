@@ -221,13 +221,13 @@ def compare_parameters(model: SerialModel, reference: Array, params: Array, what
                          "not a calibration of the same arm")
 
 
-def _base_check(nominal: SerialModel, calibrated: SerialModel) -> None:
+def _base_check(nominal: SerialModel, calibrated: SerialModel, warn: Any) -> None:
     idx = nominal.index(["base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz"])
     d = calibrated.nominal[idx] - nominal.nominal[idx]
     L = characteristic_length(nominal)
     shift, turn = float(np.linalg.norm(d[:3])), float(np.linalg.norm(d[3:]))
     if shift > BASE_FAR_LENGTH * L or turn > BASE_FAR_ANGLE:
-        diagnostics.warn(
+        warn(
             "base-frame-far",
             f"the calibrated base frame is {shift:.4g} {nominal.length_unit} and "
             f"{np.degrees(turn):.3g} deg from the nominal one: the measurements were probably "
@@ -301,7 +301,7 @@ def _errors(intended: Array, T: Array) -> tuple[Array, Array]:
     return pos, rot
 
 
-def _joints(model: SerialModel, q: ArrayLike, what: str) -> Array:
+def _joints(model: SerialModel, q: ArrayLike, what: str, warn: Any) -> Array:
     a = np.asarray(q, dtype=float)
     if a.ndim == 1 and a.size == model.n_joints:
         a = a[None]
@@ -315,7 +315,7 @@ def _joints(model: SerialModel, q: ArrayLike, what: str) -> Array:
     out = (a < lim[:, 0]) | (a > lim[:, 1])
     if out.any():
         rows = np.flatnonzero(out.any(axis=1))
-        diagnostics.warn(
+        warn(
             "joints-outside-limits",
             f"{rows.size} row(s) of {what} (first: row {rows[0] + 1}) lie outside the model's "
             "joint limits; the compensated joints are kept within them")
@@ -333,6 +333,7 @@ def compensate(
     base: str = "calibrated",
     restarts: int = 10,
     rng: int | np.random.Generator | None = 0,
+    diagnose: bool = True,
     **ik_options: Any,
 ) -> CompensationResult:
     """Compensate a joint program or Cartesian targets with a calibrated model.
@@ -365,6 +366,10 @@ def compensate(
         instrument's frame: base-frame errors are left to the user frame).
     restarts, rng : int
         Random restarts of the nominal IK of unseeded targets (same rng, same result).
+    diagnose : bool
+        Report rows that did not converge, near-singular rows and the other findings
+        through `kinecal.diagnostics.warn` (False: only in the result, e.g. for a report
+        section that shows the counts itself).
     **ik_options
         Passed to `kinecal.kinematics.ik.solve_ik` (``tol_position``, ``tol_rotation``,
         ``max_iterations``, ``singular_threshold``, ``rotation_weight``).
@@ -379,9 +384,10 @@ def compensate(
         Neither or both of `joints` and `targets`, bad shapes or values, a calibrated
         model of another arm.
     """
+    warn = diagnostics.warn if diagnose else _silent
     nom, cal = _as_models(calibrated, nominal)
     if base == "calibrated":
-        _base_check(nom, cal)
+        _base_check(nom, cal, warn)
     cal = _with_base(cal, nom, base)
     if (joints is None) == (targets is None):
         raise InputError("give either a joint program (joints=) or Cartesian targets "
@@ -392,7 +398,7 @@ def compensate(
         if seeds is not None:
             raise InputError("seeds apply to Cartesian targets; a joint program seeds itself")
         kind = "joints"
-        q_nom = _joints(nom, joints, "program joints")
+        q_nom = _joints(nom, joints, "program joints", warn)
         outputs = outputs or ("pose" if nom.n_joints >= 6 else "position")
         T = nom.fk(q_nom)
         intended = T if outputs == "pose" else T[:, :3, 3]
@@ -405,13 +411,13 @@ def compensate(
             raise InputError("pose compensation needs target orientations (qw, qx, qy, qz)")
         intended = t if outputs == "pose" or t.ndim == 2 else t[:, :3, 3]
         if seeds is None:
-            diagnostics.warn(
+            warn(
                 "no-seed-joints",
                 "targets without seed joints: the solver chose each target's configuration "
                 "(elbow, wrist); give seed joints (q1..qn columns) to keep the robot's own")
             first = solve_ik(nom, intended, None, restarts=restarts, rng=rng, **ik_options)
         else:
-            q0 = _joints(nom, seeds, "seed joints")
+            q0 = _joints(nom, seeds, "seed joints", warn)
             if q0.shape[0] != intended.shape[0]:
                 raise InputError(f"{q0.shape[0]} seed rows for {intended.shape[0]} targets")
             first = solve_ik(nom, intended, q0, **ik_options)
@@ -427,8 +433,13 @@ def compensate(
         error_before=before, error_before_rotation=before_rot, residual=res.position_error,
         residual_rotation=res.rotation_error, converged=res.converged, status=res.status,
         nominal_converged=nominal_ok, ik=res, length_unit=nom.length_unit)
-    _warn_rows(out)
+    if diagnose:
+        _warn_rows(out)
     return out
+
+
+def _silent(code: str, message: str) -> None:
+    """`diagnostics.warn` replacement that drops the finding (``diagnose=False``)."""
 
 
 def _warn_rows(res: CompensationResult) -> None:

@@ -2,7 +2,8 @@
 
 Calibrates the UR5 model on the 1000 laser-tracker grid poses of the bundled
 ``ur5-laser-tracker`` dataset, validates on its 20 random poses, prints the before/after
-table and writes ``result.json``, the calibrated model, ``report.html`` and the figures.
+table and writes ``result.json``, the calibrated model, ``report.html`` and the figures;
+then compensates the 20 held-out poses as a joint program (``compensated.csv``).
 """
 
 from __future__ import annotations
@@ -21,14 +22,17 @@ DEMO_DATA = "ur5-laser-tracker:grid"
 DEMO_VALIDATION = "ur5-laser-tracker:random"
 
 
-def run_demo(out: Path, quiet: bool = False) -> tuple[object, list[Path]]:
+def run_demo(out: Path, quiet: bool = False) -> tuple[object, list[Path], tuple]:
     """Run the demo calibration and write its files into `out`.
 
     Returns
     -------
     result : CalibrationResult
     written : list of Path
-        ``result.json``, ``<model>-calibrated.yaml``, ``report.html`` and the PNGs.
+        ``result.json``, ``<model>-calibrated.yaml``, ``report.html``, the PNGs and
+        ``compensated.csv``.
+    compensation : tuple
+        The `CompensationResult` of the held-out poses, its CSV path and its text.
     """
     from kinecal.calibration.serial import calibrate
     from kinecal.io.measurements import read_measurements
@@ -55,8 +59,12 @@ def run_demo(out: Path, quiet: bool = False) -> tuple[object, list[Path]]:
         res.save_model(written[1])
         written.append(calibration_report(res, out / "report.html", pngs))
         written += save_calibration_figures(res, out, pngs)
+        from kinecal.cli.compensate import demo_compensation
+
+        compensation = demo_compensation(res, out, DEMO_VALIDATION)
+        written.append(compensation[1])
         update()
-    return res, written
+    return res, written, compensation
 
 
 @app.command()
@@ -70,13 +78,15 @@ def demo(
 ) -> None:
     """Calibrate a UR5 on bundled laser-tracker data and write a report (no arguments needed).
     """
-    res, written = run_demo(out, quiet or json_out)
+    res, written, (comp, _, comp_text) = run_demo(out, quiet or json_out)
     if json_out:
-        echo_json({**res.to_dict(), "files": [str(p) for p in written]})
+        echo_json({**res.to_dict(), "compensation": comp.stats(),
+                   "files": [str(p) for p in written]})
         return
     typer.echo(f"kinecal demo: UR5 calibrated on {DEMO_DATA} (1000 poses), validated on "
                f"{DEMO_VALIDATION} (20 held-out poses)\n")
     typer.echo(res.summary())
+    typer.echo("\n" + comp_text)
     typer.echo(f"\nwrote {len(written)} files to {out}/:")
     for path in written:
         typer.echo(f"  {path}")

@@ -202,11 +202,14 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
     }
     figs = "".join(image_tag(png, f"{kind} figure", captions[kind], f"fig-{kind}")
                    for kind, png in pngs.items())
+    from kinecal.report.compensation import compensation_section
+
     return [
         section("summary", "Model and data", summary),
         section("identifiability", "Identifiability", ident),
         section("errors", "Position error before and after", errors),
         section("parameters", "Parameters", params),
+        compensation_section(result),
         section("figures", "Figures", figs),
     ]
 
