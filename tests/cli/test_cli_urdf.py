@@ -62,6 +62,11 @@ def test_urdf_model_through_simulate_identifiability_calibrate_fk(tmp_path, caps
     assert res["length_unit"] == "m" and res["angle_unit"] == "deg"
     cal = tmp_path / "irb140-cal.urdf"
     assert main(["export", str(out), "--nominal", str(IRB140), "--out", str(cal)]) == 0
+    assert cal.read_text().count("<visual>") == 7  # written into a copy of the source URDF
+    bare = tmp_path / "irb140-chain.urdf"
+    assert main(["export", str(out), "--nominal", str(IRB140), "--out", str(bare),
+                 "--chain-only"]) == 0
+    assert "<visual>" not in bare.read_text()
     assert main(["fk", str(cal), str(sim)]) == 0
     xyz = np.loadtxt(capsys.readouterr().out.splitlines(), delimiter=",", skiprows=1)
     measured = np.loadtxt(sim, delimiter=",", skiprows=1)[:, 6:9]

@@ -297,3 +297,40 @@ def test_revolute_without_limits_warns(tmp_path):
         model = load_urdf(path)
     assert [d.code for d in found] == ["urdf-joint-limits"]
     np.testing.assert_allclose(model.joint_limits, [[-np.pi, np.pi]])
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"base_link": "link_1", "tip_link": "link_6"}])
+def test_calibrated_values_written_into_the_source_urdf(tmp_path, kwargs):
+    from kinecal.io.urdf_patch import patched_urdf, save_patched_urdf
+
+    source = RTB / REAL["irb140"]
+    model = load_urdf(source, **kwargs)
+    p = model.nominal + random_errors(model, np.random.default_rng(5))
+    text = patched_urdf(source, model, p, comment="calibrated -- test")
+    original = source.read_text()
+    assert text.count("<visual>") == original.count("<visual>") == 7  # meshes kept
+    assert 'name="base_link-base"' in text  # the side frame too
+    q = random_configurations(model, 300, np.random.default_rng(6))
+    pm = pin.buildModelFromXML(text)
+    pd = pm.createData()
+    tool = pm.getFrameId("tool")
+    frame = pm.getFrameId("measurement_frame") if kwargs else None
+    theirs = []
+    for qi in q:
+        full = np.zeros(pm.nq)
+        if kwargs:
+            full[1:6] = qi
+        else:
+            full[:] = qi
+        pin.framesForwardKinematics(pm, pd, full)
+        T = pd.oMf[tool].homogeneous
+        if kwargs:  # the chain starts below the file's root: measured from that frame
+            T = np.linalg.inv(pd.oMf[frame].homogeneous) @ T
+        theirs.append(T[:3, 3])
+    assert np.abs(np.array(theirs) - model.positions(q, p)).max() * 1000.0 <= 1e-9
+    save_patched_urdf(source, model, tmp_path / "cal.urdf", p)
+    assert yourdfpy.URDF.load(str(tmp_path / "cal.urdf"), load_meshes=False).validate()
+    with pytest.raises(InputError, match="not the URDF the model came from"):
+        patched_urdf(RTB / REAL["kr16"], model, p)
+    with pytest.raises(InputError, match="only a model loaded from this URDF"):
+        patched_urdf(source, load_model("ur5"))

@@ -53,7 +53,8 @@ def _check_nominal(model, data: dict, path: Path) -> None:
 
 def model_and_params(source: str, nominal: str | None, base_link: str | None,
                      tip_link: str | None):
-    """The model (and identified parameter vector, or None) behind SOURCE.
+    """The model, the identified parameter vector (or None) and the URDF file the model
+    was read from (or None) behind SOURCE.
 
     SOURCE is a model (bundled name, YAML, URDF) or a calibration result JSON; for a
     result the nominal model is `nominal`, or the bundled model the result names.
@@ -65,7 +66,7 @@ def model_and_params(source: str, nominal: str | None, base_link: str | None,
         if nominal is not None:
             raise InputError("--nominal applies to a calibration result (RESULT.json) only",
                              option="--nominal")
-        return load_model_arg(source, base_link, tip_link), None
+        return load_model_arg(source, base_link, tip_link), None, _urdf_path(source)
     path = Path(source)
     data = read_json(path)
     if not isinstance(data, dict) or not isinstance(data.get("parameters"), dict):
@@ -82,7 +83,11 @@ def model_and_params(source: str, nominal: str | None, base_link: str | None,
         nominal = str(name)
     model = model_for_result(load_model_arg(nominal, base_link, tip_link), path)
     _check_nominal(model, data, path)
-    return model, parameters_from_result(model, path)
+    return model, parameters_from_result(model, path), _urdf_path(nominal)
+
+
+def _urdf_path(spec: str) -> Path | None:
+    return Path(spec) if spec.lower().endswith(".urdf") else None
 
 
 @app.command("export")
@@ -97,18 +102,30 @@ def export(
                                        "the result names)."),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
+    chain_only: bool = typer.Option(False, "--chain-only", help="For a model read from a "
+                                    "URDF: write only the chain, not a copy of that URDF "
+                                    "(meshes, other branches) with the chain's values."),
 ) -> None:
-    """Write a model, or a calibrated one, as URDF (metres, radians) or as a model file."""
+    """Write a model, or a calibrated one, as URDF (metres, radians) or as a model file.
+
+    A model read from a URDF is written into a copy of that URDF: its chain's joint origins
+    take the calibrated values, a tool link (and the measurement frame) are added, and
+    everything else (meshes, inertias, other branches) is kept.
+    """
     from kinecal.io.models import save_model
     from kinecal.io.urdf_export import save_urdf
+    from kinecal.io.urdf_patch import save_patched_urdf
 
     fmt = _format(fmt, out)
     check_paths({"SOURCE": source, "--nominal": nominal}, {"--out": out})
-    model, params = model_and_params(source, nominal, base_link, tip_link)
+    model, params, urdf = model_and_params(source, nominal, base_link, tip_link)
     what = f"model {model.name}" if params is None else f"{source} (calibrated {model.name})"
     if fmt == "urdf":
-        save_urdf(model, out, params, comment=f"written by kinecal export from {what}; "
-                  "lengths in metres, angles in radians")
+        comment = f"written by kinecal export from {what}; lengths in metres, angles in radians"
+        if urdf is not None and not chain_only:
+            save_patched_urdf(urdf, model, out, params, comment=comment + f", into {urdf.name}")
+        else:
+            save_urdf(model, out, params, comment=comment)
         unit = "metres, radians"
     else:
         target = model if params is None else model.with_params(

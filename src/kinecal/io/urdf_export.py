@@ -40,7 +40,7 @@ from kinecal.kinematics.motions import PRISMATIC, ROTATION, Motion
 from kinecal.kinematics.serial import SerialModel
 from kinecal.spatial import matrix_from_axis_angle, rot_x, rot_y, rot_z, xyz_rpy_from_transform
 
-__all__ = ["URDFJoint", "save_urdf", "urdf_joints", "urdf_string"]
+__all__ = ["URDFJoint", "save_urdf", "urdf_joints", "urdf_origin", "urdf_string"]
 
 Array = NDArray[np.float64]
 _ROT = (rot_x, rot_y, rot_z)
@@ -105,10 +105,11 @@ def _translation(v: Array) -> Array:
 
 
 class _Names:
-    """Unique link names (a URDF's link and a generated one may collide)."""
+    """Names generated for links and joints kinecal adds (``world``, ``link_2``, ``tool``),
+    never equal to a name the model or the source URDF already uses (`taken`)."""
 
-    def __init__(self) -> None:
-        self.used: set[str] = set()
+    def __init__(self, taken) -> None:
+        self.used: set[str] = set(taken)
 
     def __call__(self, name: str) -> str:
         out, k = name, 2
@@ -118,10 +119,14 @@ class _Names:
         return out
 
 
-def urdf_joints(model: SerialModel, params: ArrayLike | None = None) -> list[URDFJoint]:
+def urdf_joints(model: SerialModel, params: ArrayLike | None = None, *,
+                taken_links=(), taken_joints=()) -> list[URDFJoint]:
     """The exported tree of `model` at `params` (default nominal), root first.
 
     See the module docstring for the construction. Lengths stay in the model's unit here.
+    Links and joints the chain names (a ``urdf`` model's ``parent``, ``child`` and joint
+    names) keep their names; those kinecal adds avoid them and `taken_links`,
+    `taken_joints` (the other names of a source URDF).
     """
     p = model.nominal if params is None else np.asarray(params, dtype=float)
     if p.shape != (model.n_params,):
@@ -129,8 +134,10 @@ def urdf_joints(model: SerialModel, params: ArrayLike | None = None) -> list[URD
     chain = model.chain
     idx = {n: k for k, n in enumerate(model.parameter_names)}
     slide = model.convention != "urdf"
-    names = _Names()
     entries = list(model.joints)
+    given = {e[k] for e in entries for k in ("parent", "child") if e.get(k)}
+    names = _Names(given | set(taken_links))
+    joint_names = _Names({e.get("name") or e.get("frame") for e in entries} | set(taken_joints))
     out: list[URDFJoint] = []
     groups: dict = {}
     for m, owner in zip(chain.motions, chain.owners, strict=True):
@@ -143,21 +150,18 @@ def urdf_joints(model: SerialModel, params: ArrayLike | None = None) -> list[URD
         return T
 
     first = entries[0] if entries else {}
-    base_name = first.get("parent") or "base_link"
+    parent = first.get("parent") or names("base_link")
     base_T = product(groups["base"])
-    if np.array_equal(base_T, np.eye(4)):
-        parent = names(base_name)
-    else:
-        root = names("world")
-        parent = names(base_name)
-        out.append(URDFJoint("base_joint", "fixed", root, parent, base_T))
+    if not np.array_equal(base_T, np.eye(4)):
+        out.append(URDFJoint(joint_names("base_joint"), "fixed", names("world"), parent,
+                             base_T))
     W = np.eye(4)  # parent link frame in the base link frame (zero configuration)
     pending = np.eye(4)
     j = 0
     for e, entry in enumerate(entries):
         motions = groups.get(e, [])
         if "frame" in entry:
-            child = names(entry.get("child") or entry["frame"])
+            child = entry.get("child") or names(entry["frame"])
             origin = pending @ product(motions)
             out.append(URDFJoint(entry["frame"], "fixed", parent, child, origin))
             W, parent, pending = W @ origin, child, np.eye(4)
@@ -173,8 +177,8 @@ def urdf_joints(model: SerialModel, params: ArrayLike | None = None) -> list[URD
             t = float(u @ (W[:3, 3] - frame[:3, 3]))
             origin = origin @ _translation(t * axis)
         kind = entry.get("type", "revolute")
-        name = entry.get("name") or f"joint_{j + 1}"
-        child = names(entry.get("child") or f"link_{j + 1}")
+        name = entry.get("name") or joint_names(f"joint_{j + 1}")
+        child = entry.get("child") or names(f"link_{j + 1}")
         lo, hi = (float(v) for v in model.joint_limits[j])
         extra = {key: float(entry[key]) for key in ("effort", "velocity") if key in entry}
         out.append(URDFJoint(name, kind, parent, child, origin, axis,
@@ -184,15 +188,15 @@ def urdf_joints(model: SerialModel, params: ArrayLike | None = None) -> list[URD
         j += 1
     if not np.array_equal(pending, np.eye(4)):
         child = names("flange")
-        out.append(URDFJoint("flange_joint", "fixed", parent, child, pending))
+        out.append(URDFJoint(joint_names("flange_joint"), "fixed", parent, child, pending))
         parent = child
     if model.marker_names:  # several markers: one tool link each
         for marker in model.marker_names:
             xyz = p[model.index(marker_parameter_names(marker))]
-            out.append(URDFJoint(f"tool_{marker}_joint", "fixed", parent,
+            out.append(URDFJoint(joint_names(f"tool_{marker}_joint"), "fixed", parent,
                                  names(f"tool_{marker}"), _translation(xyz)))
         return out
-    out.append(URDFJoint("tool_joint", "fixed", parent, names("tool"),
+    out.append(URDFJoint(joint_names("tool_joint"), "fixed", parent, names("tool"),
                          product(groups["tool"])))
     return out
 
@@ -204,6 +208,13 @@ def _num(v: float) -> str:
 
 def _vec(v) -> str:
     return " ".join(_num(x) for x in v)
+
+
+def urdf_origin(T: Array, per_m: float) -> dict[str, str]:
+    """``{"xyz": ..., "rpy": ...}`` attributes of a URDF ``<origin>`` for the transform `T`
+    ``(4, 4)`` (translation divided by `per_m` to metres)."""
+    xyzrpy = xyz_rpy_from_transform(T)
+    return {"xyz": _vec(xyzrpy[:3] / per_m), "rpy": _vec(xyzrpy[3:])}
 
 
 def urdf_string(model: SerialModel, params: ArrayLike | None = None, *,
@@ -233,8 +244,7 @@ def urdf_string(model: SerialModel, params: ArrayLike | None = None, *,
         ET.SubElement(robot, "link", {"name": link})
     for jt in joints:
         el = ET.SubElement(robot, "joint", {"name": jt.name, "type": jt.type})
-        xyzrpy = xyz_rpy_from_transform(jt.origin)
-        ET.SubElement(el, "origin", {"xyz": _vec(xyzrpy[:3] / per_m), "rpy": _vec(xyzrpy[3:])})
+        ET.SubElement(el, "origin", urdf_origin(jt.origin, per_m))
         ET.SubElement(el, "parent", {"link": jt.parent})
         ET.SubElement(el, "child", {"link": jt.child})
         if jt.axis is not None:
