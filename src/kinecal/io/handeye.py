@@ -111,8 +111,8 @@ def read_handeye_files(robot_path: str | Path, target_path: str | Path,
     -------
     flange2base, target2cam : ndarray, shape (n, 4, 4)
     """
-    F = read_poses(robot_path, robot, option="--robot-poses")
-    C = read_poses(target_path, target, option="--target-poses")
+    F = read_poses(robot_path, robot, option="--robot-format")
+    C = read_poses(target_path, target, option="--target-format")
     if len(F) != len(C):
         raise InputError(f"{len(F)} robot poses ({Path(robot_path).name}) but {len(C)} target "
                          f"poses ({Path(target_path).name}): expected one of each per station")
