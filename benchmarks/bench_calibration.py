@@ -1,22 +1,41 @@
-"""Calibration speed and accuracy: kinecal's LM with the analytic Jacobian against scipy
-``least_squares`` with a finite-difference Jacobian on the same problem (what pybotics does).
+"""Calibration speed and accuracy against scipy, and kinecal.calibrate() from 10^3 to 10^6
+poses (time per pose, peak memory, overhead over the raw solver).
 
-Cases:
+Part 1, real and small problems (best of 3, same process): kinecal's LM with the
+analytic Jacobian against scipy ``least_squares`` with a finite-difference Jacobian
+(what pybotics does) and with kinecal's analytic Jacobian (MINPACK), on
 
-* ``ur5``: the real laser-tracker data (1000 grid poses; the 20 random poses validate),
-  geometric parameters + base frame + tool point, identifiable set;
-* ``irb120``: 50 simulated poses, random errors within the paper-002 tolerances, noise
-  0.02 mm, 100 validation poses.
+* ``ur5``: the real laser-tracker data (1000 grid poses; the 20 random poses validate);
+* ``irb120``: 50 simulated poses, random errors, noise 0.02 mm, 100 validation poses.
 
-Both solvers start from nominal with the same free parameters and residuals; the peer is
-timed on the same machine in the same process. Run: ``python benchmarks/bench_calibration.py``.
+Part 2, scaling: ``kinecal.calibrate(ur5, data)`` on 10^3, 10^4, 10^5 and 10^6 simulated
+UR5 poses (random errors within the tolerances, noise 0.01 mm), each size in a fresh
+process that loads the data from a ``.npz`` file, so that the peak resident memory
+(``getrusage``) measured around the call is the call's own. Beside it, in the same
+process: the raw solver (`levenberg_marquardt` on the problem with calibrate's final
+free parameters, from nominal: the same end point, without the identifiability analysis,
+the growth step, the covariance and the statistics) and the same solver on the first
+(nominal) identifiable set.
+
+Part 3, at 10^5 poses (10^4 with ``--quick``): calibrate() against scipy
+``least_squares`` with default settings (``trf``, 2-point Jacobian) and with kinecal's
+analytic Jacobian (``trf``, and ``lm`` = MINPACK, scipy's fastest here) on the same
+residual function, free parameters and start; the end points are compared.
+
+Run: ``python benchmarks/bench_calibration.py [--quick] [--repeat R]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import resource
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
@@ -27,9 +46,11 @@ import kinecal
 from kinecal.calibration.problem import CalibrationProblem, resolve_free
 from kinecal.calibration.serial import CALIBRATION_RANK_TOL
 from kinecal.calibration.simulate import simulate
+from kinecal.data import Measurements
 from kinecal.optimize.lsq import levenberg_marquardt
 
 
+# ---------------------------------------------------------------- part 1
 def case_ur5():
     m = kinecal.load_model("ur5")
     return m, kinecal.read_measurements("ur5-laser-tracker:grid", m), kinecal.read_measurements(
@@ -43,7 +64,7 @@ def case_irb120():
     return m, cal.data, val.data
 
 
-def run(name, model, data, val, repeat):
+def run_small(name, model, data, val, repeat):
     names, _ = resolve_free(model, data, "identifiable", tol=CALIBRATION_RANK_TOL)
     pr = CalibrationProblem(model, data, names)
 
@@ -51,7 +72,8 @@ def run(name, model, data, val, repeat):
         return np.linalg.norm(model.positions(val.q, pr.full(x)) - val.xyz, axis=1).mean()
 
     def ours():
-        return levenberg_marquardt(pr.residuals, pr.jacobian, pr.x0)
+        return levenberg_marquardt(pr.residuals, pr.jacobian, pr.x0,
+                                   normal_equations=pr.normal_equations)
 
     def peer():
         return least_squares(pr.residuals, pr.x0, jac="2-point", method="lm", ftol=1e-15,
@@ -60,36 +82,176 @@ def run(name, model, data, val, repeat):
     def minpack():
         return levenberg_marquardt(pr.residuals, pr.jacobian, pr.x0, solver="minpack")
 
-    t_ours = t_peer = t_mp = np.inf
+    t = dict.fromkeys(("ours", "peer", "minpack"), np.inf)
+    out = {}
+    ours(), minpack()  # warm-up: first calls (LAPACK, caches) are not timed
     for _ in range(repeat):
-        t0 = time.perf_counter()
-        a = ours()
-        t_ours = min(t_ours, time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        b = peer()
-        t_peer = min(t_peer, time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        c = minpack()
-        t_mp = min(t_mp, time.perf_counter() - t0)
+        for key, fn in (("ours", ours), ("peer", peer), ("minpack", minpack)):
+            t0 = time.perf_counter()
+            out[key] = fn()
+            t[key] = min(t[key], time.perf_counter() - t0)
+    a, b, c = out["ours"], out["peer"], out["minpack"]
     print(f"{name}: {len(data)} poses, {len(names)} free parameters")
-    print(f"  kinecal LM, analytic J : {t_ours * 1e3:8.1f} ms, {a.nfev:4d} evaluations, "
-          f"cal mean {pr.distances(a.x).mean():.6f}, val mean {val_mean(a.x):.6f}")
-    print(f"  scipy LM, 2-point J    : {t_peer * 1e3:8.1f} ms, {b.nfev:4d} evaluations, "
-          f"cal mean {pr.distances(b.x).mean():.6f}, val mean {val_mean(b.x):.6f}")
-    print(f"  scipy LM, analytic J   : {t_mp * 1e3:8.1f} ms, {c.nfev:4d} evaluations, "
-          f"cal mean {pr.distances(c.x).mean():.6f}, val mean {val_mean(c.x):.6f}")
-    print(f"  speed ratio vs finite-difference peer: {t_peer / t_ours:.1f}x "
-          f"(analytic J alone, MINPACK both: {t_peer / t_mp:.1f}x)")
-    return t_peer / t_ours
+    for label, key, r in (("kinecal LM, analytic J ", "ours", a),
+                          ("scipy LM, 2-point J    ", "peer", b),
+                          ("scipy LM, analytic J   ", "minpack", c)):
+        print(f"  {label}: {t[key] * 1e3:8.1f} ms, {r.nfev:4d} evaluations, "
+              f"cal mean {pr.distances(r.x).mean():.6f}, val mean {val_mean(r.x):.6f}")
+    print(f"  speed ratio vs finite-difference peer: {t['peer'] / t['ours']:.1f}x "
+          f"(vs MINPACK with the analytic J: {t['minpack'] / t['ours']:.1f}x)")
+
+
+# ---------------------------------------------------------------- part 2 (child processes)
+def _peak_bytes() -> int:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+def _rss_bytes() -> int:
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def child_make(n: int, path: str) -> None:
+    m = kinecal.load_model("ur5")
+    sim = simulate(m, n, errors="random", noise=0.01, rng=0)
+    np.savez(path, q=sim.data.q, xyz=sim.data.xyz)
+
+
+def _lm(pr):
+    t0 = time.perf_counter()
+    r = levenberg_marquardt(pr.residuals, pr.jacobian, pr.x0,
+                            normal_equations=pr.normal_equations)
+    return time.perf_counter() - t0, r
+
+
+def child_scaling(path: str, raw: bool) -> None:
+    """One calibrate() on the saved data: time, peak memory above the loaded data; then
+    the raw solver on the final and on the first free set."""
+    m = kinecal.load_model("ur5")
+    d = np.load(path)
+    data = Measurements(d["q"], d["xyz"])
+    kinecal.calibrate(m, Measurements(d["q"][:300], d["xyz"][:300]))  # imports, caches
+    base = max(_peak_bytes(), _rss_bytes())
+    t0 = time.perf_counter()
+    res = kinecal.calibrate(m, data)
+    t_cal = time.perf_counter() - t0
+    out = {"n": len(data), "calibrate_s": t_cal, "peak_increase_bytes": _peak_bytes() - base,
+           "evaluations": res.evaluations, "free": len(res.free),
+           "cost": float(res.history[-1])}
+    if raw:
+        pr = CalibrationProblem(m, data, res.free)
+        out["raw_final_s"], r = _lm(pr)
+        out["raw_final_nfev"] = int(r.nfev)
+        out["raw_final_dx"] = float(np.abs(r.x - res.params[pr.index]).max())
+        first = resolve_free(m, Measurements(d["q"][:20000], d["xyz"][:20000]),
+                             "identifiable", tol=CALIBRATION_RANK_TOL)[0]
+        out["raw_first_s"], r = _lm(CalibrationProblem(m, data, first))
+        out["raw_first_nfev"] = int(r.nfev)
+    print(json.dumps(out))
+
+
+def child_scipy(path: str) -> None:
+    """calibrate() against scipy least_squares on the same problem, same process."""
+    m = kinecal.load_model("ur5")
+    d = np.load(path)
+    data = Measurements(d["q"], d["xyz"])
+    kinecal.calibrate(m, Measurements(d["q"][:300], d["xyz"][:300]))
+    t0 = time.perf_counter()
+    res = kinecal.calibrate(m, data)
+    t_cal = time.perf_counter() - t0
+    pr = CalibrationProblem(m, data, res.free)
+    x_ref = res.params[pr.index]
+    cost_ref = 0.5 * float(np.sum(pr.residuals(x_ref) ** 2))
+    out = {"n": len(data), "calibrate_s": t_cal, "free": len(res.free), "cost": cost_ref}
+    peers = {
+        "trf_2point": dict(),  # scipy's defaults: trf, 2-point Jacobian, ftol 1e-8
+        "trf_analytic": dict(jac=pr.jacobian),
+        "lm_analytic": dict(jac=pr.jacobian, method="lm"),
+    }
+    for key, kw in peers.items():
+        t0 = time.perf_counter()
+        s = least_squares(pr.residuals, pr.x0, **kw)
+        out[key] = {"s": time.perf_counter() - t0, "nfev": int(s.nfev),
+                    "cost_rel": float(s.cost / cost_ref - 1.0),
+                    "dx_over_std": float(np.max(np.abs(s.x - x_ref) / res.std[pr.index]))}
+    print(json.dumps(out))
+
+
+def _child(*args: str) -> dict | None:
+    cmd = [sys.executable, __file__, "--child", *args]
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
+    return json.loads(lines[-1]) if lines else None
+
+
+def _span(values, fmt="{:.2f}") -> str:
+    lo, hi = min(values), max(values)
+    return fmt.format(lo) if fmt.format(lo) == fmt.format(hi) else \
+        f"{fmt.format(lo)}-{fmt.format(hi)}"
+
+
+def run_scaling(sizes, repeat: int, scipy_n: int) -> None:
+    with tempfile.TemporaryDirectory(prefix="kinecal-bench-") as tmp:
+        files = {}
+        for n in sorted(set(sizes) | {scipy_n}):
+            files[n] = str(Path(tmp) / f"ur5-{n}.npz")
+            _child("make", str(n), files[n])
+        print(f"calibrate() on simulated UR5 poses, {repeat} runs per size (ranges), each "
+              "in a fresh process")
+        print(f"{'poses':>9} {'calibrate s':>14} {'us/pose':>12} {'peak B/pose':>12} "
+              f"{'/ raw (final set)':>18} {'/ raw (first set)':>18} {'evals cal/raw':>14}")
+        rows = {}
+        for n in sizes:
+            runs = [_child("scaling", files[n], "raw") for _ in range(repeat)]
+            rows[n] = runs
+            print(f"{n:>9} {_span([r['calibrate_s'] for r in runs], '{:.3f}'):>14} "
+                  f"{_span([r['calibrate_s'] / n * 1e6 for r in runs]):>12} "
+                  f"{_span([r['peak_increase_bytes'] / n for r in runs], '{:.0f}'):>12} "
+                  f"{_span([r['calibrate_s'] / r['raw_final_s'] for r in runs]):>18} "
+                  f"{_span([r['calibrate_s'] / r['raw_first_s'] for r in runs]):>18} "
+                  f"{runs[0]['evaluations']:>6}/{runs[0]['raw_final_nfev']}")
+        big = [n for n in sizes if n >= 10_000]
+        if len(big) > 1:
+            per = {n: [r["calibrate_s"] / n for r in rows[n]] for n in big}
+            worst = max(max(v) for v in per.values()) / min(min(v) for v in per.values())
+            print(f"  time per pose, largest / smallest over {big[0]}..{big[-1]}: "
+                  f"{worst:.2f}x at most")
+        print(f"  same end point: raw solver on the final set ends within "
+              f"{max(r['raw_final_dx'] for rs in rows.values() for r in rs):.1e} of calibrate")
+        print(f"calibrate() vs scipy least_squares at {scipy_n} poses (same residuals, free "
+              "set and start)")
+        for _ in range(max(1, repeat - 1)):
+            s = _child("scipy", files[scipy_n])
+            print(f"  calibrate {s['calibrate_s']:.2f} s ({s['free']} free)")
+            for key, label in (("trf_2point", "defaults (trf, 2-point J)"),
+                               ("trf_analytic", "trf, kinecal's analytic J"),
+                               ("lm_analytic", "lm (MINPACK), kinecal's analytic J")):
+                p = s[key]
+                print(f"  scipy {label:<36} {p['s']:7.2f} s, {p['nfev']:3d} evaluations, "
+                      f"ratio {p['s'] / s['calibrate_s']:5.1f}x; end point: cost "
+                      f"{p['cost_rel']:+.1e} relative, {p['dx_over_std']:.1e} std")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="one repetition")
+    ap.add_argument("--quick", action="store_true", help="small sizes, one repetition")
+    ap.add_argument("--repeat", type=int, default=None, help="runs per size (default 3)")
+    ap.add_argument("--only", choices=("small", "scaling"), default=None)
+    ap.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     args = ap.parse_args()
-    repeat = 1 if args.quick else 3
-    for name, make in (("ur5 laser tracker", case_ur5), ("irb120 simulated", case_irb120)):
-        run(name, *make(), repeat)
+    if args.child:
+        kind, *rest = args.child
+        {"make": lambda: child_make(int(rest[0]), rest[1]),
+         "scaling": lambda: child_scaling(rest[0], raw=len(rest) > 1),
+         "scipy": lambda: child_scipy(rest[0])}[kind]()
+        return
+    repeat = args.repeat or (1 if args.quick else 3)
+    if args.only in (None, "small"):
+        for name, make in (("ur5 laser tracker", case_ur5), ("irb120 simulated", case_irb120)):
+            run_small(name, *make(), repeat)
+    if args.only in (None, "scaling"):
+        sizes = [1_000, 10_000] if args.quick else [1_000, 10_000, 100_000, 1_000_000]
+        run_scaling(sizes, repeat, 10_000 if args.quick else 100_000)
 
 
 if __name__ == "__main__":

@@ -60,6 +60,8 @@ def _mul(a, x):
         return 0.0
     if isinstance(a, float) and a == 1.0:
         return x
+    if isinstance(x, float) and x == 1.0:
+        return a
     return a * x
 
 
@@ -82,6 +84,38 @@ def _sub(x, y):
 def _turn(c, s, x, y):
     """``(c x - s y, s x + c y)``: a plane rotation of the coordinate pair (x, y)."""
     return _sub(_mul(c, x), _mul(s, y)), _add(_mul(s, x), _mul(c, y))
+
+
+# A frame's vector (an axis, the origin) is a list of 3 coordinates (floats or arrays) until
+# all three are arrays of one shape; then one array (3, *batch, n): an operation on it is
+# one numpy call instead of three (what matters at a few thousand poses per chunk).
+def _dense(v: list):
+    if all(isinstance(c, np.ndarray) for c in v) and v[0].shape == v[1].shape == v[2].shape:
+        return np.stack(v)
+    return v
+
+
+def _fits(v, *coefs) -> bool:
+    """Whether coefficients broadcast over the pose axes of the stacked vector `v`."""
+    return isinstance(v, np.ndarray) and all(np.ndim(c) < v.ndim for c in coefs)
+
+
+def _comb(c, va, s, vb, minus: bool = False):
+    """``c va + s vb`` (``c va - s vb`` with `minus`) of two vectors."""
+    if _fits(va, c, s) and isinstance(vb, np.ndarray) and va.ndim == vb.ndim:
+        return c * va - s * vb if minus else c * va + s * vb
+    f = _sub if minus else _add
+    return _dense([f(_mul(c, va[k]), _mul(s, vb[k])) for k in range(3)])
+
+
+def _axpy(o, v, u):
+    """``o + v u``: the origin moved by `v` along the unit vector `u`."""
+    if _fits(u, v):
+        if isinstance(o, np.ndarray) and o.ndim == u.ndim:
+            return o + v * u
+        if not isinstance(o, np.ndarray) and all(_zero(x) for x in o):
+            return v * u
+    return _dense([_add(o[k], _mul(v, u[k])) for k in range(3)])
 
 
 # ---------------------------------------------------------------- values and trig
@@ -232,13 +266,14 @@ def frame_chain(motions: Sequence[Motion], values: list, skip: list, qT: Array,
 
     Returns
     -------
-    axes : list of 3 lists of 3
-        ``axes[a][k]``: component k of the tool frame's axis a (floats or arrays).
-    origin : list of 3
+    axes : list of 3 vectors
+        ``axes[a][k]``: component k of the tool frame's axis a (floats or arrays). A vector
+        is a list of 3 coordinates or, once they are all arrays, one array ``(3, ...)``.
+    origin : vector
         The tool point.
-    frames : list of (list of 3, list of 3)
-        If `record`: per motion, its axis ``u`` and the origin ``o`` before it, each as 3
-        coordinates (coordinates are replaced, never modified in place, so no copies).
+    frames : list of (vector, vector)
+        If `record`: per motion, its axis ``u`` and the origin ``o`` before it (vectors are
+        replaced, never modified in place, so no copies).
     """
     axes = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
     o = [0.0, 0.0, 0.0]
@@ -248,22 +283,21 @@ def frame_chain(motions: Sequence[Motion], values: list, skip: list, qT: Array,
             u = axes[m.axis]
         else:
             d = m.direction
-            u = [_add(_add(_mul(d[0], axes[0][k]), _mul(d[1], axes[1][k])),
-                      _mul(d[2], axes[2][k])) for k in range(3)]
+            u = _dense([_add(_add(_mul(d[0], axes[0][k]), _mul(d[1], axes[1][k])),
+                             _mul(d[2], axes[2][k])) for k in range(3)])
         if record:
             frames.append((u, o))
         if skip[i]:
             continue
         if m.kind == TRANSLATION:
-            v = _motion_shift(m, values[i], qT)
-            o = [_add(o[k], _mul(v, u[k])) for k in range(3)]
+            o = _axpy(o, _motion_shift(m, values[i], qT), u)
             continue
         c, s = _motion_cs(i, m, values, trig)
         if m.direction is None:
             a, b = (m.axis + 1) % 3, (m.axis + 2) % 3
             va, vb = axes[a], axes[b]
-            axes[a] = [_add(_mul(c, va[k]), _mul(s, vb[k])) for k in range(3)]
-            axes[b] = [_sub(_mul(c, vb[k]), _mul(s, va[k])) for k in range(3)]
+            axes[a] = _comb(c, va, s, vb)
+            axes[b] = _comb(c, vb, s, va, minus=True)
             continue
         # Rodrigues on each axis: v' = c v + s (u x v) + (1 - c)(u . v) u, with u . a_k =
         # d_k and u x a_k written through the right-handed frame
@@ -271,8 +305,8 @@ def frame_chain(motions: Sequence[Motion], values: list, skip: list, qT: Array,
         a0, a1, a2 = axes
         k1 = _sub(1.0, c)
         lin = [(a1, a2, d[2], d[1]), (a2, a0, d[0], d[2]), (a0, a1, d[1], d[0])]
-        axes = [[_add(_add(_mul(c, v[k]), _mul(s, _sub(_mul(p, x[k]), _mul(r, y[k])))),
-                      _mul(_mul(k1, d[j]), u[k])) for k in range(3)]
+        axes = [_dense([_add(_add(_mul(c, v[k]), _mul(s, _sub(_mul(p, x[k]), _mul(r, y[k])))),
+                             _mul(_mul(k1, d[j]), u[k])) for k in range(3)])
                 for j, (v, (x, y, p, r)) in enumerate(zip(axes, lin, strict=True))]
     return axes, o, frames
 
