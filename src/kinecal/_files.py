@@ -3,14 +3,27 @@
 Writes go to a temporary file in the target directory, then a rename: an existing output
 is never half overwritten. Reads turn every failure into `kinecal.InputError` naming the
 file. (This module sits beside `kinecal.errors`, below all layers.)
+
+Temporary files are named ``.<name>.kinecal-<host>-<pid>.<random>.tmp`` (``<host>``: 8 hex
+digits of a hash of the host name, ``<pid>``: the writing process). A write that is killed
+before its rename (SIGKILL, power loss) leaves one behind; the next write into the same
+folder removes every such file whose writer process is gone (same host) or that has not
+been touched for `STALE_TEMP_SECONDS` (any host), so a killed 500 MB write does not stay
+on the disk for good.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import hashlib
 import json
 import os
+import re
+import socket
+import stat
 import tempfile
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
@@ -18,13 +31,95 @@ from typing import IO, Any
 from kinecal.errors import InputError
 
 __all__ = [
+    "MAX_YAML_ALIAS_NODES",
+    "STALE_TEMP_SECONDS",
     "atomic_open",
+    "load_yaml",
     "read_json",
     "read_text",
     "read_yaml_mapping",
+    "sweep_stale_temp_files",
     "write_bytes_atomic",
     "write_text_atomic",
 ]
+
+#: a temporary file of another host (or of a recycled pid) untouched this long is stale
+STALE_TEMP_SECONDS = 24 * 3600.0
+#: YAML aliases may add at most this many nodes to a document once expanded (a "billion
+#: laughs" file of 1 kB expands to 10^9 nodes; a real jobs or model file has no need of more)
+MAX_YAML_ALIAS_NODES = 1_000_000
+#: the part of the target's name kept in a temporary name (names are limited to 255 bytes)
+_NAME_KEEP = 100
+
+_TEMP_RE = re.compile(r"^\..*\.kinecal-([0-9a-f]{8})-(\d+)\.[^.]+\.tmp$", re.DOTALL)
+#: folders already swept by this process (a sweep lists the folder: once is enough)
+_SWEPT: set[str] = set()
+#: errors of the path itself (a user mistake, exit 2), as opposed to the disk (exit 1)
+_PATH_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENAMETOOLONG, errno.ENOTDIR,
+                errno.EISDIR, errno.ELOOP, errno.ENOENT}
+
+
+def _host_tag() -> str:
+    return hashlib.sha1(socket.gethostname().encode("utf-8", "replace")).hexdigest()[:8]
+
+
+def _pid_alive(pid: int) -> bool:
+    if os.name == "nt":  # os.kill(pid, 0) is not a probe there: rely on the age rule
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def sweep_stale_temp_files(folder: str | Path, *, now: float | None = None) -> list[Path]:
+    """Remove kinecal's own stale temporary files in `folder`; return the removed paths.
+
+    A temporary file (see the module docstring for the naming) is stale when it was
+    written on this host by a process that no longer exists, or when it has not been
+    modified for `STALE_TEMP_SECONDS`. Other files are never touched; errors (a file
+    removed meanwhile, no permission) are ignored.
+    """
+    folder = Path(folder)
+    now = time.time() if now is None else now
+    host, removed = _host_tag(), []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        m = _TEMP_RE.match(entry.name)
+        if m is None:
+            continue
+        try:
+            st = entry.stat(follow_symlinks=False)
+            if not stat.S_ISREG(st.st_mode):
+                continue
+            dead = m.group(1) == host and int(m.group(2)) != os.getpid() \
+                and not _pid_alive(int(m.group(2)))
+            if dead or now - st.st_mtime > STALE_TEMP_SECONDS:
+                os.unlink(entry.path)
+                removed.append(Path(entry.path))
+        except OSError:
+            continue
+    return removed
+
+
+def _sweep_once(folder: Path) -> None:
+    key = os.path.abspath(folder)
+    if key not in _SWEPT:
+        _SWEPT.add(key)
+        sweep_stale_temp_files(folder)
+
+
+def _path_error(exc: OSError, path: Path) -> Exception:
+    """`InputError` for a problem of the path (permissions, name), else `exc` itself."""
+    if exc.errno in _PATH_ERRNOS:
+        return InputError(f"cannot write here ({exc.strerror or exc})", file=path)
+    return exc
 
 
 @contextlib.contextmanager
@@ -32,24 +127,51 @@ def atomic_open(path: str | Path, mode: str = "w", encoding: str | None = "utf-8
     """Open a temporary file next to `path`; rename it over `path` only on success.
 
     An exception inside the ``with`` block removes the temporary file and leaves any
-    existing `path` untouched.
+    existing `path` untouched. A symbolic link is followed (the file it points to is
+    replaced, the link stays); an existing target that is not a regular file (a device
+    such as ``/dev/null``, a FIFO) is written directly, never replaced. An existing file
+    without write permission is refused. Stale temporary files of earlier killed writes
+    in the folder are removed first (`sweep_stale_temp_files`).
     """
     path = Path(path)
     if path.is_dir():
         raise InputError("is a directory; expected a file path to write", file=path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    except OSError as exc:  # parent is a file, no permission, read-only file system
-        raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None
+    target = Path(os.path.realpath(path)) if path.is_symlink() else path
     binary = "b" in mode
     try:
-        os.chmod(tmp, _file_mode(path))  # mkstemp makes 0600; a result file is 0644-like
+        st = target.stat()
+    except OSError:
+        st = None
+    if st is not None and not stat.S_ISREG(st.st_mode):  # /dev/null, a FIFO: no rename
+        try:
+            fh = open(target, mode, encoding=None if binary else encoding)
+        except OSError as exc:
+            raise _path_error(exc, path) from None
+        with fh:
+            yield fh
+        return
+    if st is not None and not os.access(target, os.W_OK):
+        raise InputError("is read-only; refusing to replace it (change its permissions or "
+                         "choose another output path)", file=path)
+    if len(os.fsencode(target.name)) > 255:
+        raise InputError("file name too long (at most 255 bytes)", file=path)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        _sweep_once(target.parent)
+        prefix = f".{target.name[:_NAME_KEEP]}.kinecal-{_host_tag()}-{os.getpid()}."
+        fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=".tmp", dir=target.parent)
+    except OSError as exc:  # parent is a file, no permission, read-only file system
+        raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None
+    try:
+        os.chmod(tmp, _file_mode(target))  # mkstemp makes 0600; a result file is 0644-like
         with os.fdopen(fd, mode, encoding=None if binary else encoding, newline=None) as fh:
             yield fh
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, path)
+        try:
+            os.replace(tmp, target)
+        except OSError as exc:
+            raise _path_error(exc, path) from None
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
@@ -98,19 +220,94 @@ def read_json(path: str | Path) -> Any:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"not valid JSON at line {exc.lineno}: {exc.msg}", file=path) from None
+    except RecursionError:
+        raise InputError("not valid JSON: nested too deeply", file=path) from None
 
 
-def read_yaml_mapping(path: str | Path, text: str | None = None) -> dict:
-    """The YAML mapping in `path` (or in `text` read from it); `InputError` otherwise."""
+def _children(node: Any) -> list:
     import yaml
 
-    text = read_text(path) if text is None else text
+    if isinstance(node, yaml.SequenceNode):
+        return list(node.value)
+    if isinstance(node, yaml.MappingNode):
+        return [n for pair in node.value for n in pair]
+    return []
+
+
+def _alias_growth(root: Any) -> int | None:
+    """Nodes the aliases add to the document rooted at `root` when expanded (None: a
+    recursive alias, i.e. infinitely many). Iterative: no recursion limit."""
+    size: dict[int, int] = {}
+    open_: set[int] = set()
+    stack = [(root, False)]
+    while stack:
+        node, closing = stack.pop()
+        key = id(node)
+        if closing:
+            size[key] = 1 + sum(size[id(c)] for c in _children(node))
+            open_.discard(key)
+            continue
+        if key in size:
+            continue
+        open_.add(key)
+        stack.append((node, True))
+        for child in _children(node):
+            if id(child) in open_:
+                return None
+            if id(child) not in size:
+                stack.append((child, False))
+    return size[id(root)] - len(size)
+
+
+def load_yaml(text: str, file: str | Path | None = None, loader: type | None = None) -> Any:
+    """Parse one YAML document safely (`yaml.SafeLoader`, or the given subclass).
+
+    Anchors and aliases are allowed, but a document whose aliases expand it by more than
+    `MAX_YAML_ALIAS_NODES` nodes ("billion laughs") or refer to themselves is refused
+    before it is built, and so is nesting deeper than Python's recursion limit.
+
+    Raises
+    ------
+    InputError
+        Not valid YAML (with the line), an alias bomb, or too deep nesting; names `file`.
+    """
+    import yaml
+
+    ld = None
     try:
-        data = yaml.safe_load(text)
+        ld = (loader or yaml.SafeLoader)(text)  # its reader already refuses control chars
+        node = ld.get_single_node()
+        if node is None:
+            return None
+        growth = _alias_growth(node)
+        if growth is None:
+            raise InputError("YAML alias refers to itself (a recursive document); expected "
+                             "plain data", file=file)
+        if growth > MAX_YAML_ALIAS_NODES:
+            raise InputError(f"YAML aliases expand the document by {growth:.3g} nodes, more "
+                             f"than the {MAX_YAML_ALIAS_NODES:,} allowed (an alias bomb?)",
+                             file=file)
+        return ld.construct_document(node)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise InputError(f"not valid YAML{where}", file=path) from None
+        problem = getattr(exc, "problem", None)
+        raise InputError(f"not valid YAML{where}" + (f": {problem}" if problem else ""),
+                         file=file) from None
+    except RecursionError:
+        raise InputError("YAML nested too deeply", file=file) from None
+    finally:
+        if ld is not None:
+            ld.dispose()
+
+
+def read_yaml_mapping(path: str | Path, text: str | None = None) -> dict:
+    """The YAML mapping in `path` (or in `text` read from it); `InputError` otherwise.
+
+    Parsed by `load_yaml` (safe, alias bombs refused).
+    """
+    text = read_text(path) if text is None else text
+    data = load_yaml(text, path)
     if not isinstance(data, dict):
         raise InputError("expected a YAML mapping (key: value) at the top level", file=path)
     return data

@@ -110,7 +110,7 @@ CASES = [
     ("negative-weight", ["calibrate", "ur5", "{negative_weight.csv}"], "column weight"),
     ("binary-csv", ["calibrate", "ur5", "{binary.csv}"], "missing column(s)"),
     ("missing-file", ["calibrate", "ur5", "{dir}/nope.csv"], "file not found"),
-    ("directory-as-csv", ["calibrate", "ur5", "{dir}"], "cannot read"),
+    ("directory-as-csv", ["calibrate", "ur5", "{dir}"], "is a directory, expected a CSV"),
     ("unknown-model", ["calibrate", "ur6", "ur5-laser-tracker:grid"], "unknown model 'ur6'"),
     ("unknown-dataset-part", ["calibrate", "ur5", "ur5-laser-tracker:grd"], "no part 'grd'"),
     ("unknown-dataset", ["fk", "ur5", "nosuch:grid"], "bundled dataset"),

@@ -40,6 +40,10 @@ def local_executor(workers: int | None = None) -> ProcessPoolExecutor:
     Workers are forked from a fork server that has already imported the calibration
     code, so a pool (or its replacement after a worker died) starts in milliseconds and
     no thread of the parent (e.g. a Dask client) is copied into the workers.
+
+    Every worker ends itself when the process that created the pool dies, however it
+    died (SIGKILL included): it is never left behind as an orphan computing a job nobody
+    will collect (`watch_parent`).
     """
     if workers is not None and workers < 1:
         raise InputError(f"expected a positive number of workers, got {workers}",
@@ -47,7 +51,56 @@ def local_executor(workers: int | None = None) -> ProcessPoolExecutor:
     single_thread_blas()
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(["kinecal.batch.work", "kinecal.calibration.serial"])
-    return ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, mp_context=ctx)
+    return ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, mp_context=ctx,
+                               initializer=watch_parent, initargs=(os.getpid(),))
+
+
+#: how often a worker checks that its coordinator is alive (seconds)
+WATCH_INTERVAL = 0.5
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
+
+
+def watch_parent(pid: int, interval: float = WATCH_INTERVAL) -> None:
+    """Make this worker process end when the coordinating process `pid` dies.
+
+    A pool worker is a child of the fork server, not of the coordinator, and a
+    coordinator killed by SIGKILL runs no clean-up: without this, its workers would finish
+    (or hang on) their jobs as orphans. On Linux the kernel delivers SIGKILL to the
+    worker when its parent (the fork server, which exits with the coordinator) dies
+    (``PR_SET_PDEATHSIG``); on every system a daemon thread also checks every `interval`
+    seconds that `pid` is alive and ends the worker at once (``os._exit``) when not.
+    """
+    import signal
+    import sys
+    import threading
+    import time
+
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+        except (OSError, AttributeError):
+            pass
+    if os.name == "nt":  # os.kill(pid, 0) would not be a probe there
+        return
+
+    def watch() -> None:
+        while _alive(pid):
+            time.sleep(interval)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="kinecal-watch-parent", daemon=True).start()
 
 
 @contextlib.contextmanager

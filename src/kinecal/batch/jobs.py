@@ -18,12 +18,13 @@ file's directory.
 from __future__ import annotations
 
 import itertools
+import math
 from pathlib import Path
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from kinecal._files import read_text
+from kinecal._files import load_yaml, read_text
 from kinecal.errors import InputError
 
 __all__ = ["Job", "JobsFile", "Study", "expand_study", "load_jobs", "parse_jobs"]
@@ -54,7 +55,7 @@ class _Common(BaseModel):
     free: str | list[str] = "identifiable"
     loss: str = "linear"
     maxiter: int | None = Field(None, ge=1)
-    target: float | None = Field(None, ge=0)
+    target: float | None = Field(None, ge=0, allow_inf_nan=False)
     options: dict[str, Any] | None = None
 
 
@@ -93,7 +94,7 @@ class Job(_Common):
     data: str | None = None
     validation: str | None = Field(None, alias="validate")
     poses: int | None = Field(None, ge=1)
-    noise: float = Field(0.0, ge=0)
+    noise: float = Field(0.0, ge=0, allow_inf_nan=False)
     seed: int = Field(0, ge=0)
     method: str = "lm"
 
@@ -150,8 +151,8 @@ class Study(_Common):
     @field_validator("noise")
     @classmethod
     def _noise(cls, value: list[float]) -> list[float]:
-        if min(value) < 0:
-            raise ValueError("expected noise standard deviations >= 0")
+        if not all(math.isfinite(v) and v >= 0 for v in value):
+            raise ValueError("expected finite noise standard deviations >= 0")
         return value
 
     @field_validator("poses")
@@ -241,21 +242,42 @@ def parse_jobs(doc: Any, base: str | Path = ".", source: str | Path | None = Non
             jobs.extend(expand_study(study))
     if not jobs:
         raise InputError("no jobs: expected a non-empty 'jobs' list or a 'study'", file=source)
-    seen: set[str] = set()
+    seen: dict[str, str] = {}
     for job in jobs:
-        if job.name in seen:
-            raise InputError(f"job name {job.name!r} is used twice", file=source)
-        seen.add(job.name)
+        key = job.name.casefold()
+        if key in seen:
+            twice = ("is used twice" if seen[key] == job.name else
+                     f"and {seen[key]!r} differ only in case (their result files collide on "
+                     "macOS and Windows)")
+            raise InputError(f"job name {job.name!r} {twice}", file=source)
+        seen[key] = job.name
+        _check_job(job, source)
     return jobs
+
+
+#: peak memory of a simulated job per pose (calibration and validation): measured 1.3 kB
+#: (irb120, lm), with a margin
+JOB_POSE_BYTES = 4096
+
+
+def _check_job(job: Job, source: str | Path | None) -> None:
+    """Options the job's method would ignore, and pose counts beyond the memory."""
+    from kinecal._limits import check_count
+    from kinecal.calibration.method_options import check_method_options
+
+    try:
+        check_method_options(job.method, loss=job.loss, maxiter=job.maxiter,
+                             target=job.target, options=job.options,
+                             names={k: k for k in ("loss", "maxiter", "target", "options")})
+        if job.poses is not None:
+            check_count(job.poses + job.validation_poses, "poses",
+                        bytes_per_item=JOB_POSE_BYTES)
+    except InputError as exc:
+        raise InputError(f"job {job.name}: {exc.option}: {exc.message}", file=source) from None
 
 
 def load_jobs(path: str | Path) -> list[Job]:
     """Read a jobs file (YAML or JSON) and return its jobs; see `parse_jobs`."""
-    import yaml
-
     path = Path(path)
-    try:
-        doc = yaml.safe_load(read_text(path))
-    except yaml.YAMLError as exc:
-        raise InputError(f"not valid YAML ({' '.join(str(exc).split())})", file=path) from None
+    doc = load_yaml(read_text(path), path)
     return parse_jobs(doc, path.parent, path)

@@ -5,7 +5,11 @@ Guarantees
 - Each finished job's result is written atomically to ``DIR/<name>.json`` as soon as it
   arrives (by this process: the workers need no access to ``DIR``).
 - A rerun skips every job whose result file exists and records the same job
-  specification (resume); a changed job is recomputed.
+  specification and the same input hash: a SHA-256 of the specification and of the bytes
+  of every file the job reads (resume); a job whose specification, model or measurement
+  files changed is recomputed.
+- Before any job runs, a batch whose result files would overwrite one of its inputs (or
+  the jobs file) is refused (`kinecal.batch.inputs.check_batch_paths`).
 - A failed job (bad file, solver error) is recorded with its error in ``summary.csv``;
   the others go on. A rerun tries it again.
 - A job whose worker process died (``os._exit``, SIGKILL, out of memory) is resubmitted:
@@ -13,12 +17,16 @@ Guarantees
   and a `KilledWorker` error is resubmitted here. After `max_attempts` deaths the job is
   recorded as failed.
 - ``DIR/summary.csv`` (one row per job, in the jobs file's order) is written at the end,
-  also when the run is interrupted (unfinished jobs then have status ``not run``).
+  also when the run is interrupted (unfinished jobs then have status ``not run``); the
+  workers of the default process pool are then killed, not left to finish their jobs.
+  Workers also end by themselves when the coordinating process dies (SIGKILL): see
+  `kinecal.batch.executors.local_executor`.
 """
 
 from __future__ import annotations
 
 import collections
+import contextlib
 import json
 import math
 from collections.abc import Callable, Iterable, Sequence
@@ -30,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from kinecal._files import atomic_open, write_text_atomic
+from kinecal.batch.inputs import check_batch_paths, input_hash
 from kinecal.batch.jobs import Job
 from kinecal.batch.work import run_job
 
@@ -152,6 +161,7 @@ def run_batch(
     window: int | None = None,
     on_result: Callable[[JobRecord], Any] | None = None,
     job_function: Callable[[Job], dict[str, Any]] = run_job,
+    inputs: Sequence[str | Path] = (),
 ) -> BatchResult:
     """Run `jobs`, writing ``out_dir/<name>.json`` per job and ``out_dir/summary.csv``.
 
@@ -178,6 +188,9 @@ def run_batch(
     job_function : callable
         The function run per job (default `kinecal.batch.work.run_job`); it must be
         picklable by the executor and return `run_job`'s outcome dict.
+    inputs : sequence of path
+        Further files the batch must never overwrite (the jobs file); the jobs' own
+        model, data and validation files are always protected.
 
     Returns
     -------
@@ -186,8 +199,11 @@ def run_batch(
     from kinecal.batch.executors import local_executor
 
     out = Path(out_dir)
+    check_batch_paths(jobs, out, inputs)
     out.mkdir(parents=True, exist_ok=True)
     records = {job.name: JobRecord.from_job(job) for job in jobs}
+    digests: dict = {}
+    hashes = {job.name: input_hash(job, digests) for job in jobs}
 
     def settle(rec: JobRecord) -> None:
         if on_result is not None:
@@ -196,7 +212,8 @@ def run_batch(
     todo: collections.deque[Job] = collections.deque()
     for job in jobs:
         prev = read_result(out / f"{job.name}.json")
-        if prev is not None and prev.get("job") == job.spec():
+        if (prev is not None and prev.get("job") == job.spec()
+                and (prev.get("batch") or {}).get("input_hash") == hashes[job.name]):
             records[job.name].fill(prev, prev.get("batch", {}).get("seconds", math.nan),
                                    "resumed")
             settle(records[job.name])
@@ -239,7 +256,8 @@ def run_batch(
             rec.error = f"{type(exc).__name__}: {exc}"
         elif outcome["status"] == "done":
             result = outcome["result"]
-            result["batch"] = {"seconds": outcome["seconds"], "attempts": rec.attempts}
+            result["batch"] = {"seconds": outcome["seconds"], "attempts": rec.attempts,
+                               "input_hash": hashes[job.name]}
             text = json.dumps(result, indent=2, default=_json_default, allow_nan=True)
             try:
                 write_text_atomic(out / f"{job.name}.json", text + "\n")
@@ -291,6 +309,8 @@ def run_batch(
         for fut in inflight:
             fut.cancel()
         if owned and current is not None:
+            if interrupted:
+                _kill_workers(current)
             _shutdown(current, wait=not interrupted)
         summary = out / "summary.csv"
         write_summary(summary, [records[job.name] for job in jobs])
@@ -301,6 +321,23 @@ def _cpu_count() -> int:
     import os
 
     return os.cpu_count() or 1
+
+
+def _kill_workers(executor: Executor) -> None:
+    """Kill the worker processes of an interrupted process pool (their jobs are lost
+    anyway: without this, the interpreter's exit would wait for them to finish)."""
+    kill = getattr(executor, "kill_workers", None)  # Python >= 3.14
+    if callable(kill):
+        kill()
+        return
+    # before 3.14: the pool's process table (emptied by shutdown(), so kill first)
+    procs = list((getattr(executor, "_processes", None) or {}).values())
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.kill()
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.join(timeout=5)
 
 
 def _shutdown(executor: Executor, wait: bool) -> None:

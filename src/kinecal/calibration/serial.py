@@ -25,6 +25,7 @@ from kinecal import diagnostics
 from kinecal.calibration.diagnostics.fit import check_serial_fit
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
+from kinecal.calibration.method_options import check_method_options
 from kinecal.calibration.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.result import CalibrationResult
 from kinecal.calibration.solve import solve_lm
@@ -209,6 +210,8 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
     if loss not in LOSSES:  # before any work: a typo must not cost a calibration
         raise InputError(f"loss: expected one of {', '.join(LOSSES)}, got {loss!r}",
                          option="--loss")
+    check_method_options(method, loss=loss, f_scale=f_scale, maxiter=maxiter, target=target,
+                         options=options)
     if len(data) < 1:
         raise InputError("no calibration poses")
     model = model_for_markers(model, data.marker_names)  # one tool point per marker seen

@@ -2,7 +2,9 @@
 
 Every command lives in a module of this package that registers itself on the shared
 typer app. The error contract (DESIGN section 4): a user mistake prints one line on
-stderr and exits 2; an internal error exits 1 (traceback only with KINECAL_DEBUG=1).
+stderr and exits 2; an internal error exits 1 (traceback only with KINECAL_DEBUG=1);
+Ctrl-C exits 130 and SIGTERM / SIGHUP 143, each after the same clean-up (no temporary
+file left, the batch summary written).
 """
 
 from __future__ import annotations
@@ -15,10 +17,15 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import contextlib  # noqa: E402
 import importlib  # noqa: E402
+import signal  # noqa: E402
 import sys  # noqa: E402
+import threading  # noqa: E402
+import warnings  # noqa: E402
 
 from kinecal.cli._app import app  # noqa: E402
+from kinecal.cli._common import Terminated  # noqa: E402
 from kinecal.errors import InputError  # noqa: E402
 
 
@@ -67,15 +74,48 @@ def _load_commands() -> None:
         importlib.import_module(name)
 
 
+@contextlib.contextmanager
+def _terminate_like_interrupt():
+    """SIGTERM and SIGHUP raise `Terminated` in the main thread, once; the previous
+    handlers are restored on exit."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    fired = []
+
+    def handler(signum, frame):
+        if not fired:  # a second signal must not abort the clean-up of the first
+            fired.append(signum)
+            raise Terminated(signum)
+
+    sigs = [s for s in ("SIGTERM", "SIGHUP") if hasattr(signal, s)]
+    old = {s: signal.signal(getattr(signal, s), handler) for s in sigs}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(getattr(signal, s), h)
+
+
+def _run(args: list[str]) -> int:
+    # numpy's floating-point RuntimeWarnings (overflow in absurd inputs) would print
+    # source lines on stderr: kinecal checks its inputs and results itself
+    with warnings.catch_warnings(), _terminate_like_interrupt():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        rv = app(args=args, prog_name="kinecal", standalone_mode=False)
+    return rv if isinstance(rv, int) else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return (and exit with) the status code."""
     _load_commands()
     args = sys.argv[1:] if argv is None else list(argv)
     try:
-        rv = app(args=args, prog_name="kinecal", standalone_mode=False)
-        code = rv if isinstance(rv, int) else 0
+        code = _run(args)
         if code == 130:  # typer turns Ctrl-C into Exit(130), returned without a word
             sys.stderr.write("kinecal: interrupted\n")
+        elif code == 143:
+            sys.stderr.write("kinecal: terminated\n")
     except InputError as exc:
         sys.stderr.write(f"kinecal: error: {exc.one_line()}\n")
         code = 2
@@ -93,6 +133,9 @@ def main(argv: list[str] | None = None) -> int:
     except _CLICK as exc:
         sys.stderr.write(f"kinecal: error: {' '.join(exc.format_message().split())}\n")
         code = 2
+    except Terminated:
+        sys.stderr.write("kinecal: terminated\n")
+        code = 143
     except KeyboardInterrupt:
         sys.stderr.write("kinecal: interrupted\n")
         code = 130

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -15,6 +16,7 @@ from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
 
 __all__ = [
+    "Terminated",
     "base_link_option",
     "check_paths",
     "echo_json",
@@ -22,6 +24,7 @@ __all__ = [
     "progress",
     "quiet_option",
     "resolve_data_path",
+    "seed_option",
     "strict_option",
     "tip_link_option",
     "to_jsonable",
@@ -29,6 +32,12 @@ __all__ = [
     "with_warnings",
     "write_json",
 ]
+
+
+class Terminated(BaseException):
+    """SIGTERM (or SIGHUP) received: unwinds the command like Ctrl-C does, so that every
+    ``finally`` runs (temporary files removed, the batch summary written); exit status 143.
+    (Not a KeyboardInterrupt: typer would turn that into exit 130.)"""
 
 
 def to_jsonable(obj: Any) -> Any:
@@ -65,6 +74,8 @@ def resolve_data_path(spec: str, option: str = "DATA") -> Path:
     from kinecal.datasets import bundled_csv  # local import: keeps CLI start-up light
 
     path = Path(spec)
+    if path.is_dir():
+        raise InputError(f"{spec} is a directory, expected a CSV file", option=option)
     if path.exists():
         return path
     if ":" in spec and not path.suffix:
@@ -82,41 +93,88 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def check_paths(
-    inputs: dict[str, str | Path | None], outputs: dict[str, str | Path | None]
+    inputs: dict[str, str | Path | None],
+    outputs: dict[str, str | Path | None],
+    folders: dict[str, tuple[str | Path | None, list[str]]] | None = None,
 ) -> None:
     """Refuse, before any work, outputs that would overwrite an input or each other.
+
+    Every command that writes files calls this first, before it reads or computes
+    anything, with every path it reads and every path it will write. A command added
+    later must do the same: it is how kinecal keeps its promise that an input is never
+    overwritten (``kinecal calibrate m.yaml d.csv --out d.csv`` is exit 2, and ``d.csv``
+    stays byte for byte as it was).
 
     Parameters
     ----------
     inputs : dict of str to path
-        Argument or option name -> input path (``NAME:PART`` bundled sets and None are
-        skipped: they are never written).
+        Argument or option name -> what it reads: a path, a bundled model or geometry
+        name, or a bundled ``NAME:PART`` measurement set (these resolve to the files in
+        the installed package, which are never written either). None: not given.
     outputs : dict of str to path
-        Option name -> output path (None: not requested).
+        Option name -> output file path (None: not requested).
+    folders : dict of str to (path, list of str), optional
+        Option name -> an output directory (created when missing) and the names of the
+        files the command writes into it; each such file is checked like an output.
 
     Raises
     ------
     InputError
-        An output equal to an input or to another output (the same file under any name),
-        an output that is a directory, or an output whose folder does not exist.
+        An output equal to an input or to another output (the same file under any
+        name: symbolic links, ``./``, hard links), an output that is a directory or
+        read-only, a file output whose folder does not exist, a name longer than 255
+        bytes, or an output directory that is a file.
     """
-    ins = {k: Path(v) for k, v in inputs.items() if v is not None and Path(v).exists()}
-    outs = {k: Path(v) for k, v in outputs.items() if v is not None}
-    seen: dict[str, Path] = {}
-    for opt, path in outs.items():
+    from kinecal.io.bundled import input_file
+
+    ins = {}
+    for name, spec in inputs.items():
+        if spec is not None and (path := input_file(spec)) is not None:
+            ins[name] = path
+    outs: list[tuple[str, Path, bool]] = [
+        (k, Path(v), False) for k, v in outputs.items() if v is not None]
+    for opt, (folder, names) in (folders or {}).items():
+        if folder is None:
+            continue
+        folder = Path(folder)
+        if folder.exists() and not folder.is_dir():
+            raise InputError(f"{folder} is a file, expected a directory", option=opt)
+        outs.extend((opt, folder / n, True) for n in names)
+    seen: list[tuple[str, Path]] = []
+    for opt, path, in_folder in outs:
         if path.is_dir():
             raise InputError(f"{path} is a directory, expected a file path", option=opt)
-        if not path.parent.is_dir():
+        if not in_folder and not path.parent.is_dir():
+            if path.parent.exists():
+                raise InputError(f"cannot write into {path.parent}: it is a file, not a "
+                                 "folder", option=opt)
             raise InputError(f"folder {path.parent} does not exist", option=opt)
+        if len(os.fsencode(path.name)) > 255:
+            raise InputError(f"file name too long ({len(os.fsencode(path.name))} bytes, at "
+                             "most 255)", option=opt)
+        if path.is_file() and not os.access(path, os.W_OK):
+            raise InputError(f"{path} is read-only; refusing to replace it", option=opt)
         for name, src in ins.items():
             if _same_file(path, src):
                 raise InputError(f"{path} is also the input {name}: refusing to overwrite an "
                                  "input, choose another output path", option=opt)
-        for other, prev in seen.items():
+        for other, prev in seen:
             if _same_file(path, prev):
-                raise InputError(f"{path} is also given to {other}: two outputs cannot share "
-                                 "a path", option=opt)
-        seen[opt] = path
+                what = f"given to {other}" if other != opt else f"written by {opt} twice"
+                raise InputError(f"{path} is also {what}: two outputs cannot share a path",
+                                 option=opt)
+        seen.append((opt, path))
+
+
+def seed_option(help: str = "Random seed (an integer >= 0).") -> Any:
+    """The ``--seed`` option: any integer >= 0 (negative seeds are refused, exit 2).
+
+    The same seed gives the same result bit for bit; numpy's `SeedSequence` takes any
+    non-negative integer, however large.
+    """
+    import typer
+
+    return typer.Option(0, "--seed", min=0, help=help)
 
 
 #: help text of a MODEL argument of every command that takes a serial-arm model

@@ -46,8 +46,9 @@ def batch(
         run_batch,
         study_table,
     )
+    from kinecal.batch.inputs import check_batch_paths
     from kinecal.batch.tables import write_table_csv
-    from kinecal.cli._common import progress
+    from kinecal.cli._common import Terminated, progress
 
     if executor not in ("local", "dask"):
         raise InputError(f"expected local or dask, got {executor!r}", option="--executor")
@@ -56,7 +57,15 @@ def batch(
     if workers is not None and workers < 1:
         raise InputError(f"expected a positive number of workers, got {workers}",
                          option="--workers")
+    if workers is not None and scheduler is not None:
+        raise InputError("the workers of a running Dask cluster are the scheduler's; "
+                         "--workers applies to a local pool or a local Dask cluster",
+                         option="--workers")
+    if jobs_file.is_dir():
+        raise InputError(f"{jobs_file} is a directory, expected a jobs file (YAML)",
+                         option="JOBS.yaml")
     jobs = load_jobs(jobs_file)
+    check_batch_paths(jobs, out, [jobs_file])
     with contextlib.ExitStack() as stack:
         ex = None
         if executor == "dask":
@@ -69,13 +78,15 @@ def batch(
             update(1)
 
         try:
-            result = run_batch(jobs, out, executor=ex, workers=workers, on_result=on_result)
-        except KeyboardInterrupt:
+            result = run_batch(jobs, out, executor=ex, workers=workers, on_result=on_result,
+                               inputs=[jobs_file])
+        except (KeyboardInterrupt, Terminated) as exc:
             finished = sum(s in ("done", "resumed") for s in settled)
-            # `kinecal.cli.main` adds "kinecal: interrupted" for the exit status 130
-            typer.echo(f"{finished} of {len(jobs)} jobs have results in {out}; run the same "
-                       "command again to resume", err=True)
-            raise typer.Exit(130) from None
+            # `kinecal.cli.main` adds "kinecal: interrupted" (130) or "... terminated" (143)
+            typer.echo(f"{finished} of {len(jobs)} jobs have results in {out} (summary in "
+                       f"{out / 'summary.csv'}); run the same command again to resume",
+                       err=True)
+            raise typer.Exit(143 if isinstance(exc, Terminated) else 130) from None
     records = result.records
     if not quiet:
         if len(records) <= MAX_PRINTED_ROWS:

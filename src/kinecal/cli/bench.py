@@ -2,8 +2,10 @@
 
 The scripts (``benchmarks/bench_*.py``) compare kinecal with its peers in the same process
 and print speed ratios and accuracy numbers. They are not installed with the package, so
-this command needs a source checkout: it looks for ``benchmarks/`` in the current
-directory, then next to the source tree the package was imported from.
+this command needs a source checkout: it runs the ``benchmarks/`` folder of the checkout
+the imported package comes from (``<checkout>/src/kinecal`` -> ``<checkout>/benchmarks``),
+and nothing else. A ``benchmarks/`` folder in the current directory is never run: a
+downloaded folder with a ``bench_*.py`` must not become code that ``kinecal bench`` runs.
 """
 
 from __future__ import annotations
@@ -19,22 +21,24 @@ from kinecal.cli._app import app
 from kinecal.errors import InputError
 
 
-def find_benchmarks(start: Path | None = None) -> Path:
-    """The ``benchmarks`` folder of the source checkout.
+def find_benchmarks() -> Path:
+    """The ``benchmarks`` folder of the source checkout the package was imported from.
 
-    Looks in `start` (default: the working directory), then in the checkout that holds
-    the imported package (``src/kinecal`` -> ``benchmarks``).
+    The package must sit in ``<checkout>/src/kinecal`` beside ``<checkout>/pyproject.toml``
+    and ``<checkout>/benchmarks``; the working directory plays no part.
     """
     import kinecal
 
-    candidates = [(start or Path.cwd()) / "benchmarks",
-                  Path(kinecal.__file__).resolve().parents[2] / "benchmarks"]
-    for folder in candidates:
-        if folder.is_dir() and any(folder.glob("bench_*.py")):
-            return folder
+    package = Path(kinecal.__file__).resolve().parent
+    checkout = package.parents[1]
+    folder = checkout / "benchmarks"
+    if (package.parent.name == "src" and (checkout / "pyproject.toml").is_file()
+            and folder.is_dir() and any(folder.glob("bench_*.py"))):
+        return folder
     raise InputError(
-        "no benchmarks/bench_*.py here: kinecal bench runs the benchmark scripts of a source "
-        "checkout (git clone the repository and run it from there)",
+        f"kinecal is installed from {package}, not from a source checkout: kinecal bench runs "
+        "the benchmark scripts of a checkout (git clone the repository, pip install -e . and "
+        "run it there)",
         option="bench",
     )
 

@@ -13,8 +13,7 @@ from pathlib import Path
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import echo_json, progress
-from kinecal.errors import InputError
+from kinecal.cli._common import check_paths, echo_json, progress
 
 #: what the demo runs on
 DEMO_MODEL = "ur5"
@@ -38,8 +37,8 @@ def run_demo(out: Path, quiet: bool = False) -> tuple[object, list[Path], tuple]
     from kinecal.io.measurements import read_measurements
     from kinecal.io.models import load_model
 
-    if out.exists() and not out.is_dir():
-        raise InputError("expected a directory, found a file", option="--out")
+    check_paths({}, {}, folders={"--out": (out, ["result.json", f"{DEMO_MODEL}-calibrated.yaml",
+                                                  "report.html"])})
     with progress("demo: calibrate ur5 on laser-tracker data", 4, quiet) as update:
         model = load_model(DEMO_MODEL)
         data = read_measurements(DEMO_DATA, model)

@@ -7,10 +7,12 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from kinecal._limits import check_count
 from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
     echo_json,
+    seed_option,
     strict_option,
     warnings_scope,
     with_warnings,
@@ -38,6 +40,18 @@ def resolve_pairs(spec: str) -> tuple[Path, str | None]:
         f"({', '.join(_BUNDLED_SETUP)})",
         option="PAIRS",
     )
+
+
+def _check_pairs_mode(method: str, refine: str, pairs_mode: str) -> None:
+    """``--pairs`` selects motion pairs: used by the AX = XB closed forms and the
+    metaheuristic refiners, not by the AX = ZB methods (shah, li) refined otherwise."""
+    from kinecal.calibration.handeye import axxb
+
+    if pairs_mode != "all" and method not in axxb.SOLVERS and refine not in ("igwo",
+                                                                             "dlh-gwo-de"):
+        raise InputError(f"motion pairs apply to the AX = XB methods and the igwo / "
+                         f"dlh-gwo-de refiners, not to method {method} with refine {refine}",
+                         option="--pairs")
 
 
 def _format_matrix(X: np.ndarray) -> str:
@@ -103,7 +117,7 @@ def handeye(
                                "dlh-gwo-de."),
     pairs_mode: str = typer.Option("all", "--pairs", help="Motion pairs of the AX=XB closed "
                                    "forms: all or consecutive."),
-    seed: int = typer.Option(0, "--seed", help="Random seed (metaheuristic refiners)."),
+    seed: int = seed_option("Random seed (metaheuristic refiners; an integer >= 0)."),
     json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),
     out: Path | None = typer.Option(None, "--out", help="Write the result JSON here."),
     report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
@@ -114,6 +128,7 @@ def handeye(
 
     check_paths({"PAIRS": pairs, "--robot-poses": robot_poses, "--target-poses": target_poses},
                 {"--out": out, "--report": report})
+    _check_pairs_mode(method, refine, pairs_mode)
     with warnings_scope(strict) as found:
         F, C, source, default_setup = read_pairs(pairs, robot_poses, target_poses,
                                                  robot_format, target_format, invert_robot,
@@ -153,7 +168,7 @@ def handeye_poses(
     radius: float = typer.Option(..., "--radius", help="Circumradius r of the star polygon."),
     count: int = typer.Option(..., "--count", help="Number of poses N (>= 3)."),
     scheme: str = typer.Option("star", "--scheme", help="star (paper 001 sec. 3) or random."),
-    seed: int = typer.Option(0, "--seed", help="Random seed (scheme random)."),
+    seed: int = seed_option("Random seed (scheme random; an integer >= 0)."),
     out: Path = typer.Option(..., "--out", help="Output CSV: camera_* (cam2target) and "
                              "target_* (target2cam) poses."),
 ) -> None:
@@ -163,12 +178,18 @@ def handeye_poses(
     from kinecal.io.handeye import pose_columns
     from kinecal.spatial import invert_transform, pq_from_transform
 
-    if scheme == "star":
-        T = star_polygon_poses(distance, radius, count)
-    elif scheme == "random":
-        T = random_poses(distance, radius, count, np.random.default_rng(seed))
-    else:
+    check_paths({}, {"--out": out})
+    if scheme not in ("star", "random"):
         raise InputError(f"unknown scheme {scheme!r}; expected star or random", option="--scheme")
+    check_count(count, "--count", bytes_per_item=2048, what="poses", minimum=3)
+    with np.errstate(all="ignore"):
+        if scheme == "star":
+            T = star_polygon_poses(distance, radius, count)
+        else:
+            T = random_poses(distance, radius, count, np.random.default_rng(seed))
+    if not np.isfinite(T).all():
+        raise InputError(f"distance {distance:g} and radius {radius:g} overflow the pose "
+                         "arithmetic; expected lengths of a real setup", option="--radius")
     cols = {}
     for prefix, poses in (("camera", T), ("target", invert_transform(T))):
         pq = pq_from_transform(poses)

@@ -7,8 +7,7 @@ from pathlib import Path
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import echo_json, quiet_requested, write_json
-from kinecal.errors import InputError
+from kinecal.cli._common import check_paths, echo_json, quiet_requested, seed_option, write_json
 from kinecal.experiments import PAPERS, experiment_module
 
 
@@ -18,17 +17,13 @@ def reproduce(
     quick: bool = typer.Option(False, "--quick", help="Small version that runs in seconds."),
     json_out: bool = typer.Option(False, "--json", help="Print the table as JSON."),
     out: Path | None = typer.Option(None, "--out", help="Directory for result.json and figures."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    seed: int = seed_option(),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bars."),
     report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
 ) -> None:
     """Reproduce a paper's table (hu2005, li2024, zhao-yang, liu2008)."""
     module = experiment_module(paper)
-    if out is not None and out.exists() and not out.is_dir():
-        raise InputError(f"{out} exists and is not a directory", option="--out")
-    if report is not None and report.is_dir():
-        raise InputError(f"{report} is a directory, expected an HTML file path",
-                         option="--report")
+    check_paths({}, {"--report": report}, folders={"--out": (out, ["result.json"])})
     result = module.run(quick=quick, seed=seed, out_dir=out, quiet=quiet_requested(quiet))
     if out is not None:
         write_json(out / "result.json", result)

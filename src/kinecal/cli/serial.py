@@ -8,14 +8,18 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from kinecal._limits import check_count, check_finite
+from kinecal.calibration.method_options import check_method_options
 from kinecal.cli._app import app
 from kinecal.cli._common import (
     MODEL_HELP,
     base_link_option,
+    check_paths,
     echo_json,
     load_model_arg,
     quiet_option,
     resolve_data_path,
+    seed_option,
     strict_option,
     tip_link_option,
     warnings_scope,
@@ -23,6 +27,10 @@ from kinecal.cli._common import (
     write_json,
 )
 from kinecal.errors import InputError
+
+#: peak memory of simulate / identifiability per random pose and per joint (+10): measured
+#: 330 B (irb120, 6 joints) and 580 B with orientations, taken with a margin
+_POSE_BYTES = 64
 
 
 def result_markers(params: dict) -> list[str]:
@@ -73,14 +81,16 @@ def parameters_from_result(model, path: Path) -> np.ndarray:
                              file=path)
         conv = scale if angle[k] else 1.0
         try:
-            value = float(entry["identified"] if isinstance(entry, dict) else entry)
+            raw = entry["identified"] if isinstance(entry, dict) else entry
+            value = float(raw)
             nominal = float(entry["nominal"]) if isinstance(entry, dict) and entry.get(
                 "nominal") is not None else None
         except (KeyError, TypeError, ValueError):
             raise InputError(f"parameter {name!r}: expected a number 'identified'",
                              file=path) from None
-        if not np.isfinite(value) or (nominal is not None and not np.isfinite(nominal)):
-            raise InputError(f"parameter {name!r}: expected a finite number, got {value}",
+        if isinstance(raw, bool) or not np.isfinite(value) or (
+                nominal is not None and not np.isfinite(nominal)):
+            raise InputError(f"parameter {name!r}: expected a finite number, got {raw!r}",
                              file=path)
         mine = p[k] / conv
         if nominal is not None and abs(nominal - mine) > 1e-6 * max(1.0, abs(mine)):
@@ -205,7 +215,7 @@ def simulate(
                               "markers measures every marker at each: poses x markers rows)."),
     noise: float = typer.Option(0.0, "--noise", help="Gaussian noise sigma per coordinate."),
     errors: str = typer.Option("random", "--errors", help="zero, random or TRUTH.json."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    seed: int = seed_option(),
     out: Path = typer.Option(..., "--out", help="Measurement CSV to write."),
     truth_out: Path | None = typer.Option(None, "--truth-out", help="Truth JSON to write."),
     orientation: bool = typer.Option(False, "--orientation",
@@ -220,8 +230,13 @@ def simulate(
     from kinecal.calibration.simulate import simulate as run
     from kinecal.io.measurements import write_measurements
 
+    check_paths({"MODEL": model, "--errors": None if errors in ("zero", "random") else errors},
+                {"--out": out, "--truth-out": truth_out})
+    check_finite(noise, "--noise")
+    check_finite(angle_noise, "--angle-noise")
     with warnings_scope(strict):
         m = load_model_arg(model, base_link, tip_link)
+        check_count(poses, "--poses", bytes_per_item=_POSE_BYTES * (m.n_joints + 10))
         if errors in ("zero", "random"):
             err: object = errors
         else:
@@ -245,9 +260,11 @@ def identifiability(
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     data: str | None = typer.Option(None, "--data", help="Measurement CSV (poses to analyse)."),
-    poses: int = typer.Option(50, "--poses", help="Random poses when no --data is given."),
+    poses: int | None = typer.Option(None, "--poses", help="Random poses when no --data is "
+                                     "given (default 50)."),
     free: str = typer.Option("all", "--free", help="all, identifiable or comma-separated names."),
-    seed: int = typer.Option(0, "--seed", help="Random seed for the poses."),
+    seed: int | None = typer.Option(None, "--seed", min=0, help="Random seed for the poses "
+                                    "(without --data; default 0)."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON."),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
@@ -259,15 +276,17 @@ def identifiability(
     from kinecal.io.measurements import read_measurements
     from kinecal.kinematics.markers import model_for_markers
 
+    for option, value in (("--poses", poses), ("--seed", seed)):
+        if data is not None and value is not None:
+            raise InputError("applies to random poses only, not with --data", option=option)
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
         if data is not None:
             meas = read_measurements(resolve_data_path(data, "--data"), m)
         else:
-            if poses < 1:
-                raise InputError(f"expected a positive number of poses, got {poses}",
-                                 option="--poses")
-            meas = run(m, poses, errors="zero", rng=seed).data
+            poses = check_count(50 if poses is None else poses, "--poses",
+                                bytes_per_item=_POSE_BYTES * (m.n_joints + 10))
+            meas = run(m, poses, errors="zero", rng=seed or 0).data
         m = model_for_markers(m, meas.marker_names)  # one tool point per marker measured
         _, report = resolve_free(m, meas, _free_option(free))
         if data is not None:
@@ -294,7 +313,7 @@ def calibrate(
     validate: str | None = typer.Option(None, "--validate", help="Validation CSV or NAME:PART."),
     free: str = typer.Option("identifiable", "--free",
                              help="identifiable, all or comma-separated names."),
-    seed: int = typer.Option(0, "--seed", help="Random seed (metaheuristics)."),
+    seed: int = seed_option("Random seed (metaheuristics; an integer >= 0)."),
     loss: str = typer.Option("linear", "--loss", help="linear, huber, soft_l1, cauchy, arctan."),
     maxiter: int | None = typer.Option(None, "--maxiter", help="Iteration budget."),
     target: float | None = typer.Option(None, "--target", help="Stop at this mean error."),
@@ -324,12 +343,20 @@ def calibrate(
     if method not in CALIBRATION_METHODS:
         raise InputError(f"unknown method {method!r}; expected one of "
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
+    check_paths({"MODEL": model, "DATA": data, "--validate": validate},
+                {"--out": out, "--model-out": model_out, "--report": report})
     if maxiter is not None and maxiter < 1:
         raise InputError(f"expected a positive iteration budget, got {maxiter}",
                          option="--maxiter")
+    check_finite(target, "--target")
+    check_finite(rotation_weight, "--rotation-weight", positive=True)
+    check_method_options(method, loss=loss, maxiter=maxiter, target=target)
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
         meas = read_measurements(resolve_data_path(data, "DATA"), m)
+        if rotation_weight is not None and meas.rotations is None:
+            raise InputError("applies to measured orientations (qw..qz columns) only",
+                             option="--rotation-weight")
         val = None
         if validate is not None:
             val = read_measurements(resolve_data_path(validate, "--validate"), m)
@@ -369,7 +396,7 @@ def select_poses_cmd(
     tip_link: str | None = tip_link_option(),
     count: int = typer.Option(..., "--count", help="Number of poses to select."),
     candidates: int = typer.Option(2000, "--candidates", help="Random candidate poses."),
-    seed: int = typer.Option(0, "--seed", help="Random seed for the candidates."),
+    seed: int = seed_option("Random seed for the candidates (an integer >= 0)."),
     out: Path = typer.Option(..., "--out", help="CSV of the selected q1..qn."),
 ) -> None:
     """Choose calibration poses maximising observability (O1, D-optimal)."""
@@ -379,9 +406,9 @@ def select_poses_cmd(
     from kinecal.data import Measurements
     from kinecal.io.csvtable import write_table
 
+    check_paths({"MODEL": model}, {"--out": out})
     m = load_model_arg(model, base_link, tip_link)
-    if candidates < 1:
-        raise InputError(f"expected a positive number, got {candidates}", option="--candidates")
+    check_count(candidates, "--candidates", bytes_per_item=128 * m.n_params, what="candidates")
     q = random_configurations(m, candidates, np.random.default_rng(seed))
     ident, _ = resolve_free(m, Measurements(q, m.positions(q)), "identifiable", tol=1e-4)
     idx, obs = select_poses(m, q, count, free=ident)

@@ -13,9 +13,14 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from kinecal._limits import check_count
 from kinecal.cli._app import app
-from kinecal.cli._common import echo_json, resolve_data_path, write_json
+from kinecal.cli._common import check_paths, echo_json, resolve_data_path, seed_option, write_json
 from kinecal.errors import InputError
+
+#: peak memory of ``stewart simulate`` per pose: measured 2.6 kB (rejection sampling of
+#: the workspace), with a margin
+_SIM_POSE_BYTES = 6144
 
 stewart_app = typer.Typer(
     help="Parallel-link CMM (Stewart platform, papers/004): ik, fk, simulate, calibrate.",
@@ -88,13 +93,16 @@ def fk(
     legs: str = typer.Argument(..., help="CSV with l1..l6."),
     method: str = typer.Option("newton", "--method", help="newton or pso (papers/004)."),
     all_modes: bool = typer.Option(False, "--all", help="Every real assembly mode, one row each."),
-    seed: int = typer.Option(0, "--seed", help="Random seed (pso, --all)."),
+    seed: int = seed_option("Random seed (pso, --all; an integer >= 0)."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON instead of CSV."),
 ) -> None:
     """Forward kinematics: probe poses x,y,z,alpha,beta,gamma (deg) from leg readings."""
-    geom = _geometry(geometry)
     if method not in ("newton", "pso"):
         raise InputError(f"unknown method {method!r}; expected newton or pso", option="--method")
+    if all_modes and method != "newton":
+        raise InputError("--all finds every assembly mode by multi-start Newton; it does not "
+                         f"take --method {method}", option="--method")
+    geom = _geometry(geometry)
     path = str(resolve_data_path(legs, "LEGS"))
     L = geom.check_legs(_read(legs, LEG_COLUMNS, "LEGS"), file=path)
     from kinecal.kinematics.stewart import radians_to_degrees
@@ -178,7 +186,7 @@ def simulate(
     noise_position: float = typer.Option(1e-6, "--noise-position", help="Tip position std."),
     noise_rotation: float = typer.Option(1.0, "--noise-rotation", help="Orientation std, arcsec."),
     noise_legs: float = typer.Option(1e-6, "--noise-legs", help="Leg reading std."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    seed: int = seed_option(),
     out: Path = typer.Option(..., "--out", help="DATA.csv: x..gamma (deg) and l1..l6."),
     truth_out: Path | None = typer.Option(None, "--truth-out", help="Write the true geometry."),
 ) -> None:
@@ -188,9 +196,15 @@ def simulate(
     from kinecal.io.geometry import load_geometry, save_geometry
     from kinecal.kinematics.stewart import radians_to_degrees
 
+    try:
+        float(errors)
+        errors_file = None
+    except ValueError:
+        errors_file = errors
+    check_paths({"GEOMETRY": geometry, "--errors": errors_file},
+                {"--out": out, "--truth-out": truth_out})
     geom = _geometry(geometry)
-    if poses < 1:
-        raise InputError("expected a positive number of poses", option="--poses")
+    check_count(poses, "--poses", bytes_per_item=_SIM_POSE_BYTES)
     for name, v in (("--noise-position", noise_position), ("--noise-rotation", noise_rotation),
                     ("--noise-legs", noise_legs)):  # fmt: skip
         if not (np.isfinite(v) and v >= 0):
@@ -236,6 +250,8 @@ def calibrate(
     from kinecal.calibration.stewart import StewartData, calibrate_stewart
     from kinecal.io.geometry import save_geometry
 
+    check_paths({"GEOMETRY": geometry, "DATA": data, "--validate": validate},
+                {"--out": out, "--geometry-out": geometry_out})
     geom = _geometry(geometry)
 
     def load(spec: str, option: str) -> StewartData:

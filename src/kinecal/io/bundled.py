@@ -17,7 +17,8 @@ from pathlib import Path
 
 from kinecal.errors import InputError
 
-__all__ = ["bundled_index", "bundled_names", "resolve_machine_file", "robots_dir"]
+__all__ = ["bundled_index", "bundled_names", "input_file", "resolve_machine_file",
+           "robots_dir"]
 
 #: kind -> what to call it in messages
 KINDS = {"model": "model", "geometry": "geometry"}
@@ -66,6 +67,8 @@ def resolve_machine_file(name_or_path: str | Path, kind: str, option: str | None
     label = KINDS[kind]
     path = Path(name_or_path)
     if path.suffix in (".yaml", ".yml") or path.exists():
+        if path.is_dir():
+            raise InputError(f"is a directory, expected a {label} file (YAML)", file=path)
         if not path.is_file():
             raise InputError(f"{label} file not found", file=path)
         return path
@@ -76,3 +79,23 @@ def resolve_machine_file(name_or_path: str | Path, kind: str, option: str | None
         f"(bundled: {', '.join(bundled_names(kind))})",
         option=option,
     )
+
+
+def input_file(spec: str | Path) -> Path | None:
+    """The file an input argument reads, without reading it: an existing path, a bundled
+    machine file (model or Stewart geometry name), or a bundled measurement set
+    (``NAME:PART``); None when it is none of these (the reader reports that mistake)."""
+    path = Path(spec)
+    if path.exists():
+        return path
+    text = str(spec)
+    if "/" not in text and "\\" not in text and (robots_dir() / f"{text}.yaml").is_file():
+        return robots_dir() / f"{text}.yaml"
+    if ":" in text and not path.suffix:
+        from kinecal.datasets import bundled_csv
+
+        try:
+            return bundled_csv(text)
+        except InputError:
+            return None
+    return None

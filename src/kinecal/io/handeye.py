@@ -31,7 +31,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from kinecal._files import read_text, write_text_atomic
+from kinecal._files import load_yaml, read_text, write_text_atomic
 from kinecal.errors import InputError
 from kinecal.io.csvtable import write_table
 from kinecal.io.poses import (
@@ -208,10 +208,7 @@ def _load_filestorage(path: Path) -> dict:
     lines = read_text(path).splitlines()
     if lines and lines[0].startswith("%YAML:"):  # OpenCV's non-standard directive
         lines = lines[1:]
-    try:
-        doc = yaml.load("\n".join(lines), Loader=_OpenCVLoader)
-    except yaml.YAMLError as exc:
-        raise InputError(f"not valid YAML: {' '.join(str(exc).split())}", file=path) from None
+    doc = load_yaml("\n".join(lines), path, loader=_OpenCVLoader)
     if not isinstance(doc, dict):
         raise InputError("expected a mapping (OpenCV FileStorage)", file=path)
     return doc

@@ -1,0 +1,78 @@
+"""Which calibration options each method uses: the others are refused, never ignored.
+
+A metaheuristic has no robust loss, Levenberg-Marquardt has no iteration budget nor a
+target cost: an option the chosen method would silently drop gives a result the user did
+not ask for (``--method pso --loss huber`` is still a plain mean-error search). `calibrate`,
+the command line and the batch jobs file all check with `check_method_options`.
+
+| option | lm | householder | metaheuristics | hybrid-* |
+|---|---|---|---|---|
+| loss (other than linear), f_scale | yes | - | - | - |
+| maxiter | - | yes | yes | yes |
+| target | - | - | yes | yes |
+| options | - | - | yes | yes |
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from kinecal.errors import InputError
+
+__all__ = ["check_method_options", "uses"]
+
+#: option -> predicate on the method name: does the method use it?
+_USED_BY = {
+    "loss": lambda m: m == "lm",
+    "f_scale": lambda m: m == "lm",
+    "maxiter": lambda m: m != "lm",
+    "target": lambda m: m not in ("lm", "householder"),
+    "options": lambda m: m not in ("lm", "householder"),
+}
+
+#: what to say about each option when refused
+_WHO = {
+    "loss": "a robust loss applies to method lm only",
+    "f_scale": "f_scale applies to method lm with a robust loss only",
+    "maxiter": "an iteration budget applies to householder, the metaheuristics and the "
+               "hybrids (lm stops on its own tolerances)",
+    "target": "a target mean error applies to the metaheuristics and the hybrids only",
+    "options": "method options apply to the metaheuristics and the hybrids only",
+}
+
+
+def uses(method: str, option: str) -> bool:
+    """True when calibration `method` uses `option` (``loss``, ``maxiter``, ...)."""
+    return _USED_BY[option](method)
+
+
+def check_method_options(method: str, *, loss: str = "linear", f_scale: float | None = None,
+                         maxiter: int | None = None, target: float | None = None,
+                         options: dict[str, Any] | None = None,
+                         names: dict[str, str] | None = None) -> None:
+    """Refuse the options that `method` would not use.
+
+    Parameters
+    ----------
+    method : str
+        Calibration method (`kinecal.calibrate`).
+    loss, f_scale, maxiter, target, options
+        As given to `kinecal.calibrate` (defaults: not given).
+    names : dict of str to str, optional
+        How the options are called where they were given (default ``--loss``,
+        ``--maxiter``, ... as on the command line); named in the error.
+
+    Raises
+    ------
+    InputError
+        An option given that `method` does not use, or `f_scale` without a robust loss.
+    """
+    given = {"loss": loss != "linear", "f_scale": f_scale is not None,
+             "maxiter": maxiter is not None, "target": target is not None,
+             "options": bool(options)}
+    label = {k: f"--{k.replace('_', '-')}" for k in given} | dict(names or {})
+    for option, present in given.items():
+        if present and not uses(method, option):
+            raise InputError(f"{_WHO[option]}, not to method {method}", option=label[option])
+    if f_scale is not None and loss == "linear":
+        raise InputError(_WHO["f_scale"], option=label["f_scale"])
