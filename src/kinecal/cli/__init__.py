@@ -18,6 +18,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import contextlib  # noqa: E402
+import errno  # noqa: E402
 import importlib  # noqa: E402
 import signal  # noqa: E402
 import sys  # noqa: E402
@@ -106,6 +107,19 @@ def _run(args: list[str]) -> int:
     return rv if isinstance(rv, int) else 0
 
 
+#: errors of a path itself (exit 2), unlike those of the disk (no space: exit 1)
+_PATH_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENAMETOOLONG, errno.ENOTDIR,
+                errno.EISDIR, errno.ELOOP, errno.ENOENT, errno.EEXIST}
+
+
+def _internal_error(exc: BaseException) -> int:
+    if os.environ.get("KINECAL_DEBUG"):
+        raise exc
+    sys.stderr.write(f"kinecal: internal error: {type(exc).__name__}: "
+                     f"{' '.join(str(exc).split())} (set KINECAL_DEBUG=1 for a traceback)\n")
+    return 1
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return (and exit with) the status code."""
     _load_commands()
@@ -141,14 +155,15 @@ def main(argv: list[str] | None = None) -> int:
         code = 130
     except BrokenPipeError:
         code = 0
+    except OSError as exc:
+        if exc.errno not in _PATH_ERRNOS or exc.filename is None:
+            code = _internal_error(exc)
+        else:  # a path the user gave cannot be used as such (too long, no permission...)
+            sys.stderr.write(f"kinecal: error: {os.fsdecode(exc.filename)}: "
+                             f"{exc.strerror or exc}\n")
+            code = 2
     except Exception as exc:
-        if os.environ.get("KINECAL_DEBUG"):
-            raise
-        sys.stderr.write(
-            f"kinecal: internal error: {type(exc).__name__}: {exc} "
-            "(set KINECAL_DEBUG=1 for a traceback)\n"
-        )
-        code = 1
+        code = _internal_error(exc)
     if argv is None:
         sys.exit(code)
     return code

@@ -131,27 +131,28 @@ def check_paths(
     for name, spec in inputs.items():
         if spec is not None and (path := input_file(spec)) is not None:
             ins[name] = path
-    outs: list[tuple[str, Path, bool]] = [
-        (k, Path(v), False) for k, v in outputs.items() if v is not None]
+    outs: list[tuple[str, Path]] = [(k, Path(v)) for k, v in outputs.items() if v is not None]
+    made: set[Path] = set()  # output folders: created by the command
     for opt, (folder, names) in (folders or {}).items():
         if folder is None:
             continue
         folder = Path(folder)
         if folder.exists() and not folder.is_dir():
             raise InputError(f"{folder} is a file, expected a directory", option=opt)
-        outs.extend((opt, folder / n, True) for n in names)
+        made.add(folder.resolve())
+        outs.extend((opt, folder / n) for n in names)
     seen: list[tuple[str, Path]] = []
-    for opt, path, in_folder in outs:
+    for opt, path in outs:
+        if len(os.fsencode(path.name)) > 255:
+            raise InputError(f"file name too long ({len(os.fsencode(path.name))} bytes, at "
+                             "most 255)", option=opt)
         if path.is_dir():
             raise InputError(f"{path} is a directory, expected a file path", option=opt)
-        if not in_folder and not path.parent.is_dir():
+        if not path.parent.is_dir() and path.parent.resolve() not in made:
             if path.parent.exists():
                 raise InputError(f"cannot write into {path.parent}: it is a file, not a "
                                  "folder", option=opt)
             raise InputError(f"folder {path.parent} does not exist", option=opt)
-        if len(os.fsencode(path.name)) > 255:
-            raise InputError(f"file name too long ({len(os.fsencode(path.name))} bytes, at "
-                             "most 255)", option=opt)
         if path.is_file() and not os.access(path, os.W_OK):
             raise InputError(f"{path} is read-only; refusing to replace it", option=opt)
         for name, src in ins.items():
