@@ -94,3 +94,15 @@ def test_export_and_link_option_errors(tmp_path, capsys, args, match):
     assert main(args) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and match in err, err
+
+
+def test_export_warns_and_strict_refuses(tmp_path, capsys):
+    urdf = tmp_path / "nolimit.urdf"
+    urdf.write_text("<robot name='x'><link name='a'/><link name='b'/><joint name='j' "
+                    "type='revolute'><parent link='a'/><child link='b'/><axis xyz='0 0 1'/>"
+                    "<limit effort='1' velocity='1'/></joint></robot>")
+    assert main(["export", str(urdf), "--out", str(tmp_path / "x.yaml")]) == 0
+    assert "warning" in capsys.readouterr().err and (tmp_path / "x.yaml").exists()
+    assert main(["export", str(urdf), "--out", str(tmp_path / "y.yaml"), "--strict"]) == 2
+    assert "urdf-joint-limits" in capsys.readouterr().err
+    assert not (tmp_path / "y.yaml").exists()

@@ -8,7 +8,14 @@ import numpy as np
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import base_link_option, check_paths, load_model_arg, tip_link_option
+from kinecal.cli._common import (
+    base_link_option,
+    check_paths,
+    load_model_arg,
+    strict_option,
+    tip_link_option,
+    warnings_scope,
+)
 from kinecal.errors import InputError
 
 FORMATS = ("urdf", "yaml")
@@ -105,6 +112,7 @@ def export(
     chain_only: bool = typer.Option(False, "--chain-only", help="For a model read from a "
                                     "URDF: write only the chain, not a copy of that URDF "
                                     "(meshes, other branches) with the chain's values."),
+    strict: bool = strict_option(),
 ) -> None:
     """Write a model, or a calibrated one, as URDF (metres, radians) or as a model file.
 
@@ -118,7 +126,8 @@ def export(
 
     fmt = _format(fmt, out)
     check_paths({"SOURCE": source, "--nominal": nominal}, {"--out": out})
-    model, params, urdf = model_and_params(source, nominal, base_link, tip_link)
+    with warnings_scope(strict):
+        model, params, urdf = model_and_params(source, nominal, base_link, tip_link)
     what = f"model {model.name}" if params is None else f"{source} (calibrated {model.name})"
     if fmt == "urdf":
         comment = f"written by kinecal export from {what}; lengths in metres, angles in radians"
