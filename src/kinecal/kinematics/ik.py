@@ -61,6 +61,9 @@ __all__ = [
 
 Array = NDArray[np.float64]
 
+#: iteration budget of each random restart (roboticstoolbox's ik_LM: 30 per search)
+RESTART_ITERATIONS = 30
+
 #: per-target outcome of `solve_ik`; the first two are converged
 STATUS = {
     "converged": "the tool is at the target within the tolerances",
@@ -92,9 +95,11 @@ class IKResult:
         Angle between the tool frame at `q` and the target frame (rad); NaN for position
         targets.
     iterations : ndarray of int, shape (N,)
-        Iterations used (over all restarts).
+        Iterations used (over all restart attempts).
     condition : ndarray, shape (N,)
         Condition number of the scaled joint Jacobian at `q` (inf at an exact singularity).
+    restarts : ndarray of int, shape (N,)
+        Random restart attempts made for the target (0 when the seed converged).
     tol_position, tol_rotation : float
         The tolerances applied (length unit, rad).
     outputs : {"position", "pose"}
@@ -237,9 +242,11 @@ def solve_ik(
         Length units per rad of rotation error in the least-squares step (default: the
         arm's `characteristic_length`). It shapes the path, not the tolerances.
     restarts : int
-        Targets that did not converge are solved again from random joints within the
-        limits (drawn with `rng`), up to this many times; the best attempt is kept.
-        Default 0: a solution far from the seed (another branch) is never substituted.
+        Targets that did not converge are solved again from this many random joint
+        vectors within the limits (drawn with `rng`, all in one batch, at most
+        `RESTART_ITERATIONS` each); the converged attempt nearest the seed is kept, else
+        the attempt with the smallest error. Default 0: a solution far from the seed
+        (another branch) is never substituted.
     rng : int or Generator, optional
         Randomness of the restarts (same seed, same result).
     singular_threshold : float
@@ -283,22 +290,31 @@ def solve_ik(
     q = prob.project(q)
     q, pos, rot, iters, status = run(prob, q, tol_p, tol_r, int(max_iterations))
     tries = np.zeros(N, dtype=int)
-    if restarts:
+    bad = np.flatnonzero(~np.isin(status, CONVERGED))
+    R = int(restarts)
+    if R and bad.size:
+        # all restarts of all unconverged targets in one batch: R random seeds per target
+        # (target-major order), each with RESTART_ITERATIONS at most
         gen = np.random.default_rng(rng)
-    for _ in range(int(restarts)):
-        bad = np.flatnonzero(~np.isin(status, CONVERGED))
-        if bad.size == 0:
-            break
-        qr = _random_joints(model, bad.size, gen)
-        sub = Problem(model, p, t[bad], w, length)
-        q2, pos2, rot2, it2, st2 = run(sub, qr, tol_p, tol_r, int(max_iterations))
-        iters[bad] += it2
-        tries[bad] += 1
+        seeds = _random_joints(model, bad.size * R, gen)
+        sub = Problem(model, p, np.repeat(t[bad], R, axis=0), w, length)
+        q2, pos2, rot2, it2, st2 = run(sub, sub.project(seeds), tol_p, tol_r,
+                                       min(int(max_iterations), RESTART_ITERATIONS))
+        q2 = q2.reshape(bad.size, R, -1)
+        ok2 = np.isin(st2, CONVERGED).reshape(bad.size, R)
+        cost2 = (pos2 ** 2 + (w * rot2) ** 2 if pose else pos2 ** 2).reshape(bad.size, R)
+        # a converged restart nearest the seed, else the attempt with the lowest error
+        dist = np.linalg.norm(q2 - q[bad][:, None, :], axis=2)
+        pick = np.where(ok2.any(axis=1), np.argmin(np.where(ok2, dist, np.inf), axis=1),
+                        np.argmin(cost2, axis=1))
+        k = np.arange(bad.size) * R + pick
         cost_old = pos[bad] ** 2 + (w * rot[bad]) ** 2 if pose else pos[bad] ** 2
-        cost_new = pos2 ** 2 + (w * rot2) ** 2 if pose else pos2 ** 2
-        better = np.isin(st2, CONVERGED) | (cost_new < cost_old)
-        b = bad[better]
-        q[b], pos[b], rot[b], status[b] = q2[better], pos2[better], rot2[better], st2[better]
+        better = ok2[np.arange(bad.size), pick] | (cost2[np.arange(bad.size), pick] < cost_old)
+        b, kb = bad[better], k[better]
+        q[b], pos[b], rot[b], status[b] = q2.reshape(-1, q.shape[1])[kb], pos2[kb], rot2[kb], \
+            st2[kb]
+        iters[bad] += it2.reshape(bad.size, R).sum(axis=1)
+        tries[bad] = R
     return _finish(prob, q, iters, tries, status, tol_p, tol_r, singular_threshold)
 
 
@@ -314,9 +330,9 @@ def _finish(prob: Problem, q: Array, iters: NDArray[np.int_], tries: NDArray[np.
             ) -> IKResult:
     """Fresh forward kinematics at the final joints decides `converged`."""
     N = q.shape[0]
-    _, pos, rot = prob.errors(q, np.arange(N))
+    _, pos, rot, J = prob.evaluate(q, np.arange(N))
     converged = (pos <= tol_p) & (rot <= tol_r)
-    cond = condition_numbers(prob, q) if N else np.zeros(0)
+    cond = condition_numbers(J) if N else np.zeros(0)
     status = status.copy()
     # never a wrong answer marked converged; a converged target is never reported failed
     status[~converged & np.isin(status, CONVERGED)] = "unreachable"

@@ -30,10 +30,21 @@ _MU_MIN = 1e-12   # smallest damping factor
 _MU_MAX = 1e12    # beyond: no acceptable step left (stationary)
 _STALL = 6        # iterations without a relative cost decrease of _FTOL -> stationary
 _FTOL = 1e-6
+#: targets per sweep of the chain (bounds the memory of the recorded frames)
+CHUNK = 4096
 
 
-def pose_error(target: Array, T: Array) -> tuple[Array, Array | None]:
-    """Error of tool frames `T` ``(N, 4, 4)`` to `target` ``(N, 3)`` or ``(N, 4, 4)``.
+def pose_error(target: Array, positions: Array, rotations: Array | None = None
+               ) -> tuple[Array, Array | None]:
+    """Error of tool frames to `target` ``(N, 3)`` points or ``(N, 4, 4)`` frames.
+
+    Parameters
+    ----------
+    target : ndarray, shape (N, 3) or (N, 4, 4)
+    positions : ndarray, shape (N, 3) or (N, 4, 4)
+        Tool points, or tool frames (then `rotations` is taken from them).
+    rotations : ndarray, shape (N, 3, 3), optional
+        Tool-frame orientations (needed for frame targets when `positions` are points).
 
     Returns
     -------
@@ -43,10 +54,12 @@ def pose_error(target: Array, T: Array) -> tuple[Array, Array | None]:
         ``log(R_target R^T)``, the rotation vector (rad, measurement frame) that turns the
         tool frame onto the target; None for position targets.
     """
+    if positions.ndim == 3:
+        positions, rotations = positions[:, :3, 3], positions[:, :3, :3]
     if target.ndim == 2:
-        return target - T[:, :3, 3], None
-    dp = target[:, :3, 3] - T[:, :3, 3]
-    return dp, _rotation_log(target[:, :3, :3] @ np.swapaxes(T[:, :3, :3], 1, 2))
+        return target - positions, None
+    dp = target[:, :3, 3] - positions
+    return dp, _rotation_log(target[:, :3, :3] @ np.swapaxes(rotations, 1, 2))
 
 
 def _rotation_log(M: Array) -> Array:
@@ -86,6 +99,7 @@ class Problem:
         # scaled joints: a prismatic joint in units of the arm's length, so that every
         # column of the scaled Jacobian is a length per (dimensionless) joint step
         self.col = np.where(model.is_prismatic(), length, 1.0)
+        self.scaled = bool((self.col != 1.0).any())
         # revolute joints whose range spans a full turn: q and q +- 2 pi are the same
         # joint position, so a step across a limit wraps into the range instead of stopping
         self.wrap = ~model.is_prismatic() & (self.hi - self.lo >= 2.0 * np.pi - 1e-9)
@@ -99,23 +113,43 @@ class Problem:
                 q = np.where(out, self.lo + np.mod(q - self.lo, 2.0 * np.pi), q)
         return np.clip(q, self.lo, self.hi)
 
-    def errors(self, q: Array, idx: NDArray[np.intp]) -> tuple[Array, Array, Array]:
-        """Weighted error vectors ``(M, rows)``, position and rotation errors ``(M,)``."""
-        T = self.model.fk(q, self.params)
-        dp, dr = pose_error(self.targets[idx], T)
-        pos = np.sqrt(np.einsum("ij,ij->i", dp, dp))
-        if dr is None:
-            return dp, pos, np.zeros_like(pos)
-        rot = np.sqrt(np.einsum("ij,ij->i", dr, dr))
-        return np.concatenate([dp, self.w * dr], axis=1), pos, rot
+    def evaluate(self, q: Array, idx: NDArray[np.intp]
+                 ) -> tuple[Array, Array, Array, Array]:
+        """Forward kinematics and joint Jacobian at `q` ``(M, n)`` (targets `idx`).
 
-    def jacobian(self, q: Array) -> Array:
-        """Scaled, weighted joint Jacobian ``(M, rows, n_joints)``."""
+        Returns the weighted error vectors ``(M, rows)``, the position and rotation errors
+        ``(M,)`` and the scaled, weighted joint Jacobian ``(M, rows, n)``. A `SerialModel`
+        computes both from one sweep of its chain (`SerialModel.sweep`, in chunks of
+        `CHUNK` poses); any other model through its `fk` and `joint_jacobian`.
+        """
         outputs = "pose" if self.pose else "position"
-        J = self.model.joint_jacobian(q, self.params, outputs)
+        sweep = getattr(self.model, "sweep", None)
+        if sweep is None:
+            T = self.model.fk(q, self.params)
+            P, R = T[:, :3, 3], T[:, :3, :3]
+            J = self.model.joint_jacobian(q, self.params, outputs)
+        else:
+            M = q.shape[0]
+            P = np.empty((M, 3))
+            R = np.empty((M, 3, 3)) if self.pose else None
+            J = np.empty((M, self.rows, q.shape[1]))
+            for start in range(0, M, CHUNK):
+                sl = slice(start, min(start + CHUNK, M))
+                s = sweep(q[sl], self.params)
+                P[sl] = s.positions
+                if self.pose:
+                    R[sl] = s.rotations
+                J[sl] = s.joint_jacobian_t(outputs).transpose(2, 1, 0)
         if self.pose:
             J[:, 3:] *= self.w
-        return J * self.col
+        if self.scaled:
+            J *= self.col
+        dp, dr = pose_error(self.targets[idx], P, R)
+        pos = np.sqrt(np.einsum("ij,ij->i", dp, dp))
+        if dr is None:
+            return dp, pos, np.zeros_like(pos), J
+        rot = np.sqrt(np.einsum("ij,ij->i", dr, dr))
+        return np.concatenate([dp, self.w * dr], axis=1), pos, rot, J
 
 
 def _solve(A: Array, b: Array) -> Array:
@@ -158,18 +192,19 @@ def _bounded_step(prob: Problem, J: Array, e: Array, lam: Array, q: Array) -> Ar
 
 
 def _trial(prob: Problem, J: Array, e: Array, cost: Array, q: Array, lam: Array,
-           idx: NDArray[np.intp]) -> tuple[Array, Array, Array, Array, Array, Array]:
+           idx: NDArray[np.intp]) -> tuple[Array, ...]:
     """One damped step from `q` and the true errors there: joints, error vectors, position
-    and rotation errors, cost, and the cost decrease the linear model predicted."""
+    and rotation errors, cost, the cost decrease the linear model predicted, and the
+    Jacobian at the new joints."""
     ds = _bounded_step(prob, J, e, lam, q)
     qt = prob.project(q + ds * prob.col)
     # the step actually taken (a wrapped joint moved by its own step)
     dsp = np.where(prob.wrap, ds, (qt - q) / prob.col)
     lin = e - np.einsum("mrn,mn->mr", J, dsp)
     pred = cost - np.einsum("ij,ij->i", lin, lin)
-    et, post, rott = prob.errors(qt, idx)
+    et, post, rott, Jt = prob.evaluate(qt, idx)
     ct = np.einsum("ij,ij->i", et, et)
-    return qt, et, post, rott, ct, pred
+    return qt, et, post, rott, ct, pred, Jt
 
 
 def run(prob: Problem, q: Array, tol_p: float, tol_r: float, max_iter: int
@@ -179,7 +214,7 @@ def run(prob: Problem, q: Array, tol_p: float, tol_r: float, max_iter: int
     N = q.shape[0]
     q = q.copy()
     idx_all = np.arange(N)
-    e, pos, rot = prob.errors(q, idx_all)
+    e, pos, rot, J = prob.evaluate(q, idx_all)
     cost = np.einsum("ij,ij->i", e, e)
     iters = np.zeros(N, dtype=int)
     status = np.full(N, "max-iterations", dtype="<U14")
@@ -189,16 +224,13 @@ def run(prob: Problem, q: Array, tol_p: float, tol_r: float, max_iter: int
     done = (pos <= tol_p) & (rot <= tol_r)
     status[done] = "converged"
     active = np.flatnonzero(~done)
-    J = np.empty((N, prob.rows, q.shape[1]))
-    if active.size:
-        J[active] = prob.jacobian(q[active])
     for _ in range(max_iter):
         if active.size == 0:
             break
         a = active
         Ja, ea, qa = J[a], e[a], q[a]
         lam = mu[a] * np.sqrt(cost[a]) * prob.length
-        qt, et, post, rott, ct, pred = _trial(prob, Ja, ea, cost[a], qa, lam, a)
+        qt, et, post, rott, ct, pred, Jt = _trial(prob, Ja, ea, cost[a], qa, lam, a)
         iters[a] += 1
         gain = cost[a] - ct
         rho = np.where(pred > 0, gain / np.where(pred > 0, pred, 1.0), -1.0)
@@ -214,22 +246,18 @@ def run(prob: Problem, q: Array, tol_p: float, tol_r: float, max_iter: int
         stall[a] = np.where(progress, 0, stall[a] + 1)
         acc = a[accept]
         q[acc], e[acc], cost[acc] = qt[accept], et[accept], ct[accept]
-        pos[acc], rot[acc] = post[accept], rott[accept]
+        pos[acc], rot[acc], J[acc] = post[accept], rott[accept], Jt[accept]
         ok = accept & (post <= tol_p) & (rott <= tol_r)
         status[a[ok]] = "converged"
         stuck = ~ok & ((stall[a] >= _STALL) | (mu[a] > _MU_MAX))
         status[a[stuck]] = "unreachable"
-        keep = ~(ok | stuck)
-        refresh = a[accept & keep]
-        if refresh.size:
-            J[refresh] = prob.jacobian(q[refresh])
-        active = a[keep]
+        active = a[~(ok | stuck)]
     return q, pos, rot, iters, status
 
 
-def condition_numbers(prob: Problem, q: Array) -> Array:
-    """Condition number of the scaled Jacobian ``(N,)`` (inf where singular)."""
-    J = prob.jacobian(q)
+def condition_numbers(J: Array) -> Array:
+    """Condition numbers ``(N,)`` of scaled Jacobians `J` ``(N, rows, n)`` (inf where
+    singular)."""
     r, n = J.shape[1:]
     G = J @ np.swapaxes(J, 1, 2) if r <= n else np.swapaxes(J, 1, 2) @ J
     ev = np.linalg.eigvalsh(G)
