@@ -95,7 +95,7 @@ def test_simulation_reproducible(truth):
 
 def test_too_few_poses_and_bad_data(nominal, truth):
     data = simulate_stewart(truth, 6, rng=1)
-    with pytest.raises(InputError, match="at least 7 poses"):
+    with pytest.raises(InputError, match=r"at least 8 distinct poses.*\[too-few-poses\]"):
         calibrate_stewart(nominal, data)
     poses = data.poses.copy()
     poses[3, 2] = np.nan

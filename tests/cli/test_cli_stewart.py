@@ -118,4 +118,4 @@ def test_calibrate_too_few_rows(tmp_path, capsys):
     data = tmp_path / "d.csv"
     assert main(["stewart", "simulate", "liu2008-cmm", "--poses", "3", "--out", str(data)]) == 0
     assert main(["stewart", "calibrate", "liu2008-cmm", str(data)]) == 2
-    assert "at least 7 poses" in capsys.readouterr().err
+    assert "at least 8 distinct poses" in capsys.readouterr().err

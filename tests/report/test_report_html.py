@@ -80,11 +80,27 @@ def test_calibration_report_sections_numbers_and_figures(ur5_result, tmp_path):
 def test_per_pose_figure_shows_the_after_errors_below_the_before_errors(ur5_result):
     _, ax = figures.new_figure()
     figures.plot_calibration(ur5_result, "errors", ax)
-    before, after = ax.collections[:2]
-    top = [np.array([seg[1, 1] for seg in c.get_segments()]) for c in (before, after)]
+    before, after = ax.containers[:2]  # a pair of bars per pose (60 poses)
+    top = [np.array([bar.get_height() for bar in c]) for c in (before, after)]
     np.testing.assert_allclose(top[0], ur5_result.errors_before)
     np.testing.assert_allclose(top[1], ur5_result.errors_after)
     assert (top[1] < top[0]).mean() > 0.9
+    # pose numbers are whole: no tick at 2.5
+    ticks = [t for t in ax.get_xticks() if ax.get_xlim()[0] <= t <= ax.get_xlim()[1]]
+    assert ticks and all(float(t).is_integer() for t in ticks)
+    assert min(bar.get_width() for bar in before) >= 0.3  # bars, not hairlines
+
+
+def test_per_pose_figure_of_many_poses_is_sorted_on_a_log_axis(ur5_result):
+    rng = np.random.default_rng(0)
+    many = dataclasses.replace(ur5_result, errors_before=rng.uniform(1, 3, 1000),
+                               errors_after=rng.uniform(0.01, 0.03, 1000))
+    _, ax = figures.new_figure()
+    figures.plot_calibration(many, "errors", ax)
+    assert ax.get_yscale() == "log"
+    before, after = ax.get_lines()[:2]
+    np.testing.assert_allclose(before.get_ydata(), np.sort(many.errors_before)[::-1])
+    np.testing.assert_allclose(after.get_ydata(), np.sort(many.errors_after)[::-1])
 
 
 def test_plot_for_notebooks_every_kind_and_bad_kinds(ur5_result):

@@ -29,7 +29,7 @@ from kinecal.calibration.method_options import check_method_options
 from kinecal.calibration.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.result import CalibrationResult
 from kinecal.calibration.solve import solve_lm
-from kinecal.calibration.stats import error_stats
+from kinecal.calibration.stats import axis_stats, error_stats
 from kinecal.calibration.uncertainty import Uncertainty, subspace_uncertainty
 from kinecal.data import Measurements
 from kinecal.errors import InputError
@@ -286,11 +286,15 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
     outliers = outliers or flagged
     calibrated = model.with_params(params, name=f"{model.name}-calibrated")
     x_nom = problem.x0
+    e_before, e_after = problem.errors(x_nom), problem.errors(x)
+    axes = {"calibration": {"before": axis_stats(e_before), "after": axis_stats(e_after)}}
     val_before = val_after = None
     if validate is not None:
         vq, vm = validate.q, validate.marker
-        val_before = np.linalg.norm(model.positions(vq, None, vm) - validate.xyz, axis=1)
-        val_after = np.linalg.norm(model.positions(vq, params, vm) - validate.xyz, axis=1)
+        ev0 = model.positions(vq, None, vm) - validate.xyz
+        ev1 = model.positions(vq, params, vm) - validate.xyz
+        val_before, val_after = np.linalg.norm(ev0, axis=1), np.linalg.norm(ev1, axis=1)
+        axes["validation"] = {"before": axis_stats(ev0), "after": axis_stats(ev1)}
     rotation = {}
     if data.rotations is not None:
         rotation["calibration"] = _rotation_stats(model, data, params)
@@ -302,6 +306,7 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         extra["singular_parameters"] = [names[i] for i in res.singular]
     if rotation:  # measured orientations: rotation errors in degrees
         extra["rotation_deg"] = rotation
+    extra["axis_errors"] = axes  # per-axis position errors (x, y, z), model - measured
     if info.unique_rows is not None:  # exact copies of rows: counted once in the covariance
         extra["independent_poses"] = len(info.unique_rows)
     if loss != "linear":
@@ -318,9 +323,8 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         std=std,
         covariance=unc.covariance,
         identifiability=report,
-        errors_before=problem.distances(x_nom),
-        errors_after=(problem.distances_from_residuals(res.residual)
-                      if normal is not None else problem.distances(x)),
+        errors_before=np.linalg.norm(e_before, axis=1),
+        errors_after=np.linalg.norm(e_after, axis=1),
         val_before=val_before,
         val_after=val_after,
         seed=seed,

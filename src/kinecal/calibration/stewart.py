@@ -20,11 +20,16 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
+from kinecal import diagnostics
+from kinecal.calibration.diagnostics.stewart import DATA_RANK_TOL
+from kinecal.calibration.uncertainty import subspace_uncertainty
+from kinecal.diagnostics import Diagnostic
 from kinecal.errors import InputError
 from kinecal.kinematics.stewart import N_PARAMETERS, PARAMETER_NAMES, StewartPlatform
 from kinecal.kinematics.stewart_fk import expmap
@@ -253,6 +258,23 @@ class StewartCalibrationResult:
     seconds : float
     history : list of float
         RMS leg residual at the start and the end (length unit).
+    warnings : list of Diagnostic
+        Plausibility diagnostics (`kinecal.calibration.diagnostics.stewart`).
+    length_unit : str
+        The geometry's length unit (for the text and the JSON).
+    outliers : list of int
+        0-based calibration poses whose leg residuals are outliers (median/MAD rule).
+    bounded : bool
+        False when the poses identify fewer parameters than well-spread workspace poses
+        (``std`` is then ``inf`` for the undetermined ones).
+    errors_before, errors_after : ndarray, shape (N,), optional
+        Norm of the six leg residuals of each calibration pose (length unit).
+
+    Notes
+    -----
+    ``std`` is ``inf`` (``null`` in the JSON) for a parameter the poses cannot identify:
+    the covariance is restricted to the combinations they determine
+    (`kinecal.calibration.uncertainty`).
     """
 
     geometry: StewartPlatform
@@ -267,11 +289,18 @@ class StewartCalibrationResult:
     evaluations: int
     seconds: float
     history: list[float] = field(default_factory=list)
+    warnings: list[Diagnostic] = field(default_factory=list)
+    length_unit: str = "m"
+    outliers: list[int] = field(default_factory=list)
+    bounded: bool = True
+    errors_before: Array | None = None
+    errors_after: Array | None = None
 
     def to_dict(self) -> dict:
         """The DESIGN calibration JSON layout, for the Stewart parameters."""
         params = {
-            name: {"nominal": float(a), "identified": float(b), "std": float(s), "free": True}
+            name: {"nominal": float(a), "identified": float(b),
+                   "std": float(s) if np.isfinite(s) else None, "free": True}
             for name, a, b, s in zip(
                 PARAMETER_NAMES,
                 self.nominal.parameters,
@@ -286,6 +315,7 @@ class StewartCalibrationResult:
         return {
             "model": self.nominal.name,
             "method": "lm",
+            "length_unit": self.length_unit,
             "parameters": params,
             "unidentifiable": self.unidentifiable,
             "rank": self.rank,
@@ -297,17 +327,38 @@ class StewartCalibrationResult:
             "evaluations": self.evaluations,
             "seconds": self.seconds,
             "history": self.history,
+            "outliers": [int(i) for i in self.outliers],
+            "bounded": bool(self.bounded),
+            "warnings": [d.to_dict() for d in self.warnings],
         }
 
     def summary(self) -> str:
-        """Short text table of the before/after leg-reading errors."""
+        """Text table of the before/after leg-reading errors (geometry length unit), the
+        undetermined parameters and the warnings."""
+        u = self.length_unit
         lines = [f"rank {self.rank}/{N_PARAMETERS}, condition {self.condition_number:.3g}"]
+        loose = [n for n, s in zip(PARAMETER_NAMES, self.std, strict=True) if not np.isfinite(s)]
+        if loose:
+            lines.append("not identifiable (value arbitrary, no standard error): "
+                         + ", ".join(loose))
         for label, part in (("calibration", self.calibration), ("validation", self.validation)):
             if part is None:
                 continue
             b, a = part["before"]["rms"], part["after"]["rms"]
-            lines.append(f"{label:12s} n={part['n']:4d}  leg rms before {b:.4g}  after {a:.4g}")
+            lines.append(f"{label:12s} n={part['n']:4d}  leg rms before {b:.4g} {u}  "
+                         f"after {a:.4g} {u}")
+        if self.outliers:
+            lines.append(f"outlier poses (0-based): {self.outliers}")
+        if self.warnings:
+            lines += [f"warnings ({len(self.warnings)}):"]
+            lines += [f"  [{d.code}] {d.message}" for d in self.warnings]
         return "\n".join(lines)
+
+    def report(self, path: str | Path) -> Path:
+        """Write a self-contained HTML report (`kinecal.report.stewart`); returns its path."""
+        from kinecal.report.stewart import stewart_report
+
+        return stewart_report(self, path)
 
 
 def calibrate_stewart(
@@ -316,6 +367,7 @@ def calibrate_stewart(
     *,
     validate: StewartData | None = None,
     max_nfev: int = 100,
+    length_unit: str = "m",
 ) -> StewartCalibrationResult:
     """Identify the 42 parameters by Levenberg-Marquardt on the inverse-kinematics residual.
 
@@ -324,23 +376,43 @@ def calibrate_stewart(
     nominal : StewartPlatform
         Start geometry.
     data : StewartData
-        Calibration poses and readings (at least 7 poses for 42 unknowns).
+        Calibration poses and readings (more than 7 distinct poses for 42 unknowns; 21 or
+        more recommended).
     validate : StewartData, optional
         Held-out poses for the before/after statistics.
     max_nfev : int
         Evaluation limit of the solver.
+    length_unit : str
+        The geometry's length unit (messages, summary and JSON).
 
     Returns
     -------
     StewartCalibrationResult
+        With ``warnings``, also issued as `kinecal.diagnostics.KinecalWarning` unless an
+        outer collector (the command line) takes them.
+
+    Raises
+    ------
+    InputError
+        Too few distinct poses (``too-few-poses``).
     """
-    if 6 * len(data) < N_PARAMETERS:
-        raise InputError(
-            f"{len(data)} poses give {6 * len(data)} equations; at least 7 poses are needed "
-            f"for {N_PARAMETERS} parameters"
-        )
+    with diagnostics.collect(python_warnings=True) as found:
+        res = _calibrate_stewart(nominal, data, validate, max_nfev, length_unit)
+    res.warnings = list(found)
+    return res
+
+
+def _calibrate_stewart(nominal: StewartPlatform, data: StewartData,
+                       validate: StewartData | None, max_nfev: int,
+                       length_unit: str) -> StewartCalibrationResult:
+    from kinecal.calibration.diagnostics.stewart import (
+        check_stewart_data,
+        check_stewart_fit,
+    )
+
+    checked = check_stewart_data(nominal, data, validate=validate, unit=length_unit)
     t0 = time.perf_counter()
-    info = identifiability(nominal, data.poses)
+    info = identifiability(nominal, data.poses, rtol=DATA_RANK_TOL)  # as the checks judge
 
     def fun(v: Array) -> Array:
         return residuals(nominal.with_parameters(v), data).ravel()
@@ -351,14 +423,15 @@ def calibrate_stewart(
     v0 = nominal.parameters
     sol = least_squares(fun, v0, jac=jac, method="lm", x_scale="jac", max_nfev=max_nfev)
     geom = nominal.with_parameters(sol.x)
-    m = sol.fun.size
-    dof = max(m - N_PARAMETERS, 1)
-    sigma2 = float(sol.fun @ sol.fun) / dof
-    try:
-        cov = sigma2 * np.linalg.pinv(sol.jac.T @ sol.jac)
-        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    except np.linalg.LinAlgError:
-        std = np.full(N_PARAMETERS, np.nan)
+    rank = int(info["rank"])
+    rows = np.arange(sol.fun.size)
+    if checked.unique_rows is not None:  # exact copies of a row count once
+        rows = (6 * checked.unique_rows[:, None] + np.arange(6)).ravel()
+    r, J = sol.fun[rows], sol.jac[rows]
+    unc = subspace_uncertainty(J.T @ J, float(r @ r), r.size, rank)
+    std = unc.std
+    outliers = check_stewart_fit(sol.fun.reshape(-1, 6), rank, checked.reference_rank,
+                                 length_unit, list(info["unidentifiable"]))
     calib = {
         "n": len(data),
         "before": _stats(residuals(nominal, data)),
@@ -384,4 +457,9 @@ def calibrate_stewart(
         evaluations=int(sol.nfev),
         seconds=time.perf_counter() - t0,
         history=[float(np.sqrt(np.mean(fun(v0) ** 2))), float(np.sqrt(np.mean(sol.fun**2)))],
+        length_unit=length_unit,
+        outliers=outliers,
+        bounded=rank >= checked.reference_rank,
+        errors_before=np.linalg.norm(residuals(nominal, data), axis=1),
+        errors_after=np.linalg.norm(sol.fun.reshape(-1, 6), axis=1),
     )

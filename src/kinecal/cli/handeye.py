@@ -12,6 +12,7 @@ from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
     echo_json,
+    quiet_option,
     seed_option,
     strict_option,
     warnings_scope,
@@ -122,6 +123,7 @@ def handeye(
     out: Path | None = typer.Option(None, "--out", help="Write the result JSON here."),
     report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
     strict: bool = strict_option(),
+    quiet: bool = quiet_option(),
 ) -> None:
     """Hand-eye calibration from (flange2base, target2cam) pose pairs."""
     from kinecal.calibration.handeye import calibrate_handeye
@@ -145,6 +147,8 @@ def handeye(
         handeye_report(result, report)
     if json_out:
         echo_json(result)
+        return
+    if quiet:
         return
     frame = "cam2flange" if setup == "eye-in-hand" else "cam2base"
     label = (Path(source).name if pairs is not None

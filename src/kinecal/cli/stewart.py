@@ -15,7 +15,17 @@ import typer
 
 from kinecal._limits import check_count
 from kinecal.cli._app import app
-from kinecal.cli._common import check_paths, echo_json, resolve_data_path, seed_option, write_json
+from kinecal.cli._common import (
+    check_paths,
+    echo_json,
+    quiet_option,
+    resolve_data_path,
+    seed_option,
+    strict_option,
+    warnings_scope,
+    with_warnings,
+    write_json,
+)
 from kinecal.errors import InputError
 
 #: peak memory of ``stewart simulate`` per pose: measured 2.6 kB (rejection sampling of
@@ -235,6 +245,15 @@ def simulate(
     typer.echo(f"wrote {poses} poses to {out}", err=True)
 
 
+def _geometry_unit(spec: str) -> str:
+    """The length unit a geometry file declares (``m`` when it says nothing)."""
+    from kinecal._files import read_yaml_mapping
+    from kinecal.io.geometry import geometry_path
+
+    unit = read_yaml_mapping(geometry_path(spec)).get("length_unit", "m")
+    return unit if isinstance(unit, str) else "m"
+
+
 @stewart_app.command("calibrate")
 def calibrate(
     geometry: str = typer.Argument(..., help="Nominal geometry (bundled name or YAML path)."),
@@ -244,33 +263,41 @@ def calibrate(
     geometry_out: Path | None = typer.Option(
         None, "--geometry-out", help="Calibrated geometry YAML (load_geometry reads it)."
     ),
+    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
     json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
+    strict: bool = strict_option(),
+    quiet: bool = quiet_option(),
 ) -> None:
     """Identify the 42 geometric parameters from measured poses and leg readings."""
     from kinecal.calibration.stewart import StewartData, calibrate_stewart
     from kinecal.io.geometry import save_geometry
 
     check_paths({"GEOMETRY": geometry, "DATA": data, "--validate": validate},
-                {"--out": out, "--geometry-out": geometry_out})
-    geom = _geometry(geometry)
+                {"--out": out, "--geometry-out": geometry_out, "--report": report})
+    with warnings_scope(strict) as found:
+        geom = _geometry(geometry)
+        unit = _geometry_unit(geometry)
 
-    def load(spec: str, option: str) -> StewartData:
-        x = _poses_rad(_read(spec, POSE_COLUMNS, option))
-        L = _read(spec, LEG_COLUMNS, option)
-        return StewartData(x, L)
+        def load(spec: str, option: str) -> StewartData:
+            x = _poses_rad(_read(spec, POSE_COLUMNS, option))
+            L = _read(spec, LEG_COLUMNS, option)
+            return StewartData(x, L)
 
-    cal = load(data, "DATA")
-    val = load(validate, "--validate") if validate is not None else None
-    try:
-        res = calibrate_stewart(geom, cal, validate=val)
-    except InputError as exc:
-        raise InputError(exc.message, file=data) from None
-    result = res.to_dict()
-    if out is not None:
-        write_json(out, result)
-    if geometry_out is not None:
-        save_geometry(res.geometry, geometry_out)
+        cal = load(data, "DATA")
+        val = load(validate, "--validate") if validate is not None else None
+        try:
+            res = calibrate_stewart(geom, cal, validate=val, length_unit=unit)
+        except InputError as exc:
+            raise InputError(exc.message, file=data) from None
+        res.warnings = list(found)
+        result = with_warnings(res.to_dict(), found)
+        if out is not None:
+            write_json(out, result)
+        if geometry_out is not None:
+            save_geometry(res.geometry, geometry_out, unit)
+        if report is not None:
+            res.report(report)
     if json_out:
         echo_json(result)
-    else:
+    elif not quiet:
         typer.echo(res.summary())

@@ -63,18 +63,44 @@ def figure_png(fig: Any) -> bytes:
     return buf.getvalue()
 
 
+#: up to this many poses the per-pose figure draws bars; beyond, sorted error curves
+BAR_POSES = 100
+
+
 def _per_pose(ax: Any, before: NDArray, after: NDArray, unit: str, title: str) -> None:
-    """Per-pose distance errors before (grey) and after (blue) as vertical bars."""
+    """Per-pose distance errors before (grey) and after (blue).
+
+    Up to `BAR_POSES` poses: a pair of bars per pose (pose numbers from 1, integer ticks).
+    Beyond: each set of errors sorted in decreasing order against the share of poses, on a
+    logarithmic axis, so that a thousand poses read as two curves and the after errors,
+    often a hundred times smaller, are not flattened against the before ones.
+    """
+    from matplotlib.ticker import MaxNLocator, PercentFormatter
+
     before = np.asarray(before, dtype=float)
     after = np.asarray(after, dtype=float)
-    idx = np.arange(1, before.size + 1)
-    width = 1.0 if before.size > 150 else 3.0
-    ax.vlines(idx, 0.0, before, colors=_BEFORE, linewidth=width, label="before")
-    ax.vlines(idx, 0.0, after, colors=_AFTER, linewidth=width, label="after")
-    ax.set_xlim(0.5, before.size + 0.5)
-    ax.set_ylim(bottom=0.0)
-    ax.set_xlabel("pose")
-    ax.set_ylabel(f"position error [{unit}]")
+    n = before.size
+    if n <= BAR_POSES:
+        idx = np.arange(1, n + 1)
+        ax.bar(idx - 0.2, before, width=0.4, color=_BEFORE, label="before")
+        ax.bar(idx + 0.2, after, width=0.4, color=_AFTER, label="after")
+        ax.set_xlim(0.4, n + 0.6)
+        ax.set_ylim(bottom=0.0)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
+        ax.set_xlabel("pose")
+        ax.set_ylabel(f"position error [{unit}]")
+    else:
+        share = (np.arange(n) + 0.5) / n
+        floor = max(float(np.concatenate([before, after]).max(initial=0.0)) * 1e-12, 1e-300)
+        for values, color, label in ((before, _BEFORE, "before"), (after, _AFTER, "after")):
+            ax.plot(share, np.maximum(np.sort(values)[::-1], floor), color=color, linewidth=2,
+                    label=label)
+        ax.set_yscale("log")
+        ax.set_xlim(0.0, 1.0)
+        ax.xaxis.set_major_formatter(PercentFormatter(1.0))
+        ax.set_xlabel("share of poses, sorted by error")
+        ax.set_ylabel(f"position error [{unit}]")
+        ax.grid(True, which="both", alpha=0.3)
     ax.set_title(title)
     ax.legend(loc="upper right")
 

@@ -17,6 +17,7 @@ from typing import Any
 from kinecal._files import write_text_atomic
 from kinecal.calibration.stats import stat_rows
 from kinecal.errors import InputError
+from kinecal.report.details import axis_section, confounded_rows, correlation_section
 from kinecal.report.figures import (
     DPI,
     FIGSIZE,
@@ -25,6 +26,7 @@ from kinecal.report.figures import (
     plot_handeye_stations,
     plot_histories,
 )
+from kinecal.report.warnings import warnings_section
 
 __all__ = [
     "calibration_report",
@@ -143,12 +145,7 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
         ("iterations", int(result.iterations)), ("evaluations", int(result.evaluations)),
         ("time [s]", float(result.seconds)), ("solver message", result.message or "-"),
     ])
-    confounded = [
-        (name, ", ".join(f"{c:+.3g} {other}" for other, c in
-                         sorted(rep.confounded_with.get(name, {}).items(),
-                                key=lambda kv: -abs(kv[1]))[:4]) or "-")
-        for name in rep.unidentifiable
-    ]
+    confounded = confounded_rows(result)
     ident = _kv([
         ("rank", f"{rep.rank} of {len(rep.names)}"),
         ("condition number (scaled Jacobian)", float(rep.condition_number)),
@@ -156,8 +153,9 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
         *[(k, float(v)) for k, v in rep.observability.items()],
     ])
     if confounded:
-        ident += ("<p>Not identifiable from these poses (held at nominal), with the "
-                  "identifiable parameters each is a combination of:</p>"
+        ident += ("<p>Not identifiable from these poses (held at nominal; when freed "
+                  "explicitly, free with an arbitrary value), with the identifiable "
+                  "parameters each is a combination of:</p>"
                   + table(["parameter", "combination of"], confounded, left=2))
     else:
         ident += "<p>Every candidate parameter is identifiable from these poses.</p>"
@@ -165,15 +163,16 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
     names = list(ptab)
     is_angle = dict(zip(nom.parameter_names, nom.is_angle(), strict=True))
     prow = [(n, angle if is_angle[n] else unit, e["nominal"], e["identified"],
-             e["identified"] - e["nominal"], e["std"] if e["free"] else None,
+             e["identified"] - e["nominal"],
+             (e["std"] if math.isfinite(e["std"]) else "not identifiable") if e["free"] else None,
              "free" if e["free"] else "fixed") for n, e in ptab.items()]
     params = table(["parameter", "unit", "nominal", "identified", "delta", "std. error",
                     "status"], prow, left=2,
                    row_classes=["" if ptab[n]["free"] else "fixed" for n in names])
-    rows = [(f"{label}, {when}", st["n"], st["mean"], st["rms"], st["std"], st["max"])
-            for label, when, st in stat_rows(result.position_groups())]
+    rows = [(f"{label}, {when}", st["n"], st["mean"], st["rms"], st["std"], st.get("p95"),
+             st["max"]) for label, when, st in stat_rows(result.position_groups())]
     errors = (table(["poses", "n", f"mean [{unit}]", f"rms [{unit}]", f"std [{unit}]",
-                     f"max [{unit}]"], rows)
+                     f"95th percentile [{unit}]", f"max [{unit}]"], rows)
               + "<p>Mean error reduced by "
               f"<strong>{result.improvement_percent:.2f} %</strong> on the "
               f"{'validation' if result.validation_stats else 'calibration'} poses "
@@ -205,12 +204,15 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
     from kinecal.report.compensation import compensation_section
 
     return [
+        warnings_section(getattr(result, "warnings", None)),
         section("summary", "Model and data", summary),
         section("identifiability", "Identifiability", ident),
         section("errors", "Position error before and after", errors),
         section("parameters", "Parameters", params),
         compensation_section(result),
         section("figures", "Figures", figs),
+        axis_section(result, table),
+        correlation_section(result),
     ]
 
 
@@ -266,6 +268,7 @@ def handeye_report(result: dict[str, Any], path: str | Path) -> Path:
                     "Rotation and translation residual of every station (red: outliers).",
                     "fig-stations")
     doc = page("Hand-eye calibration", f"{setup}, method {result.get('method', '-')}", [
+        warnings_section(result.get("warnings")),
         section("summary", "Setup and solver", summary),
         section("transform", f"X ({frame})", xtab),
         section("figures", "Per-station residuals", fig),

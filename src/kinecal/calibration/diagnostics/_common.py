@@ -17,6 +17,7 @@ __all__ = [
     "UNIT_FACTORS",
     "FitTest",
     "chi3_outliers",
+    "chi_outliers",
     "plural",
     "repeat_groups",
     "rigid_rms",
@@ -123,16 +124,18 @@ def unit_factor_name(ratio: float) -> str:
     return "another length unit or a wrong scale"
 
 
-def chi3_outliers(d: Array, alpha: float = 0.01) -> list[int]:
-    """Poses whose distance error is an outlier (median/MAD rule, size-aware threshold).
+def chi_outliers(d: Array, dof: int = 3, alpha: float = 0.01) -> list[int]:
+    """Poses whose error norm is an outlier (median/MAD rule, size-aware threshold).
 
-    The noise of each coordinate is estimated robustly from the median distance (for
-    isotropic Gaussian noise of std sigma per axis ``median(d) = 1.5382 sigma``); a pose is
-    an outlier when ``(d / sigma)^2`` exceeds the chi-square(3) quantile that a clean set of
-    N poses exceeds anywhere with probability `alpha` (Bonferroni: ``1 - alpha / N``), the
-    median + 5 * 1.4826 MAD rule of the robust losses, and `MEDIAN_MULTIPLE` times the
-    median (a residual that is a model's misfit rather than noise has heavier tails than
-    Gaussian noise; a gross measurement error stands far beyond all three).
+    `d` holds the norms of residual vectors of `dof` components per pose (3 for a measured
+    position). The noise of each component is estimated robustly from the median norm (for
+    isotropic Gaussian noise of std sigma, ``median(d) = sigma sqrt(chi2_dof median)``,
+    1.5382 sigma for 3 components); a pose is an outlier when ``(d / sigma)^2`` exceeds the
+    chi-square(dof) quantile that a clean set of N poses exceeds anywhere with probability
+    `alpha` (Bonferroni: ``1 - alpha / N``), the median + 5 * 1.4826 MAD rule of the robust
+    losses, and `MEDIAN_MULTIPLE` times the median (a residual that is a model's misfit
+    rather than noise has heavier tails than Gaussian noise; a gross measurement error
+    stands far beyond all three).
     """
     d = np.asarray(d, dtype=float)
     n = d.size
@@ -142,10 +145,15 @@ def chi3_outliers(d: Array, alpha: float = 0.01) -> list[int]:
     mad = 1.4826 * float(np.median(np.abs(d - med)))
     if med <= 0 or mad <= 0:
         return []
-    sigma = med / 1.5382
-    limit = max(sigma * np.sqrt(float(chdtri(3, alpha / n))), med + 5.0 * mad,
+    sigma = med / np.sqrt(float(chdtri(dof, 0.5)))
+    limit = max(sigma * np.sqrt(float(chdtri(dof, alpha / n))), med + 5.0 * mad,
                 MEDIAN_MULTIPLE * med)
     return [int(i) for i in np.flatnonzero(d > limit)]
+
+
+def chi3_outliers(d: Array, alpha: float = 0.01) -> list[int]:
+    """`chi_outliers` of position errors (3 components per pose)."""
+    return chi_outliers(d, 3, alpha)
 
 
 class FitTest:

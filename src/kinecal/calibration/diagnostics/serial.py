@@ -152,7 +152,7 @@ def reference(model: SerialModel, names: Sequence[str], rotations: bool = False,
 
 # ------------------------------------------------------------------- pose counts
 def check_pose_count(n_rows: int, n_distinct: int, rows_per_pose: int, n_free: int,
-                     what: str = "poses") -> None:
+                     what: str = "poses", repeats: str = "joint readings") -> None:
     """Refuse too few distinct poses; warn on few or repeated ones.
 
     Raises
@@ -165,22 +165,23 @@ def check_pose_count(n_rows: int, n_distinct: int, rows_per_pose: int, n_free: i
     gives = "gives" if n_distinct == 1 else "give"
     if n_distinct < n_rows:
         warn("duplicate-poses",
-             f"{n_rows - n_distinct} of {n_rows} {what} repeat the joint readings of another "
+             f"{n_rows - n_distinct} of {n_rows} {what} repeat the {repeats} of another "
              f"row ({n_distinct} distinct): repeated rows add no geometry, and standard errors "
-             "assume independent measurements; measure distinct poses")
+             f"assume independent measurements; measure distinct {what}")
     if eq <= n_free:
         least = n_free // rows_per_pose + 1
         good = -(-MIN_EQUATION_RATIO * n_free // rows_per_pose)
         raise InputError(
-            f"{plural(n_distinct, 'distinct pose')} {gives} {eq} equations for {n_free} free "
-            f"parameters: expected more than {n_free} (at least {least} distinct poses, "
-            f"{good} or more recommended) [too-few-poses]")
+            f"{plural(n_distinct, 'distinct ' + what.rstrip('s'))} {gives} {eq} equations for "
+            f"{n_free} free parameters: expected more than {n_free} (at least {least} distinct "
+            f"{what}, {good} or more recommended) [too-few-poses]")
     if eq < MIN_EQUATION_RATIO * n_free:
         warn("few-poses",
-             f"{plural(n_distinct, 'distinct pose')} {gives} {eq} equations for {n_free} free "
+             f"{plural(n_distinct, 'distinct ' + what.rstrip('s'))} {gives} {eq} equations for "
+             f"{n_free} free "
              f"parameters (fewer than {MIN_EQUATION_RATIO} per parameter): the fit can absorb "
              "noise and its uncertainty is unreliable; measure at least "
-             f"{-(-MIN_EQUATION_RATIO * n_free // rows_per_pose)} distinct poses")
+             f"{-(-MIN_EQUATION_RATIO * n_free // rows_per_pose)} distinct {what}")
 
 
 def _marker_column(data: Measurements) -> Array:

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kinecal import diagnostics
 from kinecal.calibration.handeye import axxb, axzb
 from kinecal.calibration.handeye._motions import as_transforms, check_motions, motion_pairs
 from kinecal.calibration.handeye.errors import (
@@ -67,6 +68,10 @@ class HandEyeResult:
         Cost evaluations of the refinement.
     seconds : float
         Wall time.
+    warnings : list of Diagnostic
+        Plausibility diagnostics (`kinecal.calibration.diagnostics.handeye`).
+    x_uncertainty : XUncertainty or None
+        First-order uncertainty of X from the residuals (None for noise-free data).
     """
 
     X: Array
@@ -82,6 +87,8 @@ class HandEyeResult:
     history: list[float] = field(default_factory=list)
     nfev: int = 0
     seconds: float = 0.0
+    warnings: list = field(default_factory=list)
+    x_uncertainty: Any = None
 
     @property
     def rotation_rms_deg(self) -> float:
@@ -114,6 +121,8 @@ class HandEyeResult:
             "outliers": list(self.outliers),
             "nfev": self.nfev,
             "seconds": self.seconds,
+            "x_uncertainty": None if self.x_uncertainty is None else self.x_uncertainty.to_dict(),
+            "warnings": [d.to_dict() for d in self.warnings],
         }
 
 
@@ -210,9 +219,32 @@ def calibrate_handeye(
     Raises
     ------
     InputError
-        Bad shapes, non-rigid transforms, unknown names, fewer than 3 stations or
+        Bad shapes, non-rigid transforms, unknown names, fewer than 3 distinct stations or
         degenerate motions (fewer than two non-parallel rotation axes).
+
+    Notes
+    -----
+    The plausibility checks of `kinecal.calibration.diagnostics.handeye` run on every call
+    (duplicated or few stations, robot and target lengths in different units, rotation
+    axes too close to parallel for the noise); their findings are in ``warnings`` and are
+    issued as `kinecal.diagnostics.KinecalWarning` unless an outer collector takes them.
     """
+    with diagnostics.collect(python_warnings=True) as found:
+        res = _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, seed,
+                                 robust, rotation_weight, options)
+    res.warnings = list(found)
+    return res
+
+
+def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, seed, robust,
+                       rotation_weight, options) -> HandEyeResult:
+    from kinecal.calibration.diagnostics.handeye import (
+        check_handeye_conditioning,
+        check_handeye_stations,
+        check_handeye_units,
+        handeye_uncertainty,
+    )
+
     t0 = time.perf_counter()
     _choice(setup, SETUPS, "setup")
     _choice(method, METHODS, "method")
@@ -223,11 +255,13 @@ def calibrate_handeye(
         raise InputError(f"flange2base has {len(F)} poses but target2cam has {len(C)}")
     if len(F) < 3:
         raise InputError(f"{len(F)} stations given; hand-eye calibration needs at least 3")
+    check_handeye_stations(F, C)
     if rotation_weight is not None and not (np.isfinite(rotation_weight) and rotation_weight > 0):
         raise InputError(f"rotation_weight {rotation_weight}: expected a positive length per "
                          "radian", option="rotation_weight")
     G = F if setup == "eye-in-hand" else invert_transform(F)
     X, Y = solve(G, C, method, pairs)
+    check_handeye_units(G, C, X)
     history: list[float] = []
     nfev = 0
     outliers: list[int] = []
@@ -253,5 +287,10 @@ def calibrate_handeye(
         outliers = flag_outliers(G, C, X, Y)
     rot, tr = station_residuals(G, X, C, Y)
     arot, atr = axxb_station_rms(G, C, X)
-    return HandEyeResult(X, Y, setup, method, refine, rot, tr, arot, atr, outliers, history,
-                         nfev, time.perf_counter() - t0)
+    inliers = np.setdiff1d(np.arange(len(G)), outliers)
+    unc = handeye_uncertainty(G, C, X, Y, inliers if len(inliers) >= 3 else None)
+    check_handeye_conditioning(unc, G[inliers] if len(inliers) >= 3 else G)
+    res = HandEyeResult(X, Y, setup, method, refine, rot, tr, arot, atr, outliers, history,
+                        nfev, time.perf_counter() - t0)
+    res.x_uncertainty = unc
+    return res

@@ -1,0 +1,235 @@
+"""Plausibility checks of a hand-eye calibration (``G_i X C_i = Y``, AX = XB).
+
+Codes (docs/diagnostics.md): ``too-few-poses`` (an `InputError`), ``few-poses``,
+``duplicate-poses`` (stations), ``scale-mismatch`` (robot and target translations in
+different units), ``handeye-conditioning`` (motions whose rotation axes are nearly
+parallel, or too small, for the noise: X is poorly determined along one direction).
+
+The uncertainty of X comes from the joint refinement's residuals (`handeye_uncertainty`):
+first-order covariance of the 12 unknowns of ``G_i X C_i = Y`` (X and the target pose),
+each station's six residuals scaled by the RMS rotation and translation residual.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.calibration.diagnostics._common import repeat_groups, unit_factor_name
+from kinecal.calibration.diagnostics.serial import check_pose_count
+from kinecal.diagnostics import warn
+from kinecal.spatial import invert_transform, skew
+
+__all__ = [
+    "ANISOTROPY",
+    "UNKNOWNS",
+    "XUncertainty",
+    "check_handeye_conditioning",
+    "check_handeye_stations",
+    "check_handeye_units",
+    "handeye_uncertainty",
+]
+
+Array = NDArray[np.float64]
+
+#: unknowns of G_i X C_i = Y (X and the target pose Y, 6 each); a station gives 6 equations
+UNKNOWNS = 12
+#: X is ill-conditioned when its weakest direction is determined this many times worse than
+#: its best (the standard deviations along the principal axes of its covariance): the
+#: signature of rotation axes that are nearly parallel
+ANISOTROPY = 10.0
+#: a unit factor must lie this many standard deviations away from 1
+SIGMAS = 5.0
+#: the scale column must stick out of the other columns' span by this fraction to be seen
+OBSERVABLE = 1e-2
+#: two stations closer than this in every matrix entry (rotation, length unit) are one
+STATION_RESOLUTION = 1e-9
+
+
+@dataclass
+class XUncertainty:
+    """First-order uncertainty of the hand-eye transform X.
+
+    Attributes
+    ----------
+    rotation_deg : float
+        Standard deviation of X's rotation along its worst axis (deg).
+    translation : float
+        Standard deviation of X's translation along its worst direction (length unit).
+    weak_direction : ndarray, shape (3,)
+        That direction (unit vector in X's frame).
+    anisotropy : float
+        Worst over best standard deviation of the translation (1 when isotropic).
+    rotation_anisotropy : float
+        The same for the rotation.
+    """
+
+    rotation_deg: float
+    translation: float
+    weak_direction: Array
+    anisotropy: float
+    rotation_anisotropy: float
+
+    def to_dict(self) -> dict:
+        """``{rotation_deg, translation, anisotropy, rotation_anisotropy}`` (JSON)."""
+        return {"rotation_deg": float(self.rotation_deg), "translation": float(self.translation),
+                "anisotropy": float(self.anisotropy),
+                "rotation_anisotropy": float(self.rotation_anisotropy)}
+
+
+def check_handeye_stations(F: Array, C: Array) -> int:
+    """``duplicate-poses``, ``too-few-poses`` (fewer than 3 distinct stations) and
+    ``few-poses`` (fewer than 3 equations per unknown). Returns the distinct count."""
+    n = len(F)
+    _, distinct = repeat_groups(np.asarray(F).reshape(n, -1), np.asarray(C).reshape(n, -1),
+                                resolution=STATION_RESOLUTION)
+    check_pose_count(n, distinct, 6, UNKNOWNS, what="stations", repeats="flange and target poses")
+    return distinct
+
+
+def check_handeye_units(G: Array, C: Array, X: Array, what: str = "stations") -> bool:
+    """``scale-mismatch``: robot and target translations in different length units.
+
+    With the rotation of X known (a closed form's rotation does not depend on lengths),
+    the translation part of ``G_i X C_i = Y``,
+    ``R_Gi R_X (s t_Ci) + R_Gi t_X - t_Y = -t_Gi``, is linear in ``t_X``, ``t_Y`` and a
+    scale ``s`` between the two instruments' units; the camera-to-target distances pin
+    ``s`` down (unless every motion turns about one axis). A scale outside [0.5, 2] and
+    more than `SIGMAS` standard deviations from 1 is a unit mismatch. Returns True when it
+    warned.
+    """
+    n = len(G)
+    if n < 4:
+        return False
+    RG = G[:, :3, :3]
+    RGX = RG @ X[:3, :3]
+    tc = C[:, :3, 3]
+    rows = np.zeros((n, 3, 10))
+    rows[:, :, 0] = np.einsum("nij,nj->ni", RGX, tc)  # R_G R_X t_C: the scaled lever
+    rows[:, :, 1:4] = -RGX @ skew(tc)  # a small correction dw of R_X: R_G R_X (dw x t_C)
+    rows[:, :, 4:7] = RG
+    rows[:, :, 7:10] = -np.eye(3)
+    M = rows.reshape(-1, 10)
+    rhs = -G[:, :3, 3].reshape(-1)
+    # the scale's column beyond the span of the others: nearly zero when every motion turns
+    # about the target (paper 001's star scheme, look-at poses), which leaves the camera
+    # distance unseen; then only the spreads of the two position sets can tell
+    rest = M[:, 1:]
+    part = M[:, 0] - rest @ np.linalg.lstsq(rest, M[:, 0], rcond=None)[0]
+    if np.linalg.norm(part) <= OBSERVABLE * np.linalg.norm(M[:, 0]):
+        return _spread_units(G, C, what)
+    sol, *_ = np.linalg.lstsq(M, rhs, rcond=None)
+    s = float(sol[0])
+    rss = float(np.sum((M @ sol - rhs) ** 2))
+    var_s = rss / (M.shape[0] - 10) / float(part @ part)
+    fixed, *_ = np.linalg.lstsq(M[:, 1:], rhs - M[:, 0], rcond=None)
+    rms_s = float(np.sqrt(rss / M.shape[0]))
+    rms_1 = float(np.sqrt(np.mean((M[:, 1:] @ fixed + M[:, 0] - rhs) ** 2)))
+    # a unit factor, not noise: far from 1, and many standard deviations from it (with
+    # rotations about one axis only, s trades off against the translations along it)
+    if not (s > 0 and abs(np.log(s)) > np.log(2.0) and (s - 1.0) ** 2 > SIGMAS**2 * var_s):
+        return False
+    warn("scale-mismatch",
+         f"the robot's translations are {s:.4g} times the target's in G X C = Y over the "
+         f"{what} (looks like {unit_factor_name(1.0 / s).replace(' model', ' robot file')}; "
+         f"residual {rms_s:.3g} instead of {rms_1:.3g}): give the flange and target poses in "
+         "one length unit")
+    return True
+
+
+def _spread(P: Array) -> float:
+    return float(np.sqrt(np.mean(np.sum((P - P.mean(axis=0)) ** 2, axis=1))))
+
+
+def _spread_units(G: Array, C: Array, what: str) -> bool:
+    """Unit check for pose sets whose scale the equations do not see: the spread of the
+    robot's positions (``G_i``) over the spread of the camera's positions in the target
+    frame (``C_i^-1``) is a unit factor (within 2.5 times of 1000, 25.4 or their inverses).
+    The two sets move together up to the hand-eye lever, which turns the spread by a factor
+    of about 1-2 (look-at poses turning about the optical axis); it does not produce a
+    factor beyond 10 that lands near a unit factor by chance."""
+    cam = invert_transform(C)[:, :3, 3]
+    a, b = _spread(G[:, :3, 3]), _spread(cam)
+    if not (a > 0 and b > 0):
+        return False
+    r = a / b
+    if abs(np.log(r)) < np.log(10.0):
+        return False
+    factor = min((1e3, 1e-3, 25.4, 1 / 25.4), key=lambda f: abs(np.log(r / f)))
+    if abs(np.log(r / factor)) > np.log(2.5):
+        return False
+    name = unit_factor_name(1.0 / factor)
+    warn("scale-mismatch",
+         f"the robot's positions over the {what} spread {r:.4g} times more than the camera's "
+         f"positions relative to the target (looks like {name.replace(' model', ' robot file')}"
+         "): give the flange and target poses in one length unit")
+    return True
+
+
+def handeye_uncertainty(G: Array, C: Array, X: Array, Y: Array,
+                        inliers: Array | None = None) -> XUncertainty | None:
+    """First-order uncertainty of X at the solution (see the module docstring).
+
+    None when it cannot be estimated (noise-free data, no degrees of freedom).
+    """
+    from kinecal.calibration.handeye.refine import camera_residuals, residual_jacobian
+
+    if inliers is not None:
+        G, C = G[inliers], C[inliers]
+    n = len(G)
+    if 6 * n <= UNKNOWNS:
+        return None
+    rot, tr = camera_residuals(G, C, X, Y)
+    sr = float(np.sqrt(np.mean(rot**2)))
+    st = float(np.sqrt(np.mean(tr**2)))
+    L = float(np.sqrt(np.mean(np.sum(C[:, :3, 3] ** 2, axis=1))))
+    if not (sr > 1e-12 and st > 1e-12 * max(L, 1e-300)):
+        return None
+    J = residual_jacobian(G, C, X, Y, np.zeros(UNKNOWNS))
+    scale = np.r_[[1.0 / sr] * 3, [1.0 / st] * 3]
+    Js = (J * scale[None, :, None]).reshape(-1, UNKNOWNS)
+    r = np.concatenate([rot / sr, tr / st], axis=1).ravel()
+    cov = float(r @ r) / (6 * n - UNKNOWNS) * np.linalg.pinv(Js.T @ Js)
+    wr = np.clip(np.linalg.eigvalsh(cov[:3, :3]), 0.0, None)
+    wt, vt = np.linalg.eigh(cov[3:6, 3:6])
+    wt = np.clip(wt, 0.0, None)
+
+    def ratio(w: Array) -> float:
+        return float(np.sqrt(w[-1] / w[0])) if w[0] > 0 else float("inf")
+
+    return XUncertainty(float(np.degrees(np.sqrt(wr[-1]))), float(np.sqrt(wt[-1])), vt[:, -1],
+                        ratio(wt), ratio(wr))
+
+
+def axis_spread_deg(G: Array) -> float:
+    """Angular spread of the robot motions' rotation axes (deg): ``asin`` of the square root
+    of the smallest over the largest eigenvalue of ``sum (2 I - R - R^T)`` (0 when every
+    motion turns about one axis; `kinecal.calibration.handeye._motions.check_motions`)."""
+    A = invert_transform(G[:1]) @ G[1:]
+    R = A[:, :3, :3]
+    M = 2.0 * len(R) * np.eye(3) - (R.sum(axis=0) + R.sum(axis=0).T)
+    lam = np.clip(np.linalg.eigvalsh(M), 0.0, None)
+    return float(np.degrees(np.arcsin(min(np.sqrt(lam[0] / lam[-1]), 1.0)))) if lam[-1] > 0 \
+        else 0.0
+
+
+def check_handeye_conditioning(unc: XUncertainty | None, G: Array, unit: str = "") -> None:
+    """``handeye-conditioning``: X determined much worse along one direction than the others.
+
+    Warns when the standard deviation of X's translation along its weakest direction
+    exceeds `ANISOTROPY` times that along its best: AX = XB is then
+    ill-conditioned, typically because the motions turn about nearly parallel axes, and
+    the answer can be far off along that direction although the residuals look fine.
+    """
+    if unc is None or unc.anisotropy <= ANISOTROPY:
+        return
+    u = f" {unit}" if unit else ""
+    d = np.round(unc.weak_direction, 2)
+    warn("handeye-conditioning",
+         f"AX = XB is ill-conditioned: X's translation is {unc.anisotropy:.0f} times less "
+         f"certain along ({d[0]:+.2f}, {d[1]:+.2f}, {d[2]:+.2f}) than along its best direction "
+         f"(1 sigma {unc.translation:.3g}{u}, rotation {unc.rotation_deg:.3g} deg); the robot's "
+         f"rotation axes spread over only {axis_spread_deg(G):.2g} deg: add stations that turn "
+         "about other axes (paper 001's star scheme, kinecal handeye-poses)")
