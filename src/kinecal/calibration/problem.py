@@ -33,6 +33,7 @@ __all__ = [
     "column_scale",
     "identification_rows",
     "resolve_free",
+    "row_norms",
 ]
 
 Array = NDArray[np.float64]
@@ -47,8 +48,14 @@ def characteristic_length(model: SerialModel, data: Measurements, params=None,
     tool points at `params` when already known (saves a forward-kinematics pass).
     """
     P = model.positions(data.q, params, data.marker) if positions is None else positions
-    L = float(np.sqrt((np.linalg.norm(P - P.mean(axis=0), axis=1) ** 2).mean()))
+    D = P - P.mean(axis=0)
+    L = float(np.sqrt(np.einsum("ij,ij->", D, D) / max(len(D), 1)))
     return L if L > 0 else 1.0
+
+
+def row_norms(e: Array) -> Array:
+    """Euclidean norms of the last axis, ``(..., 3) -> (...)``, without temporaries."""
+    return np.sqrt(np.einsum("...i,...i->...", e, e))
 
 
 def column_scale(
@@ -239,7 +246,7 @@ class CalibrationProblem:
 
     def distances(self, x: Array) -> Array:
         """Euclidean distance errors ``(N,)`` (or ``(P, N)``) in the length unit."""
-        return np.linalg.norm(self.errors(x), axis=-1)
+        return row_norms(self.errors(x))
 
     def rotation_errors(self, x: Array) -> Array:
         """Rotation error vectors ``log(R_model R_measured^T)`` ``(N, 3)`` (rad); needs
@@ -292,7 +299,7 @@ class CalibrationProblem:
         e = np.asarray(r).reshape(-1, self.rows)[:, :3]
         if self.weighted:
             e = e / self.sqrt_w[:, None]
-        return np.linalg.norm(e, axis=1)
+        return row_norms(e)
 
     def positions_from_residuals(self, r: Array) -> Array:
         """Model tool positions ``(N, 3)`` recomputed from a vector of `residuals`."""
@@ -303,8 +310,7 @@ class CalibrationProblem:
 
     def mean_distance_from_residuals(self, r: Array) -> float:
         """Paper 000's ``s`` recomputed from a residual vector of `residuals`."""
-        e = np.asarray(r).reshape(-1, self.rows)[:, :3] / self.sqrt_w[:, None]
-        return float(np.linalg.norm(e, axis=1).mean())
+        return float(self.distances_from_residuals(r).mean())
 
     def population_cost(self, X: Array) -> Array:
         """Mean distance error ``s`` (papers/000 sec. 2) of each row of ``X`` ``(P, n_free)``."""

@@ -33,7 +33,8 @@ from kinecal.errors import InputError
 _SIM_POSE_BYTES = 6144
 
 stewart_app = typer.Typer(
-    help="Parallel-link CMM (Stewart platform, papers/004): ik, fk, simulate, calibrate.",
+    help="Parallel-link CMM (Stewart platform; Liu, Liu, Wei 2008): ik, fk, simulate, "
+         "calibrate.",
     no_args_is_help=True,
 )
 app.add_typer(stewart_app, name="stewart")
@@ -88,7 +89,7 @@ def ik(
         True, "--check-range/--no-check-range", help="Reject poses whose legs leave the range."
     ),
 ) -> None:
-    """Inverse kinematics (papers/004 eq. 4-5): leg readings l1..l6 on stdout."""
+    """Inverse kinematics (Liu, Liu, Wei 2008, eq. 4-5): leg readings l1..l6 on stdout."""
     geom = _geometry(geometry)
     x = _poses_rad(_read(poses, POSE_COLUMNS, "POSES"))
     legs = geom.inverse(x)
@@ -101,7 +102,7 @@ def ik(
 def fk(
     geometry: str = typer.Argument(..., help="Bundled geometry name or YAML path."),
     legs: str = typer.Argument(..., help="CSV with l1..l6."),
-    method: str = typer.Option("newton", "--method", help="newton or pso (papers/004)."),
+    method: str = typer.Option("newton", "--method", help="newton or pso (Liu, Liu, Wei 2008)."),
     all_modes: bool = typer.Option(False, "--all", help="Every real assembly mode, one row each."),
     seed: int = seed_option("Random seed (pso, --all; an integer >= 0)."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON instead of CSV."),

@@ -72,11 +72,36 @@ def repeat_groups(*columns: Array, resolution: float = JOINT_RESOLUTION) -> tupl
     X = np.concatenate([np.asarray(c, dtype=float).reshape(len(c), -1) for c in columns], axis=1)
     if X.shape[0] == 0:
         return np.zeros(0, dtype=np.intp), 0
-    key = np.round(X / resolution) if resolution > 0 else X
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    key = X
+    if resolution > 0:  # X is a fresh array: rounded in place
+        np.divide(X, resolution, out=X)
+        np.round(X, out=X)
+    key += 0.0  # -0.0 and 0.0 are one value (and one bit pattern below)
+    # Linear in the rows: one 64-bit hash per row, grouped by a 1-D sort; the rows of
+    # groups with several members are compared with their group's first row, and only a
+    # hash collision falls back to sorting whole rows.
+    _, first, inverse = np.unique(_row_hash(key), return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    shared = np.flatnonzero(np.bincount(inverse)[inverse] > 1)
+    if not np.array_equal(key[shared], key[first[inverse[shared]]]):
+        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        inverse = inverse.ravel()
     # renumber by first appearance so that group numbers follow the file order
-    order = np.argsort(np.argsort(first))
-    return order[inverse.ravel()], int(first.size)
+    order = np.empty(first.size, dtype=np.intp)
+    order[np.argsort(first)] = np.arange(first.size)
+    return order[inverse], int(first.size)
+
+
+def _row_hash(key: Array) -> NDArray[np.uint64]:
+    """A 64-bit hash of each row's bits (FNV-1a over the 64-bit words, then mixed)."""
+    bits = np.ascontiguousarray(key, dtype=float).view(np.uint64)
+    h = np.full(bits.shape[0], 0xCBF29CE484222325, dtype=np.uint64)
+    prime = np.uint64(0x100000001B3)
+    for j in range(bits.shape[1]):
+        h ^= bits[:, j]
+        h *= prime
+        h ^= h >> np.uint64(29)
+    return h
 
 
 def _centered(A: Array) -> tuple[Array, Array]:
