@@ -44,8 +44,8 @@ from kinecal.errors import InputError
 from kinecal.kinematics.joint_errors import FAMILIES, JointErrors, joint_errors_for
 from kinecal.kinematics.serial import SerialModel
 
-__all__ = ["ERROR_MODELS", "calibrate_error_model", "candidates", "error_model_text",
-           "parse_error_model"]
+__all__ = ["ERROR_MODELS", "ErrorModelResult", "calibrate_error_model", "candidates",
+           "error_model_text", "parse_error_model"]
 
 #: the choices of ``--error-model`` (``+``-joined family lists are accepted as well)
 ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto", "model")
@@ -235,8 +235,31 @@ def calibrate_error_model(
              else "model")
     res.extra["error_model"] = _choice(error_model, label, folds if auto else None, table, geo)
     res.extra["joint_errors"] = _terms_entry(res, ident)
-    res.geometric = geo  # type: ignore[attr-defined]  # for the residual maps of reports
-    return res
+    return ErrorModelResult.of(res, geo, data)
+
+
+@dataclasses.dataclass
+class ErrorModelResult(CalibrationResult):
+    """A `CalibrationResult` with joint-error terms, which also keeps what the report's
+    residual maps need (`kinecal.report.residual_maps`).
+
+    Attributes
+    ----------
+    geometric : CalibrationResult or None
+        The geometric calibration the error model started from.
+    measured_xyz : ndarray, shape (N, 3) or None
+        Measured tool positions of the calibration poses.
+    """
+
+    geometric: CalibrationResult | None = None
+    measured_xyz: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, result: CalibrationResult, geometric: CalibrationResult,
+           data: Measurements) -> ErrorModelResult:
+        """`result` with its geometric calibration and the measured positions."""
+        fields = {f.name: getattr(result, f.name) for f in dataclasses.fields(result)}
+        return cls(**fields, geometric=geometric, measured_xyz=np.asarray(data.xyz))
 
 
 def _terms_entry(res: CalibrationResult, ident: IdentifiabilityReport) -> dict:

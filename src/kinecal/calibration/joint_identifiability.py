@@ -128,6 +128,9 @@ class CoefficientAnalysis:
                     else np.zeros((0, dropped.size)))
             coef = coef * f[cols][:, None] / f[kg + sub[dropped]][None, :]
             for j, d in enumerate(dropped):
+                if self.norms[kg + sub[d]] <= 1e-8 * ref:  # no effect at all on these poses
+                    confounded[names[d]] = {}
+                    continue
                 c = coef[:, j]
                 big = np.abs(c) > 1e-6 * max(np.abs(c).max(initial=0.0), 1e-300)
                 confounded[names[d]] = {labels[i]: float(c[i]) for i in np.flatnonzero(big)}

@@ -202,6 +202,7 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
     figs = "".join(image_tag(png, f"{kind} figure", captions[kind], f"fig-{kind}")
                    for kind, png in pngs.items())
     from kinecal.report.compensation import compensation_section
+    from kinecal.report.residual_maps import error_model_section
 
     return [
         warnings_section(getattr(result, "warnings", None)),
@@ -213,6 +214,7 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
         section("figures", "Figures", figs),
         axis_section(result, table),
         correlation_section(result),
+        *error_model_section(result),
     ]
 
 
