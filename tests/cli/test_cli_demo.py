@@ -16,7 +16,8 @@ def test_demo_writes_everything_and_the_calibrated_model_round_trips(tmp_path, c
     assert main(["demo", "--out", str(out), "--quiet"]) == 0
     stdout = capsys.readouterr().out
     names = {"result.json", "ur5-calibrated.yaml", "report.html", "errors.png",
-             "validation.png", "histogram.png", "convergence.png", "compensated.csv"}
+             "validation.png", "histogram.png", "convergence.png", "compensated.csv",
+             "error-model.json", "ur5-calibrated-auto.yaml", "report-error-model.html"}
     assert {p.name for p in out.iterdir()} == names
     for name in names:
         assert str(out / name) in stdout
@@ -41,6 +42,14 @@ def test_demo_writes_everything_and_the_calibrated_model_round_trips(tmp_path, c
     d = np.linalg.norm(model.positions(val.q) - val.xyz, axis=1)
     np.testing.assert_allclose(d.mean(), after["mean"], rtol=1e-6)
     np.testing.assert_allclose(d.max(), after["max"], rtol=1e-6)
+    # the step beyond geometry: auto below the geometric calibration on the held-out poses
+    auto = json.loads((out / "error-model.json").read_text(encoding="utf-8"))
+    em = auto["error_model"]
+    assert em["geometric"]["validation_mean"] == after["mean"]
+    assert auto["validation"]["after"]["mean"] <= 0.090 and em["selected"] in stdout
+    assert f"validation mean: geometric {after['mean']:.4g} mm" in stdout
+    html = (out / "report-error-model.html").read_text(encoding="utf-8")
+    assert 'id="error-model"' in html and 'id="fig-residual-maps"' in html
     html = (out / "report.html").read_text(encoding="utf-8")
     assert html.count("data:image/png;base64,") == 4 and "ur5-laser-tracker:grid" in html
     for png in ("errors.png", "convergence.png"):

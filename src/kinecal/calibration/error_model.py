@@ -40,6 +40,7 @@ from kinecal.calibration.joint_identifiability import CoefficientAnalysis, corre
 from kinecal.calibration.result import CalibrationResult
 from kinecal.calibration.serial import CALIBRATION_RANK_TOL, calibrate
 from kinecal.data import Measurements
+from kinecal.diagnostics import expect, warn
 from kinecal.errors import InputError
 from kinecal.kinematics.joint_errors import FAMILIES, JointErrors, joint_errors_for
 from kinecal.kinematics.serial import SerialModel
@@ -226,9 +227,27 @@ def calibrate_error_model(
     final_model = _with_terms(model, final_spec)
     names = [n for n in final_model.parameter_names[n_geo:] if n not in model.fixed_names]
     ident = analysis.report(names, rank_tol)
-    res = calibrate(final_model, data, method, free=list(geo.free) + ident.identifiable,
-                    validate=validate, rank_tol=rank_tol, rotation_weight=rotation_weight,
-                    **kwargs)
+    coefficients = set(names)
+    while True:
+        with expect("unidentifiable-free") as seen:
+            res = calibrate(final_model, data, method, free=list(geo.free) + ident.identifiable,
+                            validate=validate, rank_tol=rank_tol,
+                            rotation_weight=rotation_weight, **kwargs)
+        # identifiability is local: a coefficient at the edge of the threshold at the
+        # geometric calibration may fall below it at the solution; hold it and refit (the
+        # discarded fit's warning about it is not the user's concern)
+        late = [n for n in res.identifiability.unidentifiable if n in coefficients]
+        if not late:
+            for d in seen:  # what remains is
+                warn(d.code, d.message)
+            break
+        ident = dataclasses.replace(
+            ident, rank=ident.rank - len(late),
+            identifiable=[n for n in ident.identifiable if n not in late],
+            unidentifiable=[n for n in names if n in late or n in ident.unidentifiable],
+            confounded_with={**ident.confounded_with,
+                             **{n: res.identifiability.confounded_with.get(n, {})
+                                for n in late}})
     res.identifiability = _merged_report(geo.identifiability, ident, res.identifiability)
     res.seconds = time.perf_counter() - t0
     label = (_label(final_spec.families, final_spec.harmonics) if error_model != "model"
