@@ -85,6 +85,30 @@ def test_joint_program_from_a_model_file_and_a_result_json(calibrated, program, 
     assert float(max(a["residual"][k] for k in np.flatnonzero(ok))) <= 1e-9
 
 
+def test_calibrated_urdf_export_of_a_dh_model(calibrated, program, tmp_path, capsys):
+    """Another convention than the nominal model: the calibrated UR5 exported to URDF
+    (world -> tool, metres) compensates like its YAML model file."""
+    path, _ = program
+    urdf = tmp_path / "ur5-cal.urdf"
+    assert main(["export", str(calibrated / "result.json"), "--out", str(urdf)]) == 0
+    outs, ok = [], []
+    for spec in (urdf, calibrated / "ur5-cal.yaml"):
+        out = tmp_path / f"{spec.suffix[1:]}.csv"
+        assert main(["compensate", str(spec), str(path), "--nominal", "ur5", "--out",
+                     str(out), "--quiet"]) == 0
+        c = _read(out)
+        outs.append(np.array([[float(c[f"q{i}"][r]) for i in range(1, 7)]
+                              for r in range(12)]))
+        ok.append(np.array(c["converged"]) == "true")
+    np.testing.assert_array_equal(ok[0], ok[1])
+    assert ok[0].mean() >= 0.9
+    np.testing.assert_allclose(outs[0][ok[0]], outs[1][ok[0]], atol=1e-8)
+    capsys.readouterr()
+    # without --nominal the URDF (named after the robot) does not say which model it is
+    assert main(["compensate", str(urdf), str(path), "--out", str(tmp_path / "x.csv")]) == 2
+    assert "--nominal" in capsys.readouterr().err
+
+
 def test_cartesian_targets_with_seeds_and_filtered_targets(calibrated, tmp_path, capsys):
     model = load_model("ur5")
     q = random_configurations(model, 8, np.random.default_rng(4)) * 0.7
@@ -215,3 +239,42 @@ def test_stewart_ik_with_a_calibrated_geometry_is_the_cmms_compensation(tmp_path
 def _read_text(text):
     rows = list(csv.DictReader(text.splitlines()))
     return {k: [r[k] for r in rows] for k in rows[0]}
+
+
+def test_urdf_arm_calibrated_exported_and_compensated(tmp_path, capsys):
+    """A URDF arm (ABB IRB 140 of rtb-data): simulate, calibrate, export the calibrated
+    URDF, compensate a program with it against the nominal URDF (--base-link, --tip-link)."""
+    from importlib import resources
+
+    from kinecal.calibration.simulate import read_truth
+
+    irb140 = str(resources.files("rtbdata") / "xacro" / "abb_irb140_description" / "urdf"
+                 / "irb140.urdf")
+    links = ["--base-link", "base_link", "--tip-link", "tool0"]
+    sim, truth, res = tmp_path / "sim.csv", tmp_path / "truth.json", tmp_path / "r.json"
+    assert main(["simulate", irb140, *links, "--poses", "60", "--seed", "5", "--noise",
+                 "1e-6", "--out", str(sim), "--truth-out", str(truth)]) == 0
+    assert main(["calibrate", irb140, str(sim), *links, "--out", str(res), "--quiet"]) == 0
+    cal = tmp_path / "irb140-cal.urdf"
+    assert main(["export", str(res), "--nominal", irb140, "--out", str(cal)]) == 0
+    model = load_model(irb140, base_link="base_link", tip_link="tool0")
+    q = random_configurations(model, 10, np.random.default_rng(6)) * 0.6
+    prog = _write(tmp_path / "p.csv", [f"q{i}" for i in range(1, 7)], np.degrees(q))
+    out = tmp_path / "c.csv"
+    capsys.readouterr()
+    assert main(["compensate", str(cal), str(prog), "--nominal", irb140, *links,
+                 "--out", str(out), "--position-only", "--quiet"]) == 0
+    c = _read(out)
+    assert c["converged"] == ["true"] * 10
+    qc = np.radians([[float(c[f"q{i}"][r]) for i in range(1, 7)] for r in range(10)])
+    true = read_truth(truth, model)
+    before = np.linalg.norm(model.positions(q, true) - model.positions(q), axis=1)
+    after = np.linalg.norm(model.positions(qc, true) - model.positions(q), axis=1)
+    assert before.mean() > 1e-4 and after.max() < 1e-5  # metres: 0.1 mm -> 10 um
+    assert main(["compensate", str(res), str(prog), "--nominal", irb140, *links,
+                 "--out", str(out), "--position-only", "--quiet"]) == 0  # the result JSON
+    c2 = _read(out)
+    q2 = np.radians([[float(c2[f"q{i}"][r]) for i in range(1, 7)] for r in range(10)])
+    np.testing.assert_allclose(q2, qc, atol=1e-9)
+    assert main(["compensate", "ur5-nothing.yaml", str(prog), "--base-link", "x",
+                 "--out", str(out)]) == 2

@@ -18,11 +18,13 @@ Every result carries, per row, the joint correction, the Cartesian size of the c
 would have on the real arm), whether the calibrated model reaches the intent within the IK
 tolerances, and the remaining residual.
 
-The calibrated and the nominal model must describe the same arm: the same convention,
-joints and parameters, every chain and tool parameter within a few percent of the arm's
-size (`check_same_arm`). The base frame is the calibrated one unless ``base="nominal"``: a
-base far from nominal usually means the measurements were taken in an instrument's frame
-(a warning says so), where the program's poses do not live.
+The calibrated and the nominal model must describe the same arm: the same joints, and
+tool poses within a few percent of the arm's size over the workspace once registered onto
+each other (`kinecal.calibration.same_arm`; any conventions, e.g. a D-H nominal model and
+its calibrated URDF). The base frame is the calibrated one unless ``base="nominal"``,
+which moves it by that best registration: a base far from nominal usually means the
+measurements were taken in an instrument's frame (a warning says so), where the program's
+poses do not live.
 """
 
 from __future__ import annotations
@@ -34,19 +36,21 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal import diagnostics
+from kinecal.calibration.same_arm import (
+    Registration,
+    check_same_arm,
+    in_length_unit,
+    with_registered_base,
+)
 from kinecal.errors import InputError
 from kinecal.kinematics.ik import IKResult, characteristic_length, pose_error, solve_ik
 from kinecal.kinematics.serial import SerialModel
 from kinecal.spatial import check_transform, transform_from_pq
 
-__all__ = ["CompensationResult", "check_same_arm", "compensate"]
+__all__ = ["CompensationResult", "compensate"]
 
 Array = NDArray[np.float64]
 
-#: largest chain / tool length difference between calibrated and nominal, relative to the
-#: arm's characteristic length, and largest angle difference (rad), of the same arm
-SAME_ARM_LENGTH = 0.05
-SAME_ARM_ANGLE = 0.35
 #: calibrated base this far from nominal (fraction of the arm's length, rad): warn
 BASE_FAR_LENGTH = 0.05
 BASE_FAR_ANGLE = 0.1
@@ -155,84 +159,15 @@ class CompensationResult:
                 "joint_correction_rad": s(np.abs(self.dq).max(axis=1)) if len(self) else None}
 
 
-def geometric_names(model: SerialModel) -> tuple[str, ...]:
-    """The model's geometric parameters: its parameter vector without the coefficients of
-    non-geometric joint errors (`kinecal.kinematics.joint_errors`), which come last."""
-    return tuple(model.chain.names)
-
-
-def check_same_arm(nominal: SerialModel, calibrated: SerialModel) -> None:
-    """Refuse a calibrated model of another arm than `nominal`.
-
-    Same convention, joint kinds and geometric parameter names (the calibrated model may
-    add joint-error coefficients), one tool point each, and every chain and tool parameter
-    within `SAME_ARM_LENGTH` of the arm's characteristic length (lengths) or
-    `SAME_ARM_ANGLE` rad (angles) of nominal; the base frame may differ (see `compensate`).
-
-    Raises
-    ------
-    InputError
-        Naming the first difference found.
-    """
-    what = f"calibrated model {calibrated.name!r} and nominal model {nominal.name!r}"
-    if calibrated.convention != nominal.convention:
-        raise InputError(f"{what} use different conventions ({calibrated.convention} vs "
-                         f"{nominal.convention}): not the same arm")
-    if tuple(calibrated.joint_kinds) != tuple(nominal.joint_kinds):
-        raise InputError(f"{what} have different joints ({calibrated.n_joints} vs "
-                         f"{nominal.n_joints}): not the same arm")
-    for m in (calibrated, nominal):
-        if m.marker_names:
-            raise InputError(f"model {m.name!r} has several markers "
-                             f"({', '.join(m.marker_names)}): a program is compensated for "
-                             "one tool point, give models with the program's tool")
-    if geometric_names(calibrated) != geometric_names(nominal):
-        extra = sorted(set(geometric_names(calibrated)) ^ set(geometric_names(nominal)))
-        raise InputError(f"{what} have different parameters ({', '.join(extra[:4]) or 'order'}"
-                         "): not the same arm")
-    compare_parameters(calibrated, nominal_in(calibrated, nominal), calibrated.nominal, what)
-
-
-def nominal_in(calibrated: SerialModel, nominal: SerialModel) -> Array:
-    """The nominal arm as a parameter vector of `calibrated`: nominal geometry, and the
-    nominal model's joint-error coefficients where it has them (else 0: no correction)."""
-    p = np.zeros(calibrated.n_params)
-    own = dict(zip(nominal.parameter_names, nominal.nominal.tolist(), strict=True))
-    for k, name in enumerate(calibrated.parameter_names):
-        p[k] = own.get(name, 0.0)
-    return p
-
-
-def compare_parameters(model: SerialModel, reference: Array, params: Array, what: str) -> None:
-    """`InputError` when `params` (of `model`) are too far from `reference` to be a
-    calibration of the same arm; base-frame and joint-error parameters are not compared."""
-    names = model.parameter_names
-    n_geo = len(geometric_names(model))
-    skip = np.array([n.startswith("base.") for n in names]) | (np.arange(len(names)) >= n_geo)
-    diff = np.abs(np.asarray(params, dtype=float) - reference)
-    L = characteristic_length(model, reference)
-    limit = np.where(model.is_angle(), SAME_ARM_ANGLE, SAME_ARM_LENGTH * L)
-    bad = np.flatnonzero((diff > limit) & ~skip)
-    if bad.size:
-        k = int(bad[np.argmax(diff[bad] / limit[bad])])
-        unit = "rad" if model.is_angle()[k] else model.length_unit
-        raise InputError(f"{what}: parameter {names[k]} differs by {diff[k]:.4g} {unit} "
-                         f"(a calibration changes it by less than {limit[k]:.3g} {unit}): "
-                         "not a calibration of the same arm")
-
-
-def _base_check(nominal: SerialModel, calibrated: SerialModel, warn: Any) -> None:
-    idx = nominal.index(["base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz"])
-    d = calibrated.nominal[idx] - nominal.nominal[idx]
+def _base_check(nominal: SerialModel, reg: Registration, warn: Any) -> None:
     L = characteristic_length(nominal)
-    shift, turn = float(np.linalg.norm(d[:3])), float(np.linalg.norm(d[3:]))
-    if shift > BASE_FAR_LENGTH * L or turn > BASE_FAR_ANGLE:
+    if reg.shift > BASE_FAR_LENGTH * L or reg.turn > BASE_FAR_ANGLE:
         warn(
             "base-frame-far",
-            f"the calibrated base frame is {shift:.4g} {nominal.length_unit} and "
-            f"{np.degrees(turn):.3g} deg from the nominal one: the measurements were probably "
-            "taken in an instrument's frame, not the robot's; compensate with base='nominal' "
-            "(--base nominal) unless the program's poses are in that frame")
+            f"the calibrated base frame is {reg.shift:.4g} {nominal.length_unit} and "
+            f"{np.degrees(reg.turn):.3g} deg from the nominal one: the measurements were "
+            "probably taken in an instrument's frame, not the robot's; compensate with "
+            "base='nominal' (--base nominal) unless the program's poses are in that frame")
 
 
 def _as_models(calibrated: Any, nominal: SerialModel | None) -> tuple[SerialModel, SerialModel]:
@@ -257,20 +192,7 @@ def _as_models(calibrated: Any, nominal: SerialModel | None) -> tuple[SerialMode
         cal = nominal.with_params(p, name=f"{nominal.name}-calibrated")
     if not isinstance(nom, SerialModel):
         raise InputError(f"nominal: expected a SerialModel, got {type(nom).__name__}")
-    check_same_arm(nom, cal)
-    return nom, cal
-
-
-def _with_base(calibrated: SerialModel, nominal: SerialModel, base: str) -> SerialModel:
-    if base == "calibrated":
-        return calibrated
-    if base != "nominal":
-        raise InputError(f"base: expected 'calibrated' or 'nominal', got {base!r}",
-                         option="--base")
-    p = calibrated.nominal
-    idx = nominal.index(["base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz"])
-    p[idx] = nominal.nominal[idx]
-    return calibrated.with_params(p)
+    return nom, in_length_unit(cal, nom.length_unit)
 
 
 def _targets(targets: ArrayLike) -> Array:
@@ -362,8 +284,9 @@ def compensate(
         position otherwise.
     base : {"calibrated", "nominal"}
         Base frame of the calibrated model used: its own (the program lives in the frame
-        the calibration measured in) or the nominal one (measurements taken in an
-        instrument's frame: base-frame errors are left to the user frame).
+        the calibration measured in), or the one that registers the calibrated arm best
+        onto the nominal arm over the workspace (measurements taken in an instrument's
+        frame: base-frame errors are left to the user frame).
     restarts, rng : int
         Random restarts of the nominal IK of unseeded targets (same rng, same result).
     diagnose : bool
@@ -385,10 +308,15 @@ def compensate(
         model of another arm.
     """
     warn = diagnostics.warn if diagnose else _silent
+    if base not in ("calibrated", "nominal"):
+        raise InputError(f"base: expected 'calibrated' or 'nominal', got {base!r}",
+                         option="--base")
     nom, cal = _as_models(calibrated, nominal)
+    reg = check_same_arm(nom, cal)
     if base == "calibrated":
-        _base_check(nom, cal, warn)
-    cal = _with_base(cal, nom, base)
+        _base_check(nom, reg, warn)
+    else:
+        cal = with_registered_base(cal, reg)
     if (joints is None) == (targets is None):
         raise InputError("give either a joint program (joints=) or Cartesian targets "
                          "(targets=)")

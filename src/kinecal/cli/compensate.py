@@ -17,11 +17,13 @@ import typer
 
 from kinecal.cli._app import app
 from kinecal.cli._common import (
+    base_link_option,
     check_paths,
     echo_json,
     quiet_option,
     resolve_data_path,
     strict_option,
+    tip_link_option,
     warnings_scope,
     with_warnings,
 )
@@ -31,16 +33,37 @@ QUATERNION = ("qw", "qx", "qy", "qz")
 _SUFFIX = "-calibrated"
 
 
-def load_calibrated(spec: str, nominal: str | None):
+def _is_urdf(spec: str | Path | None) -> bool:
+    return spec is not None and str(spec).lower().endswith((".urdf", ".xacro"))
+
+
+def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None,
+                    tip_link: str | None = None):
     """(nominal model, calibrated model) from a model file or a result JSON.
 
     A result JSON names its nominal model (``"model"``); a model file written by
     ``calibrate --model-out`` is called ``NAME-calibrated``. Either gives the default of
     `nominal` when that is a bundled model; otherwise ``--nominal`` is required. Joint-error
-    terms of a result (``--error-model``) come with it.
+    terms of a result (``--error-model``) come with it. `base_link` and `tip_link` choose
+    the chain of the nominal model when it is a URDF, else of a calibrated URDF.
     """
-    from kinecal.calibration.compensate import check_same_arm
-    from kinecal.io.models import bundled_models, load_model
+    from kinecal.calibration.same_arm import check_same_arm
+    from kinecal.io.models import bundled_models
+    from kinecal.io.models import load_model as _load_model
+
+    if (base_link or tip_link) and not (_is_urdf(spec) or _is_urdf(nominal)):
+        raise InputError("applies to URDF models only",
+                         option="--base-link" if base_link else "--tip-link")
+    # the chain ends choose the nominal URDF's chain (the one the controller runs); a
+    # calibrated URDF written by `kinecal export` is read along its own default chain
+    # (world -> tool: the calibrated base frame and tool point included), unless it is
+    # the only URDF
+    links_for = nominal if _is_urdf(nominal) else spec
+
+    def load_model(name: str | Path):
+        if _is_urdf(name) and str(name) == str(links_for):
+            return _load_model(name, base_link=base_link, tip_link=tip_link)
+        return _load_model(name)
 
     path = Path(spec)
     if not path.exists():
@@ -159,7 +182,9 @@ def compensate_cmd(
                                        "least 6 joints, or when targets have orientations)."),
     base: str = typer.Option("calibrated", "--base", help="calibrated (the program lives in "
                              "the measured frame) or nominal (measured in an instrument's "
-                             "frame)."),
+                             "frame: the base is registered onto the nominal arm)."),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the statistics as JSON."),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
@@ -172,7 +197,7 @@ def compensate_cmd(
     if base not in ("calibrated", "nominal"):
         raise InputError(f"expected calibrated or nominal, got {base!r}", option="--base")
     with warnings_scope(strict) as found:
-        nom, cal = load_calibrated(calibrated, nominal)
+        nom, cal = load_calibrated(calibrated, nominal, base_link, tip_link)
         path = resolve_data_path(program, "PROGRAM")
         header, cells, table = read_program(path, nom.n_joints)
         scale = nom.joint_scale()  # file units -> API units per joint
