@@ -22,7 +22,7 @@ from kinecal.cli._common import (
 from kinecal.errors import InputError
 
 #: bundled recordings addressable by name, with the setup they were recorded in
-_BUNDLED_SETUP = {"handeye-camodocal": "eye-to-hand"}
+_BUNDLED_SETUP = {"handeye-camodocal": "eye-to-hand", "handeye-tabb1": "eye-in-hand"}
 
 
 def resolve_pairs(spec: str) -> tuple[Path, str | None]:

@@ -35,6 +35,19 @@ DATASETS: dict[str, dict] = {
         "model": None,
         "parts": {"pairs": "TransformPairsInput.yml", "upstream": "CalibratedTransform.yml"},
     },
+    "handeye-tabb1": {
+        "description": (
+            "Real robot-world hand-eye recording (Tabb & Ahmad Yousef 2017, dataset 1): 88 "
+            "stations of a camera on a robot gripper viewing a fixed chessboard, mm; eye-in-hand. "
+            "pairs: kinecal hand-eye CSV; robot, camera, reference: the upstream files "
+            "(reference = the authors' reprojection-error result, X = inverse of its Z)."
+        ),
+        "source": "Tabb (2017), Ag Data Commons, via OpenCV's test data",
+        "license": "U.S. Government work (public domain in the U.S.)",
+        "model": None,
+        "parts": {"pairs": "pairs.csv", "robot": "robot_cali.txt", "camera": "cali.txt",
+                  "reference": "transformations.txt"},
+    },
 }
 
 

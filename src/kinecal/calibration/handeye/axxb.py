@@ -6,9 +6,9 @@ Park, Horaud and Daniilidis as the starting point of its refinement; Andreff's l
 
 Every solver takes the motions ``A, B`` of shape ``(m, 4, 4)`` built by
 `kinecal.calibration.handeye._motions.motion_pairs` (``A_k X = X B_k``, lengths in any
-unit L) and returns ``X`` as a ``(4, 4)`` transform with a proper rotation. None of them
-mixes rotation entries and lengths in one least-squares system, so the result does not
-depend on the length unit (OpenCV's ANDREFF does, see `andreff`).
+unit L) and returns ``X`` as a ``(4, 4)`` transform with a proper rotation. All but
+`andreff` give the same X in any length unit; Andreff's joint linear system mixes
+rotation entries and lengths as the paper (and OpenCV) does, see `andreff`.
 """
 
 from __future__ import annotations
@@ -25,10 +25,11 @@ from kinecal.calibration.handeye._motions import (
     qmat_right,
     solve_translation,
 )
+from kinecal.errors import InputError
 from kinecal.spatial import (
     axis_angle_from_matrix,
     matrix_from_quaternion,
-    project_to_rotation,
+    rotation_angle,
     skew,
 )
 
@@ -148,17 +149,24 @@ def _horaud_rotation(qa: Array, qb: Array) -> Array:
 
 def andreff(A: Array, B: Array) -> Array:
     """Andreff, Horaud & Espiau (2001), "Robot hand-eye calibration using
-    structure-from-motion", Int. J. Robot. Res. 20(3).
+    structure-from-motion", Int. J. Robot. Res. 20(3) (first in 3DIM'99, "On-line
+    hand-eye calibration").
 
-    The paper's linear formulation with the Kronecker product: ``R_A R_X R_B^T = R_X``
-    gives ``(I_9 - R_A (x) R_B) vec(R_X) = 0`` (row-major vec); its null space is taken
-    from the SVD of the stacked 9m x 9 matrix, scaled so that ``det = +1`` and projected on
-    SO(3) (the orthogonalisation step of the paper). The translation rows
-    ``(I_3 (x) t_B^T) vec(R_X) + (I_3 - R_A) t_X = t_A`` are then solved for ``t_X`` with
-    the orthogonal ``R_X``. OpenCV 4.x solves the 12-column system jointly in the user's
-    unit, which mixes unit-free rotation entries with lengths: with millimetres its
-    translation is off by centimetres even without noise. Here the two steps are separate
-    and the result is unit-independent.
+    The paper's linear formulation: with the Kronecker product, ``R_A R_X = R_X R_B`` and
+    the translation rows of ``A X = X B`` become one linear system in the 12 unknowns
+    ``(vec R_X, t_X)`` (row-major vec, ``vec(R_A R_X R_B^T) = (R_A (x) R_B) vec R_X``),
+
+        [ I_9 - R_A (x) R_B      0_9x3   ] [vec R_X]   [ 0_9 ]
+        [ I_3 (x) t_B^T        I_3 - R_A ] [  t_X  ] = [ t_A ]      (one block per motion),
+
+    solved jointly by linear least squares (minimum-norm solution); ``R_X`` is then scaled to
+    ``det = +1`` and projected on SO(3) (the paper's orthogonalisation) and ``t_X`` is the
+    one of the joint solution. This is also what OpenCV's ANDREFF computes.
+
+    Because rotation entries (unit-free) and lengths share one least-squares system, the
+    result depends on the length unit: in millimetres the translation rows dominate and,
+    with noise, the rotation is typically 2-5 times less accurate than Park's (see
+    docs/handeye.md). Noise-free data are solved exactly in any unit.
 
     Parameters
     ----------
@@ -170,26 +178,49 @@ def andreff(A: Array, B: Array) -> Array:
     ndarray, shape (4, 4)
         X, translation in L.
     """
+    m = len(A)
     RA, RB = A[:, :3, :3], B[:, :3, :3]
-    K = np.eye(9) - np.einsum("kij,kab->kiajb", RA, RB).reshape(-1, 9, 9)
-    K = K.reshape(-1, 9)
-    Rv = _null_vectors(K, 1)[0].reshape(3, 3)
+    M = np.zeros((m, 12, 12))
+    M[:, :9, :9] = np.eye(9) - np.einsum("kij,kab->kiajb", RA, RB).reshape(m, 9, 9)
+    M[:, 9:, :9] = np.einsum("ij,kb->kijb", np.eye(3), B[:, :3, 3]).reshape(m, 3, 9)
+    M[:, 9:, 9:] = np.eye(3) - RA
+    rhs = np.zeros((m, 12))
+    rhs[:, 9:] = A[:, :3, 3]
+    x = np.linalg.lstsq(M.reshape(-1, 12), rhs.reshape(-1), rcond=None)[0]
+    Rv = x[:9].reshape(3, 3)
     det = np.linalg.det(Rv)
-    Rv = Rv / (np.sign(det) * abs(det) ** (1.0 / 3.0))
-    return finish(Rv, solve_translation(A, B, project_to_rotation(Rv)))
+    if not np.isfinite(det) or abs(det) < 1e-12:
+        raise InputError("andreff: the linear system gives a singular rotation block; the "
+                         "motions do not determine X (expected rotations about >= 2 axes)")
+    Rv = Rv / (np.sign(det) * abs(det) ** (1.0 / 3.0))  # eq. (15): det = +1
+    return finish(Rv, x[9:])
 
 
 def daniilidis(A: Array, B: Array) -> Array:
     """Daniilidis (1999), "Hand-eye calibration using dual quaternions", Int. J. Robot.
     Res. 18(3).
 
-    Each motion is a dual quaternion ``a = q + eps q'`` with ``q' = 1/2 t * q``; the
-    screw-motion equation ``a x = x b`` is linear in ``x = (q_X, q'_X)``. Stacking its
-    rows gives the paper's matrix T (6m x 8 there; here all 8 rows per motion, the
-    scalar rows being redundant when noise-free) whose two right singular vectors of
-    smallest singular value span the solution; the constraints ``q^T q = 1`` and
-    ``q^T q' = 0`` give a quadratic in the ratio of the two coefficients (the paper's
-    equations for lambda_1, lambda_2). Rotation and translation come out together.
+    Each motion is a unit dual quaternion ``a = q + eps q'`` with ``q' = 1/2 t q``. The
+    screw congruence theorem (sec. 4) makes the scalar parts of ``a x = x b`` redundant, so
+    each motion gives the six rows of the paper's matrix S (eq. (31)),
+
+        [ a - b     [a + b]x     0         0       ] (q  )
+        [ a' - b'   [a' + b']x   a - b     [a + b]x ] (q' ) = 0     (vector parts a, b, a', b'),
+
+    stacked into T (6m x 8, eq. (33)). Its two right singular vectors ``v7, v8`` of smallest
+    singular value span the solution; ``x = lambda1 v7 + lambda2 v8`` with the constraints
+    ``q^T q = 1`` and ``q^T q' = 0`` gives the quadratic in ``s = lambda1 / lambda2``
+    (eq. (35)) whose root with the larger ``s^2 u1^T u1 + 2 s u1^T u2 + u2^T u2`` is taken
+    (the paper's choice); rotation and translation come out together.
+
+    The paper leaves the unit of length free, and the SVD weighs the rotation rows (size
+    ``sin(theta/2)``) against the translation rows (size ``|t| / 2`` in that unit). kinecal
+    measures lengths in the motions' own length per radian, ``L = rms|t| / rms(2
+    sin(theta/2))`` over all motions of A and B, so that both kinds of rows carry equal
+    weight: in raw millimetres, or in units of the rms translation, consecutive small
+    motions of a continuous trajectory let the translation rows swamp the rotation rows
+    and the answer goes off by tens of degrees (Tabb & Ahmad Yousef dataset 1, consecutive
+    pairs: 36 deg / 51 m with the rms unit, 0.8 deg / 31 mm with L).
 
     Parameters
     ----------
@@ -201,30 +232,33 @@ def daniilidis(A: Array, B: Array) -> Array:
     ndarray, shape (4, 4)
         X, translation in L.
     """
-    L = length_scale(A[:, :3, 3], B[:, :3, 3])
+    L = _length_per_radian(A, B)
     qa, qb = motion_quaternions(A, B)
-    qb = align_signs(qa, qb, horaud(A, B)[:3, :3])
+    qb = align_signs(qa, qb, horaud(A, B)[:3, :3])  # a0 = b0 needs matching signs
     ta = np.concatenate([np.zeros((len(A), 1)), A[:, :3, 3] / L], axis=1)
     tb = np.concatenate([np.zeros((len(B), 1)), B[:, :3, 3] / L], axis=1)
     da = 0.5 * np.einsum("kij,kj->ki", qmat_left(ta), qa)  # q' = 1/2 t q
     db = 0.5 * np.einsum("kij,kj->ki", qmat_left(tb), qb)
+    # rows of a x - x b (Hamilton products, w first); rows 1-3 of each block are the
+    # vector parts, i.e. the paper's S of eq. (31) up to row and column order
     D0 = qmat_left(qa) - qmat_right(qb)
     D1 = qmat_left(da) - qmat_right(db)
-    T = np.zeros((len(A), 8, 8))
-    T[:, :4, :4] = D0
-    T[:, 4:, :4] = D1
-    T[:, 4:, 4:] = D0
-    v8, v7 = _null_vectors(T.reshape(-1, 8), 2)
+    S = np.zeros((len(A), 6, 8))
+    S[:, :3, :4] = D0[:, 1:]
+    S[:, 3:, :4] = D1[:, 1:]
+    S[:, 3:, 4:] = D0[:, 1:]
+    _, _, Vt = np.linalg.svd(S.reshape(-1, 8), full_matrices=False)
+    v7, v8 = Vt[6], Vt[7]
     u1, w1, u2, w2 = v7[:4], v7[4:], v8[:4], v8[4:]
-    # s^2 u1.w1 + s (u1.w2 + u2.w1) + u2.w2 = 0 with s = lambda1 / lambda2
+    # eq. (35): s^2 u1.w1 + s (u1.w2 + u2.w1) + u2.w2 = 0 with s = lambda1 / lambda2
     a, b, c = u1 @ w1, u1 @ w2 + u2 @ w1, u2 @ w2
     if abs(a) > 1e-12:
         disc = np.sqrt(max(b * b - 4 * a * c, 0.0))
         roots = [(-b + disc) / (2 * a), (-b - disc) / (2 * a)]
         vals = [s * s * (u1 @ u1) + 2 * s * (u1 @ u2) + u2 @ u2 for s in roots]
-        s = roots[int(np.argmax(vals))]
-        l2 = 1.0 / np.sqrt(max(vals[int(np.argmax(vals))], 1e-300))
-        x = s * l2 * v7 + l2 * v8
+        k = int(np.argmax(vals))
+        l2 = 1.0 / np.sqrt(max(vals[k], 1e-300))
+        x = roots[k] * l2 * v7 + l2 * v8
     else:  # lambda2 = 0 root (the quadratic degenerates): x along v7
         x = v7 / np.linalg.norm(u1)
     q, dq = x[:4], x[4:]
@@ -233,16 +267,17 @@ def daniilidis(A: Array, B: Array) -> Array:
     n = np.linalg.norm(q)
     q, dq = q / n, dq / n
     conj = q * np.array([1.0, -1.0, -1.0, -1.0])
-    t = 2.0 * (qmat_left(dq) @ conj)[1:] * L
+    t = 2.0 * (qmat_left(dq) @ conj)[1:] * L  # t = 2 q' q*
     return finish(matrix_from_quaternion(q), t)
 
 
-def _null_vectors(M: Array, k: int) -> Array:
-    """The k right singular vectors of M ``(rows, n)`` with the smallest singular values,
-    smallest first, shape ``(k, n)``: eigenvectors of the n x n Gram matrix (a tall
-    LAPACK SVD of thousands of rows is ~100x slower for the same vectors)."""
-    _, V = np.linalg.eigh(M.T @ M)
-    return V[:, :k].T
+def _length_per_radian(A: Array, B: Array) -> float:
+    """``rms|t| / rms(2 sin(theta/2))`` over the motions of A and B (see `daniilidis`)."""
+    t = np.concatenate([A[:, :3, 3], B[:, :3, 3]])
+    theta = rotation_angle(np.concatenate([A[:, :3, :3], B[:, :3, :3]]))
+    rot = float(np.sqrt(np.mean(4.0 * np.sin(0.5 * theta) ** 2)))
+    L = length_scale(t) / rot if rot > 0 else length_scale(t)
+    return L if np.isfinite(L) and L > 0 else 1.0
 
 
 #: Solvers by name (the names of OpenCV's CALIB_HAND_EYE_* flags, lower case).
