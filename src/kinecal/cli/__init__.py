@@ -61,6 +61,7 @@ _COMMAND_MODULES = [
     "kinecal.cli.serial",
     "kinecal.cli.reproduce",
     "kinecal.cli.handeye",
+    "kinecal.cli.handeye_images",
     "kinecal.cli.stewart",
     "kinecal.cli.batch",
     "kinecal.cli.demo",

@@ -48,6 +48,7 @@ Array = NDArray[np.float64]
 
 __all__ = [
     "FLANGE_COLUMNS",
+    "IMAGE_COLUMN",
     "TARGET_COLUMNS",
     "pose_columns",
     "read_handeye_csv",
@@ -55,6 +56,7 @@ __all__ = [
     "read_handeye_pairs",
     "read_handeye_yaml",
     "read_matrix_lists",
+    "read_robot_poses",
     "write_handeye_csv",
     "write_handeye_yaml",
 ]
@@ -284,3 +286,69 @@ def write_handeye_yaml(path: str | Path, flange2base: Array, target2cam: Array) 
         parts.append(_fs_matrix(f"T1_{i}", F[i]))
         parts.append(_fs_matrix(f"T2_{i}", C[i]))
     write_text_atomic(path, "".join(parts))
+
+
+#: the image-name column of the robot-pose CSV of ``kinecal handeye-images``
+IMAGE_COLUMN = "image"
+
+
+def read_robot_poses(path: str | Path,
+                     robot: PoseFormat = PoseFormat()) -> tuple[list[str], Array]:
+    """Read the robot-pose CSV of ``kinecal handeye-images``.
+
+    Columns ``image`` (file name inside the image folder) and the flange pose
+    (``flange2base``, lengths in the board's unit): `FLANGE_COLUMNS` (``flange_x ..
+    flange_qz``, unit quaternion w, x, y, z) or any other rotation format of
+    `kinecal.io.poses` behind the ``flange_`` prefix, one row per image; other columns are
+    ignored.
+
+    Returns
+    -------
+    names : list of str
+        Image file names, in row order.
+    flange2base : ndarray, shape (n, 4, 4)
+
+    Raises
+    ------
+    InputError
+        Missing columns, an empty image name, a repeated image, a non-numeric or
+        non-finite cell, a non-unit quaternion (file and 1-based data row named).
+    """
+    path = Path(path)
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
+    except FileNotFoundError:
+        raise InputError("file not found", file=path) from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"cannot read CSV: {exc}", file=path) from None
+    wanted = [IMAGE_COLUMN, *FLANGE_COLUMNS]
+    if not rows:
+        raise InputError(f"empty file; expected a header with {', '.join(wanted)}", file=path)
+    header = [h.strip().lower() for h in rows[0]]
+    if IMAGE_COLUMN not in header:
+        raise InputError(f"missing column {IMAGE_COLUMN} (the image file name of each row); "
+                         f"expected {', '.join(wanted)} (found {', '.join(header) or 'nothing'})",
+                         file=path)
+    col = header.index(IMAGE_COLUMN)
+    names: list[str] = []
+    seen: dict[str, int] = {}
+    for r, row in enumerate(rows[1:], start=1):
+        if len(row) != len(header):
+            raise InputError(f"{len(row)} fields, expected {len(header)} as in the header",
+                             file=path, row=r)
+        name = row[col].strip()
+        if not name:
+            raise InputError("empty image name", file=path, row=r)
+        if name in seen:
+            raise InputError(f"image {name!r} listed twice (also row {seen[name]})", file=path,
+                             row=r)
+        seen[name] = r
+        names.append(name)
+    if not names:
+        raise InputError("no data rows", file=path)
+    if not any(h.startswith("flange_") for h in header):
+        raise InputError(f"missing columns {', '.join(FLANGE_COLUMNS)} (the flange2base pose "
+                         f"of each image; found {', '.join(header)})", file=path)
+    F = read_csv_poses(path, {"flange_": robot})[0]
+    return names, F

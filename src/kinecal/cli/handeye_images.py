@@ -1,0 +1,159 @@
+"""``kinecal handeye-images``: hand-eye calibration from board images and robot poses."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import typer
+
+from kinecal.cli._app import app
+from kinecal.cli._common import (
+    check_paths,
+    echo_json,
+    progress,
+    quiet_option,
+    strict_option,
+    warnings_scope,
+    with_warnings,
+    write_json,
+)
+from kinecal.errors import InputError
+
+#: image file types listed from IMAGES_DIR
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
+
+
+def list_images(folder: Path) -> list[Path]:
+    """Image files directly inside `folder`, sorted by name; `InputError` when none."""
+    if not folder.exists():
+        raise InputError("folder not found", file=folder)
+    if not folder.is_dir():
+        raise InputError("is not a folder; expected the folder holding the images", file=folder)
+    files = sorted(p for p in folder.iterdir()
+                   if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+    if not files:
+        raise InputError(f"no images in the folder (expected {', '.join(IMAGE_SUFFIXES)} "
+                         "files)", file=folder)
+    return files
+
+
+def _parse_robot_noise(text: str | None) -> tuple[float, float] | None:
+    if text is None:
+        return None
+    try:
+        rot_deg, trans = (float(v) for v in text.split(","))
+    except ValueError:
+        raise InputError(f"{text!r}: expected ROT_DEG,TRANS (e.g. 0.02,0.1)",
+                         option="--robot-noise") from None
+    if not (rot_deg > 0 and trans > 0 and np.isfinite(rot_deg) and np.isfinite(trans)):
+        raise InputError(f"{text!r}: expected two positive numbers", option="--robot-noise")
+    return float(np.radians(rot_deg)), trans
+
+
+def _fmt_matrix(T: np.ndarray) -> str:
+    return "\n".join("  [" + ", ".join(f"{v:12.6f}" for v in row) + "]" for row in T)
+
+
+@app.command("handeye-images")
+def handeye_images(
+    images_dir: Path = typer.Argument(..., help="Folder with one board image per station."),
+    robot_poses: Path = typer.Argument(..., help="CSV: image, flange_x..flange_qz "
+                                       "(flange2base, board length unit) per image."),
+    board: str = typer.Option(..., "--board", help="chessboard:COLSxROWS:SQUARE (inner "
+                              "corners), charuco:COLSxROWS:SQUARE:MARKER:DICT (squares) or "
+                              "acircles:COLSxROWS:SPACING."),
+    intrinsics: Path | None = typer.Option(None, "--intrinsics", help="Camera: ROS "
+                                           "camera_calibration YAML, OpenCV FileStorage or "
+                                           "JSON (default: estimated from the images)."),
+    setup: str = typer.Option("eye-in-hand", "--setup", help="eye-in-hand (camera on the "
+                              "flange) or eye-to-hand (camera fixed)."),
+    method: str = typer.Option("park", "--method", help="Closed form seeding the refinement."),
+    refine_intrinsics: bool = typer.Option(False, "--refine-intrinsics", help="Refine the "
+                                           "intrinsics jointly with X."),
+    robot_noise: str | None = typer.Option(None, "--robot-noise", help="ROT_DEG,TRANS: model "
+                                           "robot pose errors of this std (deg, length)."),
+    json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+    out: Path | None = typer.Option(None, "--out", help="Write the result JSON here."),
+    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
+    strict: bool = strict_option(),
+    quiet: bool = quiet_option(),
+) -> None:
+    """Hand-eye calibration from images of a calibration board and the robot poses."""
+    check_paths({"IMAGES_DIR": images_dir, "ROBOT_POSES": robot_poses,
+                 "--intrinsics": intrinsics}, {"--out": out, "--report": report})
+    from kinecal.calibration.handeye import METHODS, SETUPS
+    from kinecal.io.handeye import read_robot_poses
+
+    if setup not in SETUPS:
+        raise InputError(f"unknown setup {setup!r}; expected {' or '.join(SETUPS)}",
+                         option="--setup")
+    if method not in METHODS:
+        raise InputError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}",
+                         option="--method")
+    noise = _parse_robot_noise(robot_noise)
+    with warnings_scope(strict) as found:
+        from kinecal.vision.boards import parse_board
+        from kinecal.vision.intrinsics import read_intrinsics
+        from kinecal.vision.pipeline import calibrate_handeye_images
+
+        the_board = parse_board(board)
+        files = list_images(images_dir)
+        names, F = read_robot_poses(robot_poses)
+        by_name = {p.name: p for p in files}
+        for row, name in enumerate(names, start=1):
+            if name not in by_name:
+                raise InputError(f"image {name!r} is not in {images_dir}", file=robot_poses,
+                                 row=row)
+        if len(files) != len(names):
+            extra = sorted(set(by_name) - set(names))
+            raise InputError(f"{len(files)} images in {images_dir} but {len(names)} robot "
+                             f"poses: expected one row per image (not in the CSV: "
+                             f"{', '.join(extra[:5])}{', ...' if len(extra) > 5 else ''})",
+                             file=robot_poses)
+        intr = read_intrinsics(intrinsics) if intrinsics is not None else None
+        with progress("detecting", len(names), quiet) as update:
+            res = calibrate_handeye_images([by_name[n] for n in names], F, the_board,
+                                           names=names, intrinsics=intr, setup=setup,
+                                           method=method, refine_intrinsics=refine_intrinsics,
+                                           robot_noise=noise, progress=update)
+        result = with_warnings({"images_dir": str(images_dir),
+                                "robot_poses": str(robot_poses), **res.to_dict()}, found)
+        if out is not None:
+            write_json(out, result)
+        if report is not None:
+            from kinecal.report.handeye_images import handeye_images_report
+
+            handeye_images_report(res, report, images=[by_name[n] for n in names],
+                                  result_dict=result)
+    if json_out:
+        echo_json(result)
+        return
+    if quiet:
+        return
+    typer.echo(_summary(res))
+
+
+def _summary(res: Any) -> str:
+    xr, xt = res.X_std
+    frame = "cam2flange" if res.setup == "eye-in-hand" else "cam2base"
+    tframe = "target2base" if res.setup == "eye-in-hand" else "target2flange"
+    intr = res.intrinsics
+    lines = [
+        f"{len(res.records)} images, {len(res.used)} used, {len(res.rejected)} rejected, "
+        f"{len(res.outliers)} outlier(s); {res.setup}, board {res.board.spec}",
+        f"X ({frame}; translation in the board unit, mm):",
+        _fmt_matrix(res.X),
+        "X std (1 sigma): rotation " + ", ".join(f"{v:.4f}" for v in xr) + " deg, translation "
+        + ", ".join(f"{v:.4f}" for v in xt) + " mm",
+        f"board pose ({tframe}, mm):",
+        _fmt_matrix(res.target),
+        f"reprojection RMS {res.refinement.rms_px:.3f} px (corner sigma "
+        f"{res.refinement.sigma_px:.3f} px); intrinsics: {intr.source}"
+        + (f", calibration RMS {intr.rms_px:.3f} px" if intr.rms_px is not None else ""),
+    ]
+    for r in res.records:
+        if r.status != "used":
+            lines.append(f"  {r.status}: {r.name}: {r.reason}")
+    return "\n".join(lines)

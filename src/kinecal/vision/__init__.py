@@ -1,0 +1,36 @@
+"""Calibration boards in images: detection, camera intrinsics, board poses, rendering.
+
+The image side of hand-eye calibration from pictures (`kinecal.vision.pipeline`):
+
+- `boards`: chessboard, ChArUco and circle-grid boards and the ``--board`` syntax;
+- `detect`: detection with sub-pixel corners and per-image quality checks with reasons;
+- `intrinsics`: camera intrinsics read from ROS / OpenCV / JSON files or estimated;
+- `pnp`: the board pose per image with its covariance;
+- `render`: synthetic images of a board seen by a known camera (tests, docs, planning);
+- `pipeline`: images + robot poses -> X, refined on the reprojection error.
+
+OpenCV (``opencv-python-headless``, the ``vision`` extra) is imported lazily: importing
+this package works on the core install, and the first function that needs OpenCV raises
+`kinecal.InputError` naming the extra when it is missing.
+"""
+
+from __future__ import annotations
+
+from types import ModuleType
+
+from kinecal.errors import InputError
+
+__all__ = ["require_cv2"]
+
+
+def require_cv2() -> ModuleType:
+    """The ``cv2`` module, or `InputError` saying how to install it."""
+    try:
+        import cv2
+    except ImportError:
+        raise InputError("images need OpenCV: pip install 'kinecal[vision]' "
+                         "(opencv-python-headless)") from None
+    if not hasattr(cv2, "aruco") or not hasattr(cv2, "solvePnP"):
+        raise InputError(f"OpenCV {getattr(cv2, '__version__', '?')} lacks aruco/calib3d; "
+                         "pip install 'kinecal[vision]' (opencv-python-headless >= 4.8)")
+    return cv2

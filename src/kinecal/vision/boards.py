@@ -1,0 +1,315 @@
+"""Calibration boards: geometry, printable texture and the ``--board`` syntax.
+
+Every board has a frame with its origin on the board plane, x along the rows of corners,
+y along the columns, z = x cross y (pointing away from a camera that sees the printed side,
+as in OpenCV), lengths in the unit of the spec (mm by convention). Corners are numbered
+by an id; `Board.object_points` gives the board coordinates of every id.
+
+Specs (``kinecal handeye-images --board``):
+
+- ``chessboard:COLSxROWS:SQUARE``: COLS x ROWS *inner* corners (OpenCV's pattern size),
+  squares of side SQUARE; e.g. ``chessboard:9x6:30`` (10 x 7 squares of 30 mm). Corner
+  ``(c, r)`` has id ``r * COLS + c`` and sits at ``(c * SQUARE, r * SQUARE, 0)``; the
+  square diagonally outside corner 0 is black. Boards with COLS + ROWS odd (one count even,
+  one odd, as 9x6) have a unique orientation; others look the same turned by 180 deg.
+- ``charuco:COLSxROWS:SQUARE:MARKER:DICT``: ChArUco board of COLS x ROWS *squares*, square
+  and marker sides in the length unit, an OpenCV ArUco dictionary name, e.g.
+  ``charuco:7x5:40:30:DICT_5X5_100`` (OpenCV's layout and corner ids; origin at the outer
+  corner of the board).
+- ``acircles:COLSxROWS:SPACING``: OpenCV's asymmetric circle grid (e.g. ``acircles:4x11:20``),
+  circle ``(c, r)`` at ``((2 c + r mod 2) * SPACING, r * SPACING, 0)``, diameter SPACING.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.errors import InputError
+
+Array = NDArray[np.float64]
+
+__all__ = ["AsymmetricCircleGrid", "Board", "Charuco", "Chessboard", "parse_board"]
+
+_SYNTAX = ("chessboard:COLSxROWS:SQUARE (inner corners, e.g. chessboard:9x6:30), "
+           "charuco:COLSxROWS:SQUARE:MARKER:DICT (squares, e.g. charuco:7x5:40:30:DICT_5X5_100) "
+           "or acircles:COLSxROWS:SPACING (e.g. acircles:4x11:20)")
+
+
+class Board:
+    """Common interface of the boards (see the module docstring)."""
+
+    kind: str = ""
+
+    @property
+    def spec(self) -> str:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    @property
+    def n_corners(self) -> int:
+        """Number of corner ids."""
+        return len(self.object_points)
+
+    @property
+    def object_points(self) -> Array:  # pragma: no cover - overridden
+        """Board coordinates ``(n_corners, 3)`` of every corner id (z = 0)."""
+        raise NotImplementedError
+
+    @property
+    def pitch(self) -> float:
+        """Distance between neighbouring corners (length unit)."""
+        raise NotImplementedError  # pragma: no cover
+
+    def extent(self) -> tuple[float, float, float, float]:
+        """``(x_min, y_min, x_max, y_max)`` of the printed pattern (board frame, no margin)."""
+        raise NotImplementedError  # pragma: no cover
+
+    def texture(self, px_per_unit: float, margin: float | None = None) -> tuple[Any, Array]:
+        """Image of the printed board (uint8, white margin) and its placement.
+
+        Parameters
+        ----------
+        px_per_unit : float
+            Texture resolution, pixels per length unit.
+        margin : float, optional
+            White quiet zone around the pattern (length unit); default one pitch.
+
+        Returns
+        -------
+        image : ndarray, shape (h, w), uint8
+        board2texture : ndarray, shape (3, 3)
+            Maps board ``(x, y, 1)`` to texture pixel coordinates (OpenCV convention:
+            integer coordinates are pixel centres).
+        """
+        raise NotImplementedError  # pragma: no cover
+
+    def _frame(self, px_per_unit: float, margin: float | None) -> tuple[int, int, Array]:
+        m = self.pitch if margin is None else float(margin)
+        x0, y0, x1, y1 = self.extent()
+        x0, y0, x1, y1 = x0 - m, y0 - m, x1 + m, y1 + m
+        w = int(np.ceil((x1 - x0) * px_per_unit))
+        h = int(np.ceil((y1 - y0) * px_per_unit))
+        A = np.array([[px_per_unit, 0.0, -x0 * px_per_unit - 0.5],
+                      [0.0, px_per_unit, -y0 * px_per_unit - 0.5],
+                      [0.0, 0.0, 1.0]])
+        return w, h, A
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"spec", "kind", "corners", "pitch"}``."""
+        return {"spec": self.spec, "kind": self.kind, "corners": self.n_corners,
+                "pitch": self.pitch}
+
+
+def _grid(spec: str) -> tuple[int, int]:
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", spec)
+    if m is None:
+        raise InputError(f"board size {spec!r}: expected COLSxROWS, e.g. 9x6; {_SYNTAX}",
+                         option="--board")
+    return int(m.group(1)), int(m.group(2))
+
+
+def _length(text: str, what: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not (np.isfinite(v) and v > 0):
+        raise InputError(f"board {what} {text!r}: expected a positive length; {_SYNTAX}",
+                         option="--board")
+    return v
+
+
+@dataclass(frozen=True)
+class Chessboard(Board):
+    """Chessboard of ``cols x rows`` inner corners and square side `square`."""
+
+    cols: int
+    rows: int
+    square: float
+    kind = "chessboard"
+
+    def __post_init__(self) -> None:
+        if self.cols < 2 or self.rows < 2:
+            raise InputError(f"chessboard {self.cols}x{self.rows}: expected at least 2x2 inner "
+                             "corners", option="--board")
+
+    @property
+    def spec(self) -> str:
+        return f"chessboard:{self.cols}x{self.rows}:{self.square:g}"
+
+    @property
+    def symmetric(self) -> bool:
+        """True when the board looks the same turned by 180 deg (cols + rows even)."""
+        return (self.cols + self.rows) % 2 == 0
+
+    @property
+    def pitch(self) -> float:
+        return self.square
+
+    @property
+    def object_points(self) -> Array:
+        c, r = np.meshgrid(np.arange(self.cols), np.arange(self.rows))
+        return np.column_stack([c.ravel() * self.square, r.ravel() * self.square,
+                                np.zeros(c.size)])
+
+    def extent(self) -> tuple[float, float, float, float]:
+        s = self.square
+        return -s, -s, self.cols * s, self.rows * s
+
+    def texture(self, px_per_unit: float, margin: float | None = None) -> tuple[Any, Array]:
+        w, h, A = self._frame(px_per_unit, margin)
+        # board coordinates of every texture pixel centre
+        x = (np.arange(w) - A[0, 2]) / px_per_unit
+        y = (np.arange(h) - A[1, 2]) / px_per_unit
+        i = np.floor(x / self.square).astype(int) + 1  # square column 0 .. cols
+        j = np.floor(y / self.square).astype(int) + 1
+        inside = ((i >= 0) & (i <= self.cols))[None, :] & ((j >= 0) & (j <= self.rows))[:, None]
+        black = ((i[None, :] + j[:, None]) % 2 == 0) & inside
+        return np.where(black, 0, 255).astype(np.uint8), A
+
+
+@dataclass(frozen=True)
+class Charuco(Board):
+    """ChArUco board of ``cols x rows`` squares (OpenCV's ``cv2.aruco.CharucoBoard``)."""
+
+    cols: int
+    rows: int
+    square: float
+    marker: float
+    dictionary: str
+    kind = "charuco"
+
+    def __post_init__(self) -> None:
+        if self.cols < 3 or self.rows < 3:
+            raise InputError(f"charuco {self.cols}x{self.rows}: expected at least 3x3 squares",
+                             option="--board")
+        if not self.marker < self.square:
+            raise InputError(f"charuco marker {self.marker:g} must be smaller than the square "
+                             f"{self.square:g}", option="--board")
+        from kinecal.vision import require_cv2
+
+        cv2 = require_cv2()
+        if not self.dictionary.startswith("DICT_") or not hasattr(cv2.aruco, self.dictionary):
+            names = sorted(n for n in dir(cv2.aruco) if n.startswith("DICT_"))
+            raise InputError(f"unknown ArUco dictionary {self.dictionary!r}; expected one of "
+                             f"{', '.join(names)}", option="--board")
+        size = int(re.search(r"_(\d+)$", self.dictionary).group(1)) \
+            if re.search(r"_(\d+)$", self.dictionary) else 10**9
+        needed = (self.cols * self.rows) // 2
+        if needed > size:
+            raise InputError(f"charuco {self.cols}x{self.rows} needs {needed} markers but "
+                             f"{self.dictionary} has {size}", option="--board")
+
+    @property
+    def spec(self) -> str:
+        return (f"charuco:{self.cols}x{self.rows}:{self.square:g}:{self.marker:g}:"
+                f"{self.dictionary}")
+
+    @property
+    def pitch(self) -> float:
+        return self.square
+
+    def cv_board(self) -> Any:
+        """The ``cv2.aruco.CharucoBoard``."""
+        from kinecal.vision import require_cv2
+
+        cv2 = require_cv2()
+        d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
+        return cv2.aruco.CharucoBoard((self.cols, self.rows), self.square, self.marker, d)
+
+    @property
+    def object_points(self) -> Array:
+        return np.asarray(self.cv_board().getChessboardCorners(), dtype=float).reshape(-1, 3)
+
+    def extent(self) -> tuple[float, float, float, float]:
+        return 0.0, 0.0, self.cols * self.square, self.rows * self.square
+
+    def texture(self, px_per_unit: float, margin: float | None = None) -> tuple[Any, Array]:
+        w, h, A = self._frame(px_per_unit, margin)
+        m = self.pitch if margin is None else float(margin)
+        # OpenCV draws the board into the inner area; render it at an integer pixel size
+        # per square, then place it with its own scale (exact placement of the corners)
+        pps = max(round(float(self.square * px_per_unit)), 8)
+        inner = self.cv_board().generateImage((self.cols * pps, self.rows * pps), marginSize=0,
+                                              borderBits=1)
+        from kinecal.vision import require_cv2
+
+        cv2 = require_cv2()
+        s = px_per_unit * self.square / pps
+        M = np.array([[s, 0.0, m * px_per_unit + 0.5 * s - 0.5],
+                      [0.0, s, m * px_per_unit + 0.5 * s - 0.5]])
+        img = cv2.warpAffine(inner, M, (w, h), flags=cv2.INTER_LINEAR,
+                             borderMode=cv2.BORDER_CONSTANT, borderValue=255)
+        return img, A
+
+
+@dataclass(frozen=True)
+class AsymmetricCircleGrid(Board):
+    """OpenCV's asymmetric circle grid: `cols` circles per row, `rows` rows."""
+
+    cols: int
+    rows: int
+    spacing: float
+    kind = "acircles"
+
+    def __post_init__(self) -> None:
+        if self.cols < 2 or self.rows < 3:
+            raise InputError(f"acircles {self.cols}x{self.rows}: expected at least 2x3 circles",
+                             option="--board")
+
+    @property
+    def spec(self) -> str:
+        return f"acircles:{self.cols}x{self.rows}:{self.spacing:g}"
+
+    @property
+    def pitch(self) -> float:
+        return self.spacing
+
+    @property
+    def object_points(self) -> Array:
+        c, r = np.meshgrid(np.arange(self.cols), np.arange(self.rows))
+        c, r = c.ravel(), r.ravel()
+        return np.column_stack([(2 * c + r % 2) * self.spacing, r * self.spacing,
+                                np.zeros(c.size)])
+
+    def extent(self) -> tuple[float, float, float, float]:
+        s = self.spacing
+        return -s / 2, -s / 2, (2 * self.cols - 1) * s + s / 2, (self.rows - 1) * s + s / 2
+
+    def texture(self, px_per_unit: float, margin: float | None = None) -> tuple[Any, Array]:
+        w, h, A = self._frame(px_per_unit, margin)
+        x = (np.arange(w) - A[0, 2]) / px_per_unit
+        y = (np.arange(h) - A[1, 2]) / px_per_unit
+        img = np.full((h, w), 255, np.uint8)
+        rad = 0.5 * self.spacing  # diameter = spacing (diagonal neighbours 1.41 apart)
+        for px, py, _ in self.object_points:
+            mask = (x[None, :] - px) ** 2 + (y[:, None] - py) ** 2 <= rad * rad
+            img[mask] = 0
+        return img, A
+
+
+def parse_board(spec: str) -> Board:
+    """Board from its ``--board`` spec (see the module docstring).
+
+    Raises
+    ------
+    InputError
+        Unknown kind, bad sizes or lengths, unknown dictionary (option ``--board``).
+    """
+    parts = [p.strip() for p in str(spec).split(":")]
+    kind = parts[0].lower()
+    if kind == "chessboard" and len(parts) == 3:
+        c, r = _grid(parts[1])
+        return Chessboard(c, r, _length(parts[2], "square"))
+    if kind == "charuco" and len(parts) == 5:
+        c, r = _grid(parts[1])
+        return Charuco(c, r, _length(parts[2], "square"), _length(parts[3], "marker"),
+                       parts[4].upper())
+    if kind == "acircles" and len(parts) == 3:
+        c, r = _grid(parts[1])
+        return AsymmetricCircleGrid(c, r, _length(parts[2], "spacing"))
+    raise InputError(f"board {spec!r}: expected {_SYNTAX}", option="--board")

@@ -1,0 +1,411 @@
+"""From images and robot poses to X: detection, intrinsics, PnP, closed form, refinement.
+
+`calibrate_handeye_images` is what ``kinecal handeye-images`` runs:
+
+1. detect the board in every image (`kinecal.vision.detect`); rejected images keep their
+   reason and are never used;
+2. camera intrinsics from the user's file, or estimated from the accepted images
+   (``cv2.calibrateCamera``, reprojection RMS reported);
+3. the board pose of every accepted image by PnP with its covariance
+   (`kinecal.vision.pnp`); views tilted beyond the limit are rejected as too oblique;
+4. a closed form on the poses with the robust pose-level refinement
+   (`kinecal.calibration.handeye.calibrate_handeye`), the seed;
+5. the refinement on the reprojection error of every corner
+   (`kinecal.calibration.handeye.images.refine_reprojection`): X and the board pose
+   jointly, intrinsics and robot-pose errors optionally, robust, outlier stations flagged.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal import diagnostics
+from kinecal.calibration.handeye import HandEyeResult, calibrate_handeye
+from kinecal.calibration.handeye.images import ReprojectionRefinement, refine_reprojection
+from kinecal.errors import InputError
+from kinecal.vision import require_cv2
+from kinecal.vision.boards import Board
+from kinecal.vision.detect import Detection, QualityLimits, detect, orientation_ambiguous
+from kinecal.vision.intrinsics import CameraIntrinsics, estimate_intrinsics
+from kinecal.vision.pnp import BoardPose, board_pose
+
+Array = NDArray[np.float64]
+
+__all__ = ["ImageHandEyeResult", "ImageRecord", "calibrate_handeye_images", "load_gray"]
+
+
+@dataclass
+class ImageRecord:
+    """What happened to one image.
+
+    Attributes
+    ----------
+    name : str
+    status : str
+        ``used``, ``outlier`` (used for nothing after the robust refinement flagged its
+        station) or ``rejected``.
+    reason : str
+        Why it was rejected or flagged ("" when used).
+    detection : Detection or None
+    pose : BoardPose or None
+        PnP board pose (accepted detections).
+    residuals : ndarray, shape (N, 2) or None
+        Observed minus predicted corners after the refinement (px).
+    """
+
+    name: str
+    status: str
+    reason: str = ""
+    detection: Detection | None = None
+    pose: BoardPose | None = None
+    residuals: Array | None = None
+
+    @property
+    def rms_px(self) -> float | None:
+        """RMS corner residual after the refinement (px)."""
+        if self.residuals is None or not len(self.residuals):
+            return None
+        return float(np.sqrt(np.mean(np.sum(self.residuals**2, axis=1))))
+
+    @property
+    def max_px(self) -> float | None:
+        """Largest corner residual after the refinement (px)."""
+        if self.residuals is None or not len(self.residuals):
+            return None
+        return float(np.max(np.linalg.norm(self.residuals, axis=1)))
+
+    def to_dict(self) -> dict[str, Any]:
+        """The per-image entry of the JSON result."""
+        det, pose = self.detection, self.pose
+        return {
+            "image": self.name, "status": self.status, "reason": self.reason,
+            "corners": 0 if det is None else len(det.corners),
+            "rms_px": self.rms_px, "max_px": self.max_px,
+            "pnp_rms_px": None if pose is None else pose.rms_px,
+            "tilt_deg": None if pose is None else pose.tilt_deg,
+            "edge_width_px": (None if det is None or not np.isfinite(det.edge_width)
+                              else det.edge_width),
+        }
+
+
+@dataclass
+class ImageHandEyeResult:
+    """Result of `calibrate_handeye_images`.
+
+    Attributes
+    ----------
+    X : ndarray, shape (4, 4)
+        ``cam2flange`` (eye-in-hand) or ``cam2base`` (eye-to-hand), board length unit.
+    target : ndarray, shape (4, 4)
+        Board pose: ``target2base`` (eye-in-hand) or ``target2flange`` (eye-to-hand).
+    setup, method : str
+        Set-up and the closed form that seeded the refinement.
+    board : Board
+    intrinsics : CameraIntrinsics
+        As used (refined values when ``refine_intrinsics``).
+    intrinsics_refined : bool
+    records : list of ImageRecord
+        One per input image, in input order.
+    refinement : ReprojectionRefinement
+    seed : HandEyeResult
+        The pose-based solution that started the refinement.
+    warnings : list of dict
+        Plausibility warnings raised on the way (``code``, ``message``).
+    seconds : float
+    """
+
+    X: Array
+    target: Array
+    setup: str
+    method: str
+    board: Board
+    intrinsics: CameraIntrinsics
+    intrinsics_refined: bool
+    records: list[ImageRecord]
+    refinement: ReprojectionRefinement
+    seed: HandEyeResult
+    warnings: list[dict[str, str]] = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def used(self) -> list[ImageRecord]:
+        """Records of the images the final solution rests on."""
+        return [r for r in self.records if r.status == "used"]
+
+    @property
+    def rejected(self) -> list[ImageRecord]:
+        """Records of the rejected images."""
+        return [r for r in self.records if r.status == "rejected"]
+
+    @property
+    def outliers(self) -> list[str]:
+        """Names of the images whose station the refinement flagged."""
+        return [r.name for r in self.records if r.status == "outlier"]
+
+    @property
+    def X_std(self) -> tuple[Array, Array]:
+        """Standard deviations of X: rotation (deg, about X's axes), translation."""
+        return self.refinement.X_std
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON of ``kinecal handeye-images --json``."""
+        xr, xt = self.refinement.X_std
+        yr, yt = self.refinement.Y_std
+        ref = self.refinement
+        return {
+            "X": self.X.tolist(),
+            "X_frame": "cam2flange" if self.setup == "eye-in-hand" else "cam2base",
+            "X_std": {"rotation_deg": xr.tolist(), "translation": xt.tolist()},
+            "X_cov": ref.X_cov.tolist(),
+            "target": self.target.tolist(),
+            "target_frame": "target2base" if self.setup == "eye-in-hand" else "target2flange",
+            "target_std": {"rotation_deg": yr.tolist(), "translation": yt.tolist()},
+            "setup": self.setup,
+            "board": self.board.spec,
+            "length_unit": "board unit (the --board lengths, mm by convention)",
+            "method": self.method,
+            "refine": "reprojection",
+            "intrinsics": {**self.intrinsics.to_dict(), "refined": self.intrinsics_refined},
+            "reprojection_rms_px": ref.rms_px,
+            "corner_sigma_px": ref.sigma_px,
+            "n_images": len(self.records),
+            "n_used": len(self.used),
+            "images": [r.to_dict() for r in self.records],
+            "rejected": [{"image": r.name, "reason": r.reason} for r in self.rejected],
+            "outliers": self.outliers,
+            "robot_corrections": (None if ref.corrections is None
+                                  else ref.corrections.tolist()),
+            "seed": {"method": self.method, "X": self.seed.X.tolist(),
+                     "rotation_rms_deg": self.seed.rotation_rms_deg,
+                     "translation_rms": self.seed.translation_rms},
+            "warnings": list(self.warnings),
+            "seconds": self.seconds,
+        }
+
+
+def load_gray(path: str | Path) -> NDArray[np.uint8] | None:
+    """8-bit grey image from a file (None when OpenCV cannot read it)."""
+    cv2 = require_cv2()
+    img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    return None if img is None else np.asarray(img)
+
+
+def calibrate_handeye_images(
+    images: Sequence[Any],
+    flange2base: Array,
+    board: Board,
+    *,
+    names: Sequence[str] | None = None,
+    intrinsics: CameraIntrinsics | None = None,
+    setup: str = "eye-in-hand",
+    method: str = "park",
+    refine_intrinsics: bool = False,
+    robot_noise: tuple[float, float] | None = None,
+    robust: bool = True,
+    limits: QualityLimits | None = None,
+    progress: Callable[..., None] | None = None,
+) -> ImageHandEyeResult:
+    """Hand-eye calibration from board images and robot poses.
+
+    Parameters
+    ----------
+    images : sequence of ndarray or path
+        One image per station (8-bit grey or BGR arrays, or files OpenCV reads).
+    flange2base : ndarray, shape (n, 4, 4)
+        Robot flange pose of every image, in the board's length unit.
+    board : Board
+        From `kinecal.vision.boards.parse_board`.
+    names : sequence of str, optional
+        Image names for the result (default: file names or ``image_<i>``).
+    intrinsics : CameraIntrinsics, optional
+        Camera; default: estimated from the accepted images.
+    setup : {"eye-in-hand", "eye-to-hand"}
+    method : str
+        Closed form of the seed (`kinecal.calibration.handeye.METHODS`).
+    refine_intrinsics : bool
+        Refine the intrinsics jointly with X.
+    robot_noise : (float, float), optional
+        Robot pose error std, rotation (rad) and translation (length): model it.
+    robust : bool
+        Robust refinement with outlier stations (default).
+    limits : QualityLimits, optional
+        Per-image quality thresholds.
+    progress : callable, optional
+        Called as ``progress()`` after each image is detected.
+
+    Returns
+    -------
+    ImageHandEyeResult
+
+    Raises
+    ------
+    InputError
+        Count mismatch, fewer than 3 usable images (the reasons summarised), degenerate
+        robot motions, bad intrinsics.
+    """
+    t0 = time.perf_counter()
+    limits = limits or QualityLimits()
+    F = np.asarray(flange2base, dtype=float)
+    if F.ndim != 3 or F.shape[1:] != (4, 4):
+        raise InputError(f"flange2base: expected shape (n, 4, 4), got {F.shape}")
+    if len(images) != len(F):
+        raise InputError(f"{len(images)} images but {len(F)} robot poses: expected one pose "
+                         "per image")
+    if names is None:
+        names = [Path(im).name if isinstance(im, str | Path) else f"image_{i}"
+                 for i, im in enumerate(images)]
+    with diagnostics.collect() as found:
+        if orientation_ambiguous(board):
+            diagnostics.warn("board-symmetric",
+                             f"{board.spec} looks the same turned by 180 deg (inner corner "
+                             "counts both even or both odd): its frame can flip between "
+                             "images; use a board with one even and one odd count, or ChArUco")
+        records, size = _detect_all(images, names, board, limits, progress)
+        intr = _intrinsics(records, board, size, intrinsics)
+        _poses(records, board, intr, limits)
+        used = [k for k, r in enumerate(records) if r.status == "used"]
+        if len(used) < 3:
+            raise InputError(_too_few(records))
+        idx = np.array(used)
+        C = np.array([records[k].pose.target2cam for k in used])
+        seed = calibrate_handeye(F[idx], C, setup=setup, method=method, refine="lm")
+        obj = [records[k].detection.object_points(board) for k in used]
+        pix = [records[k].detection.corners for k in used]
+        ref = refine_reprojection(F[idx], obj, pix, intr.K, intr.dist, seed.X, seed.target,
+                                  setup=setup, refine_intrinsics=refine_intrinsics,
+                                  rational=intr.rational, robot_noise=robot_noise,
+                                  robust=robust)
+        for j, k in enumerate(used):
+            records[k].residuals = ref.residuals[j]
+        for j in ref.outliers:
+            r = records[used[j]]
+            r.status = "outlier"
+            r.reason = (f"station inconsistent with the others: corner RMS "
+                        f"{ref.station_rms[j]:.2f} px vs median "
+                        f"{float(np.median(ref.station_rms)):.2f} px (robot pose or image "
+                        "wrong?)")
+        if refine_intrinsics:
+            intr = CameraIntrinsics(ref.K, ref.dist, intr.size, intr.rms_px,
+                                    intr.source + ", refined with X", intr.per_view_rms,
+                                    intr.rational)
+        _plausibility(ref, records, limits)
+    warnings = [d.to_dict() for d in found]
+    return ImageHandEyeResult(ref.X, ref.Y, setup, method, board, intr, refine_intrinsics,
+                              records, ref, seed, warnings, time.perf_counter() - t0)
+
+
+def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
+                limits: QualityLimits, progress: Callable[..., None] | None
+                ) -> tuple[list[ImageRecord], tuple[int, int] | None]:
+    records: list[ImageRecord] = []
+    size: tuple[int, int] | None = None
+    for name, im in zip(names, images, strict=True):
+        gray = load_gray(im) if isinstance(im, str | Path) else np.asarray(im)
+        if gray is None or gray.size == 0:
+            records.append(ImageRecord(str(name), "rejected", "cannot read the image file"))
+        else:
+            h, w = gray.shape[:2]
+            if size is not None and (w, h) != size:
+                records.append(ImageRecord(str(name), "rejected",
+                                           f"image size {w}x{h} differs from the first image's "
+                                           f"{size[0]}x{size[1]}"))
+            else:
+                size = size or (w, h)
+                det = detect(gray, board, limits)
+                records.append(ImageRecord(str(name), "used" if det.ok else "rejected",
+                                           det.reason, det))
+        if progress is not None:
+            progress()
+    return records, size
+
+
+def _intrinsics(records: list[ImageRecord], board: Board, size: tuple[int, int] | None,
+                given: CameraIntrinsics | None) -> CameraIntrinsics:
+    ok = [r for r in records if r.status == "used"]
+    if given is not None:
+        if given.size is not None and size is not None and tuple(given.size) != size \
+                and given.size != (0, 0):
+            diagnostics.warn("intrinsics-size",
+                             f"the intrinsics are for {given.size[0]}x{given.size[1]} images "
+                             f"but the images are {size[0]}x{size[1]}: wrong camera file or "
+                             "resized images")
+        return given
+    if len(ok) < 3:
+        raise InputError(_too_few(records) + "; estimating the intrinsics needs at least 3 "
+                         "(or pass --intrinsics)")
+    intr = estimate_intrinsics([r.detection.object_points(board) for r in ok],
+                               [r.detection.corners for r in ok], size)
+    if intr.rms_px is not None and intr.rms_px > 1.0:
+        diagnostics.warn("intrinsics-rms",
+                         f"the camera calibration from the images leaves {intr.rms_px:.2f} px "
+                         "RMS: blur, a wrong board size or too few views; pass --intrinsics "
+                         "from a dedicated calibration")
+    return intr
+
+
+def _poses(records: list[ImageRecord], board: Board, intr: CameraIntrinsics,
+           limits: QualityLimits) -> None:
+    ok = [r for r in records if r.status == "used"]
+    for r in ok:
+        try:
+            r.pose = board_pose(r.detection.object_points(board), r.detection.corners,
+                                intr.K, intr.dist)
+        except InputError as exc:
+            r.status, r.reason = "rejected", f"no board pose: {exc.message}"
+            continue
+        if r.pose.tilt_deg > limits.max_tilt_deg:
+            r.status = "rejected"
+            r.reason = (f"too oblique: board tilted {r.pose.tilt_deg:.0f} deg from facing the "
+                        f"camera (> {limits.max_tilt_deg:g} deg)")
+    with_pose = [r for r in ok if r.pose is not None and r.status == "used"]
+    if not with_pose:
+        return
+    med = float(np.median([r.pose.rms_px for r in with_pose]))
+    if med > limits.max_pnp_rms:
+        diagnostics.warn("pnp-rms", f"the board poses fit the corners to {med:.2f} px RMS "
+                         "(median): the intrinsics or the board size are probably wrong")
+        return
+    for r in with_pose:
+        if r.pose.rms_px > max(limits.max_pnp_rms, 5.0 * med):
+            r.status = "rejected"
+            r.reason = (f"corners do not fit a board pose ({r.pose.rms_px:.2f} px RMS): "
+                        "mis-detected or mis-ordered corners")
+
+
+def _too_few(records: list[ImageRecord]) -> str:
+    used = sum(r.status == "used" for r in records)
+    reasons: dict[str, int] = {}
+    for r in records:
+        if r.status == "rejected":
+            key = r.reason.split(":")[0].split(";")[0].split("(")[0].strip()
+            reasons[key] = reasons.get(key, 0) + 1
+    summary = ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items(), key=lambda kv: -kv[1]))
+    return (f"{used} usable image(s) of {len(records)}: hand-eye calibration needs at least 3"
+            + (f" (rejected: {summary})" if summary else ""))
+
+
+def _plausibility(ref: ReprojectionRefinement, records: list[ImageRecord],
+                  limits: QualityLimits) -> None:
+    n = len(records)
+    rej = sum(r.status == "rejected" for r in records)
+    if n and rej > n / 2:
+        diagnostics.warn("images-rejected",
+                         f"{rej} of {n} images rejected: check the --board spec (inner "
+                         "corners for chessboards) and the image quality")
+    if ref.rms_px > 2.0:
+        diagnostics.warn("reprojection-rms",
+                         f"the hand-eye solution reprojects the corners to {ref.rms_px:.2f} px "
+                         "RMS: the robot poses, their unit or frame, the setup or the "
+                         "intrinsics are probably wrong")
+    if ref.outliers and len(ref.outliers) > 0.3 * len(ref.station_rms):
+        diagnostics.warn("many-outliers",
+                         f"{len(ref.outliers)} of {len(ref.station_rms)} stations flagged as "
+                         "outliers: the robot poses may be in another unit, frame or order "
+                         "than the images")
