@@ -12,7 +12,12 @@ with a reason a user can act on:
 - ``too oblique`` is judged later from the board pose (`kinecal.vision.pnp`).
 
 Chessboard corners come from ``cv2.findChessboardCorners`` refined by ``cv2.cornerSubPix``
-with a window of about a third of the corner spacing (at most 11 px). OpenCV may list the
+on the image smoothed by a Gaussian of up to 1.5 px, with a window of 0.9 times the corner
+spacing (half-width at most 15 px). On rendered images both choices lower the corner error
+against OpenCV's customary 11 x 11 window on the raw image: noise-free 0.053 -> 0.021 px
+RMS, with blur and noise 0.042 -> 0.036 px (tests/vision). ChArUco corners from
+``cv2.aruco.CharucoDetector`` are refined again the same way with the window kept inside
+the gap between square corner and marker (noise-free 0.057 -> 0.040 px). OpenCV may list the
 corners starting from either end of the board; `detect` puts them in the board's own order
 by the colour of the square diagonally outside corner 0 (black by the board's definition),
 so that a board turned by 180 deg between images keeps its frame. Boards that look the same
@@ -49,7 +54,8 @@ class QualityLimits:
     max_edge_width : float
         Reject images whose board edges are wider than this (px, 10-90 % rise).
     min_corners : int or None
-        Fewest corners accepted (ChArUco, circles); default ``max(6, n_corners // 4)``.
+        Fewest corners accepted (ChArUco); default 60 % of the board's corners (at least 6):
+        half a board is rejected, a view with a few occluded corners is not.
     border : float
         Reject boards with a corner closer than this to the image border (px).
     max_tilt_deg : float
@@ -68,7 +74,9 @@ class QualityLimits:
 
     def corners_needed(self, board: Board) -> int:
         """The minimum corner count for `board`."""
-        return self.min_corners if self.min_corners is not None else max(6, board.n_corners // 4)
+        if self.min_corners is not None:
+            return int(self.min_corners)
+        return max(6, int(np.ceil(0.6 * board.n_corners)))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able dict."""
@@ -166,11 +174,15 @@ def _spacing(corners: Array, cols: int) -> float:
 
 
 def _subpix(gray: NDArray[np.uint8], corners: Array, spacing: float) -> Array:
+    """``cv2.cornerSubPix`` on the image smoothed by a Gaussian of sigma ``min(1.5,
+    spacing / 12)`` px, window half-width ``0.45 spacing`` (2 to 15 px)."""
     cv2 = require_cv2()
-    half = int(np.clip(round(spacing / 3.0), 2, 11))
-    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-4)
+    half = int(np.clip(np.floor(0.45 * spacing), 2, 15))
+    sigma = min(1.5, spacing / 12.0)
+    img = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), sigma) if sigma >= 0.3 else gray
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
     c = corners.astype(np.float32).reshape(-1, 1, 2)
-    return cv2.cornerSubPix(gray, c, (half, half), (-1, -1), crit).reshape(-1, 2).astype(float)
+    return cv2.cornerSubPix(img, c, (half, half), (-1, -1), crit).reshape(-1, 2).astype(float)
 
 
 def _sample(gray: NDArray[np.uint8], p: Array) -> float:
@@ -198,8 +210,8 @@ def _orient_chessboard(gray: NDArray[np.uint8], corners: Array, board: Chessboar
     return g.reshape(-1, 2)
 
 
-def _detect_chessboard(gray: NDArray[np.uint8], board: Chessboard,
-                       det: Detection) -> Detection:
+def _detect_chessboard(gray: NDArray[np.uint8], board: Chessboard, det: Detection,
+                       limits: QualityLimits) -> Detection:
     cv2 = require_cv2()
     size = (board.cols, board.rows)
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH + cv2.CALIB_CB_NORMALIZE_IMAGE
@@ -210,7 +222,7 @@ def _detect_chessboard(gray: NDArray[np.uint8], board: Chessboard,
         except cv2.error:
             found = False
     if not found:
-        return det.reject(_why_no_chessboard(gray, board))
+        return det.reject(_why_no_chessboard(gray, board, limits))
     c = corners.reshape(-1, 2).astype(float)
     c = _subpix(gray, c, _spacing(c, board.cols))
     det.corners = _orient_chessboard(gray, c, board)
@@ -218,22 +230,20 @@ def _detect_chessboard(gray: NDArray[np.uint8], board: Chessboard,
     return det
 
 
-def _why_no_chessboard(gray: NDArray[np.uint8], board: Chessboard) -> str:
-    """Reason for a failed chessboard detection: a part of the grid found, blur, nothing."""
+def _why_no_chessboard(gray: NDArray[np.uint8], board: Chessboard,
+                       limits: QualityLimits) -> str:
+    """Reason for a failed chessboard detection: blur, a part of the grid found, nothing."""
     cv2 = require_cv2()
     w = edge_width(gray)
-    for sub in ((board.cols, max(2, board.rows // 2)), (max(2, board.cols // 2), board.rows),
-                (max(2, board.cols // 2), max(2, board.rows // 2))):
-        if sub == (board.cols, board.rows) or min(sub) < 2:
-            continue
-        found, _ = cv2.findChessboardCorners(gray, sub, flags=cv2.CALIB_CB_ADAPTIVE_THRESH
-                                             + cv2.CALIB_CB_NORMALIZE_IMAGE)
-        if found:
-            return (f"board partly visible: a {sub[0]}x{sub[1]} part of the {board.cols}x"
-                    f"{board.rows} corner grid found, not all of it (cut by the image border "
-                    "or occluded)")
-    if np.isfinite(w) and w > 4.5:
+    if np.isfinite(w) and w > limits.max_edge_width:
         return f"no board found; the image is blurred (edge width {w:.1f} px)"
+    try:  # any chessboard grid of 3x3 corners or more (sector-based detector, larger allowed)
+        found, _ = cv2.findChessboardCornersSB(gray, (3, 3), flags=cv2.CALIB_CB_LARGER)
+    except cv2.error:
+        found = False
+    if found:
+        return (f"board partly visible: a chessboard grid is seen but not all {board.cols}x"
+                f"{board.rows} inner corners (cut by the image border or occluded)")
     return f"no board found (no {board.cols}x{board.rows} chessboard corner grid)"
 
 
@@ -257,7 +267,19 @@ def _detect_charuco(gray: NDArray[np.uint8], board: Charuco, det: Detection,
     c = corners.reshape(-1, 2).astype(float)
     i = ids.ravel().astype(np.intp)
     order = np.argsort(i)
-    det.corners, det.ids = c[order], i[order]
+    c, i = c[order], i[order]
+    if len(c) >= 2:  # re-refine: smoothed image, window inside the marker-free gap
+        d = np.linalg.norm(c[:, None] - c[None, :], axis=2)
+        np.fill_diagonal(d, np.inf)
+        spacing = float(np.median(d.min(axis=1)))
+        gap = spacing * (board.square - board.marker) / (2.0 * board.square)
+        half = int(np.clip(round(gap), 2, 15))
+        sigma = 1.0 if half >= 3 else 0.7
+        crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
+        smooth = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), sigma)
+        c = cv2.cornerSubPix(smooth, c.astype(np.float32).reshape(-1, 1, 2), (half, half),
+                             (-1, -1), crit).reshape(-1, 2).astype(float)
+    det.corners, det.ids = c, i
     det.partial = n < board.n_corners
     if n < need:
         return det.reject(f"too few corners: {n} of {board.n_corners} found, {need} needed "
@@ -307,7 +329,7 @@ def detect(image: NDArray[Any], board: Board,
     h, w = gray.shape
     det = Detection(True, "", size=(w, h))
     if isinstance(board, Chessboard):
-        det = _detect_chessboard(gray, board, det)
+        det = _detect_chessboard(gray, board, det, limits)
     elif isinstance(board, Charuco):
         det = _detect_charuco(gray, board, det, limits)
     elif isinstance(board, AsymmetricCircleGrid):

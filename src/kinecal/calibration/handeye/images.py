@@ -18,8 +18,8 @@ Residuals are predicted minus observed pixels divided by the corner noise sigma 
 robustly from the residuals). Robust mode: Huber loss per corner (3 sigma) and iteratively
 reweighted stations (Cauchy weights on a station's RMS relative to the median station RMS);
 stations whose RMS exceeds both the chi-square bound of pure corner noise and the robust
-spread of the station RMS values (and 2.5 times their median) are flagged as outliers and
-left out of a final pass.
+spread of the station RMS values (and three times their median, and the median + 0.25 px)
+are flagged as outliers and left out of a final pass.
 
 Every pass is scipy's trust-region least squares with the analytic Jacobian (right
 Jacobians of SO(3); tested against finite differences). The covariance of the parameters
@@ -423,10 +423,11 @@ def refine_reprojection(
 
 def _outlier_stations(srms: Array, counts: Array, sigma: float, level: float) -> Array:
     """Stations beyond the chi-square bound of pure corner noise (2 N_i dof), the robust
-    spread of the station RMS values (median + 5 x 1.4826 MAD) and 2.5 times the median
-    station RMS (corner detection biases of a few hundredths of a pixel are not outliers)."""
+    spread of the station RMS values (median + 5 x 1.4826 MAD), three times the median
+    station RMS and the median + 0.25 px (detection biases of a tenth of a pixel on oblique
+    views are not outliers; a wrong robot pose costs pixels)."""
     dof = 2 * np.maximum(counts, 1)
     chi = np.sqrt(chdtri(dof, 1.0 - level) / dof) * sigma
     med = float(np.median(srms))
     mad = 1.4826 * float(np.median(np.abs(srms - med)))
-    return (srms > chi) & (srms > med + 5.0 * mad) & (srms > 2.5 * med)
+    return (srms > chi) & (srms > med + 5.0 * mad) & (srms > max(3.0 * med, med + 0.25))
