@@ -103,7 +103,14 @@ def _fits(v, *coefs) -> bool:
 def _comb(c, va, s, vb, minus: bool = False):
     """``c va + s vb`` (``c va - s vb`` with `minus`) of two vectors."""
     if _fits(va, c, s) and isinstance(vb, np.ndarray) and va.ndim == vb.ndim:
-        return c * va - s * vb if minus else c * va + s * vb
+        out, t = c * va, s * vb  # new arrays (frames keep references)
+        if out.shape != t.shape:  # (3, P, 1) against (3, P, n): no in-place result
+            return out - t if minus else out + t
+        if minus:
+            out -= t
+        else:
+            out += t
+        return out
     f = _sub if minus else _add
     return _dense([f(_mul(c, va[k]), _mul(s, vb[k])) for k in range(3)])
 
@@ -112,7 +119,11 @@ def _axpy(o, v, u):
     """``o + v u``: the origin moved by `v` along the unit vector `u`."""
     if _fits(u, v):
         if isinstance(o, np.ndarray) and o.ndim == u.ndim:
-            return o + v * u
+            out = v * u
+            if out.shape != np.broadcast_shapes(out.shape, o.shape):
+                return out + o
+            out += o
+            return out
         if not isinstance(o, np.ndarray) and all(_zero(x) for x in o):
             return v * u
     return _dense([_add(o[k], _mul(v, u[k])) for k in range(3)])

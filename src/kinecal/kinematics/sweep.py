@@ -141,6 +141,7 @@ class Sweep:
         p_end = self._origin
         rows = 3 if outputs == "position" else 6
         Jt = np.zeros((cols.size, rows, self.n)) if out is None else out
+        last_o = d = None
         for (u, o), k, is_rot in zip(self.frames, model._motion_index, model._rotation_mask,
                                      strict=True):
             r_ = row_of[k]
@@ -150,13 +151,21 @@ class Sweep:
             if not is_rot:  # a translation moves the point along its axis
                 J[0], J[1], J[2] = u
                 continue
-            d0, d1, d2 = (p_end[i] - o[i] for i in range(3))  # rotation about u through o
-            J[0] = u[1] * d2 - u[2] * d1
-            J[1] = u[2] * d0 - u[0] * d2
-            J[2] = u[0] * d1 - u[1] * d0
+            if o is not last_o:  # rotations keep the origin: consecutive ones share p - o
+                d = [p_end[i] - o[i] for i in range(3)]
+                last_o = o
+            _cross_into(J, u, d)  # a rotation about u through o moves p by u x (p - o)
             if rows == 6:
                 J[3], J[4], J[5] = u
         if model._marker_set is not None:  # tool points per marker: columns masked by marker
             marker = np.zeros(self.n, np.intp) if self.marker is None else self.marker
             model._marker_set.fill_jacobian(Jt, self.frames, row_of, marker)
         return Jt
+
+
+def _cross_into(J: Array, u, d) -> None:
+    """``J[0:3] = u x d`` for coordinate triples (floats or arrays ``(n,)``), written in
+    place (no temporaries for the results)."""
+    for i, (a, b) in enumerate(((1, 2), (2, 0), (0, 1))):
+        np.multiply(u[a], d[b], out=J[i])
+        J[i] -= u[b] * d[a]
