@@ -267,3 +267,30 @@ def test_parse_error_model():
     assert parse_error_model("auto") is None
     with pytest.raises(InputError):
         parse_error_model("harmonic+gears")
+
+
+def test_identifiability_command_covers_joint_errors(tmp_path, capsys):
+    """Geometry first, then the coefficients: what each unidentifiable one equals."""
+    assert main(["identifiability", "ur5", "--data", "ur5-laser-tracker:grid",
+                 "--error-model", "compliance+harmonic", "--harmonics", "1", "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["n_parameters"] == 33 + 27 + 12
+    # a geometric parameter is never displaced by a coefficient
+    assert "theta2" in rep["identifiable"] and "dq2.cos1" in rep["identifiable"]
+    # the load of the elbow frame on joint 2 is its first harmonic: a2 / R of it
+    combo = rep["confounded_with"]["dq2.compliance.link2"]
+    assert list(combo) == ["dq2.cos1"]
+    assert combo["dq2.cos1"] == pytest.approx(425.0 / 1223.579, rel=1e-3)
+    assert rep["confounded_with"]["dq1.compliance.tool"] == {}  # a vertical joint 1
+    assert main(["identifiability", "ur5", "--error-model", "auto"]) == 2
+    assert "--error-model" in capsys.readouterr().err
+
+
+def test_urdf_export_warns_that_joint_errors_are_left_out(tmp_path, capsys):
+    model = extended(load_model("ur5"), ("harmonic",), 1)
+    path = tmp_path / "m.yaml"
+    save_model(model, path)
+    assert main(["export", str(path), "--out", str(tmp_path / "m.urdf")]) == 0
+    assert "[joint-errors-not-exported]" in capsys.readouterr().err
+    assert main(["export", str(path), "--out", str(tmp_path / "s.urdf"), "--strict"]) == 2
+    assert not (tmp_path / "s.urdf").exists()

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.identifiability import (
+    RANK_TOL,
     IdentifiabilityReport,
     conditioning,
     observability_indices,
@@ -36,7 +37,7 @@ from kinecal.data import Measurements
 from kinecal.kinematics.serial import SerialModel
 from kinecal.optimize.factor import gram_root
 
-__all__ = ["CoefficientAnalysis", "correlated_with"]
+__all__ = ["CoefficientAnalysis", "correlated_with", "identifiability_with_terms"]
 
 Array = NDArray[np.float64]
 #: |correlation| from which a free coefficient is reported as correlated with a parameter
@@ -170,3 +171,61 @@ def correlated_with(result, names: Sequence[str], threshold: float = CORRELATION
         if row:
             out[n] = dict(sorted(row.items(), key=lambda kv: -abs(kv[1])))
     return out
+
+
+def identifiability_with_terms(model: SerialModel, data: Measurements,
+                               free: str | Sequence[str] = "all",
+                               error_model: str | None = None, harmonics: int | None = None,
+                               tol: float = RANK_TOL) -> tuple[SerialModel, IdentifiabilityReport]:
+    """The identifiability of a model's geometry and joint-error coefficients on `data`.
+
+    The geometry first (`kinecal.calibration.problem.resolve_free` on the model without
+    its joint errors, `free` choosing the candidates), then the coefficients beyond the
+    identifiable geometry (`CoefficientAnalysis`), at the nominal values. The terms are the
+    model's own (`error_model` None) or those of `error_model` (families, as
+    ``--error-model``; `harmonics` their order, default 2).
+
+    Returns
+    -------
+    model : SerialModel
+        The model with the terms analysed.
+    report : IdentifiabilityReport
+        Over the geometric candidates and every coefficient: rank, identifiable and
+        unidentifiable parameters (with what each is confounded with); condition number,
+        singular values and observability of the whole identifiable set.
+    """
+    import dataclasses
+
+    from kinecal.calibration.error_model import DEFAULT_HARMONICS, parse_error_model
+    from kinecal.calibration.problem import resolve_free
+    from kinecal.errors import InputError
+    from kinecal.kinematics.joint_errors import joint_errors_for
+
+    plain = dataclasses.replace(model, joint_errors=None)
+    if error_model is not None or harmonics is not None:
+        families = parse_error_model(error_model or "harmonic")
+        if families is None:
+            raise InputError("expected joint-error families (compliance, harmonic, scale, "
+                             f"full), got {error_model!r}", option="--error-model")
+        if harmonics is not None and harmonics < 1:
+            raise InputError(f"expected a harmonic order >= 1, got {harmonics}",
+                             option="--harmonics")
+        spec = joint_errors_for(plain, families, harmonics or DEFAULT_HARMONICS,
+                                base=model.joint_errors)
+        model = dataclasses.replace(plain, joint_errors=spec)
+    if model.joint_errors is None:
+        return plain, resolve_free(plain, data, free, tol=tol)[1]
+    n_geo = plain.n_params
+    if not isinstance(free, str):  # explicit names: the geometric ones are the candidates
+        free = [n for n in free if n in plain.parameter_names]
+    _, geo = resolve_free(plain, data, free, tol=tol)
+    coefs = [n for n in model.parameter_names[n_geo:] if n not in model.fixed_names]
+    analysis = CoefficientAnalysis(model, data, geo.identifiable, coefs, model.nominal)
+    rep = analysis.report(coefs, tol)
+    return model, IdentifiabilityReport(
+        names=list(geo.names) + coefs, rank=geo.rank + rep.rank,
+        identifiable=list(geo.identifiable) + rep.identifiable,
+        unidentifiable=list(geo.unidentifiable) + rep.unidentifiable,
+        confounded_with={**geo.confounded_with, **rep.confounded_with},
+        condition_number=rep.condition_number, singular_values=rep.singular_values,
+        observability=rep.observability)

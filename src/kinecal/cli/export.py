@@ -128,6 +128,14 @@ def export(
     check_paths({"SOURCE": source, "--nominal": nominal}, {"--out": out})
     with warnings_scope(strict):
         model, params, urdf = model_and_params(source, nominal, base_link, tip_link)
+        if fmt == "urdf" and model.joint_errors is not None:
+            from kinecal.diagnostics import warn
+
+            warn("joint-errors-not-exported",
+                 f"the model's {len(model.parameter_names) - model._n_geometric} joint-error "
+                 "coefficients (compliance, harmonics, scale) have no URDF equivalent: the "
+                 "URDF carries the geometry only; use the model file (--format yaml) for fk, "
+                 "ik and compensate")
     what = f"model {model.name}" if params is None else f"{source} (calibrated {model.name})"
     if fmt == "urdf":
         comment = f"written by kinecal export from {what}; lengths in metres, angles in radians"

@@ -268,6 +268,11 @@ def identifiability(
     json_out: bool = typer.Option(False, "--json", help="Print JSON."),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
+    error_model: str | None = typer.Option(
+        None, "--error-model", help="Also analyse joint-error terms: compliance, harmonic, "
+        "scale, full or families joined by '+' (default: the model file's joint_errors)."),
+    harmonics: int | None = typer.Option(None, "--harmonics",
+                                         help="Harmonic order (default 2)."),
 ) -> None:
     """Rank, identifiable and unidentifiable parameters, condition number, O1-O5."""
     from kinecal.calibration.diagnostics.serial import check_pose_set
@@ -288,7 +293,14 @@ def identifiability(
                                 bytes_per_item=_POSE_BYTES * (m.n_joints + 10))
             meas = run(m, poses, errors="zero", rng=seed or 0).data
         m = model_for_markers(m, meas.marker_names)  # one tool point per marker measured
-        _, report = resolve_free(m, meas, _free_option(free))
+        if error_model is not None or harmonics is not None or m.joint_errors is not None:
+            from kinecal.calibration.joint_identifiability import identifiability_with_terms
+
+            # the geometry first, then the joint-error coefficients beyond it
+            m, report = identifiability_with_terms(m, meas, _free_option(free), error_model,
+                                                   harmonics)
+        else:
+            _, report = resolve_free(m, meas, _free_option(free))
         if data is not None:
             check_pose_set(m, meas, report)
     if json_out:
