@@ -341,3 +341,29 @@ def test_redundant_urdf_arm_checked_by_pinocchio():
     d_sol = np.linalg.norm(res.q - q0, axis=1)[res.converged]
     d_orig = np.linalg.norm(q - q0, axis=1)[res.converged]
     assert np.median(d_sol / d_orig) <= 1.0
+
+
+class FkOnly:
+    """A model exposing only fk and joint_jacobian (no sweep)."""
+
+    def __init__(self, model):
+        self.m = model
+        for name in ("n_joints", "n_params", "nominal", "parameter_names", "joint_limits",
+                     "length_unit", "is_prismatic", "is_angle", "fk", "joint_jacobian"):
+            setattr(self, name, getattr(model, name))
+
+
+def test_sweep_path_and_fk_jacobian_path_give_the_same_bits():
+    model = load_model("kr6-craig")
+    rng = np.random.default_rng(30)
+    q, q0 = neighbourhood(model, 500, rng)
+    T = model.fk(q)
+    for targets in (T, T[:, :3, 3]):
+        a = solve_ik(model, targets, q0)
+        b = solve_ik(FkOnly(model), targets, q0)
+        np.testing.assert_array_equal(a.q, b.q)
+        np.testing.assert_array_equal(a.status, b.status)
+        np.testing.assert_array_equal(a.iterations, b.iterations)
+    # and a target's answer does not depend on the other targets of the batch
+    one = solve_ik(model, T[7:8], q0[7:8])
+    np.testing.assert_array_equal(one.q[0], solve_ik(model, T, q0).q[7])

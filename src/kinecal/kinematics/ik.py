@@ -3,12 +3,16 @@
 `solve_ik` finds joint values that put the tool of any `SerialModel` (every convention,
 base and tool frames, prismatic joints, fixed frames, nominal or calibrated parameters) at
 given positions (3 DOF) or poses (6 DOF). It uses only the model's public kinematics
-(`SerialModel.fk`, `SerialModel.joint_jacobian`, `joint_limits`, `is_prismatic`), so
-whatever the model adds to them (joint-angle corrections, new conventions) IK inherits.
+(`SerialModel.sweep`, which gives the tool poses and the joint Jacobian of one pass over
+the chain, bit for bit what `SerialModel.fk` and `SerialModel.joint_jacobian` give; any
+other model through its `fk` and `joint_jacobian`; `joint_limits`, `is_prismatic`), so
+whatever the model adds to them (joint-angle corrections, markers, new conventions) IK
+inherits.
 
-All targets are solved at once: every iteration is one batched forward kinematics, one
-batched Jacobian and one batched linear solve over the targets still active, with a
-damping factor, a step acceptance and a stopping decision per target.
+All targets are solved at once: every iteration is one batched pass over the chain (the
+trial poses, and the Jacobians of the accepted steps) and one batched linear solve over
+the targets still active, with a damping factor, a step acceptance and a stopping
+decision per target.
 
 The step (damped least squares, Levenberg-Marquardt on scaled joints)::
 
@@ -21,13 +25,15 @@ vanishes with the error, which keeps the convergence quadratic on reachable targ
 at singular and redundant solutions (Fan and Yuan 2005, "On the quadratic convergence of
 the Levenberg-Marquardt method without nonsingularity assumption", Computing 74; the
 damping of roboticstoolbox's ``ik_LM`` "chan" method grows with the squared error instead).
-``mu`` follows the gain ratio of each step (trust-region rule); a step is accepted only
+``mu`` follows the gain ratio of each step (Nielsen's update); a step is accepted only
 when the true forward kinematics at the new joints has a smaller error. Joint limits are
-kept by projecting every trial onto the limit box.
+kept by projecting every trial onto the limit box; a joint held at a limit whose step
+points outward is frozen and the step recomputed with the others; revolute joints whose
+range spans a full turn wrap instead.
 
 A target is `converged` only when the forward kinematics at the returned joints, evaluated
-afresh, is within `tol_position` (and `tol_rotation` for poses). Everything else is
-reported with its reason (`STATUS`): a stationary point with a remaining error
+afresh after the iterations, is within `tol_position` (and `tol_rotation` for poses).
+Everything else is reported with its reason (`STATUS`): a stationary point with a remaining error
 (``unreachable``: out of reach, or a local minimum from that seed), a joint held at its
 limit (``joint-limit``), or the iteration budget spent (``max-iterations``). Converged
 targets at a configuration whose (scaled) Jacobian has a condition number above

@@ -2,8 +2,8 @@
 
 Batch layout: every array has the targets first; an iteration works on the targets still
 active (index array), with a damping factor, a step acceptance and a stopping decision
-per target. Only the model's public kinematics is used (`fk`, `joint_jacobian`,
-`joint_limits`, `is_prismatic`).
+per target. Only the model's public kinematics is used (`sweep`, or `fk` and
+`joint_jacobian`; `joint_limits`, `is_prismatic`).
 """
 
 from __future__ import annotations
