@@ -256,3 +256,21 @@ def test_report_section_shows_the_compensation_of_the_validation_poses(study, tm
     assert not found
     html = res.report(tmp_path / "r.html").read_text()
     assert '<section id="compensation">' in html
+
+
+def test_long_programs_in_blocks_give_the_same_bits(monkeypatch):
+    import kinecal.calibration.compensate as comp
+
+    model = load_model("ur5")
+    rng = np.random.default_rng(12)
+    params = model.nominal + np.where(model.is_angle(), 1e-3, 0.3) * rng.normal(
+        size=model.n_params)
+    q = random_configurations(model, 45, rng) * 0.7
+    one = compensate(params, model, joints=q, diagnose=False)
+    calls = []
+    monkeypatch.setattr(comp, "BLOCK", 10)
+    blocks = compensate(params, model, joints=q, diagnose=False,
+                        progress=lambda done, total: calls.append((done, total)))
+    assert calls == [(10, 45), (20, 45), (30, 45), (40, 45), (45, 45)]
+    for f in ("q", "converged", "status", "correction", "residual"):
+        np.testing.assert_array_equal(getattr(blocks, f), getattr(one, f))

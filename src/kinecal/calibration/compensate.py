@@ -29,7 +29,7 @@ poses do not live.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -54,6 +54,8 @@ Array = NDArray[np.float64]
 #: calibrated base this far from nominal (fraction of the arm's length, rad): warn
 BASE_FAR_LENGTH = 0.05
 BASE_FAR_ANGLE = 0.1
+#: rows solved together (bounds the memory of very long programs)
+BLOCK = 20_000
 
 
 @dataclass(frozen=True)
@@ -256,6 +258,7 @@ def compensate(
     restarts: int = 10,
     rng: int | np.random.Generator | None = 0,
     diagnose: bool = True,
+    progress: Any = None,
     **ik_options: Any,
 ) -> CompensationResult:
     """Compensate a joint program or Cartesian targets with a calibrated model.
@@ -293,6 +296,10 @@ def compensate(
         Report rows that did not converge, near-singular rows and the other findings
         through `kinecal.diagnostics.warn` (False: only in the result, e.g. for a report
         section that shows the counts itself).
+    progress : callable, optional
+        ``progress(rows_done, rows_total)`` after every block of `BLOCK` rows (long
+        programs are solved block by block; every row's answer is the same as in one
+        batch).
     **ik_options
         Passed to `kinecal.kinematics.ik.solve_ik` (``tol_position``, ``tol_rotation``,
         ``max_iterations``, ``singular_threshold``, ``rotation_weight``).
@@ -343,14 +350,15 @@ def compensate(
                 "no-seed-joints",
                 "targets without seed joints: the solver chose each target's configuration "
                 "(elbow, wrist); give seed joints (q1..qn columns) to keep the robot's own")
-            first = solve_ik(nom, intended, None, restarts=restarts, rng=rng, **ik_options)
+            first = _blocks(nom, intended, None, None, dict(ik_options, restarts=restarts,
+                                                            rng=rng))
         else:
             q0 = _joints(nom, seeds, "seed joints", warn)
             if q0.shape[0] != intended.shape[0]:
                 raise InputError(f"{q0.shape[0]} seed rows for {intended.shape[0]} targets")
-            first = solve_ik(nom, intended, q0, **ik_options)
+            first = _blocks(nom, intended, q0, None, ik_options)
         q_nom, nominal_ok = first.q, first.converged
-    res = solve_ik(cal, intended, q_nom, **ik_options)
+    res = _blocks(cal, intended, q_nom, progress, ik_options)
     filtered_T = nom.fk(res.q)
     filtered = filtered_T if outputs == "pose" else filtered_T[:, :3, 3]
     corr, corr_rot = _errors(intended, filtered_T)
@@ -364,6 +372,28 @@ def compensate(
     if diagnose:
         _warn_rows(out)
     return out
+
+
+def _blocks(model: SerialModel, targets: Array, q0: Array | None, progress: Any,
+            options: dict) -> IKResult:
+    """`solve_ik` over blocks of `BLOCK` rows (bounded memory, progress), concatenated."""
+    n = targets.shape[0]
+    if n <= BLOCK:
+        out = solve_ik(model, targets, q0, **options)
+        if progress is not None:
+            progress(n, n)
+        return out
+    parts = []
+    for start in range(0, n, BLOCK):
+        sl = slice(start, min(start + BLOCK, n))
+        parts.append(solve_ik(model, targets[sl], None if q0 is None else q0[sl], **options))
+        if progress is not None:
+            progress(sl.stop, n)
+    first = parts[0]
+    arrays = {f: np.concatenate([getattr(p, f) for p in parts]) for f in (
+        "q", "converged", "status", "position_error", "rotation_error", "iterations",
+        "condition", "restarts")}
+    return replace(first, **arrays)
 
 
 def _silent(code: str, message: str) -> None:

@@ -20,6 +20,7 @@ from kinecal.cli._common import (
     base_link_option,
     check_paths,
     echo_json,
+    progress,
     quiet_option,
     resolve_data_path,
     strict_option,
@@ -170,7 +171,8 @@ def _bool(v: np.ndarray) -> list[str]:
 @app.command("compensate")
 def compensate_cmd(
     calibrated: str = typer.Argument(..., help="Calibrated model (YAML from calibrate "
-                                     "--model-out) or calibration result JSON."),
+                                     "--model-out, or a calibrated URDF from export) or "
+                                     "calibration result JSON."),
     program: str = typer.Argument(..., help="Program CSV: joints q1..qn, or targets x,y,z"
                                   "[,qw,qx,qy,qz] with optional seed joints q1..qn."),
     nominal: str | None = typer.Option(None, "--nominal", help="The model the controller runs "
@@ -204,15 +206,23 @@ def compensate_cmd(
         joints = [f"q{i}" for i in range(1, nom.n_joints + 1)]
         outputs = "position" if position_only else None
         q_file = np.column_stack([table[c] for c in joints]) if joints[0] in table else None
-        if "x" in table:
-            xyz = np.column_stack([table[c] for c in "xyz"])
-            targets = (np.column_stack([xyz] + [table[c] for c in QUATERNION])
-                       if "qw" in table else xyz)
-            seeds = None if q_file is None else q_file * scale
-            res = compensate(cal, nom, targets=targets, seeds=seeds, outputs=outputs,
-                             base=base)
-        else:
-            res = compensate(cal, nom, joints=q_file * scale, outputs=outputs, base=base)
+        with progress(f"compensate {len(cells)} rows", len(cells), quiet or json_out) as bar:
+            done = [0]
+
+            def step(rows: int, total: int) -> None:
+                bar(rows - done[0])
+                done[0] = rows
+
+            if "x" in table:
+                xyz = np.column_stack([table[c] for c in "xyz"])
+                targets = (np.column_stack([xyz] + [table[c] for c in QUATERNION])
+                           if "qw" in table else xyz)
+                seeds = None if q_file is None else q_file * scale
+                res = compensate(cal, nom, targets=targets, seeds=seeds, outputs=outputs,
+                                 base=base, progress=step)
+            else:
+                res = compensate(cal, nom, joints=q_file * scale, outputs=outputs, base=base,
+                                 progress=step)
         extra = _columns(res, nom, joints)
         write_program(out, header, cells, {c: res.q[:, k] / scale[k]
                                            for k, c in enumerate(joints)}, extra)
