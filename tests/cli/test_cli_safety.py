@@ -138,6 +138,10 @@ CASES = [
                                                    "{d}/cmm.yaml"], "also the input GEOMETRY"),
     ("reproduce-report-is-result", ["reproduce", "liu2008", "--quick", "--out", "{d}/rep",
                                     "--report", "{d}/rep/result.json"], "also given to"),
+    ("compensate-out-is-program", ["compensate", "{d}/irb120.yaml", "{d}/joints.csv", "--out",
+                                   "{d}/joints.csv"], "also the input PROGRAM"),
+    ("export-out-is-source", ["export", "{d}/irb120.yaml", "--format", "yaml", "--out",
+                              "{d}/irb120.yaml"], "also the input SOURCE"),
     ("batch-result-on-jobs-file", ["batch", "{d}/jobs.json", "--out", "{d}"],
      "is the jobs file"),
     ("batch-summary-on-data", ["batch", "{d}/jobs_summary.yaml", "--out", "{d}"],
@@ -254,6 +258,14 @@ CASES = [
                                  "consecutive"], "option --pairs"),
     ("stewart-fk-all-with-pso", ["stewart", "fk", "liu2008-cmm", "{d}/stewart.csv", "--all",
                                  "--method", "pso"], "option --method"),
+    ("harmonics-without-harmonic-model", ["calibrate", "irb120", "{d}/meas.csv",
+                                          "--harmonics", "3"], "option --harmonics"),
+    ("harmonics-with-compliance", ["calibrate", "irb120", "{d}/meas.csv", "--error-model",
+                                   "compliance", "--harmonics", "3"], "option --harmonics"),
+    ("folds-without-auto", ["calibrate", "irb120", "{d}/meas.csv", "--error-model",
+                            "harmonic", "--folds", "5"], "option --folds"),
+    ("batch-too-many-workers", ["batch", "{d}/jobs_ok.yaml", "--out", "{d}/b", "--workers",
+                                "100000"], "option --workers"),
     ("batch-workers-with-scheduler", ["batch", "{d}/jobs_ok.yaml", "--out", "{d}/b",
                                       "--executor", "dask", "--scheduler",
                                       "tcp://127.0.0.1:1", "--workers", "2"],
@@ -284,7 +296,7 @@ def test_every_writing_command_is_covered():
     covered = {c[1][0] if c[1][0] != "stewart" else "stewart " + c[1][1] for c in CASES
                if "also" in c[2] or "jobs file" in c[2] or "data file" in c[2]}
     assert {"calibrate", "simulate", "select-poses", "handeye", "stewart simulate",
-            "stewart calibrate", "reproduce", "batch"} <= covered
+            "stewart calibrate", "reproduce", "batch", "compensate", "export"} <= covered
 
 
 def test_output_through_a_link_to_a_device_is_written_in_place(tmp_path, capsys):

@@ -76,3 +76,25 @@ def check_method_options(method: str, *, loss: str = "linear", f_scale: float | 
             raise InputError(f"{_WHO[option]}, not to method {method}", option=label[option])
     if f_scale is not None and loss == "linear":
         raise InputError(_WHO["f_scale"], option=label["f_scale"])
+
+
+def check_error_model_options(error_model: str | None, *, harmonics: int | None = None,
+                              folds: int | None = None) -> None:
+    """Refuse ``--harmonics`` and ``--folds`` where the error model would not use them.
+
+    ``--harmonics`` sets the order of an explicit harmonic family (``harmonic``, ``full``,
+    ``...+harmonic``) or the largest order ``auto`` tries; ``--folds`` the cross-validation
+    of ``auto``. Without ``--error-model`` the model file's own terms are used as they are.
+    """
+    from kinecal.calibration.error_model import parse_error_model
+
+    if folds is not None and error_model != "auto":
+        raise InputError("cross-validation folds apply to --error-model auto only",
+                         option="--folds")
+    if harmonics is not None:
+        families = None if error_model is None else parse_error_model(error_model)
+        if error_model != "auto" and (families is None or "harmonic" not in families):
+            raise InputError("a harmonic order applies to --error-model auto, full or one "
+                             "with the harmonic family, not to "
+                             f"{error_model or 'the model file default'}",
+                             option="--harmonics")

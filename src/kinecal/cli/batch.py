@@ -3,15 +3,20 @@
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import typer
 
+from kinecal._limits import check_count
 from kinecal.cli._app import app
 from kinecal.errors import InputError
 
 #: print every job's row up to this many jobs (the CSV always has them all)
 MAX_PRINTED_ROWS = 40
+#: memory of one worker process (numpy, scipy and kinecal imported: 75 MB measured, with a
+#: margin for a job's arrays)
+WORKER_BYTES = 200e6
 
 
 def _row_text(rec) -> str:
@@ -57,6 +62,12 @@ def batch(
     if workers is not None and workers < 1:
         raise InputError(f"expected a positive number of workers, got {workers}",
                          option="--workers")
+    if workers is not None and workers > 4 * (os.cpu_count() or 1):
+        raise InputError(f"{workers} worker processes for {os.cpu_count()} CPUs: the jobs are "
+                         f"CPU-bound, more than {4 * (os.cpu_count() or 1)} only compete for "
+                         "the cores", option="--workers")
+    if workers is not None:  # each worker process holds numpy, scipy and a job's arrays
+        check_count(workers, "--workers", bytes_per_item=WORKER_BYTES, what="worker processes")
     if workers is not None and scheduler is not None:
         raise InputError("the workers of a running Dask cluster are the scheduler's; "
                          "--workers applies to a local pool or a local Dask cluster",

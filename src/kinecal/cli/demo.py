@@ -56,8 +56,9 @@ def run_demo(out: Path, quiet: bool = False) -> tuple[object, list[Path], tuple,
     from kinecal.io.measurements import read_measurements
     from kinecal.io.models import load_model
 
-    check_paths({}, {}, folders={"--out": (out, ["result.json", f"{DEMO_MODEL}-calibrated.yaml",
-                                                  "report.html"])})
+    check_paths({}, {}, folders={"--out": (out, [
+        "result.json", f"{DEMO_MODEL}-calibrated.yaml", "report.html", "compensated.csv",
+        *(f"{kind}.png" for kind in ("errors", "validation", "histogram", "convergence"))])})
     with progress("demo: calibrate ur5 on laser-tracker data", 4, quiet) as update:
         model = load_model(DEMO_MODEL)
         data = read_measurements(DEMO_DATA, model)

@@ -9,7 +9,7 @@ import numpy as np
 import typer
 
 from kinecal._limits import check_count, check_finite
-from kinecal.calibration.method_options import check_method_options
+from kinecal.calibration.method_options import check_error_model_options, check_method_options
 from kinecal.cli._app import app
 from kinecal.cli._common import (
     MODEL_HELP,
@@ -344,7 +344,8 @@ def calibrate(
         "(default: the model file's joint_errors, else geometric). See docs/error-models.md."),
     harmonics: int | None = typer.Option(
         None, "--harmonics", help="Harmonic order (default 2; auto tries 1..3)."),
-    folds: int = typer.Option(10, "--folds", help="Cross-validation folds (--error-model auto)."),
+    folds: int | None = typer.Option(None, "--folds", help="Cross-validation folds "
+                                     "(--error-model auto; default 10)."),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given)."""
     from kinecal.calibration.serial import CALIBRATION_METHODS
@@ -363,6 +364,7 @@ def calibrate(
     check_finite(target, "--target")
     check_finite(rotation_weight, "--rotation-weight", positive=True)
     check_method_options(method, loss=loss, maxiter=maxiter, target=target)
+    check_error_model_options(error_model, harmonics=harmonics, folds=folds)
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
         meas = read_measurements(resolve_data_path(data, "DATA"), m)
@@ -384,7 +386,8 @@ def calibrate(
                 from kinecal.calibration.error_model import calibrate_error_model
 
                 res = calibrate_error_model(m, meas, error_model or "model", method=method,
-                                            harmonics=harmonics, folds=folds, **kw)
+                                            harmonics=harmonics, **kw,
+                                            **({} if folds is None else {"folds": folds}))
         res.warnings = list(found)  # the readers' warnings as well as the calibration's
         result = with_warnings(res.to_dict(), found)
         if out is not None:
