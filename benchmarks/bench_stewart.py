@@ -1,4 +1,4 @@
-"""Stewart-platform CMM (papers/004): batch Newton FK vs per-row scipy, PSO vs Newton.
+"""Stewart-platform CMM (Liu, Liu and Wei 2008): batch Newton FK vs per-row scipy, PSO vs Newton.
 
 Run ``python benchmarks/bench_stewart.py [--quick]``. One core (BLAS threads pinned to 1).
 Speeds are printed as ratios against peers timed in the same process:
@@ -138,7 +138,7 @@ def main() -> None:
     print(f"  speed ratio kinecal / least_squares: {b['ratio']:7.0f}x, / fsolve: "
           f"{b['fsolve_ratio']:.0f}x")
     p = bench_pso(geom, seeds)
-    print(f"PSO (papers/004 Table 1) vs Newton on the Table 3 legs, {p['seeds']} seeds")
+    print(f"PSO (Liu, Liu and Wei 2008, Table 1) vs Newton on the Table 3 legs, {p['seeds']} seeds")
     print(f"  PSO: {p['success']}/{p['seeds']} within 0.5 um, median {p['iterations_median']:.0f} "
           f"generations, {p['pso_s'] * 1e3:.1f} ms per solve")  # fmt: skip
     print(f"  Newton: {p['newton_s'] * 1e6:.0f} us per solve (single reading)")

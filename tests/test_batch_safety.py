@@ -42,7 +42,7 @@ def test_resume_recomputes_jobs_whose_inputs_changed(tmp_path):
                                        encoding="utf-8")
     doc = {"jobs": [{"name": "a", "model": "irb120", "data": "a.csv"},
                     {"name": "b", "model": "irb120", "data": "b.csv"},
-                    {"name": "c", "model": "arm.yaml", "poses": 15}]}
+                    {"name": "c", "model": "arm.yaml", "poses": 25}]}
     jobs = parse_jobs(doc, tmp_path)
     with ThreadPoolExecutor(2) as ex:
         assert _statuses(run_batch(jobs, tmp_path / "out", executor=ex)) == ["done"] * 3

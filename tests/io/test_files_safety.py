@@ -121,7 +121,7 @@ def test_recursive_alias_and_deep_nesting_are_input_errors():
     with pytest.raises(InputError, match="refers to itself"):
         load_yaml("a: &a [1, *a]\n")
     with pytest.raises(InputError, match="nested too deeply"):
-        load_yaml("a: " + "[" * 50000 + "]" * 50000)
+        load_yaml("a: " + "[" * 3000 + "]" * 3000)
     with pytest.raises(InputError, match="not valid YAML"):
         load_yaml("\x1f")
 

@@ -31,5 +31,5 @@ def test_reproduce_report_of_liu2008(tmp_path):
     for row in result["rows"]:
         assert f"<td class=\"l\">{row['quantity']}</td>" in text
         assert f"{row['newton']:.10g}" in text
-    assert "papers/004 Table 3" in text  # the experiment's own rendering
+    assert "Liu, Liu and Wei (2008), Table 3" in text  # the experiment's own rendering
     assert "pso.history_first_seed" in text  # its convergence curve

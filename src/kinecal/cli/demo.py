@@ -58,6 +58,7 @@ def run_demo(out: Path, quiet: bool = False) -> tuple[object, list[Path], tuple,
 
     check_paths({}, {}, folders={"--out": (out, [
         "result.json", f"{DEMO_MODEL}-calibrated.yaml", "report.html", "compensated.csv",
+        "error-model.json", f"{DEMO_MODEL}-calibrated-auto.yaml", "report-error-model.html",
         *(f"{kind}.png" for kind in ("errors", "validation", "histogram", "convergence"))])})
     with progress("demo: calibrate ur5 on laser-tracker data", 4, quiet) as update:
         model = load_model(DEMO_MODEL)

@@ -1,4 +1,5 @@
-"""``kinecal handeye`` and ``kinecal handeye-poses`` (DESIGN sec. 4, paper 001)."""
+"""``kinecal handeye`` and ``kinecal handeye-poses`` (DESIGN sec. 4; Li, Xiao, Lai and Hu
+(2024))."""
 
 from __future__ import annotations
 
@@ -171,12 +172,14 @@ def handeye_poses(
                                    "target centre."),
     radius: float = typer.Option(..., "--radius", help="Circumradius r of the star polygon."),
     count: int = typer.Option(..., "--count", help="Number of poses N (>= 3)."),
-    scheme: str = typer.Option("star", "--scheme", help="star (paper 001 sec. 3) or random."),
+    scheme: str = typer.Option("star", "--scheme", help="star (Li, Xiao, Lai and Hu 2024, "
+                               "sec. 3) or random."),
     seed: int = seed_option("Random seed (scheme random; an integer >= 0)."),
     out: Path = typer.Option(..., "--out", help="Output CSV: camera_* (cam2target) and "
                              "target_* (target2cam) poses."),
 ) -> None:
-    """Plan hand-eye camera poses: the star-polygon scheme of paper 001, or random."""
+    """Plan hand-eye camera poses: the star-polygon scheme of Li, Xiao, Lai and Hu (2024), or
+    random."""
     from kinecal.calibration.poses import random_poses, star_polygon_poses
     from kinecal.io.csvtable import write_table
     from kinecal.io.handeye import pose_columns

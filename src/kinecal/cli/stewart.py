@@ -1,4 +1,4 @@
-"""``kinecal stewart ik|fk|simulate|calibrate``: the parallel-link CMM of papers/004.
+"""``kinecal stewart ik|fk|simulate|calibrate``: the parallel-link CMM of Liu, Liu and Wei (2008).
 
 Poses CSV: ``x,y,z,alpha,beta,gamma`` (probe tip, length unit of the geometry, angles in
 degrees, R = Rz(gamma) Ry(beta) Rx(alpha)); legs CSV: ``l1..l6``; calibration data CSV:

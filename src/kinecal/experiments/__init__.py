@@ -15,12 +15,12 @@ from types import ModuleType
 
 __all__ = ["PAPERS", "experiment_module"]
 
-#: paper id -> (module, source file in ../shared/papers)
+#: paper id -> (module, the paper as output and docs name it: authors, year)
 PAPERS: dict[str, tuple[str, str]] = {
-    "hu2005": ("kinecal.experiments.hu2005", "papers/000"),
-    "li2024": ("kinecal.experiments.li2024", "papers/001"),
-    "zhao-yang": ("kinecal.experiments.zhao_yang", "papers/002"),
-    "liu2008": ("kinecal.experiments.liu2008", "papers/004"),
+    "hu2005": ("kinecal.experiments.hu2005", "Hu, Xiao and Li (2005)"),
+    "li2024": ("kinecal.experiments.li2024", "Li, Xiao, Lai and Hu (2024)"),
+    "zhao-yang": ("kinecal.experiments.zhao_yang", "Zhao and Yang"),
+    "liu2008": ("kinecal.experiments.liu2008", "Liu, Liu and Wei (2008)"),
 }
 
 

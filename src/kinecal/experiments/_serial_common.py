@@ -1,4 +1,4 @@
-"""Helpers shared by the serial-arm paper reproductions (papers/000 and papers/002).
+"""Helpers shared by the serial-arm paper reproductions (Hu, Xiao and Li 2005 and Zhao and Yang).
 
 Rows of the ``kinecal reproduce`` JSON, error statistics, checkpoints of a convergence
 history, text tables and the convergence figure (PNG, written atomically).
@@ -33,7 +33,7 @@ Array = NDArray[np.float64]
 def checkpoints(
     history: Sequence[float], iterations: Sequence[int], finished: bool = True
 ) -> dict[str, float | None]:
-    """Best mean error at the paper's iteration numbers (papers/000 Table 2).
+    """Best mean error at the paper's iteration numbers (Hu, Xiao and Li 2005, Table 2).
 
     The paper counts the start as iteration 1 (its least-squares row begins with the nominal
     error 25.0 mm, the GA's with the best initial individual), so paper iteration ``k`` is
@@ -166,7 +166,7 @@ def write_convergence_png(
         evaluations, spread evenly over the iterations (exact for the GA's fixed L per
         generation, an average for the fish swarms).
     hline : float, optional
-        A threshold drawn as a dashed line (papers/000's eps).
+        A threshold drawn as a dashed line (Hu, Xiao and Li 2005's eps).
     """
     import matplotlib
 

@@ -1,6 +1,6 @@
-"""``kinecal reproduce hu2005``: papers/000 (Hu, Xiao, Li 2005), LS + GA hybrid calibration.
+"""``kinecal reproduce hu2005``: Hu, Xiao and Li (2005), LS + GA hybrid calibration.
 
-The six-joint articulated-arm scanner of papers/000 Table 1 (bundled model
+The six-joint articulated-arm scanner of Hu, Xiao and Li (2005), Table 1 (bundled model
 ``hu2005-scanner`` with its true errors ``hu2005-scanner.truth.json``) is calibrated from
 simulated probe positions with the three methods of Table 2 and kinecal's default:
 
@@ -31,7 +31,7 @@ with every joint uniform in [-180, 180] deg, noise-free probe positions of the t
 (the paper's GA reaches 0.094 mm, which rules out measurement noise of that order); 100
 further random poses are held out for validation. ``--quick`` uses 20 + 50 poses and small
 generation budgets. The full run adds the GA and LM on 10 calibration poses (the count
-used by papers/000's reference [2]) to show fitting without finding the geometry.
+used by Hu, Xiao and Li (2005)'s reference [2]) to show fitting without finding the geometry.
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ from kinecal.optimize.lsq import householder_gauss_newton
 
 __all__ = ["PAPER", "paper_name", "render", "run"]
 
-#: papers/000 Table 2 (mean distance error in mm at the given iteration) and sec. 5
+#: Hu, Xiao and Li (2005), Table 2 (mean distance error in mm at the given iteration) and sec. 5
 PAPER: dict[str, Any] = {
     "table2": {
         "householder": {1: 25.0143, 2: 2.0588, 3: 1.52944, 4: 0.91343, 5: 0.91343,
@@ -83,7 +83,7 @@ SIZES = {
 
 
 def paper_name(name: str) -> str:
-    """Paper 000's name of a kinecal parameter: its d_i are our a_i, its h_i our d_i."""
+    """The paper's name of a kinecal parameter: its d_i are our a_i, its h_i our d_i."""
     if name == "tool.z":
         return "h7"
     if name[0] == "a" and name[1:].isdigit():
@@ -161,7 +161,8 @@ EXPECTED = ("unidentifiable-free", "few-poses")
 
 def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
         quiet: bool = True) -> dict[str, Any]:
-    """Run the papers/000 experiment (see `_run`), the paper's setup diagnostics expected."""
+    """Run the experiment of Hu, Xiao and Li (2005) (see `_run`), the paper's setup
+    diagnostics expected."""
     with diagnostics.expect(*EXPECTED) as seen:
         result = _run(quick, seed, out_dir, quiet)
     result["expected_warnings"] = sorted({d.code for d in seen})
@@ -170,7 +171,7 @@ def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
 
 def _run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
          quiet: bool = True) -> dict[str, Any]:
-    """Run the papers/000 experiment; see the module docstring.
+    """Run the Hu, Xiao and Li (2005) experiment; see the module docstring.
 
     Returns
     -------
@@ -246,7 +247,7 @@ def _run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
         name = _label(rows[-1]) + (", GA generations" if extra else "")
         curves[name], evals[name] = hist, tg.evaluations
 
-    # 3c. full mode: the GA on 10 calibration poses (the count of papers/000's ref. [2]):
+    # 3c. full mode: the GA on 10 calibration poses (the count of the paper's ref. [2]):
     # it fits them to eps but the geometry it finds is not the true one
     if not quick:
         cal10 = simulate(model, 10, errors=truth - model.nominal, rng=rng).data
@@ -265,7 +266,7 @@ def _run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
     rep = lm.identifiability
     result: dict[str, Any] = {
         "paper": "hu2005",
-        "source": "papers/000",
+        "source": "Hu, Xiao and Li (2005)",
         "units": "mm",
         "identifiable": list(lm.free),
         "unidentifiable": list(rep.unidentifiable),
@@ -274,7 +275,7 @@ def _run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
         "parameters": len(model.calibratable),
         "setup": {
             "model": "hu2005-scanner",
-            "truth": "hu2005-scanner.truth.json (papers/000 Table 1)",
+            "truth": "hu2005-scanner.truth.json (Hu, Xiao and Li 2005, Table 1)",
             "calibration_poses": size["n_cal"],
             "validation_poses": size["n_val"],
             "poses": "every joint uniform in [-180, 180] deg, noise-free",
@@ -292,7 +293,7 @@ def _run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
     if out_dir is not None:
         png = write_convergence_png(
             Path(out_dir) / "hu2005-convergence.png", curves,
-            "papers/000 scanner: mean distance error", evaluations=evals,
+            "Hu, Xiao and Li (2005) scanner: mean distance error", evaluations=evals,
             hline=PAPER["eps_mm"])
         result["figure"] = str(png)
     return result
@@ -314,7 +315,7 @@ def render(result: dict[str, Any]) -> str:
     """Table 2 beside ours, then the summary table with validation errors."""
     setup = result["setup"]
     out = [
-        "papers/000 (Hu, Xiao, Li 2005): scanner of Table 1, "
+        "Hu, Xiao and Li (2005): scanner of Table 1, "
         f"{setup['calibration_poses']} calibration + {setup['validation_poses']} validation "
         f"poses ({setup['poses']}); errors in mm",
         f"identifiable: {result['rank']} of {result['parameters']} parameters; not separable: "

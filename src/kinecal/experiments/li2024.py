@@ -1,4 +1,4 @@
-"""Reproduction of paper 001 (Li, Xiao, Lai, Hu 2024): ``kinecal reproduce li2024``.
+"""Reproduction of Li, Xiao, Lai and Hu (2024): ``kinecal reproduce li2024``.
 
 Synthetic eye-in-hand set-up in millimetres; the paper's experiments are on a real robot
 whose noise it does not state, so kinecal simulates one (`NOISE_MODEL`) and compares the
@@ -40,7 +40,7 @@ from kinecal.spatial import (
 __all__ = ["NOISE_MODEL", "assemble", "experiment1", "refinement", "render", "run", "sweeps"]
 
 PAPER = "li2024"
-SOURCE = "papers/001"
+SOURCE = "Li, Xiao, Lai and Hu (2024)"
 NOISE_MODEL = (
     "target2cam perturbed by a rotation vector with N(0, 0.1 deg) per component and a "
     "translation with N(0, 0.5 mm) per component (target frame); flange2base by N(0, 0.02 "
@@ -159,7 +159,7 @@ def refinement(trials: int, rng: np.random.Generator, maxiter: int) -> dict[str,
 
 
 def _fitness(G: np.ndarray, C: np.ndarray, X: np.ndarray) -> float:
-    """Paper 001's fitness (`refine_meta.axxb_fitness`, consecutive pairs) of one X."""
+    """The paper's fitness (`refine_meta.axxb_fitness`, consecutive pairs) of one X."""
     from kinecal.calibration.handeye._motions import motion_pairs
     from kinecal.calibration.handeye.refine_meta import axxb_fitness
     from kinecal.spatial import quaternion_from_matrix
@@ -220,7 +220,7 @@ def _save(fig, path: Path, writer) -> str:
 
 def run(quick: bool = False, seed: int = 0, out_dir: str | Path | None = None,
         quiet: bool = True) -> dict[str, Any]:
-    """Run experiments 1-4 and the refinement comparison of paper 001.
+    """Run experiments 1-4 and the refinement comparison of Li, Xiao, Lai and Hu (2024).
 
     Parameters
     ----------

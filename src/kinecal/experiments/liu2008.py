@@ -1,4 +1,4 @@
-"""``kinecal reproduce liu2008``: papers/004 (Liu, Liu, Wei 2008), parallel-link CMM.
+"""``kinecal reproduce liu2008``: Liu, Liu and Wei (2008), parallel-link CMM.
 
 Reproduces Table 3 (probe pose from the legs 0.750 ... 0.850 m of the Table 2 machine)
 with the exact Newton solver and with the paper's PSO (Table 1 settings, several seeds:
@@ -19,7 +19,7 @@ from kinecal.kinematics.stewart import StewartPlatform, degrees_to_radians, radi
 
 __all__ = ["PAPER", "render", "run"]
 
-#: papers/004 Table 3 and sec. 4
+#: Liu, Liu and Wei (2008), Table 3 and sec. 4
 PAPER = {
     "legs": [0.750, 0.780, 0.800, 0.900, 0.870, 0.850],
     "pose": [0.039860, 0.095930, 0.925235, -12.697325, 6.403095, 15.133206],
@@ -97,7 +97,7 @@ def _calibration_study(geom: StewartPlatform, seed: int, n_val: int) -> dict:
 def run(
     quick: bool = False, seed: int = 0, out_dir: str | Path | None = None, quiet: bool = True
 ) -> dict:
-    """Run the papers/004 experiment (quick: 10 PSO seeds, 200 round-trip poses).
+    """Run the Liu, Liu and Wei (2008) experiment (quick: 10 PSO seeds, 200 round-trip poses).
 
     Returns
     -------
@@ -140,7 +140,7 @@ def run(
     printed = degrees_to_radians(PAPER["pose"])
     result = {
         "paper": "liu2008",
-        "source": "papers/004 Table 3",
+        "source": "Liu, Liu and Wei (2008), Table 3",
         "units": "m and deg",
         "legs": PAPER["legs"],
         "rows": rows,
@@ -194,10 +194,10 @@ def _figure(result: dict, out: Path) -> None:
     h = np.maximum(np.array(result["pso"]["history_first_seed"]), 1e-16)
     fig, ax = plt.subplots(figsize=(5, 3.2))
     ax.semilogy(np.arange(h.size), h * 1e6)
-    ax.axhline(0.5, ls="--", color="gray", label="0.5 um (papers/004)")
+    ax.axhline(0.5, ls="--", color="gray", label="0.5 um (Liu, Liu and Wei 2008)")
     ax.set_xlabel("generation")
     ax.set_ylabel("eq. 6: sum |l_i - l'_i| [um]")
-    ax.set_title("PSO on the Table 3 legs (cf. papers/004 Fig. 4b)")
+    ax.set_title("PSO on the Table 3 legs (cf. Liu, Liu and Wei (2008), Fig. 4b)")
     ax.legend()
     fig.tight_layout()
     with atomic_open(out / "liu2008_pso.png", "wb", encoding=None) as fh:
@@ -208,7 +208,8 @@ def _figure(result: dict, out: Path) -> None:
 def render(result: dict) -> str:
     """Table 3 beside kinecal's newton and PSO, then the PSO statistics and the extras."""
     lines = [
-        "papers/004 Table 3: legs " + ", ".join(f"{v:.3f}" for v in result["legs"]) + " m",
+        "Liu, Liu and Wei (2008), Table 3: legs "
+        + ", ".join(f"{v:.3f}" for v in result["legs"]) + " m",
         f"{'':12s} {'paper':>14s} {'newton':>16s} {'pso (seed)':>16s} {'newton-paper':>13s}",
     ]
     for r in result["rows"]:

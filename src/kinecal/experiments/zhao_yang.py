@@ -1,18 +1,18 @@
-"""``kinecal reproduce zhao-yang``: papers/002 (Zhao, Yang), fish-swarm calibration of an IRB-120.
+"""``kinecal reproduce zhao-yang``: Zhao and Yang, fish-swarm calibration of an IRB-120.
 
-The bundled ``irb120`` model (Hayati modified D-H, papers/002 eq. 1: theta, d, a, alpha per
+The bundled ``irb120`` model (Hayati modified D-H, Zhao and Yang, eq. 1: theta, d, a, alpha per
 joint plus beta2 for the parallel axes 2-3, 25 parameters) is calibrated from simulated
 base-frame positions:
 
-1. identifiability (papers/002 sec. 1.1): pivoted QR of the 25-column identification
+1. identifiability (Zhao and Yang, sec. 1.1): pivoted QR of the 25-column identification
    Jacobian keeps 20 parameters; ours are listed beside the paper's (theta1-5, d1, d3-d6,
    a1-a4, a6, alpha1-4, beta2), and the rank of the paper's set on the same poses is
    checked (both are bases of the same identifiable space when it is 20);
 2. true errors uniform in two settings: the paper's +-0.25 mm / +-0.05 rad (sec. 2) and a
    realistic +-0.1 mm / +-0.002 rad; the metaheuristics search the same box around nominal;
-3. AFSA vs SA-IAFSA (papers/002 sec. 1.3; N = 100 fish, 200 iterations) on the 20
+3. AFSA vs SA-IAFSA (Zhao and Yang, sec. 1.3; N = 100 fish, 200 iterations) on the 20
    identifiable parameters, cost = mean distance error, plus the hybrid (least squares,
-   then SA-IAFSA in the 1/3 box, papers/000 sec. 4.2) and Levenberg-Marquardt, over
+   then SA-IAFSA in the 1/3 box, Hu, Xiao and Li (2005), sec. 4.2) and Levenberg-Marquardt, over
    several seeds: before/after mean, std and max distance error (the paper's Table 4
    quantities) and the improvement of the mean (paper: 38.96 %).
 
@@ -50,12 +50,12 @@ from kinecal.io.models import load_model
 
 __all__ = ["PAPER", "PAPER_IDENTIFIABLE", "SETTINGS", "render", "run"]
 
-#: papers/002 sec. 1.1: the 20 parameters left by QR
+#: Zhao and Yang, sec. 1.1: the 20 parameters left by QR
 PAPER_IDENTIFIABLE: tuple[str, ...] = (
     "theta1", "theta2", "theta3", "theta4", "theta5", "d1", "d3", "d4", "d5", "d6",
     "a1", "a2", "a3", "a4", "a6", "alpha1", "alpha2", "alpha3", "alpha4", "beta2",
 )
-#: papers/002 sec. 2-3
+#: Zhao and Yang, sec. 2-3
 PAPER: dict[str, Any] = {"improvement_percent": 38.96, "fish": 100, "iterations": 200,
                          "identifiable": 20, "parameters": 25}
 #: error settings: half-widths of the uniform true errors and of the search box (mm, rad)
@@ -154,7 +154,7 @@ def _aggregate(method: str, setting: str, runs: list[dict]) -> dict[str, Any]:
 
 def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
         quiet: bool = True) -> dict[str, Any]:
-    """Run the papers/002 experiment; see the module docstring.
+    """Run the Zhao and Yang experiment; see the module docstring.
 
     Returns
     -------
@@ -162,7 +162,7 @@ def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
         ``{"paper": "zhao-yang", "identifiable", "paper_identifiable", "rows", ...}``; one row
         per (setting, method), averaged over the seeds, errors in mm: ``calibration_mean`` /
         ``validation_mean`` after calibration, ``before`` / ``after`` ``{mean, std, max}``
-        (papers/002 Table 4), ``improvement_percent`` and ``per_seed``.
+        (Zhao and Yang, Table 4), ``improvement_percent`` and ``per_seed``.
     """
     size = SIZES["quick" if quick else "full"]
     base = load_model("irb120")
@@ -176,7 +176,7 @@ def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
         runs = [_one_seed(model, s, k, size, quiet) for s in seeds]
         for method in METHODS:
             rows.append(_aggregate(method, setting, runs))
-        # per seed: does SA-IAFSA end below plain AFSA (papers/002 Table 4's claim)?
+        # per seed: does SA-IAFSA end below plain AFSA (Zhao and Yang, Table 4's claim)?
         wins = sum(r["methods"]["sa-iafsa"]["calibration"]["after"]["mean"]
                    < r["methods"]["afsa"]["calibration"]["after"]["mean"] for r in runs)
         rows[-len(METHODS) + METHODS.index("sa-iafsa")]["seeds_better_than_afsa"] = int(wins)
@@ -190,7 +190,7 @@ def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
             ident_info["per_seed_identifiable"] = [len(r["identifiable"]) for r in runs]
     result: dict[str, Any] = {
         "paper": "zhao-yang",
-        "source": "papers/002",
+        "source": "Zhao and Yang",
         "units": "mm",
         **ident_info,
         "setup": {
@@ -209,7 +209,7 @@ def run(quick: bool = False, seed: int = 0, out_dir: Path | None = None,
     }
     if out_dir is not None:
         png = write_convergence_png(Path(out_dir) / "zhao-yang-convergence.png", curves,
-                                    f"papers/002 IRB-120: mean distance error, seed {seed}",
+                                    f"Zhao and Yang IRB-120: mean distance error, seed {seed}",
                                     evaluations=evals)
         result["figure"] = str(png)
     return result
@@ -239,7 +239,7 @@ def render(result: dict[str, Any]) -> str:
     """Identifiable set beside the paper's, then Table 4 quantities per setting and method."""
     setup = result["setup"]
     out = [
-        f"papers/002 (Zhao, Yang): IRB-120 Hayati model, {setup['calibration_poses']} "
+        f"Zhao and Yang: IRB-120 Hayati model, {setup['calibration_poses']} "
         f"calibration + {setup['validation_poses']} validation poses, seeds {setup['seeds']}, "
         f"{setup['fish']} fish x {setup['iterations']} iterations; errors in mm",
         f"identifiable by QR: {result['rank']} of {result['parameters']}: "

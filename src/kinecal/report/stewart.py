@@ -47,7 +47,8 @@ def stewart_report(result: Any, path: str | Path) -> Path:
     legs = table(["poses", "n", f"mean |r| [{u}]", f"rms [{u}]", f"std [{u}]", f"max [{u}]"],
                  rows)
     legs += ("<p>Leg residual: reading predicted by the geometry's inverse kinematics from the "
-             "measured pose minus the reading (papers/004 eq. 4-5), every leg of every pose.</p>")
+             "measured pose minus the reading (Liu, Liu and Wei 2008, eq. 4-5), every leg of "
+             "every pose.</p>")
     prow = []
     for n, a, b, s in zip(PARAMETER_NAMES, result.nominal.parameters,
                           result.geometry.parameters, result.std, strict=True):

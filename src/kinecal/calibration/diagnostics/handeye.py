@@ -232,4 +232,4 @@ def check_handeye_conditioning(unc: XUncertainty | None, G: Array, unit: str = "
          f"certain along ({d[0]:+.2f}, {d[1]:+.2f}, {d[2]:+.2f}) than along its best direction "
          f"(1 sigma {unc.translation:.3g}{u}, rotation {unc.rotation_deg:.3g} deg); the robot's "
          f"rotation axes spread over only {axis_spread_deg(G):.2g} deg: add stations that turn "
-         "about other axes (paper 001's star scheme, kinecal handeye-poses)")
+         "about other axes (the star scheme of Li, Xiao, Lai and Hu 2024: kinecal handeye-poses)")
