@@ -277,3 +277,14 @@ def test_helpers_on_known_answers():
     assert chi3_outliers(d) == []
     d[17] = 20.0
     assert chi3_outliers(d) == [17]
+
+
+def test_simulate_with_absolute_values_instead_of_deviations():
+    m = kinecal.load_model("irb120")
+    sim = simulate(m, 5, errors="random", rng=0)
+    with diagnostics.collect() as found:
+        simulate(m, 5, errors=sim.true_params - m.nominal, rng=0)  # deviations: fine
+        assert found == []
+        simulate(m, 5, errors=sim.true_params, rng=0)  # absolute values by mistake
+    assert codes(found) == ["absolute-errors"]
+    assert "true_params - model.nominal" in found[0].message

@@ -105,8 +105,11 @@ def simulate(
     n_poses : int
         Number of poses (ignored when `q` is given).
     errors : {"zero", "random"} or ndarray (n_params,) or dict
-        True deviations from nominal: none, uniform within the model's tolerances on the
-        calibratable parameters, or given (vector, or ``{name: value}`` in length unit / rad).
+        True **deviations** from nominal (not absolute values: ``true_params - nominal``):
+        none, uniform within the model's tolerances on the calibratable parameters, or
+        given (vector, or ``{name: value}`` in length unit / rad). Absolute parameter values
+        passed by mistake (the arm would be twice its size) raise the ``absolute-errors``
+        warning.
     noise : float
         Standard deviation of the Gaussian noise added to each coordinate (length unit).
     rng : int or Generator, optional
@@ -147,6 +150,10 @@ def simulate(
             raise InputError(f"errors: expected {model.n_params} values, got {e.shape}")
     if not angle_noise >= 0:
         raise InputError(f"angle noise: expected >= 0, got {angle_noise}", option="--angle-noise")
+    if not isinstance(errors, str):
+        from kinecal.calibration.diagnostics.simulate import check_absolute_errors
+
+        check_absolute_errors(model, e)
     true_params = model.nominal + e
     if model.marker_names and marker is None:
         n_markers = len(model.marker_names)

@@ -28,4 +28,8 @@ CODES: dict[str, str] = {
     "residual-offset": "the residual holds an offset a free base frame would take",
     "lack-of-fit": "the residual is far above the repeatability of repeated poses",
     "outliers": "poses whose error is far outside the others' spread",
+    "leg-range": "Stewart leg readings outside the geometry's leg range",
+    "angle-units": "Stewart pose angles that look like radians",
+    "handeye-conditioning": "hand-eye motions too close to one rotation axis for the noise",
+    "absolute-errors": "simulate(errors=...) got absolute parameter values, not deviations",
 }
