@@ -142,7 +142,7 @@ def test_another_arm_is_refused_and_a_far_base_warned():
     with pytest.raises(InputError, match="same arm"):
         compensate(load_model("puma560"), ur5, joints=q)  # dh, 6 joints: other values
     p = ur5.nominal
-    p[ur5.index(["a2"])] += 100.0  # 100 mm: not a calibration
+    p[ur5.index(["a2"])] += 300.0  # 300 mm: not a calibration
     with pytest.raises(InputError, match="tool points differ by up to"):
         compensate(ur5.with_params(p), ur5, joints=q)
     with pytest.raises(InputError, match="nominal"):

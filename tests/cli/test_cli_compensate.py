@@ -278,3 +278,30 @@ def test_urdf_arm_calibrated_exported_and_compensated(tmp_path, capsys):
     np.testing.assert_allclose(q2, qc, atol=1e-9)
     assert main(["compensate", "ur5-nothing.yaml", str(prog), "--base-link", "x",
                  "--out", str(out)]) == 2
+
+
+def test_the_readme_tutorial_steps(tmp_path, capsys, monkeypatch):
+    """README steps 3-4: the IRB-120 simulated inside its wide tolerance box (errors up to
+    2.9 deg per angle, ~35 mm), calibrated, then its program compensated."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "irb120", "--poses", "60", "--noise", "0.01", "--seed", "1",
+                 "--out", "meas.csv", "--truth-out", "truth.json"]) == 0
+    assert main(["calibrate", "irb120", "meas.csv", "--out", "result.json", "--model-out",
+                 "irb120-calibrated.yaml", "--quiet"]) == 0
+    (tmp_path / "program.csv").write_text(
+        "q1,q2,q3,q4,q5,q6\n0,0,0,0,30,0\n10,20,-30,40,50,60\n-45,10,20,-60,45,90\n")
+    capsys.readouterr()
+    assert main(["compensate", "irb120-calibrated.yaml", "program.csv", "--out",
+                 "program-compensated.csv"]) == 0
+    text = capsys.readouterr().out
+    assert "compensated 3 joint-program rows (pose): 3 converged" in text
+    (tmp_path / "points.csv").write_text("x,y,z\n450,0,550\n400,150,500\n")
+    assert main(["compensate", "result.json", "points.csv", "--out",
+                 "points-compensated.csv"]) == 0
+    assert "2 converged" in capsys.readouterr().out
+    model = load_model("irb120")
+    true = read_truth(tmp_path / "truth.json", model)
+    c = _read(tmp_path / "points-compensated.csv")
+    qc = np.radians([[float(c[f"q{i}"][r]) for i in range(1, 7)] for r in range(2)])
+    np.testing.assert_allclose(model.positions(qc, true), [[450, 0, 550], [400, 150, 500]],
+                               atol=0.05)  # the true arm: within the calibration's accuracy

@@ -5,8 +5,8 @@ kind), and tool poses that agree over the workspace once the calibrated model is
 registered onto the nominal one by the rigid transform that fits them best. That works
 across conventions (a D-H nominal model and its calibrated URDF export), with extra fixed
 frames and with joint-error terms, and it separates what a calibration changes (a few
-millimetres and tenths of a degree over the workspace) from another arm (centimetres to
-metres). The same registration tells how far the calibrated base frame is from the
+millimetres and tenths of a degree over the workspace) from another arm (more than 15 %
+of its size). The same registration tells how far the calibrated base frame is from the
 nominal one, and moves it there when the program's frame is the robot's own
 (``base="nominal"`` in `kinecal.calibration.compensate`).
 """
@@ -43,8 +43,11 @@ __all__ = [
 Array = NDArray[np.float64]
 
 #: largest tool-point distance after registration (fraction of the nominal arm's
-#: characteristic length) and tool-frame angle (rad) of a calibration of the same arm
-SAME_ARM_LENGTH = 0.05
+#: characteristic length, the sum of its link lengths) and tool-frame angle (rad) of a
+#: calibration of the same arm: the tutorial's IRB-120, whose true errors come from paper
+#: 002's wide tolerance box (up to 2.9 deg per angle), is off by up to 5 %; real arms by
+#: well under 1 %
+SAME_ARM_LENGTH = 0.15
 SAME_ARM_ANGLE = 0.35
 #: configurations compared (fixed seed: the check is deterministic)
 SAMPLES = 256
