@@ -21,6 +21,8 @@ _LAZY = {
     "Measurements": "kinecal.data",
     "simulate": "kinecal.calibration.simulate",
     "calibrate": "kinecal.calibration.serial",
+    "calibrate_error_model": "kinecal.calibration.error_model",
+    "JointErrors": "kinecal.kinematics.joint_errors",
     "CalibrationResult": "kinecal.calibration.result",
     "StewartPlatform": "kinecal.kinematics.stewart",
     "load_geometry": "kinecal.io.geometry",

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from kinecal.calibration.cross_validation import FoldedRows, one_standard_error
+from kinecal.calibration.diagnostics import CODES
 from kinecal.calibration.identifiability import IdentifiabilityReport
 from kinecal.calibration.joint_identifiability import CoefficientAnalysis, correlated_with
 from kinecal.calibration.result import CalibrationResult
@@ -54,6 +55,10 @@ ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto", 
 DEFAULT_HARMONICS = 2
 AUTO_HARMONICS = 3
 MAX_HARMONICS = 12
+#: diagnostics on a fit's residual (`kinecal.calibration.diagnostics`): those of the
+#: geometric stage are not reported when a joint-error model is chosen
+FIT_CODES = frozenset(("outliers", "lack-of-fit", "residual-offset", "parameter-tolerance",
+                       "unidentifiable-free"))
 #: default number of cross-validation folds
 DEFAULT_FOLDS = 10
 #: the methods that fit joint-error terms (the metaheuristics search a box of geometric
@@ -185,9 +190,12 @@ def calibrate_error_model(
         union_spec = joint_errors_for(plain, FAMILIES if auto else families, order,
                                       base=model.joint_errors)
     union = _with_terms(model, union_spec)
-    # 1. the geometry, as `calibrate` identifies it (coefficients held at their values)
-    geo = calibrate(plain, data, method, free=free, validate=validate, rank_tol=rank_tol,
-                    rotation_weight=rotation_weight, **kwargs)
+    # 1. the geometry, as `calibrate` identifies it (coefficients held at their values);
+    # its findings on the fit (outliers, lack of fit: what the joint errors may explain)
+    # belong to the final model's fit, which reports its own
+    with expect(*CODES) as geo_seen:
+        geo = calibrate(plain, data, method, free=free, validate=validate, rank_tol=rank_tol,
+                        rotation_weight=rotation_weight, **kwargs)
     n_geo = plain.n_params
     params = np.r_[geo.params, union.nominal[n_geo:]]
     coef_names = [n for n in union.parameter_names[n_geo:] if n not in model.fixed_names]
@@ -218,10 +226,13 @@ def calibrate_error_model(
                           "cv_mean": sc.mean, "cv_se": sc.se,
                           "best": i == best, "chosen": i == pick})
         chosen, chosen_order = cands[pick][1], cands[pick][2]
-        if not chosen:
+        if not chosen:  # the geometric calibration is the result: its findings too
+            for d in geo_seen:
+                warn(d.code, d.message)
+            geo.warnings = list(dict.fromkeys([*geo.warnings, *geo_seen]))
             geo.seconds = time.perf_counter() - t0
             geo.extra["error_model"] = _choice(error_model, "geometric", folds, table, geo)
-            return geo
+            return ErrorModelResult.of(geo, geo, data)
         final_spec = joint_errors_for(plain, chosen, chosen_order, base=model.joint_errors)
     # 3. the chosen model: geometry and identifiable coefficients together
     final_model = _with_terms(model, final_spec)
@@ -238,8 +249,12 @@ def calibrate_error_model(
         # discarded fit's warning about it is not the user's concern)
         late = [n for n in res.identifiability.unidentifiable if n in coefficients]
         if not late:
-            for d in seen:  # what remains is
+            # what remains is the user's, and so are the geometric stage's findings on the
+            # data (not those on its fit, which the joint errors may have removed)
+            data_findings = [d for d in geo_seen if d.code not in FIT_CODES]
+            for d in [*seen, *data_findings]:
                 warn(d.code, d.message)
+            res.warnings = list(dict.fromkeys([*res.warnings, *seen, *data_findings]))
             break
         ident = dataclasses.replace(
             ident, rank=ident.rank - len(late),
@@ -279,6 +294,11 @@ class ErrorModelResult(CalibrationResult):
         """`result` with its geometric calibration and the measured positions."""
         fields = {f.name: getattr(result, f.name) for f in dataclasses.fields(result)}
         return cls(**fields, geometric=geometric, measured_xyz=np.asarray(data.xyz))
+
+    def summary(self) -> str:
+        """`CalibrationResult.summary` and the error model: the choice, its
+        cross-validation table (``auto``), the step from the geometric calibration."""
+        return super().summary() + error_model_text(self)
 
 
 def _terms_entry(res: CalibrationResult, ident: IdentifiabilityReport) -> dict:
@@ -361,7 +381,7 @@ def error_model_text(result: CalibrationResult) -> str:
     if not info:
         return ""
     unit = result.nominal_model.length_unit
-    lines = ["", f"error model: {info['requested']} -> {info['selected']}"]
+    lines = ["", "", f"error model: {info['requested']} -> {info['selected']}"]
     if info.get("candidates"):
         lines[-1] += (f" ({info['folds']}-fold cross-validation on the calibration poses, "
                       f"{info['rule']} rule)")

@@ -114,7 +114,7 @@ def demo(
 
     typer.echo("\nbeyond geometry (--error-model auto): joint compliance, harmonic transmission "
                "errors and encoder scale, chosen on the calibration poses only"
-               + error_model_text(auto))
+               + error_model_text(auto)[1:])
     typer.echo("\n" + comp_text)
     typer.echo(f"\nwrote {len(written)} files to {out}/:")
     for path in written:

@@ -399,9 +399,7 @@ def calibrate(
     if json_out:
         echo_json(result)
     elif not quiet:
-        from kinecal.calibration.error_model import error_model_text
-
-        typer.echo(res.summary() + error_model_text(res))
+        typer.echo(res.summary())
 
 
 @app.command("select-poses")

@@ -208,7 +208,8 @@ def error_model_section(result: Any) -> list[str]:
     out = [section("error-model", "Error model", body)]
     geometric = getattr(result, "geometric", None)
     xyz = getattr(result, "measured_xyz", None)
-    if geometric is not None and xyz is not None and result.q_calibration is not None:
+    if (geometric is not None and xyz is not None and result.q_calibration is not None
+            and result.nominal_model.joint_errors is not None):
         fig = plot_residual_maps(ResidualMaps.from_result(result, geometric, xyz))
         caption = ("Distance error of the calibration poses against the tool's horizontal "
                    "reach and each joint angle (dots: poses; lines: means in 12 bins). Top: "
