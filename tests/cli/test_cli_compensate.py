@@ -193,6 +193,12 @@ def test_another_arm_and_bad_input_exit_2(calibrated, program, tmp_path, capsys)
     assert main(["compensate", str(calibrated / "ur5-cal.yaml"), str(bad), "--out",
                  str(out)]) == 2
     assert "row 2" in capsys.readouterr().err
+    quat = _write(tmp_path / "quat.csv", ["x", "y", "z", "qw", "qx", "qy", "qz"],
+                  [[400, 0, 500, 1, 0, 0, 0], [400, 0, 500, 0.5, 0, 0, 0]])
+    assert main(["compensate", str(calibrated / "ur5-cal.yaml"), str(quat), "--out",
+                 str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "quat.csv, row 2" in err and "unit quaternion" in err
     five = _write(tmp_path / "five.csv", ["q1", "q2", "q3", "q4", "q5"], [[0] * 5])
     assert main(["compensate", str(calibrated / "ur5-cal.yaml"), str(five), "--out",
                  str(out)]) == 2

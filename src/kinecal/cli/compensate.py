@@ -213,16 +213,21 @@ def compensate_cmd(
                 bar(rows - done[0])
                 done[0] = rows
 
-            if "x" in table:
-                xyz = np.column_stack([table[c] for c in "xyz"])
-                targets = (np.column_stack([xyz] + [table[c] for c in QUATERNION])
-                           if "qw" in table else xyz)
-                seeds = None if q_file is None else q_file * scale
-                res = compensate(cal, nom, targets=targets, seeds=seeds, outputs=outputs,
-                                 base=base, progress=step)
-            else:
-                res = compensate(cal, nom, joints=q_file * scale, outputs=outputs, base=base,
-                                 progress=step)
+            try:
+                if "x" in table:
+                    xyz = np.column_stack([table[c] for c in "xyz"])
+                    targets = (np.column_stack([xyz] + [table[c] for c in QUATERNION])
+                               if "qw" in table else xyz)
+                    seeds = None if q_file is None else q_file * scale
+                    res = compensate(cal, nom, targets=targets, seeds=seeds, outputs=outputs,
+                                     base=base, progress=step)
+                else:
+                    res = compensate(cal, nom, joints=q_file * scale, outputs=outputs,
+                                     base=base, progress=step)
+            except InputError as exc:  # a row of the program: name the file
+                if exc.row is None or exc.file is not None:
+                    raise
+                raise InputError(exc.message, file=path, row=exc.row) from None
         extra = _columns(res, nom, joints)
         write_program(out, header, cells, {c: res.q[:, k] / scale[k]
                                            for k, c in enumerate(joints)}, extra)
