@@ -85,7 +85,8 @@ def _per_pose(ax: Any, before: NDArray, after: NDArray, unit: str, title: str) -
         ax.bar(idx - 0.2, before, width=0.4, color=_BEFORE, label="before")
         ax.bar(idx + 0.2, after, width=0.4, color=_AFTER, label="after")
         ax.set_xlim(0.4, n + 0.6)
-        ax.set_ylim(bottom=0.0)
+        top = float(np.concatenate([before, after]).max(initial=0.0))
+        ax.set_ylim(0.0, 1.25 * top if top > 0 else 1.0)  # room for the legend
         ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
         ax.set_xlabel("pose")
         ax.set_ylabel(f"position error [{unit}]")
@@ -102,7 +103,7 @@ def _per_pose(ax: Any, before: NDArray, after: NDArray, unit: str, title: str) -
         ax.set_ylabel(f"position error [{unit}]")
         ax.grid(True, which="both", alpha=0.3)
     ax.set_title(title)
-    ax.legend(loc="upper right")
+    ax.legend(loc="upper right", ncol=2)
 
 
 def _histogram(ax: Any, before: NDArray, after: NDArray, unit: str) -> None:
