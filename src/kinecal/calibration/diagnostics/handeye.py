@@ -55,11 +55,13 @@ class XUncertainty:
     Attributes
     ----------
     rotation_deg : float
-        Standard deviation of X's rotation along its worst axis (deg).
+        RMS error of X's rotation, ``sqrt(trace)`` of its covariance (deg, 1 sigma).
     translation : float
-        Standard deviation of X's translation along its worst direction (length unit).
+        RMS error of X's translation, ``sqrt(trace)`` of its covariance (length unit).
     weak_direction : ndarray, shape (3,)
-        That direction (unit vector in X's frame).
+        The direction in which the translation is least certain (unit vector).
+    weak_translation : float
+        Standard deviation of the translation along it (length unit).
     anisotropy : float
         Worst over best standard deviation of the translation (1 when isotropic).
     rotation_anisotropy : float
@@ -69,6 +71,7 @@ class XUncertainty:
     rotation_deg: float
     translation: float
     weak_direction: Array
+    weak_translation: float
     anisotropy: float
     rotation_anisotropy: float
 
@@ -199,8 +202,8 @@ def handeye_uncertainty(G: Array, C: Array, X: Array, Y: Array,
     def ratio(w: Array) -> float:
         return float(np.sqrt(w[-1] / w[0])) if w[0] > 0 else float("inf")
 
-    return XUncertainty(float(np.degrees(np.sqrt(wr[-1]))), float(np.sqrt(wt[-1])), vt[:, -1],
-                        ratio(wt), ratio(wr))
+    return XUncertainty(float(np.degrees(np.sqrt(wr.sum()))), float(np.sqrt(wt.sum())),
+                        vt[:, -1], float(np.sqrt(wt[-1])), ratio(wt), ratio(wr))
 
 
 def axis_spread_deg(G: Array) -> float:
@@ -230,6 +233,7 @@ def check_handeye_conditioning(unc: XUncertainty | None, G: Array, unit: str = "
     warn("handeye-conditioning",
          f"AX = XB is ill-conditioned: X's translation is {unc.anisotropy:.0f} times less "
          f"certain along ({d[0]:+.2f}, {d[1]:+.2f}, {d[2]:+.2f}) than along its best direction "
-         f"(1 sigma {unc.translation:.3g}{u}, rotation {unc.rotation_deg:.3g} deg); the robot's "
+         f"(1 sigma {unc.weak_translation:.3g}{u} along it, rotation {unc.rotation_deg:.3g} deg);"
+         " the robot's "
          f"rotation axes spread over only {axis_spread_deg(G):.2g} deg: add stations that turn "
          "about other axes (the star scheme of Li, Xiao, Lai and Hu 2024: kinecal handeye-poses)")
