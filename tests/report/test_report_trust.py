@@ -2,6 +2,7 @@
 percentile, the correlation matrix, units in the confounding table."""
 
 import dataclasses
+import math
 import re
 
 import numpy as np
@@ -39,7 +40,7 @@ def test_per_axis_errors_percentile_and_correlations(ur5_result, tmp_path):
     assert fmt(axes["z"]["rms"]) in text
     assert '<section id="correlation">' in text
     cells = re.findall(r'<td style="background:[^"]+;font-size:.75em">([+-][0-9.]+)</td>', text)
-    k = int(round(np.sqrt(len(cells))))
+    k = math.isqrt(len(cells))
     R = np.array([float(c) for c in cells]).reshape(k, k)
     np.testing.assert_allclose(np.diag(R), 1.0)
     np.testing.assert_allclose(R, R.T)
