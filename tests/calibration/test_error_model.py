@@ -294,3 +294,52 @@ def test_urdf_export_warns_that_joint_errors_are_left_out(tmp_path, capsys):
     assert "[joint-errors-not-exported]" in capsys.readouterr().err
     assert main(["export", str(path), "--out", str(tmp_path / "s.urdf"), "--strict"]) == 2
     assert not (tmp_path / "s.urdf").exists()
+
+
+def test_mass_model_compliance_from_the_model_file_is_recovered(ur5, tmp_path):
+    """A model file with link masses: one compliance per joint, fitted as the file says."""
+    from kinecal.kinematics.joint_errors import JointErrors, PointMass
+
+    spec = JointErrors(compliance=(2, 3, 4), harmonics=1, harmonic_joints=(2,),
+                       masses=(PointMass(2, 8.4, (212.5, 0.0, 113.4)),
+                               PointMass(3, 2.3, (119.9, 0.0, 26.5)),
+                               PointMass(4, 1.2, (0.0, 0.0, 0.0))),
+                       payload=PointMass(6, 1.5, None))
+    model = dataclasses.replace(ur5, joint_errors=spec)
+    path = tmp_path / "ur5-masses.yaml"
+    save_model(model, path)
+    model = load_model(path)
+    assert model.parameter_names[ur5.n_params:] == (
+        "dq2.compliance", "dq3.compliance", "dq4.compliance", "dq2.sin1", "dq2.cos1")
+    e = np.zeros(model.n_params)
+    e[:ur5.n_params] = simulate(ur5, 1, errors="random", rng=16).true_params - ur5.nominal
+    e[ur5.n_params:] = [3e-5, -2e-5, 4e-5, 2e-4, -1e-4]  # rad per kg at the lever
+    e[model.index(["theta1", "d1", "d2", "d3", "theta5", "alpha5", "theta6", "d6", "a6",
+                   "alpha6"])] = 0.0  # not identifiable with the base frame free
+    sim = simulate(model, 200, errors=e, rng=17)
+    res = calibrate_error_model(model, sim.data, "model")
+    assert res.extra["error_model"]["selected"] == "model"
+    coef = model.index(list(model.parameter_names[ur5.n_params:]))
+    assert set(model.parameter_names[ur5.n_params:]) <= set(res.free)
+    W = model._joint_terms.basis(sim.data.q)  # each coefficient as a joint deflection
+    rms = np.sqrt((W ** 2).mean(axis=0))
+    assert (np.abs(res.params[coef] - sim.true_params[coef]) * rms).max() < 1e-9
+    assert res.errors_after.max() < 1e-9
+
+
+def test_auto_with_few_poses_never_chooses_what_a_fold_cannot_fit(ur5):
+    model = extended(ur5, ("harmonic",), 1)
+    e = np.zeros(model.n_params)
+    e[model.index(["dq2.sin1", "dq3.cos1"])] = [3e-4, -2e-4]
+    with expect("few-poses", "rank-deficient"):
+        sim = simulate(model, 15, errors=e, noise=0.01, rng=1)
+        res = calibrate_error_model(ur5, sim.data, "auto")
+    table = res.extra["error_model"]["candidates"]
+    train_rows = 3 * (15 - 2)  # 10 folds of 15 poses: at most 2 held out
+    for row in table:
+        assert (row["cv_mean"] is None) == (row["parameters"] > train_rows)
+    chosen = next(r for r in table if r["chosen"])
+    assert chosen["cv_mean"] is not None and "harmonic1" in chosen["model"]
+    with expect("few-poses", "rank-deficient", "too-few-poses"):
+        tiny = calibrate_error_model(ur5, sim.data.subset(np.arange(9)), "auto")
+    assert tiny.extra["error_model"]["folds"] == 9  # leave-one-out

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from kinecal.calibration.cross_validation import FoldedRows, one_standard_error
+from kinecal.calibration.cross_validation import CVScore, FoldedRows, one_standard_error
 from kinecal.calibration.diagnostics import CODES
 from kinecal.calibration.error_model_result import ErrorModelResult, error_model_text
 from kinecal.calibration.identifiability import IdentifiabilityReport
@@ -210,7 +210,8 @@ def calibrate_error_model(
         # and the identifiability of every coefficient; each candidate is scored by K-fold
         # cross-validation, the one-standard-error rule chooses
         cols = list(geo.free) + coef_names
-        folded = FoldedRows(union, data, params, union.index(cols), folds, rw)
+        k = min(folds, len(data))  # few poses: leave-one-out
+        folded = FoldedRows(union, data, params, union.index(cols), k, rw)
         analysis = CoefficientAnalysis(union, data, geo.free, coef_names, params, rw,
                                        gram=folded.total, positions=folded.positions)
         cands = candidates(order)
@@ -220,11 +221,18 @@ def calibrate_error_model(
         sizes = [len(s_) for s_ in sets]
         pos = {n: i for i, n in enumerate(cols)}
         scores = folded.scores([[pos[n] for n in s_] for s_ in sets])
+        # a candidate with more parameters than a fold's training rows is not fitted by
+        # the fold: it cannot be chosen (the geometric model always can)
+        train_rows = folded.rows.rows * (len(data) - int(np.bincount(folded.folds).max()))
+        scores = [sc if i == 0 or sizes[i] <= train_rows else
+                  CVScore(float("inf"), float("inf"), sc.fold_means)
+                  for i, sc in enumerate(scores)]
         best, pick = one_standard_error(scores, sizes)
         for i, ((label, _, _), sc) in enumerate(zip(cands, scores, strict=True)):
             table.append({"model": label, "parameters": sizes[i],
                           "coefficients": sizes[i] - len(geo.free),
-                          "cv_mean": sc.mean, "cv_se": sc.se,
+                          "cv_mean": sc.mean if np.isfinite(sc.mean) else None,
+                          "cv_se": sc.se if np.isfinite(sc.se) else None,
                           "best": i == best, "chosen": i == pick})
         chosen, chosen_order = cands[pick][1], cands[pick][2]
         if not chosen:  # the geometric calibration is the result: its findings too
@@ -232,7 +240,7 @@ def calibrate_error_model(
                 warn(d.code, d.message)
             geo.warnings = list(dict.fromkeys([*geo.warnings, *geo_seen]))
             geo.seconds = time.perf_counter() - t0
-            geo.extra["error_model"] = _choice(error_model, "geometric", folds, table, geo)
+            geo.extra["error_model"] = _choice(error_model, "geometric", k, table, geo)
             return ErrorModelResult.of(geo, geo, data)
         final_spec = joint_errors_for(plain, chosen, chosen_order, base=model.joint_errors)
     # 3. the chosen model: geometry and identifiable coefficients together
@@ -268,7 +276,7 @@ def calibrate_error_model(
     res.seconds = time.perf_counter() - t0
     label = (_label(final_spec.families, final_spec.harmonics) if error_model != "model"
              else "model")
-    res.extra["error_model"] = _choice(error_model, label, folds if auto else None, table, geo)
+    res.extra["error_model"] = _choice(error_model, label, k if auto else None, table, geo)
     res.extra["joint_errors"] = _terms_entry(res, ident)
     return ErrorModelResult.of(res, geo, data)
 

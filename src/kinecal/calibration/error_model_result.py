@@ -62,6 +62,10 @@ def error_model_text(result: CalibrationResult) -> str:
         lines.append(f"{'candidate':34s} {'params':>6s} {'cv mean':>10s} {'cv se':>9s}")
         for row in info["candidates"]:
             mark = ("  <- chosen" if row["chosen"] else "") + ("  (best)" if row["best"] else "")
+            if row["cv_mean"] is None:  # more parameters than a fold's training rows
+                lines.append(f"{row['model']:34s} {row['parameters']:6d} {'-':>10s} "
+                             f"{'-':>9s}  (too many parameters for these poses)")
+                continue
             lines.append(f"{row['model']:34s} {row['parameters']:6d} {row['cv_mean']:10.5g} "
                          f"{row['cv_se']:9.2g}{mark}")
         lines.append(f"(cv: mean held-out distance error [{unit}])")

@@ -71,8 +71,10 @@ class ResidualMaps:
         p = np.asarray(result.params, dtype=float)
         xyz = np.asarray(xyz, dtype=float)
 
+        marker = getattr(result, "marker_calibration", None)  # several markers: per pose
+
         def errors(params: Array, m: Any = model) -> Array:
-            return np.linalg.norm(m.positions(q, params) - xyz, axis=1)
+            return np.linalg.norm(m.positions(q, params, marker) - xyz, axis=1)
 
         rows = [("geometric calibration", errors(geometric.params, geometric.nominal_model),
                  "error model", errors(p))]
@@ -82,8 +84,9 @@ class ResidualMaps:
             # without a family: its coefficients at nominal, the other free parameters
             # refitted (one Gauss-Newton step from the solution, evaluated exactly)
             free = model.index(list(result.free))
-            J = model.identification_jacobian(q, p)[:, :, free].reshape(-1, free.size)
-            r = (model.positions(q, p) - xyz).ravel()
+            J = model.jacobian_t(q, p, columns=free, marker=marker).transpose(2, 1, 0)
+            J = J.reshape(-1, free.size)
+            r = (model.positions(q, p, marker) - xyz).ravel()
             nominal = model.nominal
             for family in dict.fromkeys(terms.families):
                 drop = np.array([k >= n_geo and terms.families[k - n_geo] == family
@@ -99,7 +102,7 @@ class ResidualMaps:
         # reach in the robot base frame, perpendicular to gravity
         base = p.copy()
         base[model.index(list(BASE_NAMES))] = 0.0
-        P = model.positions(q, base)
+        P = model.positions(q, base, marker)
         g = np.asarray(model.joint_errors.gravity if model.joint_errors is not None
                        else (0.0, 0.0, -1.0))
         reach = np.linalg.norm(P - np.outer(P @ g, g), axis=1)
