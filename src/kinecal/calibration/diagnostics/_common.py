@@ -43,7 +43,7 @@ UNIT_FACTORS = {
     25.4: "millimetres in an inch model",
 }
 #: an outlier's distance error is at least this many times the median one
-MEDIAN_MULTIPLE = 4.0
+MEDIAN_MULTIPLE = 5.0
 #: significance level of the statistical checks: a clean data set trips a check with
 #: at most this probability (the checks are few, so the family-wise rate stays near it)
 ALPHA = 1e-3
@@ -149,13 +149,15 @@ def unit_factor_name(ratio: float) -> str:
     return "another length unit or a wrong scale"
 
 
-def chi_outliers(d: Array, dof: int = 3, alpha: float = 0.01) -> list[int]:
+def chi_outliers(d: Array, dof: int = 3, alpha: float = ALPHA) -> list[int]:
     """Poses whose error norm is an outlier (median/MAD rule, size-aware threshold).
 
     `d` holds the norms of residual vectors of `dof` components per pose (3 for a measured
     position). The noise of each component is estimated robustly from the median norm (for
     isotropic Gaussian noise of std sigma, ``median(d) = sigma sqrt(chi2_dof median)``,
-    1.5382 sigma for 3 components); a pose is an outlier when ``(d / sigma)^2`` exceeds the
+    1.5382 sigma for 3 components), or from the RMS of the poses below the limit when that
+    is larger (the median of few poses is a noisy scale); a pose is an outlier when
+    ``(d / sigma)^2`` exceeds the
     chi-square(dof) quantile that a clean set of N poses exceeds anywhere with probability
     `alpha` (Bonferroni: ``1 - alpha / N``), the median + 5 * 1.4826 MAD rule of the robust
     losses, and `MEDIAN_MULTIPLE` times the median (a residual that is a model's misfit
@@ -170,13 +172,19 @@ def chi_outliers(d: Array, dof: int = 3, alpha: float = 0.01) -> list[int]:
     mad = 1.4826 * float(np.median(np.abs(d - med)))
     if med <= 0 or mad <= 0:
         return []
+    q = np.sqrt(float(chdtri(dof, alpha / n)))
+    floor = max(med + 5.0 * mad, MEDIAN_MULTIPLE * med)
     sigma = med / np.sqrt(float(chdtri(dof, 0.5)))
-    limit = max(sigma * np.sqrt(float(chdtri(dof, alpha / n))), med + 5.0 * mad,
-                MEDIAN_MULTIPLE * med)
+    # the median is a noisy scale for few poses: also the RMS of the poses that pass, and
+    # the larger of the two
+    inner = d <= max(sigma * q, floor)
+    if inner.any():
+        sigma = max(sigma, float(np.sqrt(np.mean(d[inner] ** 2) / dof)))
+    limit = max(sigma * q, floor)
     return [int(i) for i in np.flatnonzero(d > limit)]
 
 
-def chi3_outliers(d: Array, alpha: float = 0.01) -> list[int]:
+def chi3_outliers(d: Array, alpha: float = ALPHA) -> list[int]:
     """`chi_outliers` of position errors (3 components per pose)."""
     return chi_outliers(d, 3, alpha)
 

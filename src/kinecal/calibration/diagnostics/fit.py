@@ -30,6 +30,7 @@ __all__ = [
     "check_parameter_tolerance",
     "check_residual_offset",
     "check_unidentifiable_free",
+    "pose_leverage",
 ]
 
 Array = NDArray[np.float64]
@@ -145,10 +146,34 @@ def check_residual_offset(problem, x: Array) -> None:
          "base frame, add base: [0, 0, 0, 0, 0, 0] to the model (or free base.*)")
 
 
-def check_outliers(distances: Array, unit: str) -> list[int]:
+def pose_leverage(problem, x: Array) -> Array:
+    """Mean leverage ``(N,)`` of each pose's position rows at the solution `x`.
+
+    The diagonal of the hat matrix ``J (J^T J)^+ J^T`` averaged over a pose's three position
+    rows: a least-squares fit pulls the residual of a high-leverage pose towards zero (its
+    variance is ``sigma^2 (1 - h)``), which matters when there are few residual degrees of
+    freedom per parameter. Two chunked passes over the poses.
+    """
+    rows = problem.pose_rows
+    p = problem.full(x)
+    A = rows.gram(p, problem.index)[0][:-1, :-1]
+    Ainv = np.linalg.pinv(A)
+    h = np.empty(len(problem.data))
+    for sel in rows.chunks(problem.n_free):
+        _, Jt, _ = rows.evaluate(p, sel, problem.index)
+        J = Jt[:, :3, :]  # (k, 3, n): position rows
+        h[sel] = np.einsum("krn,kl,lrn->n", J, Ainv, J) / 3.0
+    return np.clip(h, 0.0, 1.0)
+
+
+def check_outliers(distances: Array, unit: str, leverage: Array | None = None) -> list[int]:
     """``outliers``: poses whose distance error after a least-squares fit is an outlier
-    (`chi3_outliers`). Returns their 0-based indices."""
-    out = chi3_outliers(distances)
+    (`chi3_outliers` on the errors studentized by the poses' `leverage`, when given).
+    Returns their 0-based indices."""
+    d = np.asarray(distances, dtype=float)
+    if leverage is not None:
+        d = d / np.sqrt(np.maximum(1.0 - np.asarray(leverage, dtype=float), 1e-3))
+    out = chi3_outliers(d)
     if out:
         d = np.asarray(distances, dtype=float)
         shown = ", ".join(str(i) for i in out[:10]) + (", ..." if len(out) > 10 else "")
@@ -245,7 +270,8 @@ def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_ch
     if not least_squares or robust:
         return []
     e = problem.errors(x)
-    out = check_outliers(np.linalg.norm(e, axis=1), model.length_unit)
+    out = check_outliers(np.linalg.norm(e, axis=1), model.length_unit,
+                         pose_leverage(problem, x))
     if groups is not None:
         check_lack_of_fit(e, groups, rank, model.length_unit)
     return out
