@@ -5,9 +5,9 @@ A UR5 measurement file of 2.5 million poses (``q1..q6`` in degrees with 4 decima
 each in a fresh process, ``kinecal.read_measurements(path, ur5)`` (header check, C-speed
 parse, vectorised validation, joint units, the Measurements checks) and
 ``numpy.loadtxt(path, delimiter=",", skiprows=1)`` read it. Printed: wall time of the
-read and the process's peak resident memory (``getrusage``; both processes import numpy
-and kinecal first, and the increase over that is printed too), minimum and maximum over
-the runs.
+read and the process's peak resident memory (``VmHWM``; both processes import numpy and
+kinecal first, and the increase over that is printed too), minimum and maximum over the
+runs.
 
 A second file has one bad cell near its end: kinecal must name its row and column (the
 checked pass), and the time of that is printed too.
@@ -51,12 +51,29 @@ def write_file(path: Path, n: int, bad_row: int | None = None) -> None:
             fh.write(text + "\n")
 
 
+def _peak_bytes() -> int:
+    """``VmHWM``: the peak resident set, reset by exec (getrusage's ru_maxrss is inherited
+    from the parent process)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
 def child(kind: str, path: str) -> None:
     import kinecal
     from kinecal.errors import InputError
 
+    if kind == "write":
+        write_file(Path(path), int(os.environ["BENCH_ROWS"]),
+                   int(os.environ["BENCH_BAD"]) if "BENCH_BAD" in os.environ else None)
+        return
     model = kinecal.load_model("ur5")
-    out = {"kind": kind, "base_bytes": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}
+    out = {"kind": kind, "base_bytes": _peak_bytes()}
     t0 = time.perf_counter()
     if kind == "kinecal":
         data = kinecal.read_measurements(path, model)
@@ -71,14 +88,16 @@ def child(kind: str, path: str) -> None:
         except InputError as exc:
             out["error"] = exc.one_line()
     out["seconds"] = time.perf_counter() - t0
-    out["peak_bytes"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    out["peak_bytes"] = _peak_bytes()
     print(json.dumps(out))
 
 
-def run(kind: str, path: Path) -> dict:
+def run(kind: str, path: Path, env: dict | None = None) -> dict | None:
     proc = subprocess.run([sys.executable, __file__, "--child", kind, str(path)],
-                          capture_output=True, text=True, check=True)
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+                          capture_output=True, text=True, check=True,
+                          env={**os.environ, **(env or {})})
+    lines = proc.stdout.strip().splitlines()
+    return json.loads(lines[-1]) if lines else None
 
 
 def main() -> None:
@@ -96,7 +115,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="kinecal-bench-") as tmp:
         path = Path(tmp) / "big.csv"
         t0 = time.perf_counter()
-        write_file(path, n)
+        run("write", path, {"BENCH_ROWS": str(n)})  # in a child: this process stays small
         size = path.stat().st_size
         print(f"{n} rows, {size / 1e6:.0f} MB (written in {time.perf_counter() - t0:.1f} s)")
         runs: dict[str, list] = {"kinecal": [], "loadtxt": []}
@@ -119,7 +138,7 @@ def main() -> None:
               f"{max(k) / max(lt):.2f}x (max/max)")
         path.unlink()
         bad = Path(tmp) / "bad.csv"
-        write_file(bad, n, bad_row=n - 10)
+        run("write", bad, {"BENCH_ROWS": str(n), "BENCH_BAD": str(n - 10)})
         r = run("bad", bad)
         print(f"  a bad cell in row {n - 10}: {r['seconds']:.2f} s, peak RSS "
               f"{r['peak_bytes'] / 1e6:.0f} MB: {r['error']}")

@@ -377,13 +377,23 @@ def positions(motions: Sequence[Motion], motion_index: NDArray[np.intp], q: Arra
 
 def transforms(motions: Sequence[Motion], motion_index: NDArray[np.intp], q: Array, p: Array,
                elements: int = CHUNK_ELEMENTS, pose_values: dict | None = None) -> Array:
-    """Tool frames ``(*batch, N, 4, 4)`` by `frame_chain`, chunk by chunk (see `chunks`)."""
-    T = np.zeros((*p.shape[:-1], q.shape[0], 4, 4))
+    """Tool frames ``(*batch, N, 4, 4)`` by `frame_chain`, chunk by chunk (see `chunks`).
+
+    Each chunk's matrices are assembled in a small buffer (in cache) and copied into the
+    result once: the big result array is written in one pass.
+    """
+    batch = p.shape[:-1]
+    T = np.empty((*batch, q.shape[0], 4, 4))
+    buf = None
     for sel, (axes, o, _) in chunks(motions, motion_index, q, p, frame_chain,
                                     elements=elements, pose_values=pose_values):
+        n = sel.stop - sel.start
+        if buf is None or buf.shape[-3] != n:
+            buf = np.zeros((*batch, n, 4, 4))
+            buf[..., 3, 3] = 1.0
         for a in range(3):
             for k in range(3):
-                T[..., sel, k, a] = axes[a][k]
-            T[..., sel, a, 3] = o[a]
-    T[..., 3, 3] = 1.0
+                buf[..., k, a] = axes[a][k]
+            buf[..., a, 3] = o[a]
+        T[..., sel, :, :] = buf
     return T
