@@ -12,10 +12,10 @@ Part 2, scaling: ``kinecal.calibrate(ur5, data)`` on 10^3, 10^4, 10^5 and 10^6 s
 UR5 poses (random errors within the tolerances, noise 0.01 mm), each size in a fresh
 process that loads the data from a ``.npz`` file and warms up on 10^4 of its poses, so
 that the peak resident memory (``VmHWM``) measured around the call is the call's own.
-Beside it, in the same process: the raw solver (`levenberg_marquardt` on the problem with calibrate's final
-free parameters, from nominal: the same end point, without the identifiability analysis,
-the growth step, the covariance and the statistics) and the same solver on the first
-(nominal) identifiable set.
+Beside it, in the same process: the raw solver (`levenberg_marquardt` on the problem
+with calibrate's final free parameters, from nominal: the same end point, without the
+identifiability analysis, the growth step, the covariance and the statistics) and the
+same solver on the first (nominal) identifiable set.
 
 Part 3, at 10^5 poses (10^4 with ``--quick``): calibrate() against scipy
 ``least_squares`` with default settings (``trf``, 2-point Jacobian) and with kinecal's
