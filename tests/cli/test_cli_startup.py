@@ -30,3 +30,26 @@ def test_stewart_solvers_do_not_import_the_platform_class():
     loaded = _modules_after("import kinecal.kinematics.stewart_modes")
     assert "kinecal.kinematics.stewart_fk" in loaded
     assert "kinecal.kinematics.stewart" not in loaded
+
+
+def test_command_table_names_the_module_of_every_command():
+    """``kinecal CMD`` imports only CMD's module (kinecal.cli._COMMANDS): every registered
+    command must be in that table, with the module that registers it."""
+    import kinecal.cli as cli
+
+    cli._load_commands()
+    found = {c.name or c.callback.__name__.replace("_", "-"): c.callback.__module__
+             for c in cli.app.registered_commands}
+    found.update({g.name: g.typer_instance.registered_commands[0].callback.__module__
+                  for g in cli.app.registered_groups})
+    found = {k: v for k, v in found.items() if v.startswith("kinecal.")}  # not test commands
+    assert found == cli._COMMANDS, "update kinecal.cli._COMMANDS to the registered commands"
+    assert set(found.values()) <= set(cli._COMMAND_MODULES)
+
+
+def test_one_command_loads_its_module_alone():
+    loaded = _modules_after("import io, contextlib\nfrom kinecal.cli import main\n"
+                            "with contextlib.redirect_stdout(io.StringIO()):\n"
+                            "    assert main(['stewart', '--help']) == 0")
+    assert "kinecal.cli.stewart" in loaded
+    assert "kinecal.cli.serial" not in loaded and "kinecal.cli.handeye" not in loaded

@@ -71,8 +71,34 @@ _COMMAND_MODULES = [
 ]
 
 
-def _load_commands() -> None:
-    for name in _COMMAND_MODULES:
+#: the module of each command: ``kinecal CMD ...`` imports that module alone (its
+#: imports, and typer's building of the other commands' options, cost more than most
+#: commands' own work); anything else (``--help``, an unknown name) loads every module.
+#: tests/cli/test_cli_startup.py checks this table against the registered commands.
+_COMMANDS = {
+    "models": "kinecal.cli.serial",
+    "fk": "kinecal.cli.serial",
+    "simulate": "kinecal.cli.serial",
+    "identifiability": "kinecal.cli.serial",
+    "calibrate": "kinecal.cli.serial",
+    "select-poses": "kinecal.cli.serial",
+    "reproduce": "kinecal.cli.reproduce",
+    "handeye": "kinecal.cli.handeye",
+    "handeye-poses": "kinecal.cli.handeye",
+    "handeye-images": "kinecal.cli.handeye_images",
+    "stewart": "kinecal.cli.stewart",
+    "batch": "kinecal.cli.batch",
+    "demo": "kinecal.cli.demo",
+    "bench": "kinecal.cli.bench",
+    "export": "kinecal.cli.export",
+    "compensate": "kinecal.cli.compensate",
+}
+
+
+def _load_commands(args: list[str] | None = None) -> None:
+    """Import the command modules: the one of ``args[0]`` if known, else all of them."""
+    module = _COMMANDS.get(args[0]) if args else None
+    for name in [module] if module is not None else _COMMAND_MODULES:
         importlib.import_module(name)
 
 
@@ -123,8 +149,8 @@ def _internal_error(exc: BaseException) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return (and exit with) the status code."""
-    _load_commands()
     args = sys.argv[1:] if argv is None else list(argv)
+    _load_commands(args)
     try:
         code = _run(args)
         if code == 130:  # typer turns Ctrl-C into Exit(130), returned without a word
