@@ -12,3 +12,11 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     rich_markup_mode=None,
 )
+
+
+@app.callback()
+def _root() -> None:
+    # A callback keeps every command a subcommand even when only one command module is
+    # loaded (kinecal.cli loads just the module of the command it runs): typer would
+    # otherwise make a lone command the whole program.
+    pass
