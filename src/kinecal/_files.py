@@ -31,9 +31,11 @@ from typing import IO, Any
 from kinecal.errors import InputError
 
 __all__ = [
+    "MAX_TEXT_BYTES",
     "MAX_YAML_ALIAS_NODES",
     "STALE_TEMP_SECONDS",
     "atomic_open",
+    "check_input_file",
     "load_yaml",
     "read_json",
     "read_text",
@@ -48,6 +50,8 @@ STALE_TEMP_SECONDS = 24 * 3600.0
 #: YAML aliases may add at most this many nodes to a document once expanded (a "billion
 #: laughs" file of 1 kB expands to 10^9 nodes; a real jobs or model file has no need of more)
 MAX_YAML_ALIAS_NODES = 1_000_000
+#: largest text input (model, geometry, jobs, JSON, FileStorage YAML) read into memory
+MAX_TEXT_BYTES = 256_000_000
 #: the part of the target's name kept in a temporary name (names are limited to 255 bytes)
 _NAME_KEEP = 100
 
@@ -200,16 +204,49 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
         fh.write(data)
 
 
-def read_text(path: str | Path) -> str:
-    """The UTF-8 text of `path`; `InputError` (with the file) when missing or unreadable."""
-    path = Path(path)
+def check_input_file(path: str | Path, what: str = "a file") -> None:
+    """Refuse a device as an input (``/dev/zero``, ``/dev/urandom``: endless data).
+
+    Regular files, pipes and ``/dev/stdin`` redirected from a file or a pipe pass; a
+    missing path passes too (its reader reports it).
+
+    Raises
+    ------
+    InputError
+        `path` is a character or block device.
+    """
     try:
-        return path.read_text(encoding="utf-8")
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        raise InputError(f"is a device, expected {what}", file=path)
+
+
+def read_text(path: str | Path, max_bytes: int = MAX_TEXT_BYTES) -> str:
+    """The UTF-8 text of `path`; `InputError` (with the file) when missing or unreadable.
+
+    Model, geometry, jobs, JSON and FileStorage files are small: more than `max_bytes`
+    (a file, or a pipe that does not end) is refused rather than read into memory.
+    """
+    path = Path(path)
+    check_input_file(path)
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(max_bytes + 1)
     except FileNotFoundError:
         raise InputError("file not found", file=path) from None
     except IsADirectoryError:
         raise InputError("is a directory, expected a file", file=path) from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
+        raise InputError(f"not a readable text file ({exc.strerror or exc})",
+                         file=path) from None
+    if len(data) > max_bytes:
+        raise InputError(f"more than {max_bytes / 1e6:.0f} MB: too large for a model, jobs, "
+                         "JSON or YAML file", file=path)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
         raise InputError(f"not a readable text file ({exc})", file=path) from None
 
 

@@ -209,6 +209,9 @@ CASES = [
      "expected a finite number"),
     ("fk-params-boolean", ["fk", "irb120", "{d}/joints.csv", "--params", "{d}/bool.json"],
      "expected a finite number"),
+    ("fk-params-is-a-device", ["fk", "irb120", "{d}/joints.csv", "--params", "/dev/zero"],
+     "is a device"),
+    ("jobs-file-is-a-device", ["batch", "/dev/zero", "--out", "{d}/b"], "is a device"),
     # YAML alias bombs, recursive aliases, nesting beyond the recursion limit
     ("model-alias-bomb", ["calibrate", "{d}/bomb.yaml", "{d}/meas.csv"], "alias bomb"),
     ("jobs-alias-bomb", ["batch", "{d}/bombjobs.yaml", "--out", "{d}/b"], "alias bomb"),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
@@ -133,3 +134,27 @@ def test_ordinary_anchors_and_merges_still_work():
     # a few thousand nodes of aliases are far below the cap
     wide = "x: &x [" + ", ".join(["1"] * 1000) + "]\ny: [" + ", ".join(["*x"] * 500) + "]\n"
     assert len(load_yaml(wide)["y"]) == 500
+
+
+def test_devices_and_endless_streams_are_refused_not_read(tmp_path):
+    """``/dev/zero`` as a model, jobs, JSON or CSV input would be read until the memory
+    runs out: devices are refused by name, and a text input is read at most to its cap."""
+    import threading
+
+    from kinecal._files import read_text
+    from kinecal.cli._common import resolve_data_path
+
+    for reader in (read_text, lambda p: resolve_data_path(p, "DATA")):
+        with pytest.raises(InputError, match="is a device"):
+            reader("/dev/zero")
+    fifo = tmp_path / "endless.json"
+    os.mkfifo(fifo)
+    def write() -> None:
+        with contextlib.suppress(BrokenPipeError):
+            fifo.write_bytes(b"[" * 5000)
+
+    writer = threading.Thread(target=write, daemon=True)
+    writer.start()
+    with pytest.raises(InputError, match="too large"):
+        read_text(fifo, max_bytes=1000)
+    writer.join(5)

@@ -262,9 +262,16 @@ JOB_POSE_BYTES = 4096
 
 def _check_job(job: Job, source: str | Path | None) -> None:
     """Options the job's method would ignore, and pose counts beyond the memory."""
+    from kinecal._files import check_input_file
     from kinecal._limits import check_count
     from kinecal.calibration.method_options import check_method_options
 
+    for key in ("data", "validation"):
+        if getattr(job, key) is not None:
+            try:
+                check_input_file(getattr(job, key), "a CSV file")
+            except InputError as exc:
+                raise InputError(f"job {job.name}: {exc.one_line()}", file=source) from None
     try:
         check_method_options(job.method, loss=job.loss, maxiter=job.maxiter,
                              target=job.target, options=job.options,

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from kinecal._files import write_text_atomic
+from kinecal._files import check_input_file, write_text_atomic
 from kinecal.errors import InputError
 
 __all__ = [
@@ -76,6 +76,7 @@ def resolve_data_path(spec: str, option: str = "DATA") -> Path:
     path = Path(spec)
     if path.is_dir():
         raise InputError(f"{spec} is a directory, expected a CSV file", option=option)
+    check_input_file(path, "a CSV file")
     if path.exists():
         return path
     if ":" in spec and not path.suffix:
