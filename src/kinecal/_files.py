@@ -63,6 +63,10 @@ _PATH_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENAMETOOLONG, errn
                 errno.EISDIR, errno.ELOOP, errno.ENOENT}
 
 
+#: errors of the disk (exit 1), not of the path
+_DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO}
+
+
 def _host_tag() -> str:
     return hashlib.sha1(socket.gethostname().encode("utf-8", "replace")).hexdigest()[:8]
 
@@ -168,10 +172,16 @@ def atomic_open(path: str | Path, mode: str = "w", encoding: str | None = "utf-8
         raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None
     try:
         os.chmod(tmp, _file_mode(target))  # mkstemp makes 0600; a result file is 0644-like
-        with os.fdopen(fd, mode, encoding=None if binary else encoding, newline=None) as fh:
-            yield fh
-            fh.flush()
-            os.fsync(fh.fileno())
+        try:
+            with os.fdopen(fd, mode, encoding=None if binary else encoding,
+                           newline=None) as fh:
+                yield fh
+                fh.flush()
+                os.fsync(fh.fileno())
+        except OSError as exc:
+            if exc.errno in _DISK_ERRNOS and exc.filename is None:  # name the file written
+                raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
+            raise
         try:
             os.replace(tmp, target)
         except OSError as exc:

@@ -238,7 +238,23 @@ def test_internal_error_is_exit_1_and_one_line(files, capsys, monkeypatch):
     code = main(["simulate", "ur5", "--poses", "5", "--out", files["dir"] + "/full.csv"])
     err = capsys.readouterr().err
     assert code == 1
-    assert err.startswith("kinecal: internal error: OSError") and err.count("\n") == 1
+    assert err.startswith("kinecal: error: ") and err.count("\n") == 1
+    assert "full.csv: No space left on device" in err  # names the file, not a traceback
+    assert not (Path(files["dir"]) / "full.csv").exists()
+
+
+def test_a_bug_is_exit_1_and_one_line(capsys, monkeypatch):
+    """An exception kinecal did not expect: exit 1, one line saying it is internal."""
+    import kinecal.io.models
+
+    def broken(*args, **kwargs):
+        raise ZeroDivisionError("boom")
+
+    monkeypatch.setattr(kinecal.io.models, "load_model", broken)
+    code = main(["fk", "irb120", "ur5-laser-tracker:random"])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1
+    assert err.startswith("kinecal: internal error: ZeroDivisionError: boom")
 
 
 def test_failed_write_leaves_existing_output_whole(tmp_path, capsys, monkeypatch):

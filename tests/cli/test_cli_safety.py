@@ -343,6 +343,17 @@ def test_read_only_output_is_refused(tmp_path, capsys, monkeypatch):
     assert out.read_text(encoding="utf-8") == "precious\n"
 
 
+def test_read_only_folder_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False
+                        if Path(p) == tmp_path and mode & os.W_OK else real(p, mode, **kw))
+    code = main(["calibrate", "irb120", "ur5-laser-tracker:random", "--out",
+                 str(tmp_path / "r.json")])
+    err = capsys.readouterr().err
+    assert code == 2 and "is not writable" in err and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_long_but_valid_output_name_is_written(tmp_path, capsys):
     """250 bytes is a valid name: the temporary name beside it must not be too long."""
     out = tmp_path / ("b" * 246 + ".csv")

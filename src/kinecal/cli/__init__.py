@@ -139,6 +139,10 @@ _PATH_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENAMETOOLONG, errn
                 errno.EISDIR, errno.ELOOP, errno.ENOENT, errno.EEXIST}
 
 
+#: errors of the disk: exit 1, one line naming the file
+_DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO}
+
+
 def _internal_error(exc: BaseException) -> int:
     if os.environ.get("KINECAL_DEBUG"):
         raise exc
@@ -183,7 +187,12 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         code = 0
     except OSError as exc:
-        if exc.errno not in _PATH_ERRNOS or exc.filename is None:
+        if exc.errno in _DISK_ERRNOS:  # the disk, not kinecal nor the input: exit 1
+            where = f"{os.fsdecode(exc.filename)}: " if exc.filename else "output: "
+            sys.stderr.write(f"kinecal: error: {where}{exc.strerror or exc} (nothing was "
+                             "replaced; free space and run again)\n")
+            code = 1
+        elif exc.errno not in _PATH_ERRNOS or exc.filename is None:
             code = _internal_error(exc)
         else:  # a path the user gave cannot be used as such (too long, no permission...)
             sys.stderr.write(f"kinecal: error: {os.fsdecode(exc.filename)}: "

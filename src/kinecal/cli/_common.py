@@ -123,8 +123,8 @@ def check_paths(
     InputError
         An output equal to an input or to another output (the same file under any
         name: symbolic links, ``./``, hard links), an output that is a directory or
-        read-only, a file output whose folder does not exist, a name longer than 255
-        bytes, or an output directory that is a file.
+        read-only, a file output whose folder does not exist or is not writable, a name
+        longer than 255 bytes, or an output directory that is a file.
     """
     from kinecal.io.bundled import input_file
 
@@ -154,6 +154,9 @@ def check_paths(
                 raise InputError(f"cannot write into {path.parent}: it is a file, not a "
                                  "folder", option=opt)
             raise InputError(f"folder {path.parent} does not exist", option=opt)
+        folder = path.parent if path.parent.is_dir() else None
+        if folder is not None and not os.access(folder, os.W_OK | os.X_OK):
+            raise InputError(f"folder {folder} is not writable", option=opt)
         if path.is_file() and not os.access(path, os.W_OK):
             raise InputError(f"{path} is read-only; refusing to replace it", option=opt)
         for name, src in ins.items():
