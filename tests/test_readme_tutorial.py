@@ -3,7 +3,10 @@ fresh folder, through bash, with the output compared to the text pasted under it
 
 The README promises "every command below was run as shown; the output is pasted unedited".
 This test keeps that true: numbers are compared to 1 % (another BLAS may move the last
-digit), times in seconds are not compared, everything else must match. When a change of
+digit), times in seconds are not compared, everything else must match. A plain
+``kinecal ...`` line runs in this process with the argv the shell would give it; a line
+with shell syntax (pipes, redirections, ``echo $?``) runs through bash with this
+checkout's ``kinecal`` first on the PATH. When a change of
 kinecal changes what a tutorial command prints, paste the new output into README.md: the
 failure message shows it.
 
@@ -16,6 +19,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import subprocess
 import sys
 from pathlib import Path
 
@@ -62,6 +66,50 @@ def shim(tmp_path_factory) -> dict[str, str]:
                PYTHONPATH=str(ROOT / "src"), COLUMNS="200")
     env.pop("KINECAL_DEBUG", None)
     return env
+
+
+def _run_in_process(argv: list[str], cwd: Path) -> tuple[int, str]:
+    """``kinecal ARGS`` in this process (a new interpreter per command costs about a
+    second): the same argv the shell would pass, stdout and stderr into one stream, in
+    the order they are written, as on a terminal."""
+    import contextlib
+    import io
+
+    from kinecal.cli import main
+
+    buf = io.StringIO()
+    old = Path.cwd()
+    try:
+        os.chdir(cwd)
+        with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(buf):
+            code = main(argv)
+    finally:
+        os.chdir(old)
+    return code, buf.getvalue()
+
+
+def test_the_tutorial_runs_as_written(tmp_path, shim):
+    steps = tutorial_steps(README.read_text(encoding="utf-8"))
+    assert len(steps) >= 12
+    status = 0
+    for command, expected in steps:
+        if command.startswith("kinecal ") and not re.search(r"[|;&<>$`'\"\\]", command):
+            status, output = _run_in_process(command.split()[1:], tmp_path)
+        else:  # shell syntax: through bash; `( exit N )` first, so `echo $?` sees status N
+            proc = subprocess.run(["bash", "-c", f"( exit {status} ); {command}"],
+                                  cwd=tmp_path, env=shim, stdout=subprocess.PIPE,
+                                  stderr=subprocess.STDOUT, text=True, timeout=300)
+            status, output = proc.returncode, proc.stdout
+        actual = output.rstrip("\n").splitlines()
+        while expected and not expected[-1].strip():
+            expected = expected[:-1]
+        ok = len(actual) == len(expected) and all(
+            _same_line(e, a) for e, a in zip(expected, actual, strict=True))
+        assert ok, (f"README tutorial step `$ {command}` (exit {status}) printed:\n"
+                    + output + "\n--- README.md shows:\n" + "\n".join(expected))
+        if not command.rstrip().endswith("echo $?"):  # else the status is in the output
+            is_error = any(line.startswith("kinecal: error:") for line in expected)
+            assert status == (2 if is_error else 0), f"`$ {command}` exited {status}"
 
 
 def _anchors(path: Path) -> set[str]:
