@@ -17,16 +17,13 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import contextlib  # noqa: E402
 import errno  # noqa: E402
 import importlib  # noqa: E402
-import signal  # noqa: E402
 import sys  # noqa: E402
-import threading  # noqa: E402
 import warnings  # noqa: E402
 
 from kinecal.cli._app import app  # noqa: E402
-from kinecal.cli._common import Terminated  # noqa: E402
+from kinecal.cli._signals import Terminated, terminate_like_interrupt  # noqa: E402
 from kinecal.errors import InputError  # noqa: E402
 
 
@@ -102,33 +99,10 @@ def _load_commands(args: list[str] | None = None) -> None:
         importlib.import_module(name)
 
 
-@contextlib.contextmanager
-def _terminate_like_interrupt():
-    """SIGTERM and SIGHUP raise `Terminated` in the main thread, once; the previous
-    handlers are restored on exit."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    fired = []
-
-    def handler(signum, frame):
-        if not fired:  # a second signal must not abort the clean-up of the first
-            fired.append(signum)
-            raise Terminated(signum)
-
-    sigs = [s for s in ("SIGTERM", "SIGHUP") if hasattr(signal, s)]
-    old = {s: signal.signal(getattr(signal, s), handler) for s in sigs}
-    try:
-        yield
-    finally:
-        for s, h in old.items():
-            signal.signal(getattr(signal, s), h)
-
-
 def _run(args: list[str]) -> int:
     # numpy's floating-point RuntimeWarnings (overflow in absurd inputs) would print
     # source lines on stderr: kinecal checks its inputs and results itself
-    with warnings.catch_warnings(), _terminate_like_interrupt():
+    with warnings.catch_warnings(), terminate_like_interrupt():
         warnings.simplefilter("ignore", RuntimeWarning)
         rv = app(args=args, prog_name="kinecal", standalone_mode=False)
     return rv if isinstance(rv, int) else 0

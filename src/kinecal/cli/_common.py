@@ -16,7 +16,6 @@ from kinecal._files import check_input_file, write_text_atomic
 from kinecal.errors import InputError
 
 __all__ = [
-    "Terminated",
     "base_link_option",
     "check_paths",
     "echo_json",
@@ -32,12 +31,6 @@ __all__ = [
     "with_warnings",
     "write_json",
 ]
-
-
-class Terminated(BaseException):
-    """SIGTERM (or SIGHUP) received: unwinds the command like Ctrl-C does, so that every
-    ``finally`` runs (temporary files removed, the batch summary written); exit status 143.
-    (Not a KeyboardInterrupt: typer would turn that into exit 130.)"""
 
 
 def to_jsonable(obj: Any) -> Any:

@@ -53,7 +53,8 @@ def batch(
     )
     from kinecal.batch.inputs import check_batch_paths
     from kinecal.batch.tables import write_table_csv
-    from kinecal.cli._common import Terminated, progress
+    from kinecal.cli._common import progress
+    from kinecal.cli._signals import Terminated
 
     if executor not in ("local", "dask"):
         raise InputError(f"expected local or dask, got {executor!r}", option="--executor")
