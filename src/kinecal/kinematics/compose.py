@@ -90,19 +90,24 @@ def _turn(c, s, x, y):
 # all three are arrays of one shape; then one array (3, *batch, n): an operation on it is
 # one numpy call instead of three (what matters at a few thousand poses per chunk).
 def _dense(v: list):
-    if all(isinstance(c, np.ndarray) for c in v) and v[0].shape == v[1].shape == v[2].shape:
-        return np.stack(v)
+    a, b, c = v
+    if (type(a) is np.ndarray and type(b) is np.ndarray and type(c) is np.ndarray
+            and a.shape == b.shape == c.shape):
+        out = np.empty((3, *a.shape))
+        out[0], out[1], out[2] = a, b, c
+        return out
     return v
 
 
-def _fits(v, *coefs) -> bool:
+def _fits(v, c, s=0.0) -> bool:
     """Whether coefficients broadcast over the pose axes of the stacked vector `v`."""
-    return isinstance(v, np.ndarray) and all(np.ndim(c) < v.ndim for c in coefs)
+    return (type(v) is np.ndarray and getattr(c, "ndim", 0) < v.ndim
+            and getattr(s, "ndim", 0) < v.ndim)
 
 
 def _comb(c, va, s, vb, minus: bool = False):
     """``c va + s vb`` (``c va - s vb`` with `minus`) of two vectors."""
-    if _fits(va, c, s) and isinstance(vb, np.ndarray) and va.ndim == vb.ndim:
+    if _fits(va, c, s) and type(vb) is np.ndarray and va.ndim == vb.ndim:
         out, t = c * va, s * vb  # new arrays (frames keep references)
         if out.shape != t.shape:  # (3, P, 1) against (3, P, n): no in-place result
             return out - t if minus else out + t
