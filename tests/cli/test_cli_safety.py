@@ -368,3 +368,21 @@ def test_identifiability_defaults_still_apply(capsys):
     a = json.loads(capsys.readouterr().out)
     assert main(["identifiability", "irb120", "--json", "--poses", "50", "--seed", "0"]) == 0
     assert json.loads(capsys.readouterr().out) == a
+
+
+def test_bundled_inputs_are_protected_like_files():
+    """A bundled model, geometry, dataset or hand-eye recording given by name is the file
+    inside the package: an output onto it is refused (checked without running a command,
+    so that a regression could not overwrite the package's own data)."""
+    from kinecal.cli._common import check_paths
+    from kinecal.datasets import bundled_csv
+    from kinecal.errors import InputError
+    from kinecal.io.bundled import robots_dir
+
+    cases = [("MODEL", "irb120", robots_dir() / "irb120.yaml"),
+             ("GEOMETRY", "liu2008-cmm", robots_dir() / "liu2008-cmm.yaml"),
+             ("DATA", "ur5-laser-tracker:grid", bundled_csv("ur5-laser-tracker:grid")),
+             ("PAIRS", "handeye-camodocal", bundled_csv("handeye-camodocal:pairs"))]
+    for name, spec, path in cases:
+        with pytest.raises(InputError, match=f"also the input {name}"):
+            check_paths({name: spec}, {"--out": path})

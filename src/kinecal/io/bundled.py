@@ -91,9 +91,11 @@ def input_file(spec: str | Path) -> Path | None:
     text = str(spec)
     if "/" not in text and "\\" not in text and (robots_dir() / f"{text}.yaml").is_file():
         return robots_dir() / f"{text}.yaml"
-    if ":" in text and not path.suffix:
-        from kinecal.datasets import bundled_csv
+    from kinecal.datasets import DATASETS, bundled_csv
 
+    if text in DATASETS and "pairs" in DATASETS[text]["parts"]:  # a hand-eye recording
+        return bundled_csv(f"{text}:pairs")
+    if ":" in text and not path.suffix:
         try:
             return bundled_csv(text)
         except InputError:
