@@ -254,8 +254,10 @@ def calibrate_error_model(
                             validate=validate, rank_tol=rank_tol,
                             rotation_weight=rotation_weight, **kwargs)
         # identifiability is local: a coefficient at the edge of the threshold at the
-        # geometric calibration may fall below it at the solution; hold it and refit (the
-        # discarded fit's warning about it is not the user's concern)
+        # geometric calibration may fall below it at the solution. Its fit would be
+        # honest (only it and its partners lose their standard error), but kinecal chose
+        # this free set, and it never frees what the poses do not identify: hold it and
+        # refit (the discarded fit's warning about it is not the user's concern)
         late = [n for n in res.identifiability.unidentifiable if n in coefficients]
         if not late:
             # what remains is the user's, and so are the geometric stage's findings on the

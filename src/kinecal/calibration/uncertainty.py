@@ -6,30 +6,47 @@ normal matrix) quietly gives every parameter a finite standard error even along 
 directions, where the data say nothing (a confounded pair such as ``d2``/``d3`` of parallel
 axes, or ``alpha6`` of a tool point on the last axis). `subspace_uncertainty` instead
 
-* splits the (column-scaled) normal matrix into the fitted subspace, of the rank the
-  identifiability analysis found, and its null space;
+* splits the (column-scaled) normal matrix ``A`` into the fitted subspace, of the rank the
+  identifiability analysis found (eigenpairs ``(w_j, v_j)``), and the rest, the
+  unidentified directions (eigenpairs ``(w_i, n_i)``: exactly null for a confounding, or
+  below the rank threshold for a near-dependence);
 * gives the covariance ``sigma^2 (J^T W J)^+`` restricted to the fitted subspace, with
   ``sigma^2 = RSS / (m - rank)``;
-* marks a parameter *not identifiable* (standard error ``inf``) when its unit vector has a
-  component along the null space: a linear function ``c^T x`` is estimable exactly when
-  ``c`` lies in the row space (Searle, *Linear Models*, 1971, sec. 5.4); the same test
-  applied to Jacobian rows tells whether a predicted position is bounded.
+* marks a linear function ``c^T x`` (a parameter: ``c = e_k``; a predicted coordinate: a
+  Jacobian row) *not estimable* (standard error ``inf``) when it takes part in the
+  unidentified directions. In exact arithmetic that means a component along the null
+  space: ``c^T x`` is estimable exactly when ``c`` lies in the row space (Searle, *Linear
+  Models*, 1971, sec. 5.4). A near-dependence has no exact null space: its directions
+  touch every parameter a little (components of the order of its singular value ratio,
+  ~1e-4 at kinecal's rank threshold), and the exact test would take every standard error
+  away. The test used is therefore the share of the variance: were the unidentified
+  directions estimated at their own (tiny) eigenvalues, they would add
+  ``u(c) = sum_i (c^T n_i)^2 / w_i`` to the variance of ``c^T x`` (in units of
+  ``sigma^2``), against ``f(c) = sum_j (c^T v_j)^2 / w_j`` from the fitted subspace.
+  ``c^T x`` is estimable when ``u(c) <= f(c)``: at most half of its variance would come
+  from directions the data do not identify. A parameter of a confounded or near-dependent
+  pair has ``u / f`` of 1e5 and beyond (the inverse eigenvalue ratio across the rank
+  threshold), one merely touched by the near-null direction a few percent; a component
+  below ``ESTIMABLE_TOL`` (round-off of an exact null space) is estimable outright.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ESTIMABLE_TOL", "Uncertainty", "subspace_uncertainty"]
+__all__ = ["ESTIMABLE_TOL", "UNFITTED_SHARE", "Uncertainty", "subspace_uncertainty"]
 
 Array = NDArray[np.float64]
 
 #: a direction counts as estimable when its component along the null space is below this
 #: fraction of its norm (exact confounding leaves round-off, ~1e-12)
 ESTIMABLE_TOL = 1e-6
+#: ... or when the unidentified directions would add at most this multiple of its
+#: fitted-subspace variance (see the module docstring)
+UNFITTED_SHARE = 1.0
 
 
 @dataclass
@@ -47,9 +64,14 @@ class Uncertainty:
     estimable : ndarray of bool, shape (k,)
         Parameters the data identify individually.
     null : ndarray, shape (k, k - rank)
-        Orthonormal basis of the null space in scaled coordinates (see `scale`).
+        Orthonormal basis of the unidentified directions in scaled coordinates (see
+        `scale`).
     scale : ndarray, shape (k,)
         Column factors of the scaled coordinates (1 for lengths, 1 / L for angles).
+    fitted : ndarray, shape (k, rank)
+        Orthonormal basis of the fitted subspace (scaled coordinates).
+    fitted_values, null_values : ndarray, shapes (rank,), (k - rank,)
+        Eigenvalues of the scaled normal matrix along `fitted` and `null`.
     """
 
     covariance: Array
@@ -57,6 +79,9 @@ class Uncertainty:
     estimable: Array
     null: Array
     scale: Array
+    fitted: Array = field(default_factory=lambda: np.zeros((0, 0)))
+    fitted_values: Array = field(default_factory=lambda: np.zeros(0))
+    null_values: Array = field(default_factory=lambda: np.zeros(0))
 
     @property
     def std(self) -> Array:
@@ -72,9 +97,42 @@ class Uncertainty:
         rows = np.asarray(rows, dtype=float)
         if self.null.shape[1] == 0:
             return np.ones(rows.shape[:-1], dtype=bool)
-        scaled = rows * self.scale
-        along = np.linalg.norm(scaled @ self.null, axis=-1)
-        return along <= ESTIMABLE_TOL * np.maximum(np.linalg.norm(scaled, axis=-1), 1e-300)
+        scaled = (rows * self.scale).reshape(-1, rows.shape[-1])
+        ok = estimable_rows(scaled, self.fitted, self.fitted_values, self.null,
+                            self.null_values)
+        return ok.reshape(rows.shape[:-1])
+
+
+def estimable_rows(rows: Array, fitted: Array, fitted_values: Array, null: Array,
+                   null_values: Array) -> Array:
+    """Which rows ``(n, k)`` (scaled coordinates) the fit determines (module docstring).
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n, k)
+        Linear functions ``c`` of the scaled parameters.
+    fitted, fitted_values : ndarray, shapes (k, r), (r,)
+        Eigenvectors and (positive) eigenvalues of the fitted subspace.
+    null, null_values : ndarray, shapes (k, k - r), (k - r,)
+        Eigenvectors and eigenvalues (possibly round-off, even negative) of the
+        unidentified directions.
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    rows = np.asarray(rows, dtype=float)
+    if null.shape[1] == 0:
+        return np.ones(len(rows), dtype=bool)
+    on_null = rows @ null
+    along = np.linalg.norm(on_null, axis=1)
+    norm = np.maximum(np.linalg.norm(rows, axis=1), 1e-300)
+    f = ((rows @ fitted) ** 2 / fitted_values).sum(axis=1) if fitted.size else 0.0
+    # an exactly null direction has a round-off eigenvalue: count it as (almost) zero
+    top = max(float(fitted_values.max(initial=0.0)), float(null_values.max(initial=0.0)))
+    floor = np.finfo(float).eps * max(top, 1e-300) * max(len(rows[0]) if rows.size else 1, 1)
+    u = (on_null ** 2 / np.maximum(null_values, floor)).sum(axis=1)
+    return (along <= ESTIMABLE_TOL * norm) | (u <= UNFITTED_SHARE * f)
 
 
 def subspace_uncertainty(normal: Array, rss: float, n_rows: int, rank: int,
@@ -109,9 +167,9 @@ def subspace_uncertainty(normal: Array, rss: float, n_rows: int, rank: int,
     pos = w[:rank] > 0
     V1, w1 = V[:, :rank][:, pos], w[:rank][pos]
     null = np.concatenate([V[:, rank:], V[:, :rank][:, ~pos]], axis=1)
+    w_null = np.concatenate([w[rank:], w[:rank][~pos]])
     dof = n_rows - int(pos.sum())
     sigma2 = float(rss) / dof if dof > 0 else float("nan")
     cov = sigma2 * (D[:, None] * ((V1 / w1) @ V1.T) * D[None, :])
-    along = np.linalg.norm(null, axis=1) if null.size else np.zeros(k)
-    estimable = along <= ESTIMABLE_TOL
-    return Uncertainty(cov, float(np.sqrt(sigma2)), estimable, null, D)
+    estimable = estimable_rows(np.eye(k), V1, w1, null, w_null)
+    return Uncertainty(cov, float(np.sqrt(sigma2)), estimable, null, D, V1, w1, w_null)
