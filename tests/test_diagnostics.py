@@ -55,3 +55,26 @@ def test_cli_warnings_scope_prints_and_merges(capsys):
                                    "message": "printed even when the command fails"}]
     with pytest.raises(InputError), warnings_scope(strict=True):
         warn("x", "y")
+
+
+def test_every_code_raised_in_the_sources_is_listed_and_documented():
+    """Each ``warn("code", ...)`` anywhere in src/ has an entry in the code registry
+    (kinecal.calibration.diagnostics.CODES) and a section in docs/diagnostics.md."""
+    import re
+    from pathlib import Path
+
+    from kinecal.calibration.diagnostics import CODES
+
+    root = Path(__file__).resolve().parents[1]
+    doc = (root / "docs" / "diagnostics.md").read_text(encoding="utf-8")
+    call = re.compile(r"(?<!warnings\.)\bwarn\(\s*(f?)[\"']([^\"']*)[\"']")
+    raised: dict[str, str] = {}
+    for path in sorted((root / "src" / "kinecal").rglob("*.py")):
+        for m in call.finditer(path.read_text(encoding="utf-8")):
+            assert not m.group(1), f"{path.name}: a code must be a plain string: {m.group(0)}"
+            raised.setdefault(m.group(2), path.name)
+    assert len(raised) >= 30 and "joint-errors-not-exported" in raised, sorted(raised)
+    for code, where in raised.items():
+        assert re.fullmatch(r"[a-z0-9]+(-[a-z0-9]+)*", code), (code, where)
+        assert code in CODES, f"{code} ({where}) is missing from CODES"
+        assert f"### `{code}`" in doc or f"`{code}`" in doc, f"{code} ({where}) not documented"

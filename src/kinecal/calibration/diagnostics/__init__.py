@@ -11,7 +11,8 @@ from __future__ import annotations
 
 __all__ = ["CODES"]
 
-#: every diagnostic code kinecal's calibrations issue -> what it means
+#: every diagnostic code kinecal issues -> what it means (a test checks that each code
+#: raised in the sources is listed here and documented in docs/diagnostics.md)
 CODES: dict[str, str] = {
     "too-few-poses": "the distinct poses give no more equations than free parameters (error)",
     "few-poses": "fewer than 3 equations per free parameter",
@@ -32,4 +33,23 @@ CODES: dict[str, str] = {
     "angle-units": "Stewart pose angles that look like radians",
     "handeye-conditioning": "hand-eye motions too close to one rotation axis for the noise",
     "absolute-errors": "simulate(errors=...) got absolute parameter values, not deviations",
+    # hand-eye calibration from images
+    "board-symmetric": "a board that looks the same turned by 180 deg (frames can flip)",
+    "intrinsics-size": "intrinsics made for another image size than the images'",
+    "intrinsics-rms": "the camera calibration from the images leaves more than 1 px RMS",
+    "pnp-rms": "the board poses fit the detected corners poorly (wrong intrinsics or board)",
+    "images-rejected": "more than half of the images rejected",
+    "reprojection-rms": "the hand-eye solution reprojects the corners poorly",
+    "many-outliers": "more than 30 % of the hand-eye stations flagged as outliers",
+    # compensation
+    "no-seed-joints": "targets without seed joints: inverse kinematics chose the configuration",
+    "joints-outside-limits": "program or seed joints outside the model's joint limits",
+    "base-frame-far": "the calibrated base frame is far from the nominal one",
+    "compensation-not-converged": "rows whose compensated joints did not converge",
+    "nominal-ik-not-converged": "targets out of reach of the nominal model",
+    "near-singular": "rows close to a singularity: large, sensitive joint corrections",
+    # readers and export
+    "no-marker-column": "a model with several markers, a measurement file without marker column",
+    "urdf-joint-limits": "a URDF revolute joint without usable limits",
+    "joint-errors-not-exported": "joint-error terms left out of a URDF export (geometry only)",
 }
