@@ -24,6 +24,8 @@ from kinecal.errors import InputError
 
 #: bundled recordings addressable by name, with the setup they were recorded in
 _BUNDLED_SETUP = {"handeye-camodocal": "eye-to-hand", "handeye-tabb1": "eye-in-hand"}
+#: their length units (files carry none; labels of the output only)
+_BUNDLED_UNIT = {"handeye-camodocal": "m", "handeye-tabb1": "mm"}
 
 
 def resolve_pairs(spec: str) -> tuple[Path, str | None]:
@@ -120,6 +122,9 @@ def handeye(
     pairs_mode: str = typer.Option("all", "--pairs", help="Motion pairs of the AX=XB closed "
                                    "forms: all or consecutive."),
     seed: int = seed_option("Random seed (metaheuristic refiners; an integer >= 0)."),
+    unit: str | None = typer.Option(None, "--unit", help="Length unit of the poses, for the "
+                                    "output labels (default: the bundled recording's, else "
+                                    "'input unit')."),
     json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),
     out: Path | None = typer.Option(None, "--out", help="Write the result JSON here."),
     report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
@@ -139,7 +144,12 @@ def handeye(
         setup = setup or default_setup or "eye-in-hand"
         res = calibrate_handeye(F, C, setup=setup, method=method, refine=refine,
                                 pairs=pairs_mode, seed=seed)
-    result = with_warnings({"file": source, **res.to_dict(), "seed": seed}, found)
+    if unit is not None and not unit.strip():
+        raise InputError("expected a unit name such as mm or m", option="--unit")
+    length_unit = unit or (_BUNDLED_UNIT.get(str(pairs).partition(":")[0]) if pairs
+                           and not Path(pairs).exists() else None) or "input unit"
+    result = with_warnings({"file": source, **res.to_dict(), "seed": seed,
+                            "length_unit": length_unit}, found)
     if out is not None:
         write_json(out, result)
     if report is not None:
@@ -152,14 +162,24 @@ def handeye(
     if quiet:
         return
     frame = "cam2flange" if setup == "eye-in-hand" else "cam2base"
+    tframe = "target2base" if setup == "eye-in-hand" else "target2flange"
     label = (Path(source).name if pairs is not None
              else f"{Path(robot_poses).name} + {Path(target_poses).name}")
+    u = length_unit
     lines = [
         f"{label}: {len(F)} stations, {setup}, method {method}, refine {refine}",
-        f"X ({frame}):",
+        f"X ({frame}; translation in {u}):",
         _format_matrix(res.X),
+    ]
+    if res.x_uncertainty is not None:
+        xu = res.x_uncertainty
+        lines.append(f"X uncertainty (1 sigma from the residuals, worst direction): rotation "
+                     f"{xu.rotation_deg:.4g} deg, translation {xu.translation:.4g} {u}")
+    lines += [
+        f"target pose ({tframe}; translation in {u}):",
+        _format_matrix(res.target),
         f"station residuals: rotation rms {res.rotation_rms_deg:.4g} deg, "
-        f"translation rms {res.translation_rms:.4g}",
+        f"translation rms {res.translation_rms:.4g} {u}",
         "outliers (0-based stations): "
         + (", ".join(str(i) for i in res.outliers) if res.outliers else "none"),
     ]

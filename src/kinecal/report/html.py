@@ -245,27 +245,38 @@ def calibration_report(result: Any, path: str | Path,
 def handeye_report(result: dict[str, Any], path: str | Path) -> Path:
     """Write the HTML report of a hand-eye result dict (``kinecal handeye --json``).
 
-    Sections: setup and solver, the transform X, residual statistics, per-station residual
-    table and figure (outliers marked).
+    Sections: setup and solver (length unit, first-order uncertainty of X), the transform X,
+    the target pose, residual statistics, per-station residual table and figure (outliers
+    marked).
     """
     stations = result.get("stations") or []
     outliers = {int(i) for i in result.get("outliers") or []}
     setup = str(result.get("setup", "eye-in-hand"))
     frame = "cam2flange" if setup == "eye-in-hand" else "cam2base"
+    tframe = "target2base" if setup == "eye-in-hand" else "target2flange"
+    u = str(result.get("length_unit") or "input unit")
+    xu = result.get("x_uncertainty") or {}
     summary = _kv([
         ("file", result.get("file", "-")), ("setup", setup),
         ("method", result.get("method", "-")), ("refinement", result.get("refine", "-")),
-        ("stations", len(stations)), ("seed", result.get("seed")),
+        ("stations", len(stations)), ("seed", result.get("seed")), ("length unit", u),
         ("rotation rms [deg]", result.get("rotation_rms_deg")),
-        ("translation rms", result.get("translation_rms")),
+        (f"translation rms [{u}]", result.get("translation_rms")),
+        ("X uncertainty, rotation [deg] (1 sigma, worst axis)", xu.get("rotation_deg")),
+        (f"X uncertainty, translation [{u}] (1 sigma, worst direction)",
+         xu.get("translation")),
         ("outlier stations (0-based)", ", ".join(str(i) for i in sorted(outliers)) or "none"),
     ])
-    X = result.get("X") or []
-    xtab = table(["", "c1", "c2", "c3", "t"],
-                 [[f"r{i + 1}", *[float(v) for v in row]] for i, row in enumerate(X)])
+
+    def transform_table(T: Any) -> str:
+        return table(["", "c1", "c2", "c3", f"t [{u}]"],
+                     [[f"r{i + 1}", *[float(v) for v in row]] for i, row in enumerate(T or [])])
+
+    xtab = transform_table(result.get("X"))
+    ttab = transform_table(result.get("target"))
     srows = [(k, s.get("rotation_deg"), s.get("translation"),
               "outlier" if k in outliers else "") for k, s in enumerate(stations)]
-    stab = table(["station", "rotation [deg]", "translation", ""], srows)
+    stab = table(["station", "rotation [deg]", f"translation [{u}]", ""], srows)
     fig = image_tag(figure_png(plot_handeye_stations(result)), "per-station residuals",
                     "Rotation and translation residual of every station (red: outliers).",
                     "fig-stations")
@@ -273,6 +284,7 @@ def handeye_report(result: dict[str, Any], path: str | Path) -> Path:
         warnings_section(result.get("warnings")),
         section("summary", "Setup and solver", summary),
         section("transform", f"X ({frame})", xtab),
+        section("target", f"Target pose ({tframe})", ttab),
         section("figures", "Per-station residuals", fig),
         section("stations", "Stations", stab),
     ])
