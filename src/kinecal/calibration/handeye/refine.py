@@ -175,6 +175,7 @@ def lm(
     rotation_weight: float | None = None,
     outlier_level: float = 0.999,
     max_outer: int = 10,
+    start_inliers: Array | None = None,
 ) -> LMRefinement:
     """Refine ``X`` and the target pose ``Y`` by (robust) Levenberg-Marquardt.
 
@@ -196,6 +197,11 @@ def lm(
         Chi-square(6) probability beyond which a station is flagged.
     max_outer : int
         Maximum reweighting iterations.
+    start_inliers : ndarray of int, optional
+        Robust mode: stations trusted at the start (e.g. a consensus set of
+        `ransac.consensus_start`): the first pass weighs only them, and the residual scales
+        come from the stations currently weighted above 1/2 instead of all stations (which
+        at 50 % outliers puts the median on the outliers).
 
     Returns
     -------
@@ -233,12 +239,17 @@ def lm(
             sr = st / rotation_weight
         return sr, st
 
-    sr, st = scales(np.ones(n, bool))
+    trusted = np.ones(n, bool)
+    if robust and start_inliers is not None and len(start_inliers) >= 3:
+        trusted = np.zeros(n, bool)
+        trusted[np.asarray(start_inliers, dtype=np.intp)] = True
+        w = trusted.astype(float)
+    sr, st = scales(trusted)
     if robust:
         for _ in range(max_outer):
             X, Y, cost = solve(X, Y, w, sr, st)
             history.append(cost)
-            sr, st = scales(np.ones(n, bool))
+            sr, st = scales(w > 0.5 if start_inliers is not None else np.ones(n, bool))
             d = _distances(G, C, X, Y, sr, st)
             w_new = 1.0 / (1.0 + (d / (np.sqrt(6.0) * _CAUCHY_C)) ** 2)
             done = np.max(np.abs(w_new - w)) < 1e-3
