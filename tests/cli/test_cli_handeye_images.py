@@ -85,7 +85,7 @@ def test_intrinsics_estimated_and_text_summary(scene_dir, capsys):
     assert code == 0
     text = capsys.readouterr().out
     assert "X (cam2flange" in text and "X std (1 sigma)" in text and "mm" in text
-    assert "estimated from 7 images" in text and "rejected: blurred.png" in text
+    assert "estimated from 7 images, refined with X" in text and "rejected: blurred.png" in text
 
 
 def test_exit_2_on_bad_folders_and_files(scene_dir, tmp_path, capsys):

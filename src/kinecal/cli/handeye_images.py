@@ -70,8 +70,9 @@ def handeye_images(
     setup: str = typer.Option("eye-in-hand", "--setup", help="eye-in-hand (camera on the "
                               "flange) or eye-to-hand (camera fixed)."),
     method: str = typer.Option("park", "--method", help="Closed form seeding the refinement."),
-    refine_intrinsics: bool = typer.Option(False, "--refine-intrinsics", help="Refine the "
-                                           "intrinsics jointly with X."),
+    refine_intrinsics: bool | None = typer.Option(
+        None, "--refine-intrinsics/--fix-intrinsics", help="Refine the intrinsics jointly "
+        "with X (default: when estimated from the images, not when given)."),
     robot_noise: str | None = typer.Option(None, "--robot-noise", help="ROT_DEG,TRANS: model "
                                            "robot pose errors of this std (deg, length)."),
     json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),

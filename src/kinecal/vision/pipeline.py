@@ -206,7 +206,7 @@ def calibrate_handeye_images(
     intrinsics: CameraIntrinsics | None = None,
     setup: str = "eye-in-hand",
     method: str = "park",
-    refine_intrinsics: bool = False,
+    refine_intrinsics: bool | None = None,
     robot_noise: tuple[float, float] | None = None,
     robust: bool = True,
     limits: QualityLimits | None = None,
@@ -229,8 +229,11 @@ def calibrate_handeye_images(
     setup : {"eye-in-hand", "eye-to-hand"}
     method : str
         Closed form of the seed (`kinecal.calibration.handeye.METHODS`).
-    refine_intrinsics : bool
-        Refine the intrinsics jointly with X.
+    refine_intrinsics : bool, optional
+        Refine the intrinsics jointly with X. Default: yes when they are estimated from the
+        same images (the hand-eye constraint ties the views together: on the rendered
+        walkthrough scene X's translation error falls from 0.10 to 0.007 mm), no when they
+        are given (a dedicated camera calibration is usually better conditioned).
     robot_noise : (float, float), optional
         Robot pose error std, rotation (rad) and translation (length): model it.
     robust : bool
@@ -269,6 +272,8 @@ def calibrate_handeye_images(
                              "images; use a board with one even and one odd count, or ChArUco")
         records, size = _detect_all(images, names, board, limits, progress)
         intr = _intrinsics(records, board, size, intrinsics)
+        if refine_intrinsics is None:
+            refine_intrinsics = intrinsics is None
         _poses(records, board, intr, limits)
         used = [k for k, r in enumerate(records) if r.status == "used"]
         if len(used) < 3:
