@@ -200,3 +200,13 @@ def test_rendered_scenes_beat_opencv_pipeline(spec, setup):
     ours = np.median(ours, axis=0)
     best = np.median(cv, axis=0).min(axis=0)  # best method per error kind
     assert ours[0] < 0.8 * best[0] and ours[1] < 0.8 * best[1], (ours, best)
+
+
+def test_symmetric_board_warns():
+    board = Chessboard(8, 6, 20.0)
+    sc = render_handeye_scene(board, K, DIST, SIZE, 4, seed=5, supersample=1)
+    from kinecal.vision.intrinsics import CameraIntrinsics
+
+    res = calibrate_handeye_images(sc.images, sc.flange2base, board,
+                                   intrinsics=CameraIntrinsics(K, DIST, SIZE))
+    assert "board-symmetric" in [w["code"] for w in res.warnings]

@@ -141,3 +141,15 @@ def test_too_few_usable_images_is_exit_2(tmp_path, capsys):
                  SPEC]) == 2
     err = capsys.readouterr().err
     assert "0 usable image(s) of 4" in err and "no board found: 4" in err
+
+
+def test_robot_noise_option(scene_dir, capsys):
+    folder, _ = scene_dir
+    args = ["handeye-images", str(folder / "images"), str(folder / "robot_poses.csv"),
+            "--board", SPEC, "--intrinsics", str(folder / "camera.yaml")]
+    assert main([*args, "--json", "--robot-noise", "0.01,0.05", "--fix-intrinsics"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert len(out["robot_corrections"]) == 7 and not out["intrinsics"]["refined"]
+    for bad in ("0.01", "-1,2", "a,b"):
+        assert main([*args, "--robot-noise", bad]) == 2
+        assert "--robot-noise" in capsys.readouterr().err
