@@ -28,7 +28,12 @@ from numpy.typing import NDArray
 from scipy.optimize import OptimizeResult
 from scipy.special import fdtri
 
-from kinecal.calibration.identifiability import IdentifiabilityReport, analyse_factor
+from kinecal.calibration.identifiability import (
+    IdentifiabilityReport,
+    analyse_factor,
+    conditioning,
+    observability_indices,
+)
 from kinecal.calibration.problem import (
     CalibrationProblem,
     analyse_poses,
@@ -208,13 +213,14 @@ def grow_identifiable(model, data, problem, res, report, tol):
     res2.nit += res.nit
     res2.history = list(res.history) + list(res2.history)
     P2 = bigger.positions_from_residuals(res2.residual)
-    sub = analyse_factor(gram_root(res2.normal_matrix), grown, bigger.rows * len(data),
-                         scale=column_scale(model, data, grown, positions=P2))
+    # conditioning of the grown set (scaled like the analysis; no pivoting needed)
+    scale2 = column_scale(model, data, grown, positions=P2)
+    cond, sv = conditioning(gram_root(res2.normal_matrix) * scale2)
     new_report = dataclasses.replace(
         report, rank=len(grown), identifiable=grown,
         unidentifiable=[n for n in report.names if n not in grown],
         confounded_with={n: c for n, c in report.confounded_with.items() if n not in grown},
-        condition_number=sub.condition_number, observability=sub.observability,
+        condition_number=cond, observability=observability_indices(sv, bigger.rows * len(data)),
     )
     return bigger, res2, grown, new_report
 

@@ -146,17 +146,18 @@ def check_residual_offset(problem, x: Array) -> None:
          "base frame, add base: [0, 0, 0, 0, 0, 0] to the model (or free base.*)")
 
 
-def pose_leverage(problem, x: Array) -> Array:
+def pose_leverage(problem, x: Array, normal: Array | None = None) -> Array:
     """Mean leverage ``(N,)`` of each pose's position rows at the solution `x`.
 
     The diagonal of the hat matrix ``J (J^T J)^+ J^T`` averaged over a pose's three position
     rows: a least-squares fit pulls the residual of a high-leverage pose towards zero (its
     variance is ``sigma^2 (1 - h)``), which matters when there are few residual degrees of
-    freedom per parameter. Two chunked passes over the poses.
+    freedom per parameter. Two chunked passes over the poses, one when `normal` (the
+    weighted ``J^T J`` at `x`, which Levenberg-Marquardt returns) is given.
     """
     rows = problem.pose_rows
     p = problem.full(x)
-    A = rows.gram(p, problem.index)[0][:-1, :-1]
+    A = rows.gram(p, problem.index)[0][:-1, :-1] if normal is None else normal
     Ainv = np.linalg.pinv(A)
     h = np.empty(len(problem.data))
     for sel in rows.chunks(problem.n_free):
@@ -230,7 +231,8 @@ def check_lack_of_fit(errors: Array, groups: Array, n_params: int, unit: str) ->
 
 def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_choice: object,
                      least_squares: bool, robust: bool, groups: Array | None,
-                     rank: int, confounded_with: dict | None = None) -> list[int]:
+                     rank: int, confounded_with: dict | None = None,
+                     normal: Array | None = None) -> list[int]:
     """Every after-fit check of a serial calibration (the module docstring's codes).
 
     Parameters
@@ -254,6 +256,8 @@ def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_ch
         Rank of the fit.
     confounded_with : dict, optional
         The identifiability report's confounding coefficients of the held parameters.
+    normal : ndarray, shape (k, k), optional
+        The weighted ``J^T J`` at `x` when the solver has it (saves a pass over the poses).
 
     Returns
     -------
@@ -271,7 +275,7 @@ def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_ch
         return []
     e = problem.errors(x)
     out = check_outliers(np.linalg.norm(e, axis=1), model.length_unit,
-                         pose_leverage(problem, x))
+                         pose_leverage(problem, x, normal))
     if groups is not None:
         check_lack_of_fit(e, groups, rank, model.length_unit)
     return out
