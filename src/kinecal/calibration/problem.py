@@ -294,6 +294,11 @@ class CalibrationProblem:
         cols = self.index if names is None else self.model.index(list(names))
         return self.pose_rows.gram(self.full(x), cols, keep)[0]
 
+    def errors_from_residuals(self, r: Array) -> Array:
+        """Position error vectors ``(N, 3)`` recomputed from a vector of `residuals`."""
+        e = np.asarray(r).reshape(-1, self.rows)[:, :3]
+        return e / self.sqrt_w[:, None] if self.weighted else e
+
     def distances_from_residuals(self, r: Array) -> Array:
         """Euclidean distance errors ``(N,)`` recomputed from a vector of `residuals`."""
         e = np.asarray(r).reshape(-1, self.rows)[:, :3]

@@ -282,7 +282,8 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         least_squares=method in ("lm", "householder"), robust=loss != "linear",
         groups=info.groups if info.n_distinct < len(data) else None,
         rank=int(unc.estimable.size - unc.null.shape[1]),
-        confounded_with=first_report.confounded_with, normal=normal)
+        confounded_with=first_report.confounded_with, normal=normal,
+        residual=res.residual if normal is not None else None)
     outliers = outliers or flagged
     calibrated = model.with_params(params, name=f"{model.name}-calibrated")
     x_nom = problem.x0

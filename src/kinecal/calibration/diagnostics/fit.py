@@ -232,7 +232,8 @@ def check_lack_of_fit(errors: Array, groups: Array, n_params: int, unit: str) ->
 def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_choice: object,
                      least_squares: bool, robust: bool, groups: Array | None,
                      rank: int, confounded_with: dict | None = None,
-                     normal: Array | None = None) -> list[int]:
+                     normal: Array | None = None, residual: Array | None = None
+                     ) -> list[int]:
     """Every after-fit check of a serial calibration (the module docstring's codes).
 
     Parameters
@@ -256,8 +257,9 @@ def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_ch
         Rank of the fit.
     confounded_with : dict, optional
         The identifiability report's confounding coefficients of the held parameters.
-    normal : ndarray, shape (k, k), optional
-        The weighted ``J^T J`` at `x` when the solver has it (saves a pass over the poses).
+    normal, residual : ndarray, optional
+        The weighted ``J^T J`` ``(k, k)`` and the residual vector at `x` when the solver has
+        them (each saves a pass over the poses).
 
     Returns
     -------
@@ -273,7 +275,7 @@ def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_ch
     check_residual_offset(problem, x)
     if not least_squares or robust:
         return []
-    e = problem.errors(x)
+    e = problem.errors(x) if residual is None else problem.errors_from_residuals(residual)
     out = check_outliers(np.linalg.norm(e, axis=1), model.length_unit,
                          pose_leverage(problem, x, normal))
     if groups is not None:
