@@ -386,3 +386,17 @@ def test_bundled_inputs_are_protected_like_files():
     for name, spec, path in cases:
         with pytest.raises(InputError, match=f"also the input {name}"):
             check_paths({name: spec}, {"--out": path})
+
+
+def test_options_the_hand_eye_refiner_would_ignore_are_refused():
+    from kinecal.calibration.handeye import calibrate_handeye
+    from kinecal.datasets import bundled_csv
+    from kinecal.errors import InputError
+    from kinecal.io.handeye import read_handeye_pairs
+
+    F, C = read_handeye_pairs(bundled_csv("handeye-camodocal:pairs"))
+    for refine, kwargs, words in [("none", {"rotation_weight": 100.0}, "refine lm"),
+                                  ("igwo", {"robust": False}, "refine lm"),
+                                  ("lm", {"options": {"popsize": 10}}, "metaheuristic")]:
+        with pytest.raises(InputError, match=words):
+            calibrate_handeye(F, C, setup="eye-to-hand", refine=refine, **kwargs)

@@ -98,3 +98,22 @@ def check_error_model_options(error_model: str | None, *, harmonics: int | None 
                              "with the harmonic family, not to "
                              f"{error_model or 'the model file default'}",
                              option="--harmonics")
+
+
+def check_refine_options(refine: str, *, robust: bool = True,
+                         rotation_weight: float | None = None,
+                         options: dict[str, Any] | None = None) -> None:
+    """Refuse hand-eye refinement options the chosen `refine` would not use.
+
+    ``robust=False`` and ``rotation_weight`` belong to the ``lm`` refinement, ``options``
+    (popsize, maxiter, boxes) to the metaheuristic refiners ``igwo`` and ``dlh-gwo-de``.
+    """
+    if refine != "lm" and rotation_weight is not None:
+        raise InputError(f"rotation_weight applies to refine lm, not to refine {refine}",
+                         option="rotation_weight")
+    if refine != "lm" and robust is False:
+        raise InputError(f"robust applies to refine lm, not to refine {refine}",
+                         option="robust")
+    if options and refine not in ("igwo", "dlh-gwo-de"):
+        raise InputError(f"options apply to the metaheuristic refiners (igwo, dlh-gwo-de), "
+                         f"not to refine {refine}", option="options")

@@ -29,6 +29,7 @@ from kinecal.calibration.handeye.errors import (
     rms,
     station_residuals,
 )
+from kinecal.calibration.method_options import check_refine_options
 from kinecal.errors import InputError
 from kinecal.spatial import invert_transform
 
@@ -249,6 +250,8 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
     _choice(setup, SETUPS, "setup")
     _choice(method, METHODS, "method")
     _choice(refine, REFINERS, "refine")
+    check_refine_options(refine, robust=robust, rotation_weight=rotation_weight,
+                         options=options)
     F = as_transforms(flange2base, "flange2base")
     C = as_transforms(target2cam, "target2cam")
     if len(F) != len(C):
