@@ -5,16 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinecal.calibration.stewart import (
+from kinecal.calibration.stewart import calibrate_stewart
+from kinecal.calibration.stewart_data import (
     ARCSEC,
     StewartData,
-    calibrate_stewart,
-    identifiability,
-    identification_jacobian,
     perturb_geometry,
-    pose_prediction_errors,
     simulate_stewart,
 )
+from kinecal.calibration.stewart_identification import identifiability, identification_jacobian
+from kinecal.calibration.stewart_result import pose_prediction_errors
 from kinecal.errors import InputError
 from kinecal.kinematics.stewart import N_PARAMETERS, StewartPlatform
 

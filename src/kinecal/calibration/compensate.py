@@ -27,195 +27,34 @@ measurements were taken in an instrument's frame (a warning says so), where the 
 poses do not live.
 """
 
+
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal import diagnostics
-from kinecal.calibration.same_arm import (
-    Registration,
-    check_same_arm,
-    in_length_unit,
-    with_registered_base,
+from kinecal.calibration.compensate_inputs import (
+    check_base,
+    program_joints,
+    program_models,
+    program_targets,
 )
+from kinecal.calibration.compensation_result import CompensationResult
+from kinecal.calibration.same_arm import check_same_arm, with_registered_base
 from kinecal.errors import InputError
-from kinecal.kinematics.ik import IKResult, characteristic_length, pose_error, solve_ik
+from kinecal.kinematics.ik import IKResult, pose_error, solve_ik
 from kinecal.kinematics.serial import SerialModel
-from kinecal.spatial import check_transform, transform_from_pq
 
 __all__ = ["CompensationResult", "compensate"]
 
 Array = NDArray[np.float64]
 
-#: calibrated base this far from nominal (fraction of the arm's length, rad): warn
-BASE_FAR_LENGTH = 0.05
-BASE_FAR_ANGLE = 0.1
 #: rows solved together (bounds the memory of very long programs)
 BLOCK = 20_000
-
-
-@dataclass(frozen=True)
-class CompensationResult:
-    """Outcome of `compensate`, one row per program line.
-
-    Attributes
-    ----------
-    kind : {"joints", "targets"}
-        What the program gave.
-    outputs : {"pose", "position"}
-        What was compensated: the full tool pose, or the tool point only.
-    q : ndarray, shape (N, n_joints)
-        Joints to command (rad; prismatic joints in the length unit).
-    q_nominal : ndarray, shape (N, n_joints)
-        Joints an uncompensated controller commands: the program's joints, or the nominal
-        inverse kinematics of the targets.
-    dq : ndarray, shape (N, n_joints)
-        ``q - q_nominal``.
-    intended : ndarray, shape (N, 4, 4) or (N, 3)
-        The poses (or points) the program means, in the program's frame.
-    filtered : ndarray, shape (N, 4, 4) or (N, 3)
-        Nominal model at `q`: the targets to send to a controller running its nominal model.
-    correction, correction_rotation : ndarray, shape (N,)
-        Distance (length unit) and angle (rad; NaN for position compensation) between
-        `filtered` and `intended`.
-    error_before, error_before_rotation : ndarray, shape (N,)
-        Calibrated model at `q_nominal` against `intended`: the error the uncompensated
-        program is predicted to have.
-    residual, residual_rotation : ndarray, shape (N,)
-        Calibrated model at `q` against `intended` (the IK residual).
-    converged : ndarray of bool, shape (N,)
-        The calibrated model reaches the intent at `q` within the IK tolerances.
-    status : ndarray of str, shape (N,)
-        IK status per row (`kinecal.kinematics.ik.STATUS`).
-    nominal_converged : ndarray of bool, shape (N,)
-        Targets only: the nominal inverse kinematics converged (all True for joint programs).
-    ik : IKResult
-        The inverse kinematics on the calibrated model.
-    length_unit : str
-    """
-
-    kind: str
-    outputs: str
-    q: Array
-    q_nominal: Array
-    dq: Array
-    intended: Array
-    filtered: Array
-    correction: Array
-    correction_rotation: Array
-    error_before: Array
-    error_before_rotation: Array
-    residual: Array
-    residual_rotation: Array
-    converged: NDArray[np.bool_]
-    status: NDArray[np.str_]
-    nominal_converged: NDArray[np.bool_]
-    ik: IKResult
-    length_unit: str = ""
-
-    def __len__(self) -> int:
-        return int(self.q.shape[0])
-
-    def summary(self) -> str:
-        """A few lines: rows, convergence, size of the corrections and of the residuals."""
-        n, unit = len(self), self.length_unit or "length unit"
-        ok = self.converged
-        lines = [f"compensated {n} {'joint-program rows' if self.kind == 'joints' else 'targets'}"
-                 f" ({self.outputs}): {int(ok.sum())} converged"]
-        if n:
-            c = self.correction
-            lines.append(f"correction: mean {c.mean():.4g} {unit}, max {c.max():.4g} {unit}; "
-                         f"joints up to {np.degrees(np.abs(self.dq).max()):.4g} deg")
-            if self.outputs == "pose":
-                a = np.degrees(self.correction_rotation)
-                lines.append(f"correction angle: mean {a.mean():.4g} deg, max {a.max():.4g} deg")
-            if ok.any():
-                lines.append(f"residual (converged rows): max {self.residual[ok].max():.3g} {unit}"
-                             + (f", {self.residual_rotation[ok].max():.3g} rad"
-                                if self.outputs == "pose" else ""))
-        for s, k in self.ik.counts().items():
-            if k and s != "converged":
-                lines.append(f"  {s}: {k} rows")
-        return "\n".join(lines)
-
-    def stats(self) -> dict[str, Any]:
-        """JSON-ready statistics: counts, corrections, residuals."""
-        def s(x: Array) -> dict[str, float] | None:
-            x = x[np.isfinite(x)]
-            if x.size == 0:
-                return None
-            return {"mean": float(x.mean()), "rms": float(np.sqrt(np.mean(x ** 2))),
-                    "max": float(x.max())}
-
-        return {"kind": self.kind, "outputs": self.outputs, "rows": len(self),
-                "converged": int(self.converged.sum()), "status": self.ik.counts(),
-                "length_unit": self.length_unit,
-                "correction": s(self.correction),
-                "correction_rotation_rad": s(self.correction_rotation),
-                "error_before": s(self.error_before),
-                "residual": s(self.residual[self.converged]),
-                "joint_correction_rad": s(np.abs(self.dq).max(axis=1)) if len(self) else None}
-
-
-def _base_check(nominal: SerialModel, reg: Registration, warn: Any) -> None:
-    L = characteristic_length(nominal)
-    if reg.shift > BASE_FAR_LENGTH * L or reg.turn > BASE_FAR_ANGLE:
-        warn(
-            "base-frame-far",
-            f"the calibrated base frame is {reg.shift:.4g} {nominal.length_unit} and "
-            f"{np.degrees(reg.turn):.3g} deg from the nominal one: the measurements were "
-            "probably taken in an instrument's frame, not the robot's; compensate with "
-            "base='nominal' (--base nominal) unless the program's poses are in that frame")
-
-
-def _as_models(calibrated: Any, nominal: SerialModel | None) -> tuple[SerialModel, SerialModel]:
-    """(nominal, calibrated) from a model, a CalibrationResult or a parameter vector."""
-    if hasattr(calibrated, "nominal_model") and hasattr(calibrated, "model"):  # a result
-        nom = calibrated.nominal_model if nominal is None else nominal
-        cal = calibrated.model
-    elif isinstance(calibrated, SerialModel):
-        if nominal is None:
-            raise InputError("compensate needs the nominal model (what the controller runs) "
-                             "beside a calibrated model", option="--nominal")
-        nom, cal = nominal, calibrated
-    else:
-        if nominal is None:
-            raise InputError("a calibrated parameter vector needs its nominal model",
-                             option="--nominal")
-        p = np.asarray(calibrated, dtype=float)
-        if p.shape != (nominal.n_params,) or not np.isfinite(p).all():
-            raise InputError(f"calibrated parameters: expected {nominal.n_params} finite "
-                             f"values, got shape {p.shape}")
-        nom = nominal
-        cal = nominal.with_params(p, name=f"{nominal.name}-calibrated")
-    if not isinstance(nom, SerialModel):
-        raise InputError(f"nominal: expected a SerialModel, got {type(nom).__name__}")
-    return nom, in_length_unit(cal, nom.length_unit)
-
-
-def _targets(targets: ArrayLike) -> Array:
-    """(N, 3) points, (N, 7) x,y,z,qw,qx,qy,qz or (N, 4, 4) frames -> (N, 3) / (N, 4, 4)."""
-    t = np.asarray(targets, dtype=float)
-    if t.ndim == 2 and t.shape[1] == 7:
-        q = t[:, 3:]
-        norm = np.linalg.norm(q, axis=1)
-        bad = np.abs(norm - 1.0) > 1e-3
-        if bad.any() or not np.isfinite(t).all():
-            row = int(np.argmax(bad | ~np.isfinite(t).all(axis=1))) + 1
-            raise InputError("targets: qw, qx, qy, qz must be a unit quaternion", row=row)
-        return transform_from_pq(np.column_stack([t[:, :3], q / norm[:, None]]))
-    if t.ndim == 2 and t.shape[1] == 3:
-        if not np.isfinite(t).all():
-            raise InputError("targets contain NaN or infinite values")
-        return t
-    if t.ndim == 3 and t.shape[1:] == (4, 4):
-        return check_transform(t, name="target")
-    raise InputError(f"targets: expected (N, 3) points, (N, 7) x,y,z,qw,qx,qy,qz or (N, 4, 4) "
-                     f"frames, got shape {t.shape}")
 
 
 def _errors(intended: Array, T: Array) -> tuple[Array, Array]:
@@ -223,27 +62,6 @@ def _errors(intended: Array, T: Array) -> tuple[Array, Array]:
     pos = np.linalg.norm(dp, axis=1)
     rot = np.full(pos.shape, np.nan) if dr is None else np.linalg.norm(dr, axis=1)
     return pos, rot
-
-
-def _joints(model: SerialModel, q: ArrayLike, what: str, warn: Any) -> Array:
-    a = np.asarray(q, dtype=float)
-    if a.ndim == 1 and a.size == model.n_joints:
-        a = a[None]
-    if a.ndim != 2 or a.shape[1] != model.n_joints:
-        raise InputError(f"{what}: expected (N, {model.n_joints}) joint values, got shape "
-                         f"{np.shape(q)}")
-    if not np.isfinite(a).all():
-        raise InputError(f"{what} contain NaN or infinite values",
-                         row=int(np.argmax(~np.isfinite(a).all(axis=1))) + 1)
-    lim = model.joint_limits
-    out = (a < lim[:, 0]) | (a > lim[:, 1])
-    if out.any():
-        rows = np.flatnonzero(out.any(axis=1))
-        warn(
-            "joints-outside-limits",
-            f"{rows.size} row(s) of {what} (first: row {rows[0] + 1}) lie outside the model's "
-            "joint limits; the compensated joints are kept within them")
-    return a
 
 
 def compensate(
@@ -318,10 +136,10 @@ def compensate(
     if base not in ("calibrated", "nominal"):
         raise InputError(f"base: expected 'calibrated' or 'nominal', got {base!r}",
                          option="--base")
-    nom, cal = _as_models(calibrated, nominal)
+    nom, cal = program_models(calibrated, nominal)
     reg = check_same_arm(nom, cal)
     if base == "calibrated":
-        _base_check(nom, reg, warn)
+        check_base(nom, reg, warn)
     else:
         cal = with_registered_base(cal, reg)
     if (joints is None) == (targets is None):
@@ -333,14 +151,14 @@ def compensate(
         if seeds is not None:
             raise InputError("seeds apply to Cartesian targets; a joint program seeds itself")
         kind = "joints"
-        q_nom = _joints(nom, joints, "program joints", warn)
+        q_nom = program_joints(nom, joints, "program joints", warn)
         outputs = outputs or ("pose" if nom.n_joints >= 6 else "position")
         T = nom.fk(q_nom)
         intended = T if outputs == "pose" else T[:, :3, 3]
         nominal_ok = np.ones(q_nom.shape[0], dtype=bool)
     else:
         kind = "targets"
-        t = _targets(targets)
+        t = program_targets(targets)
         outputs = outputs or ("pose" if t.ndim == 3 else "position")
         if outputs == "pose" and t.ndim == 2:
             raise InputError("pose compensation needs target orientations (qw, qx, qy, qz)")
@@ -353,7 +171,7 @@ def compensate(
             first = _blocks(nom, intended, None, None, dict(ik_options, restarts=restarts,
                                                             rng=rng))
         else:
-            q0 = _joints(nom, seeds, "seed joints", warn)
+            q0 = program_joints(nom, seeds, "seed joints", warn)
             if q0.shape[0] != intended.shape[0]:
                 raise InputError(f"{q0.shape[0]} seed rows for {intended.shape[0]} targets")
             first = _blocks(nom, intended, q0, None, ik_options)

@@ -60,12 +60,9 @@ def _pso_study(geom: StewartPlatform, legs: np.ndarray, exact: np.ndarray, seeds
 
 
 def _calibration_study(geom: StewartPlatform, seed: int, n_val: int) -> dict:
-    from kinecal.calibration.stewart import (
-        calibrate_stewart,
-        perturb_geometry,
-        pose_prediction_errors,
-        simulate_stewart,
-    )
+    from kinecal.calibration.stewart import calibrate_stewart
+    from kinecal.calibration.stewart_data import perturb_geometry, simulate_stewart
+    from kinecal.calibration.stewart_result import pose_prediction_errors
 
     rng = np.random.default_rng(seed)
     true = perturb_geometry(geom, 1e-3, rng)

@@ -24,7 +24,9 @@ from kinecal.calibration.diagnostics._common import (
 )
 from kinecal.calibration.diagnostics.serial import check_pose_count
 from kinecal.calibration.diagnostics.units import EXPLAINS_BETTER, REACH_FRACTION
+from kinecal.calibration.stewart_identification import identification_jacobian
 from kinecal.diagnostics import warn
+from kinecal.kinematics.stewart import N_PARAMETERS
 
 __all__ = [
     "POSE_RESOLUTION",
@@ -78,8 +80,6 @@ DATA_RANK_TOL = 1e-6
 def reference_rank(geom) -> int:
     """Rank (at `RANK_TOL`) of the 42-parameter Jacobian on 200 random workspace poses
     (seed 0), cached per geometry."""
-    from kinecal.calibration.stewart import identification_jacobian
-
     key = (geom.parameters.tobytes(), geom.probe_offset, tuple(geom.leg_range))
     if key not in _RANKS:
         poses = geom.random_poses(200, np.random.default_rng(0))
@@ -173,8 +173,6 @@ def check_stewart_data(geom, data, *, validate=None, unit: str = "m") -> Stewart
     InputError
         ``too-few-poses``: the distinct poses give no more than 42 equations.
     """
-    from kinecal.calibration.stewart import N_PARAMETERS
-
     poses = np.asarray(data.poses, dtype=float)
     legs = np.asarray(data.legs, dtype=float)
     _, n_distinct = repeat_groups(poses, resolution=POSE_RESOLUTION)

@@ -1,0 +1,108 @@
+"""Inputs of a compensation, checked: the nominal and calibrated models, the program's
+joints and Cartesian targets, and the calibrated base frame's distance from nominal."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from kinecal.calibration.same_arm import Registration, in_length_unit
+from kinecal.errors import InputError
+from kinecal.kinematics.ik import characteristic_length
+from kinecal.kinematics.serial import SerialModel
+from kinecal.spatial import check_transform, transform_from_pq
+
+__all__ = ["BASE_FAR_ANGLE", "BASE_FAR_LENGTH", "check_base", "program_joints",
+           "program_models", "program_targets"]
+
+Array = NDArray[np.float64]
+
+#: calibrated base this far from nominal (fraction of the arm's length, rad): warn
+BASE_FAR_LENGTH = 0.05
+BASE_FAR_ANGLE = 0.1
+
+
+def check_base(nominal: SerialModel, reg: Registration, warn: Any) -> None:
+    """Warn (``base-frame-far``) when the registration `reg` of the calibrated arm onto
+    the nominal one moves the base by more than `BASE_FAR_LENGTH` of the arm or
+    `BASE_FAR_ANGLE` rad; `warn` is `kinecal.diagnostics.warn` or a silent stand-in."""
+    L = characteristic_length(nominal)
+    if reg.shift > BASE_FAR_LENGTH * L or reg.turn > BASE_FAR_ANGLE:
+        warn(
+            "base-frame-far",
+            f"the calibrated base frame is {reg.shift:.4g} {nominal.length_unit} and "
+            f"{np.degrees(reg.turn):.3g} deg from the nominal one: the measurements were "
+            "probably taken in an instrument's frame, not the robot's; compensate with "
+            "base='nominal' (--base nominal) unless the program's poses are in that frame")
+
+
+def program_models(calibrated: Any, nominal: SerialModel | None) -> tuple[SerialModel, SerialModel]:
+    """(nominal, calibrated) from a model, a CalibrationResult or a parameter vector."""
+    if hasattr(calibrated, "nominal_model") and hasattr(calibrated, "model"):  # a result
+        nom = calibrated.nominal_model if nominal is None else nominal
+        cal = calibrated.model
+    elif isinstance(calibrated, SerialModel):
+        if nominal is None:
+            raise InputError("compensate needs the nominal model (what the controller runs) "
+                             "beside a calibrated model", option="--nominal")
+        nom, cal = nominal, calibrated
+    else:
+        if nominal is None:
+            raise InputError("a calibrated parameter vector needs its nominal model",
+                             option="--nominal")
+        p = np.asarray(calibrated, dtype=float)
+        if p.shape != (nominal.n_params,) or not np.isfinite(p).all():
+            raise InputError(f"calibrated parameters: expected {nominal.n_params} finite "
+                             f"values, got shape {p.shape}")
+        nom = nominal
+        cal = nominal.with_params(p, name=f"{nominal.name}-calibrated")
+    if not isinstance(nom, SerialModel):
+        raise InputError(f"nominal: expected a SerialModel, got {type(nom).__name__}")
+    return nom, in_length_unit(cal, nom.length_unit)
+
+
+def program_targets(targets: ArrayLike) -> Array:
+    """(N, 3) points, (N, 7) x,y,z,qw,qx,qy,qz or (N, 4, 4) frames -> (N, 3) / (N, 4, 4)."""
+    t = np.asarray(targets, dtype=float)
+    if t.ndim == 2 and t.shape[1] == 7:
+        q = t[:, 3:]
+        norm = np.linalg.norm(q, axis=1)
+        bad = np.abs(norm - 1.0) > 1e-3
+        if bad.any() or not np.isfinite(t).all():
+            row = int(np.argmax(bad | ~np.isfinite(t).all(axis=1))) + 1
+            raise InputError("targets: qw, qx, qy, qz must be a unit quaternion", row=row)
+        return transform_from_pq(np.column_stack([t[:, :3], q / norm[:, None]]))
+    if t.ndim == 2 and t.shape[1] == 3:
+        if not np.isfinite(t).all():
+            raise InputError("targets contain NaN or infinite values")
+        return t
+    if t.ndim == 3 and t.shape[1:] == (4, 4):
+        return check_transform(t, name="target")
+    raise InputError(f"targets: expected (N, 3) points, (N, 7) x,y,z,qw,qx,qy,qz or (N, 4, 4) "
+                     f"frames, got shape {t.shape}")
+
+
+def program_joints(model: SerialModel, q: ArrayLike, what: str, warn: Any) -> Array:
+    """Joint values `q` ``(N, n_joints)`` (or one row) of `what` (program joints, seed
+    joints), finite; rows outside the joint limits warn (``joints-outside-limits``)."""
+    a = np.asarray(q, dtype=float)
+    if a.ndim == 1 and a.size == model.n_joints:
+        a = a[None]
+    if a.ndim != 2 or a.shape[1] != model.n_joints:
+        raise InputError(f"{what}: expected (N, {model.n_joints}) joint values, got shape "
+                         f"{np.shape(q)}")
+    if not np.isfinite(a).all():
+        raise InputError(f"{what} contain NaN or infinite values",
+                         row=int(np.argmax(~np.isfinite(a).all(axis=1))) + 1)
+    lim = model.joint_limits
+    out = (a < lim[:, 0]) | (a > lim[:, 1])
+    if out.any():
+        rows = np.flatnonzero(out.any(axis=1))
+        warn(
+            "joints-outside-limits",
+            f"{rows.size} row(s) of {what} (first: row {rows[0] + 1}) lie outside the model's "
+            "joint limits; the compensated joints are kept within them")
+    return a
+
