@@ -38,7 +38,9 @@ from kinecal.io.poses import (
     PoseFormat,
     check_matrices,
     finish,
+    first_csv_row,
     keyed_format,
+    numeric_row,
     read_csv_poses,
     read_poses,
 )
@@ -138,27 +140,13 @@ def read_handeye_csv(path: str | Path, robot: PoseFormat = PoseFormat(),
         Lengths in the file's unit.
     """
     path = Path(path)
-    if _headerless_csv(path):
+    if numeric_row(first_csv_row(path)):
         F, C = read_csv_poses(path, {"flange_": robot, "target_": target})
     else:
         F = read_csv_poses(path, {"flange_": robot}, option="--robot-format")[0]
         C = read_csv_poses(path, {"target_": target}, option="--target-format")[0]
     _enough(len(F), path)
     return F, C
-
-
-def _headerless_csv(path: Path) -> bool:
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            first = next(csv.reader(fh), [])
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"cannot read CSV: {exc}", file=path) from None
-    try:
-        return bool(first) and all(np.isfinite(float(c)) for c in first)
-    except ValueError:
-        return False
 
 
 def write_handeye_csv(path: str | Path, flange2base: Array, target2cam: Array) -> None:

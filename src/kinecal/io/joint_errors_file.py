@@ -26,9 +26,9 @@ on the geometry it was calibrated with (its own nominal geometry when omitted).
 from __future__ import annotations
 
 import dataclasses
-from typing import Literal
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError, field_validator
 
 from kinecal.errors import InputError
 from kinecal.kinematics.joint_errors import JointErrors, PointMass
@@ -42,35 +42,31 @@ _STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)
 Joints = Literal["all", "none"] | list[int]
 
 
+def _non_negative(v: float) -> float:
+    if v < 0:
+        raise ValueError("must be >= 0")
+    return v
+
+
+#: a mass (mass unit of the compliance coefficients), >= 0
+Mass = Annotated[float, AfterValidator(_non_negative)]
+
+
 class MassSpec(BaseModel):
     """A link mass: the joint whose link carries it, its mass and centre of mass."""
 
     model_config = _STRICT
     joint: int
-    mass: float
+    mass: Mass
     com: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    @field_validator("mass")
-    @classmethod
-    def _non_negative(cls, v: float) -> float:
-        if v < 0:
-            raise ValueError("must be >= 0")
-        return v
 
 
 class PayloadSpec(BaseModel):
     """The payload: mass and centre of mass in the flange frame (None: the tool point)."""
 
     model_config = _STRICT
-    mass: float
+    mass: Mass
     com: tuple[float, float, float] | None = None
-
-    @field_validator("mass")
-    @classmethod
-    def _non_negative(cls, v: float) -> float:
-        if v < 0:
-            raise ValueError("must be >= 0")
-        return v
 
 
 class JointErrorsSpec(BaseModel):

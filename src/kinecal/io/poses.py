@@ -50,8 +50,8 @@ from kinecal.spatial import (
 )
 
 __all__ = ["DIRECTED_KEYS", "ROTATIONS", "PoseFormat", "canonical_poses", "check_matrices",
-           "finish", "keyed_format", "pose_columns", "poses_from_table", "read_csv_poses",
-           "read_poses"]
+           "finish", "first_csv_row", "keyed_format", "numeric_row", "pose_columns",
+           "poses_from_table", "read_csv_poses", "read_poses"]
 
 Array = NDArray[np.float64]
 
@@ -173,12 +173,26 @@ def poses_from_table(cols: dict[str, Array], rotation: str, angle_unit: str, pre
     return transform_from(R, t)
 
 
-def _numeric_header(row: list[str]) -> bool:
+def numeric_row(row: list[str]) -> bool:
+    """True when `row` is not empty and every cell reads as a number: the first row of a
+    CSV without a header (non-finite values are then refused with their row)."""
     try:
         [float(c) for c in row]
     except ValueError:
         return False
     return bool(row)
+
+
+def first_csv_row(path: Path) -> list[str]:
+    """The first row of a CSV file, cells stripped (``[]`` for an empty file)."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            first = next(csv.reader(fh), [])
+    except FileNotFoundError:
+        raise InputError("file not found", file=path) from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"cannot read CSV: {exc}", file=path) from None
+    return [c.strip() for c in first]
 
 
 def read_csv_poses(path: Path, formats: dict[str, PoseFormat],
@@ -187,15 +201,8 @@ def read_csv_poses(path: Path, formats: dict[str, PoseFormat],
     inverted as each format says and canonicalised (`finish`). A CSV without a header
     holds 16 numbers per pose and row."""
     prefixes = tuple(formats)
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            first = next(csv.reader(fh), [])
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"cannot read CSV: {exc}", file=path) from None
-    first = [c.strip() for c in first]
-    if _numeric_header(first):  # rows of 16 numbers per pose, row-major
+    first = first_csv_row(path)
+    if numeric_row(first):  # rows of 16 numbers per pose, row-major
         bad = [f.rotation for f in formats.values() if f.rotation not in ("auto", "matrix")]
         if bad:
             raise InputError(f"no header: expected 4x4 matrices (16 numbers per pose), not "
