@@ -8,6 +8,11 @@ followed by Fedorov-style exchanges (replace the pose that contributes least by 
 candidate that adds most), as in Sun and Hollerbach (2008), "Observability index selection
 for robot calibration". Both steps use rank-one determinant updates, so a candidate's gain
 is one quadratic form: no Python loop over candidates.
+
+A model with several markers (tool points on one flange) is measured at every marker in
+each configuration, as `kinecal.calibration.simulate` simulates it: a candidate is then one
+configuration with the ``3 M`` rows of its ``M`` markers, so the selection makes every
+marker's tool point observable, not only the first one's.
 """
 
 from __future__ import annotations
@@ -18,24 +23,53 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.identifiability import observability_indices
+from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial import SerialModel
 
-__all__ = ["select_poses"]
+__all__ = ["candidate_measurements", "marker_rows", "select_poses"]
 
 Array = NDArray[np.float64]
 
 
+def marker_rows(model: SerialModel, q: Array) -> tuple[Array, NDArray[np.intp] | None]:
+    """Configurations `q` ``(N, n_joints)`` measured at every marker of `model`.
+
+    Returns
+    -------
+    q_rows : ndarray, shape (N * M, n_joints)
+        Each configuration repeated once per marker (`q` itself without markers).
+    marker : ndarray of int, shape (N * M,) or None
+        The marker of each row, markers in turn (None without markers).
+    """
+    q = np.asarray(q, dtype=float)
+    if not model.marker_names:
+        return q, None
+    m = len(model.marker_names)
+    return np.repeat(q, m, axis=0), np.tile(np.arange(m, dtype=np.intp), len(q))
+
+
+def candidate_measurements(model: SerialModel, q: Array) -> Measurements:
+    """Noise-free measurements of the nominal `model` at configurations `q`, every marker
+    in each (for the identifiability analysis of a pose plan)."""
+    rows, marker = marker_rows(model, q)
+    return Measurements(rows, model.positions(rows, None, marker), marker=marker,
+                        marker_names=model.marker_names if marker is not None else ())
+
+
 def _blocks(model: SerialModel, q: Array, names: Sequence[str]) -> Array:
-    """Per-pose Jacobian blocks ``(N, 3, k)`` with columns scaled to unit RMS over poses."""
-    J = model.identification_jacobian(q)[:, :, model.index(list(names))]
-    scale = np.sqrt((J**2).sum(axis=(0, 1)) / J.shape[0])
+    """Per-configuration Jacobian blocks ``(N, 3 M, k)`` (``M`` markers, 1 without), columns
+    scaled to unit RMS over the rows."""
+    rows, marker = marker_rows(model, q)
+    J = model.identification_jacobian(rows, marker=marker)[:, :, model.index(list(names))]
+    J = J.reshape(len(q), -1, J.shape[-1])
+    scale = np.sqrt((J**2).sum(axis=(0, 1)) / (J.shape[0] * J.shape[1] / 3))
     return J / np.where(scale > 0, scale, 1.0)
 
 
 def _gain(M_inv: Array, B: Array) -> Array:
-    """``log det(I + B M^-1 B^T)`` for each block ``B`` (N, 3, k): gain of adding a pose."""
-    G = np.eye(3) + B @ M_inv @ np.swapaxes(B, 1, 2)
+    """``log det(I + B M^-1 B^T)`` for each block ``B`` (N, r, k): gain of adding a pose."""
+    G = np.eye(B.shape[1]) + B @ M_inv @ np.swapaxes(B, 1, 2)
     return np.linalg.slogdet(G)[1]
 
 
@@ -57,7 +91,8 @@ def select_poses(
     candidates : ndarray, shape (N, n_joints)
         Candidate joint configurations (rad).
     count : int
-        Poses to select (``3 * count`` must reach the number of parameters).
+        Configurations to select (``3 * count`` equations, ``3 * M * count`` with ``M``
+        markers, must reach the number of parameters).
     free : sequence of str, optional
         Parameters to make observable (default: the model's calibratable ones; pass the
         identifiable set for a full-rank design).
@@ -77,9 +112,10 @@ def select_poses(
     names = list(model.calibratable) if free is None else list(free)
     if count < 1 or count > q.shape[0]:
         raise InputError(f"count: expected 1..{q.shape[0]} poses, got {count}", option="--count")
-    if 3 * count < len(names):
-        raise InputError(f"{count} poses give {3 * count} equations for {len(names)} parameters",
-                         option="--count")
+    rows = 3 * max(len(model.marker_names), 1)  # equations per configuration
+    if rows * count < len(names):
+        raise InputError(f"{count} poses give {rows * count} equations for {len(names)} "
+                         "parameters", option="--count")
     B = _blocks(model, q, names)
     k = len(names)
     M = ridge * np.eye(k)
@@ -108,4 +144,4 @@ def select_poses(
             break
     idx = np.array(chosen, dtype=np.intp)
     s = np.linalg.svd(B[idx].reshape(-1, k), compute_uv=False)
-    return idx, observability_indices(s, 3 * count)
+    return idx, observability_indices(s, rows * count)

@@ -413,17 +413,16 @@ def select_poses_cmd(
     out: Path = typer.Option(..., "--out", help="CSV of the selected q1..qn."),
 ) -> None:
     """Choose calibration poses maximising observability (O1, D-optimal)."""
-    from kinecal.calibration.pose_selection import select_poses
+    from kinecal.calibration.pose_selection import candidate_measurements, select_poses
     from kinecal.calibration.problem import resolve_free
     from kinecal.calibration.simulate import random_configurations
-    from kinecal.data import Measurements
     from kinecal.io.csvtable import write_table
 
     check_paths({"MODEL": model}, {"--out": out})
     m = load_model_arg(model, base_link, tip_link)
     check_count(candidates, "--candidates", bytes_per_item=128 * m.n_params, what="candidates")
     q = random_configurations(m, candidates, np.random.default_rng(seed))
-    ident, _ = resolve_free(m, Measurements(q, m.positions(q)), "identifiable", tol=1e-4)
+    ident, _ = resolve_free(m, candidate_measurements(m, q), "identifiable", tol=1e-4)
     idx, obs = select_poses(m, q, count, free=ident)
     scale = 1.0 / m.joint_scale()  # to the file's units per joint column
     write_table(out, {f"q{i + 1}": q[idx, i] * scale[i] for i in range(m.n_joints)})
