@@ -218,7 +218,7 @@ def _detect_chessboard(gray: NDArray[np.uint8], board: Chessboard, det: Detectio
     found, corners = cv2.findChessboardCorners(gray, size, flags=flags)
     if not found:
         try:  # the sector-based detector copes better with blur and strong distortion
-            found, corners = cv2.findChessboardCornersSB(gray, size, cv2.CALIB_CB_EXHAUSTIVE)
+            found, corners = cv2.findChessboardCornersSB(gray, size, 0)
         except cv2.error:
             found = False
     if not found:

@@ -269,7 +269,8 @@ def calibrate_handeye_images(
             diagnostics.warn("board-symmetric",
                              f"{board.spec} looks the same turned by 180 deg (inner corner "
                              "counts both even or both odd): its frame can flip between "
-                             "images; use a board with one even and one odd count, or ChArUco")
+                             "images and is then guessed from the robot poses; use a board "
+                             "with one even and one odd count, or ChArUco")
         records, size = _detect_all(images, names, board, limits, progress)
         intr = _intrinsics(records, board, size, intrinsics)
         if refine_intrinsics is None:
@@ -280,6 +281,9 @@ def calibrate_handeye_images(
             raise InputError(_too_few(records))
         idx = np.array(used)
         C = np.array([records[k].pose.target2cam for k in used])
+        if orientation_ambiguous(board) and _turn_flipped(records, used, board, F[idx], C,
+                                                          setup, method):
+            C = np.array([records[k].pose.target2cam for k in used])
         seed = calibrate_handeye(F[idx], C, setup=setup, method=method, refine="lm")
         obj = [records[k].detection.object_points(board) for k in used]
         pix = [records[k].detection.corners for k in used]
@@ -382,6 +386,42 @@ def _poses(records: list[ImageRecord], board: Board, intr: CameraIntrinsics,
             r.status = "rejected"
             r.reason = (f"corners do not fit a board pose ({r.pose.rms_px:.2f} px RMS): "
                         "mis-detected or mis-ordered corners")
+
+
+def _turn_flipped(records: list[ImageRecord], used: list[int], board: Board, F: Array,
+                  C: Array, setup: str, method: str) -> int:
+    """Symmetric chessboards: put back the stations whose corners were listed from the
+    other end (board frame turned by 180 deg about the board centre), judged by the pose
+    the robot and a robust solution (RANSAC start: tolerates about half the stations
+    turned) predict. Returns how many were turned."""
+    from kinecal.calibration.handeye import robust_solve
+    from kinecal.spatial import invert_transform, rotation_angle, transform_from
+
+    c = board.object_points.mean(axis=0)
+    turn = transform_from(np.diag([-1.0, -1.0, 1.0]), 2.0 * np.array([c[0], c[1], 0.0]))
+    G = F if setup == "eye-in-hand" else invert_transform(F)
+    try:
+        X, Y = robust_solve(G, C, method)
+    except InputError:  # degenerate motions: calibrate_handeye reports them next
+        return 0
+    pred = invert_transform(X) @ invert_transform(G) @ Y  # target2cam
+    turned = 0
+    for j, k in enumerate(used):
+        r = records[k]
+        T = r.pose.target2cam
+        e0 = rotation_angle(pred[j, :3, :3].T @ T[:3, :3])
+        e1 = rotation_angle(pred[j, :3, :3].T @ (T @ turn)[:3, :3])
+        if e0 > np.pi / 2 and e1 < np.pi / 4:
+            r.detection.corners = r.detection.corners[::-1].copy()
+            r.pose.target2cam = T @ turn
+            r.pose.residuals = r.pose.residuals[::-1].copy()
+            turned += 1
+    if turned:
+        diagnostics.warn("board-turned",
+                         f"{turned} image(s) of the symmetric board {board.spec} were listed "
+                         "from the other end; their frame was turned by 180 deg to agree with "
+                         "the robot poses (use an asymmetric board to avoid the guess)")
+    return turned
 
 
 def _too_few(records: list[ImageRecord]) -> str:

@@ -35,7 +35,8 @@ from kinecal.spatial import invert_transform
 
 Array = NDArray[np.float64]
 
-__all__ = ["METHODS", "REFINERS", "SETUPS", "HandEyeResult", "calibrate_handeye", "solve"]
+__all__ = ["METHODS", "REFINERS", "SETUPS", "HandEyeResult", "calibrate_handeye",
+           "robust_solve", "solve"]
 
 #: Closed-form methods: the five AX = XB ones and the two AX = ZB ones.
 METHODS: tuple[str, ...] = (*axxb.SOLVERS, *axzb.SOLVERS)
@@ -326,3 +327,29 @@ def _consensus_refinement(G: Array, C: Array, first: Any, seed: Any,
     second.nfev += first.nfev
     # a clear margin: where both starts end at equivalent solutions, keep the first
     return second if trimmed(second) < 0.9 * trimmed(first) else first
+
+
+def robust_solve(G: Array, C: Array, method: str = "park", seed: int = 0) -> tuple[Array, Array]:
+    """X and Y by a closed form and the robust refinement with its RANSAC start, without
+    the plausibility checks of `calibrate_handeye` (for internal consistency tests such as
+    telling a turned symmetric board from the robot poses).
+
+    Parameters
+    ----------
+    G, C : ndarray, shape (n, 4, 4)
+        Robot poses (``flange2base`` eye-in-hand, ``base2flange`` eye-to-hand) and
+        ``target2cam``, n >= 3.
+    method : str
+        Closed form of the start.
+    seed : int
+        Seed of the RANSAC sampling.
+
+    Returns
+    -------
+    X, Y : ndarray, shape (4, 4)
+    """
+    from kinecal.calibration.handeye.refine import lm
+
+    X, Y = solve(G, C, method)
+    res = _consensus_refinement(G, C, lm(G, C, X, Y), seed, None)
+    return res.X, res.Y
