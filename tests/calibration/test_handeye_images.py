@@ -214,3 +214,31 @@ def test_symmetric_board_frames_turned_back():
     assert [w["code"] for w in res.warnings] == ["board-symmetric", "board-turned"]
     rot, tr = pose_error(res.X, sc.X)
     assert rot < 0.02 and tr < 0.1 and res.outliers == []
+
+
+def test_oblique_unreadable_and_odd_sized_images_rejected(tmp_path):
+    import cv2
+
+    from kinecal.vision.detect import QualityLimits
+    from kinecal.vision.intrinsics import CameraIntrinsics
+
+    sc = render_handeye_scene(BOARD, K, DIST, SIZE, 8, seed=9, supersample=1)
+    paths = []
+    for k, img in enumerate(sc.images):
+        paths.append(tmp_path / f"{k}.png")
+        cv2.imwrite(str(paths[-1]), img)
+    (tmp_path / "junk.png").write_text("not an image")
+    cv2.imwrite(str(tmp_path / "small.png"), sc.images[0][:200, :300])
+    F = np.concatenate([sc.flange2base, sc.flange2base[:2]])
+    res = calibrate_handeye_images([*paths, tmp_path / "junk.png", tmp_path / "small.png"], F,
+                                   BOARD, intrinsics=CameraIntrinsics(K, DIST, SIZE),
+                                   limits=QualityLimits(max_tilt_deg=30.0))
+    reasons = {r.name: r.reason for r in res.rejected}
+    assert reasons["junk.png"] == "cannot read the image file"
+    assert reasons["small.png"].startswith("image size 300x200 differs")
+    tilted = [r for r in res.records if r.pose is not None and r.pose.tilt_deg > 30.0]
+    assert tilted and all(r.status == "rejected" and r.reason.startswith("too oblique")
+                          for r in tilted)
+    assert len(res.used) == 8 - len(tilted) >= 3
+    with pytest.raises(InputError, match="one pose per image"):
+        calibrate_handeye_images(paths, F, BOARD)
