@@ -62,6 +62,7 @@ def test_json_contract_and_rejections(scene_dir, capsys, tmp_path):
     rot, tr = pose_error(X, sc.X)
     assert rot < 0.02 and tr < 0.1
     assert pose_error(np.array(out["target"]), sc.target)[1] < 0.2
+    assert out["board_pose"] == out["target"] and out["target_frame"] == "target2base"
     assert len(out["X_std"]["rotation_deg"]) == 3 and len(out["X_std"]["translation"]) == 3
     assert out["n_images"] == 10 and out["n_used"] == 7
     rejected = {r["image"]: r["reason"] for r in out["rejected"]}

@@ -166,6 +166,7 @@ class ImageHandEyeResult:
             "X_cov": ref.X_cov.tolist(),
             "target": self.target.tolist(),
             "target_frame": "target2base" if self.setup == "eye-in-hand" else "target2flange",
+            "board_pose": self.target.tolist(),
             "target_std": {"rotation_deg": yr.tolist(), "translation": yt.tolist()},
             "setup": self.setup,
             "board": self.board.spec,
