@@ -35,6 +35,7 @@ CODES: dict[str, str] = {
     "absolute-errors": "simulate(errors=...) got absolute parameter values, not deviations",
     # hand-eye calibration from images
     "board-symmetric": "a board that looks the same turned by 180 deg (frames can flip)",
+    "board-turned": "images of a symmetric board turned back by 180 deg to fit the robot poses",
     "intrinsics-size": "intrinsics made for another image size than the images'",
     "intrinsics-rms": "the camera calibration from the images leaves more than 1 px RMS",
     "pnp-rms": "the board poses fit the detected corners poorly (wrong intrinsics or board)",
