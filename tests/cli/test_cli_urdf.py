@@ -8,7 +8,7 @@ import pinocchio as pin
 import pytest
 
 from kinecal.cli import main
-from kinecal.cli.serial import parameters_from_result
+from kinecal.cli._serial_common import parameters_from_result
 from kinecal.io.measurements import read_measurements
 from kinecal.io.models import load_model
 from kinecal.io.urdf import load_urdf

@@ -55,7 +55,9 @@ __all__ = ["app", "main"]
 
 # One module per command family; each registers its commands on `app` when imported.
 _COMMAND_MODULES = [
-    "kinecal.cli.serial",
+    "kinecal.cli.fk",
+    "kinecal.cli.simulate",
+    "kinecal.cli.calibrate",
     "kinecal.cli.reproduce",
     "kinecal.cli.handeye",
     "kinecal.cli.handeye_images",
@@ -73,12 +75,12 @@ _COMMAND_MODULES = [
 #: commands' own work); anything else (``--help``, an unknown name) loads every module.
 #: tests/cli/test_cli_startup.py checks this table against the registered commands.
 _COMMANDS = {
-    "models": "kinecal.cli.serial",
-    "fk": "kinecal.cli.serial",
-    "simulate": "kinecal.cli.serial",
-    "identifiability": "kinecal.cli.serial",
-    "calibrate": "kinecal.cli.serial",
-    "select-poses": "kinecal.cli.serial",
+    "models": "kinecal.cli.fk",
+    "fk": "kinecal.cli.fk",
+    "simulate": "kinecal.cli.simulate",
+    "select-poses": "kinecal.cli.calibrate",
+    "identifiability": "kinecal.cli.calibrate",
+    "calibrate": "kinecal.cli.calibrate",
     "reproduce": "kinecal.cli.reproduce",
     "handeye": "kinecal.cli.handeye",
     "handeye-poses": "kinecal.cli.handeye",

@@ -71,7 +71,7 @@ def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None
         raise InputError(f"file not found: {spec}", option="CALIBRATED")
     if path.suffix.lower() == ".json":
         from kinecal._files import read_json
-        from kinecal.cli.serial import model_for_result, parameters_from_result
+        from kinecal.cli._serial_common import model_for_result, parameters_from_result
 
         data = read_json(path)
         named = data.get("model") if isinstance(data, dict) else None

@@ -67,7 +67,7 @@ def model_and_params(source: str, nominal: str | None, base_link: str | None,
     result the nominal model is `nominal`, or the bundled model the result names.
     """
     from kinecal._files import read_json
-    from kinecal.cli.serial import model_for_result, parameters_from_result
+    from kinecal.cli._serial_common import model_for_result, parameters_from_result
 
     if not source.lower().endswith(".json"):
         if nominal is not None:

@@ -1,0 +1,206 @@
+"""Serial-arm commands ``identifiability``, ``calibrate`` and ``select-poses`` (the poses that
+identify the most)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from kinecal._limits import check_count, check_finite
+from kinecal.calibration.method_options import check_error_model_options, check_method_options
+from kinecal.cli._app import app
+from kinecal.cli._common import (
+    MODEL_HELP,
+    base_link_option,
+    check_paths,
+    echo_json,
+    load_model_arg,
+    quiet_option,
+    resolve_data_path,
+    seed_option,
+    strict_option,
+    tip_link_option,
+    warnings_scope,
+    with_warnings,
+    write_json,
+)
+from kinecal.cli._serial_common import POSE_BYTES, free_option
+from kinecal.errors import InputError
+
+
+@app.command()
+def identifiability(
+    model: str = typer.Argument(..., help=MODEL_HELP),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
+    data: str | None = typer.Option(None, "--data", help="Measurement CSV (poses to analyse)."),
+    poses: int | None = typer.Option(None, "--poses", help="Random poses when no --data is "
+                                     "given (default 50)."),
+    free: str = typer.Option("all", "--free", help="all, identifiable or comma-separated names."),
+    seed: int | None = typer.Option(None, "--seed", min=0, help="Random seed for the poses "
+                                    "(without --data; default 0)."),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON."),
+    strict: bool = strict_option(),
+    quiet: bool = quiet_option(),
+    error_model: str | None = typer.Option(
+        None, "--error-model", help="Also analyse joint-error terms: compliance, harmonic, "
+        "scale, full or families joined by '+' (default: the model file's joint_errors)."),
+    harmonics: int | None = typer.Option(None, "--harmonics",
+                                         help="Harmonic order (default 2)."),
+) -> None:
+    """Rank, identifiable and unidentifiable parameters, condition number, O1-O5."""
+    from kinecal.calibration.diagnostics.serial import check_pose_set
+    from kinecal.calibration.problem import resolve_free
+    from kinecal.calibration.simulate import simulate as run
+    from kinecal.io.measurements import read_measurements
+    from kinecal.kinematics.markers import model_for_markers
+
+    for option, value in (("--poses", poses), ("--seed", seed)):
+        if data is not None and value is not None:
+            raise InputError("applies to random poses only, not with --data", option=option)
+    with warnings_scope(strict) as found:
+        m = load_model_arg(model, base_link, tip_link)
+        if data is not None:
+            meas = read_measurements(resolve_data_path(data, "--data"), m)
+        else:
+            poses = check_count(50 if poses is None else poses, "--poses",
+                                bytes_per_item=POSE_BYTES * (m.n_joints + 10))
+            meas = run(m, poses, errors="zero", rng=seed or 0).data
+        m = model_for_markers(m, meas.marker_names)  # one tool point per marker measured
+        if error_model is not None or harmonics is not None or m.joint_errors is not None:
+            from kinecal.calibration.joint_identifiability import identifiability_with_terms
+
+            # the geometry first, then the joint-error coefficients beyond it
+            m, report = identifiability_with_terms(m, meas, free_option(free), error_model,
+                                                   harmonics)
+        else:
+            _, report = resolve_free(m, meas, free_option(free))
+        if data is not None:
+            check_pose_set(m, meas, report)
+    if json_out:
+        echo_json(with_warnings(report.to_dict(), found))
+        return
+    if quiet:
+        return
+    typer.echo(report.explain())
+    typer.echo("identifiable: " + ", ".join(report.identifiable))
+    typer.echo("observability: " + ", ".join(f"{k}={v:.4g}"
+                                             for k, v in report.observability.items()))
+
+
+@app.command()
+def calibrate(
+    model: str = typer.Argument(..., help=MODEL_HELP),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
+    data: str = typer.Argument(..., help="Measurement CSV or NAME:PART."),
+    method: str = typer.Option("lm", "--method", help="lm, householder, a metaheuristic "
+                               "(ga, pso, afsa, sa-iafsa, gwo, igwo, dlh-gwo-de, de) or hybrid-*."),
+    validate: str | None = typer.Option(None, "--validate", help="Validation CSV or NAME:PART."),
+    free: str = typer.Option("identifiable", "--free",
+                             help="identifiable, all or comma-separated names."),
+    seed: int = seed_option("Random seed (metaheuristics; an integer >= 0)."),
+    loss: str = typer.Option("linear", "--loss", help="linear, huber, soft_l1, cauchy, arctan."),
+    maxiter: int | None = typer.Option(None, "--maxiter", help="Iteration budget."),
+    target: float | None = typer.Option(None, "--target", help="Stop at this mean error."),
+    out: Path | None = typer.Option(None, "--out", help="Result JSON to write."),
+    model_out: Path | None = typer.Option(None, "--model-out", help="Calibrated model YAML."),
+    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
+    json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
+    quiet: bool = quiet_option(),
+    strict: bool = strict_option(),
+    rotation_weight: float | None = typer.Option(
+        None, "--rotation-weight", help="With measured orientations: length units per rad of "
+        "rotation error (default: the workspace's characteristic length)."),
+    error_model: str | None = typer.Option(
+        None, "--error-model", help="geometric, compliance, harmonic, scale, full, auto "
+        "(chosen by cross-validation on the calibration poses) or families joined by '+' "
+        "(default: the model file's joint_errors, else geometric). See docs/error-models.md."),
+    harmonics: int | None = typer.Option(
+        None, "--harmonics", help="Harmonic order (default 2; auto tries 1..3)."),
+    folds: int | None = typer.Option(None, "--folds", help="Cross-validation folds "
+                                     "(--error-model auto; default 10)."),
+) -> None:
+    """Calibrate a serial arm from measured tool positions (and orientations if given)."""
+    from kinecal.calibration.serial import CALIBRATION_METHODS
+    from kinecal.calibration.serial import calibrate as run
+    from kinecal.cli._common import progress
+    from kinecal.io.measurements import read_measurements
+
+    if method not in CALIBRATION_METHODS:
+        raise InputError(f"unknown method {method!r}; expected one of "
+                         f"{', '.join(CALIBRATION_METHODS)}", option="--method")
+    check_paths({"MODEL": model, "DATA": data, "--validate": validate},
+                {"--out": out, "--model-out": model_out, "--report": report})
+    if maxiter is not None and maxiter < 1:
+        raise InputError(f"expected a positive iteration budget, got {maxiter}",
+                         option="--maxiter")
+    check_finite(target, "--target")
+    check_finite(rotation_weight, "--rotation-weight", positive=True)
+    check_method_options(method, loss=loss, maxiter=maxiter, target=target)
+    check_error_model_options(error_model, harmonics=harmonics, folds=folds)
+    with warnings_scope(strict) as found:
+        m = load_model_arg(model, base_link, tip_link)
+        meas = read_measurements(resolve_data_path(data, "DATA"), m)
+        if rotation_weight is not None and meas.rotations is None:
+            raise InputError("applies to measured orientations (qw..qz columns) only",
+                             option="--rotation-weight")
+        val = None
+        if validate is not None:
+            val = read_measurements(resolve_data_path(validate, "--validate"), m)
+        iterative = method not in ("lm",)
+        with progress(f"calibrate {m.name} ({method})", maxiter if iterative else None,
+                      quiet or json_out) as update:
+            kw = dict(free=free_option(free), validate=val, rng=seed, loss=loss,
+                      maxiter=maxiter, target=target, rotation_weight=rotation_weight,
+                      progress=(lambda it, best: update(1, best)) if iterative else None)
+            if error_model is None and m.joint_errors is None and harmonics is None:
+                res = run(m, meas, method, **kw)
+            else:
+                from kinecal.calibration.error_model import calibrate_error_model
+
+                res = calibrate_error_model(m, meas, error_model or "model", method=method,
+                                            harmonics=harmonics, **kw,
+                                            **({} if folds is None else {"folds": folds}))
+        res.warnings = list(found)  # the readers' warnings as well as the calibration's
+        result = with_warnings(res.to_dict(), found)
+        if out is not None:
+            write_json(out, result)
+        if model_out is not None:
+            res.save_model(model_out)
+        if report is not None:
+            res.report(report)
+    if json_out:
+        echo_json(result)
+    elif not quiet:
+        typer.echo(res.summary())
+
+
+@app.command("select-poses")
+def select_poses_cmd(
+    model: str = typer.Argument(..., help=MODEL_HELP),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
+    count: int = typer.Option(..., "--count", help="Number of poses to select."),
+    candidates: int = typer.Option(2000, "--candidates", help="Random candidate poses."),
+    seed: int = seed_option("Random seed for the candidates (an integer >= 0)."),
+    out: Path = typer.Option(..., "--out", help="CSV of the selected q1..qn."),
+) -> None:
+    """Choose calibration poses maximising observability (O1, D-optimal)."""
+    from kinecal.calibration.pose_selection import candidate_measurements, select_poses
+    from kinecal.calibration.problem import resolve_free
+    from kinecal.calibration.simulate import random_configurations
+    from kinecal.io.csvtable import write_table
+
+    check_paths({"MODEL": model}, {"--out": out})
+    m = load_model_arg(model, base_link, tip_link)
+    check_count(candidates, "--candidates", bytes_per_item=128 * m.n_params, what="candidates")
+    q = random_configurations(m, candidates, np.random.default_rng(seed))
+    ident, _ = resolve_free(m, candidate_measurements(m, q), "identifiable", tol=1e-4)
+    idx, obs = select_poses(m, q, count, free=ident)
+    scale = 1.0 / m.joint_scale()  # to the file's units per joint column
+    write_table(out, {f"q{i + 1}": q[idx, i] * scale[i] for i in range(m.n_joints)})
+    typer.echo(f"wrote {count} poses to {out}; O1 = {obs['O1']:.4g}, O2 = {obs['O2']:.4g} "
+               f"({len(ident)} identifiable parameters)", err=True)

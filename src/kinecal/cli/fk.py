@@ -1,0 +1,99 @@
+"""Serial-arm commands ``models`` and ``fk``: the bundled files, forward kinematics."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from kinecal.cli._app import app
+from kinecal.cli._common import (
+    MODEL_HELP,
+    base_link_option,
+    echo_json,
+    load_model_arg,
+    quiet_option,
+    resolve_data_path,
+    strict_option,
+    tip_link_option,
+    warnings_scope,
+)
+from kinecal.cli._serial_common import model_for_result, parameters_from_result
+
+
+@app.command()
+def models(json_out: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+    """List the bundled models, Stewart geometries and datasets."""
+    from kinecal.datasets import DATASETS
+    from kinecal.io.models import bundled_models, load_model
+
+    arms = []
+    for name in bundled_models():
+        m = load_model(name)
+        arms.append({"name": name, "convention": m.convention, "joints": m.n_joints,
+                     "parameters": m.n_params, "calibratable": len(m.calibratable),
+                     "length_unit": m.length_unit, "description": m.description})
+    try:
+        from kinecal.io.geometry import bundled_geometries
+        geometries = bundled_geometries()
+    except ImportError:
+        geometries = []
+    datasets = [{"name": n, "parts": [f"{n}:{p}" for p in d["parts"]], "license": d["license"],
+                 "model": d["model"], "description": d["description"]}
+                for n, d in DATASETS.items()]
+    if json_out:
+        echo_json({"models": arms, "geometries": geometries, "datasets": datasets})
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    t = Table(title="Serial-arm models")
+    for col in ("name", "convention", "joints", "parameters", "calibratable", "unit"):
+        t.add_column(col)
+    for a in arms:
+        t.add_row(a["name"], a["convention"], str(a["joints"]), str(a["parameters"]),
+                  str(a["calibratable"]), a["length_unit"])
+    console.print(t)
+    if geometries:
+        console.print("Stewart geometries: " + ", ".join(
+            g if isinstance(g, str) else g.get("name", "") for g in geometries))
+    for d in datasets:
+        console.print(f"dataset {d['name']} ({d['license']}): {', '.join(d['parts'])}")
+
+
+@app.command()
+def fk(
+    model: str = typer.Argument(..., help=MODEL_HELP),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
+    joints: str = typer.Argument(..., help="CSV with q1..qn (model angle unit) or NAME:PART."),
+    pose: bool = typer.Option(False, "--pose", help="Also print qw,qx,qy,qz of the tool frame."),
+    params: Path | None = typer.Option(None, "--params", help="Calibration result JSON."),
+    strict: bool = strict_option(),
+    quiet: bool = quiet_option(),
+) -> None:
+    """Forward kinematics: tool-point positions (CSV on stdout)."""
+    from kinecal.calibration.diagnostics.serial import check_joint_limits, check_joint_units
+    from kinecal.io.measurements import read_joints, read_markers
+    from kinecal.spatial import quaternion_from_matrix
+
+    with warnings_scope(strict):
+        m = load_model_arg(model, base_link, tip_link)
+        if params is not None:
+            m = model_for_result(m, params)
+        path = resolve_data_path(joints, "JOINTS")
+        q = read_joints(path, m)
+        marker = read_markers(path, m)[0] if m.marker_names else None
+        check_joint_limits(m, q, "joint readings")
+        check_joint_units(m, q, "joint readings")
+        p = None if params is None else parameters_from_result(m, params)
+    T = m.fk(q, p, marker)
+    header = ["x", "y", "z"] + (["qw", "qx", "qy", "qz"] if pose else [])
+    out = T[:, :3, 3]
+    if pose:
+        out = np.column_stack([out, quaternion_from_matrix(T[:, :3, :3])])
+    lines = [",".join(header)] + [",".join(f"{v:.10g}" for v in row) for row in out]
+    sys.stdout.write("\n".join(lines) + "\n")
