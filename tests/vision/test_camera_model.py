@@ -73,3 +73,21 @@ def test_bad_cameras():
     with pytest.raises(InputError, match="thin-prism"):
         check_camera(K, np.r_[D8, 0.1, 0, 0, 0])
     assert check_camera(K, np.r_[D8, 0, 0, 0, 0])[1].size == 8
+
+
+def test_opencv_is_optional(monkeypatch):
+    """The core install works without OpenCV; image functions then name the extra."""
+    import subprocess
+    import sys
+
+    code = ("import sys, kinecal, kinecal.vision.pipeline, kinecal.vision.render, "
+            "kinecal.calibration.handeye.images; from kinecal.cli import _load_commands; "
+            "_load_commands(); print('cv2' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "False"
+    monkeypatch.setitem(sys.modules, "cv2", None)
+    from kinecal.vision import require_cv2
+
+    with pytest.raises(InputError, match=r"kinecal\[vision\]"):
+        require_cv2()
