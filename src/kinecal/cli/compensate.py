@@ -102,9 +102,10 @@ def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None
     return nom, cal
 
 
-def read_program(path: Path, n_joints: int) -> tuple[list[str], list[list[str]], dict]:
+def read_program(path: Path, model) -> tuple[list[str], list[list[str]], dict]:
     """Header, raw cells and the numeric columns of a program CSV (validated)."""
     from kinecal.io.csvtable import read_table
+    from kinecal.io.measurements import joint_columns
 
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
@@ -114,10 +115,10 @@ def read_program(path: Path, n_joints: int) -> tuple[list[str], list[list[str]],
     if not rows:
         raise InputError("empty file; expected a header with q1..qn or x,y,z", file=path)
     header = [h.strip() for h in rows[0]]
-    joints = [f"q{i}" for i in range(1, n_joints + 1)]
+    joints = joint_columns(header, model, path, required=False)  # q1..qn or joint names
     qcols = [c for c in header if c.startswith("q") and c[1:].isdigit()]
     if qcols and sorted(qcols) != sorted(joints):
-        raise InputError(f"joint columns {', '.join(qcols)}: the model has {n_joints} joints, "
+        raise InputError(f"joint columns {', '.join(qcols)}: the model has {len(joints)} joints, "
                          f"expected {', '.join(joints)}", file=path)
     quat = [c for c in QUATERNION if c in header]
     if quat and len(quat) != 4:
@@ -130,7 +131,7 @@ def read_program(path: Path, n_joints: int) -> tuple[list[str], list[list[str]],
         raise InputError("expected all of x, y, z (Cartesian targets) or none (a joint "
                          "program)", file=path)
     else:
-        if not qcols:
+        if joints[0] not in header:
             raise InputError(f"expected joint columns {', '.join(joints)} or target columns "
                              "x, y, z", file=path)
         required, optional = joints, []
@@ -193,6 +194,7 @@ def compensate_cmd(
 ) -> None:
     """Rewrite a joint program or Cartesian targets for the calibrated arm."""
     from kinecal.calibration.compensate import compensate
+    from kinecal.io.measurements import joint_columns
 
     check_paths({"CALIBRATED": calibrated, "PROGRAM": program, "--nominal": nominal},
                 {"--out": out})
@@ -201,9 +203,9 @@ def compensate_cmd(
     with warnings_scope(strict) as found:
         nom, cal = load_calibrated(calibrated, nominal, base_link, tip_link)
         path = resolve_data_path(program, "PROGRAM")
-        header, cells, table = read_program(path, nom.n_joints)
+        header, cells, table = read_program(path, nom)
         scale = nom.joint_scale()  # file units -> API units per joint
-        joints = [f"q{i}" for i in range(1, nom.n_joints + 1)]
+        joints = joint_columns(header, nom, path, required=False)
         outputs = "position" if position_only else None
         q_file = np.column_stack([table[c] for c in joints]) if joints[0] in table else None
         with progress(f"compensate {len(cells)} rows", len(cells), quiet or json_out) as bar:

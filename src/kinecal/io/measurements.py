@@ -10,6 +10,10 @@ An optional ``marker`` column says which marker (tool point) each row measured: 
 the model's ``markers`` or its number 1..M in the model's order. A model without markers
 takes the names the file uses (`kinecal.kinematics.markers.model_for_markers` then gives
 it one tool point per name).
+
+The joint columns may instead carry the model's joint names (a URDF model's joint names,
+as a ROS ``joint_states`` export has them), in the same units as ``q1..qn``: either
+``q1..qn`` or every joint name, never a mix (`joint_columns`).
 """
 
 from __future__ import annotations
@@ -28,8 +32,78 @@ from kinecal.kinematics.serial import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
 # Measurements (kinecal.data) is re-exported here
-__all__ = ["Measurements", "read_joints", "read_markers", "read_measurements",
-           "write_measurements"]
+__all__ = ["Measurements", "joint_columns", "joint_names", "read_joints", "read_markers",
+           "read_measurements", "write_measurements"]
+
+#: columns with a meaning of their own in measurement and program files: a joint of that
+#: name can only be given as q1..qn
+_RESERVED = frozenset(("x", "y", "z", "qw", "qx", "qy", "qz", "weight", "marker", "pose"))
+
+
+def _q_column(name: str) -> bool:
+    return name.startswith("q") and name[1:].isdigit()
+
+
+def joint_names(model: SerialModel) -> tuple[str, ...]:
+    """The names of `model`'s moving joints, base to flange, usable as CSV columns.
+
+    A URDF model's joints carry the URDF's names (other models' joints may carry a
+    ``name`` too). Empty when a moving joint has no name, names repeat, or a name is
+    already a column of its own (``x``, ``weight``, ``q2`` ...): such a model's joints are
+    read from ``q1..qn`` only.
+    """
+    names = tuple(str(e.get("name") or "") for e in model.joints if "frame" not in e)
+    if names == tuple(f"q{i}" for i in range(1, model.n_joints + 1)):
+        return names
+    if (len(names) != model.n_joints or not all(names) or len(set(names)) != len(names)
+            or any(n in _RESERVED or _q_column(n) for n in names)):
+        return ()
+    return names
+
+
+def joint_columns(header: list[str], model: SerialModel, path: Path | None = None,
+                  required: bool = True) -> list[str]:
+    """The joint columns of a CSV `header` for `model`, in joint order.
+
+    ``q1..qn``, or the model's joint names (`joint_names`) when the header uses them. A
+    header with neither gives ``q1..qn`` when the joints are optional (Cartesian targets
+    without seed joints) or the model has no joint names (the table reader then names the
+    missing columns); else it is an error naming both choices.
+
+    Raises
+    ------
+    InputError
+        A mix of ``q`` columns and joint names, only some of the joint names, another
+        number of ``q`` columns than the model's joints, or no joint column at all where
+        `required`.
+    """
+    n = model.n_joints
+    qs = [f"q{i}" for i in range(1, n + 1)]
+    names = joint_names(model)
+    qcols = [c for c in header if _q_column(c)]
+    named = [c for c in header if c in names and c not in qs]
+    if named and qcols:
+        raise InputError(
+            f"joint columns {', '.join(qcols + named)} mix q1..q{n} and the model's joint "
+            f"names: expected either q1..q{n} or {', '.join(names)}", file=path)
+    if named:
+        missing = [c for c in names if c not in header]
+        if missing:
+            raise InputError(
+                f"joint column(s) {', '.join(missing)} missing: the file names its joint "
+                f"columns by model {model.name!r}'s joint names, expected all of "
+                f"{', '.join(names)}", file=path)
+        return list(names)
+    if qcols and len(qcols) != n:
+        raise InputError(
+            f"{len(qcols)} joint columns ({', '.join(qcols)}), model {model.name!r} has {n} "
+            f"joints: expected q1..q{n}" + (f" or {', '.join(names)}" if names else ""),
+            file=path)
+    if required and not qcols and names:
+        raise InputError(f"no joint columns: expected q1..q{n} or model {model.name!r}'s "
+                         f"joint names {', '.join(names)} (found {', '.join(header)})",
+                         file=path)
+    return qs
 
 
 def _header(path: Path) -> list[str]:
@@ -94,12 +168,13 @@ def read_markers(path: str | Path, model: SerialModel
 
 def read_joints(path: str | Path, model: SerialModel) -> NDArray[np.float64]:
     """Joint values ``(N, n_joints)`` (rad; prismatic: length unit) from a CSV with
-    ``q1..qn`` (model angle unit; other columns ignored) or a laser-tracker export
-    (``joint_1..``, degrees)."""
+    ``q1..qn`` or the model's joint names (model angle unit; other columns ignored) or a
+    laser-tracker export (``joint_1..``, degrees)."""
     path = _resolve(path)
-    if "joint_1" in _header(path):
+    header = _header(path)
+    if "joint_1" in header and "x_t" in header:
         return read_measurements(path, model).q
-    names = [f"q{i}" for i in range(1, model.n_joints + 1)]
+    names = joint_columns(header, model, path)
     cols = read_table(path, names)
     q = np.column_stack([cols[n] for n in names])
     q *= model.joint_scale()
@@ -127,14 +202,7 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
         q *= model.joint_scale("deg")
         xyz = np.column_stack([cols[f"{a}_t"] + cols[f"{a}_dif"] for a in "xyz"])
         return Measurements(q, xyz, None, str(path))
-    qcols = [c for c in header if c.startswith("q") and c[1:].isdigit()]
-    if qcols and len(qcols) != n:
-        raise InputError(
-            f"{len(qcols)} joint columns ({', '.join(qcols)}), model {model.name!r} has {n} "
-            f"joints: expected q1..q{n}",
-            file=path,
-        )
-    joints = [f"q{i}" for i in range(1, n + 1)]
+    joints = joint_columns(header, model, path)
     quat = ["qw", "qx", "qy", "qz"]
     present = [c for c in quat if c in header]
     if present and len(present) != 4:
