@@ -73,9 +73,8 @@ def joint_columns(header: list[str], model: SerialModel, path: Path | None = Non
     Raises
     ------
     InputError
-        A mix of ``q`` columns and joint names, only some of the joint names, another
-        number of ``q`` columns than the model's joints, or no joint column at all where
-        `required`.
+        A mix of ``q`` columns and joint names, only some of the joint names, or no joint
+        column at all where `required`.
     """
     n = model.n_joints
     qs = [f"q{i}" for i in range(1, n + 1)]
@@ -94,11 +93,6 @@ def joint_columns(header: list[str], model: SerialModel, path: Path | None = Non
                 f"columns by model {model.name!r}'s joint names, expected all of "
                 f"{', '.join(names)}", file=path)
         return list(names)
-    if qcols and len(qcols) != n:
-        raise InputError(
-            f"{len(qcols)} joint columns ({', '.join(qcols)}), model {model.name!r} has {n} "
-            f"joints: expected q1..q{n}" + (f" or {', '.join(names)}" if names else ""),
-            file=path)
     if required and not qcols and names:
         raise InputError(f"no joint columns: expected q1..q{n} or model {model.name!r}'s "
                          f"joint names {', '.join(names)} (found {', '.join(header)})",
@@ -203,6 +197,13 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
         xyz = np.column_stack([cols[f"{a}_t"] + cols[f"{a}_dif"] for a in "xyz"])
         return Measurements(q, xyz, None, str(path))
     joints = joint_columns(header, model, path)
+    qcols = [c for c in header if _q_column(c)]
+    if qcols and len(qcols) != n:
+        names = joint_names(model)
+        raise InputError(
+            f"{len(qcols)} joint columns ({', '.join(qcols)}), model {model.name!r} has {n} "
+            f"joints: expected q1..q{n}" + (f" or {', '.join(names)}" if names else ""),
+            file=path)
     quat = ["qw", "qx", "qy", "qz"]
     present = [c for c in quat if c in header]
     if present and len(present) != 4:
