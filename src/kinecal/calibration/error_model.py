@@ -59,7 +59,7 @@ MAX_HARMONICS = 12
 #: diagnostics on a fit's residual (`kinecal.calibration.diagnostics`): those of the
 #: geometric stage are not reported when a joint-error model is chosen
 FIT_CODES = frozenset(("outliers", "lack-of-fit", "residual-offset", "parameter-tolerance",
-                       "unidentifiable-free"))
+                       "unidentifiable-free", "residual-above-noise"))
 #: default number of cross-validation folds
 DEFAULT_FOLDS = 10
 #: the methods that fit joint-error terms (the metaheuristics search a box of geometric

@@ -267,6 +267,10 @@ class CalibrationResult:
         if self.lost:
             out["not_determined"] = list(self.lost)
         out.update(self.extra)
+        if "noise" in self.extra:  # the stated noise: its test and known-noise uncertainty
+            from kinecal.calibration.diagnostics.noise import noise_entry
+
+            out["noise"] = noise_entry(self)
         out["warnings"] = [d.to_dict() for d in self.warnings]
         return _finite(out)
 
@@ -321,6 +325,10 @@ class CalibrationResult:
             if pred["validation_mean"] is not None:
                 where += f", {size(pred['validation_mean'])} on the validation poses"
             lines.append(f"model uncertainty left (1 sigma, first order): {where}")
+        if "noise" in self.extra:
+            from kinecal.calibration.diagnostics.noise import noise_lines
+
+            lines += noise_lines(self)
         lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations, "
                      f"{self.seconds:.3g} s")
         if self.outliers:

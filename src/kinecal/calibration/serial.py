@@ -23,6 +23,7 @@ import numpy as np
 
 from kinecal import diagnostics
 from kinecal.calibration.diagnostics.fit import check_serial_fit
+from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stated_sigma
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
@@ -142,6 +143,7 @@ def calibrate(
     progress: Callable[[int, float], Any] | None = None,
     rank_tol: float = CALIBRATION_RANK_TOL,
     rotation_weight: float | None = None,
+    sigma: float | None = None,
 ) -> CalibrationResult:
     """Identify the geometric parameters of `model` from `data`.
 
@@ -181,6 +183,11 @@ def calibrate(
     rotation_weight : float, optional
         With measured orientations (``data.rotations``): length units per radian of rotation
         error (default: the workspace's characteristic length; see `CalibrationProblem`).
+    sigma : float, optional
+        The instrument's stated 1-sigma noise per coordinate (length unit, a row of weight
+        1): the residual is tested against it (``residual-above-noise``) and the standard
+        errors with the noise known are added as ``extra["noise"]``
+        (`kinecal.calibration.diagnostics.noise`).
 
     Returns
     -------
@@ -197,13 +204,14 @@ def calibrate(
     with diagnostics.collect(python_warnings=True) as found:
         res = _calibrate(model, data, method, free=free, validate=validate, rng=rng, loss=loss,
                          f_scale=f_scale, maxiter=maxiter, target=target, options=options,
-                         progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight)
+                         progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight,
+                         sigma=sigma)
     res.warnings = list(found)
     return res
 
 
 def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxiter, target,
-               options, progress, rank_tol, rotation_weight) -> CalibrationResult:
+               options, progress, rank_tol, rotation_weight, sigma) -> CalibrationResult:
     if method not in CALIBRATION_METHODS:
         raise InputError(f"unknown method {method!r}; expected one of "
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
@@ -212,6 +220,7 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
                          option="--loss")
     check_method_options(method, loss=loss, f_scale=f_scale, maxiter=maxiter, target=target,
                          options=options)
+    check_stated_sigma(model, sigma)
     if len(data) < 1:
         raise InputError("no calibration poses")
     model = model_for_markers(model, data.marker_names)  # one tool point per marker seen
@@ -308,6 +317,10 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
     if rotation:  # measured orientations: rotation errors in degrees
         extra["rotation_deg"] = rotation
     extra["axis_errors"] = axes  # per-axis position errors (x, y, z), model - measured
+    if sigma is not None:  # the stated noise: chi-square test, known-noise standard errors
+        extra["noise"] = check_stated_noise(
+            problem, x, unc, sigma, unique_rows=info.unique_rows, normal=normal,
+            excluded=outliers if loss != "linear" else (), method=method)
     if info.unique_rows is not None:  # exact copies of rows: counted once in the covariance
         extra["independent_poses"] = len(info.unique_rows)
     if loss != "linear":

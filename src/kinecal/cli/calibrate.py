@@ -122,8 +122,13 @@ def calibrate(
         None, "--harmonics", help="Harmonic order (default 2; auto tries 1..3)."),
     folds: int | None = typer.Option(None, "--folds", help="Cross-validation folds "
                                      "(--error-model auto; default 10)."),
+    sigma: float | None = typer.Option(
+        None, "--sigma", help="The instrument's stated 1-sigma noise per coordinate (length "
+        "unit): the residual is tested against it (chi-square) and the standard errors with "
+        "it known are added. See docs/diagnostics.md."),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given)."""
+    from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.serial import CALIBRATION_METHODS
     from kinecal.calibration.serial import calibrate as run
     from kinecal.cli._common import progress
@@ -139,10 +144,12 @@ def calibrate(
                          option="--maxiter")
     check_finite(target, "--target")
     check_finite(rotation_weight, "--rotation-weight", positive=True)
+    check_finite(sigma, "--sigma", positive=True)
     check_method_options(method, loss=loss, maxiter=maxiter, target=target)
     check_error_model_options(error_model, harmonics=harmonics, folds=folds)
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
+        check_stated_sigma(m, sigma)  # not larger than the machine
         meas = read_measurements(resolve_data_path(data, "DATA"), m)
         if rotation_weight is not None and meas.rotations is None:
             raise InputError("applies to measured orientations (qw..qz columns) only",
@@ -155,6 +162,7 @@ def calibrate(
                       quiet or json_out) as update:
             kw = dict(free=free_option(free), validate=val, rng=seed, loss=loss,
                       maxiter=maxiter, target=target, rotation_weight=rotation_weight,
+                      sigma=sigma,
                       progress=(lambda it, best: update(1, best)) if iterative else None)
             if error_model is None and m.joint_errors is None and harmonics is None:
                 res = run(m, meas, method, **kw)

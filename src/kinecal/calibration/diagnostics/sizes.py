@@ -1,0 +1,89 @@
+"""Noise levels and error amplitudes a machine of a given size can plausibly have.
+
+A finite number can still be absurd: ``stewart simulate --noise-position 1e300`` wrote
+positions of 1e300 m and exited 0. The bound used here is the machine's own size ``L``:
+
+* a length noise (standard deviation per coordinate, of a simulated instrument or the one
+  stated with ``calibrate --sigma``) or an error amplitude above ``L`` scatters the
+  measured points, or moves the machine's joints, farther than the whole machine extends:
+  such data say nothing about its geometry, and no instrument used to calibrate a machine
+  is less precise than the machine is large;
+* an angular noise above 1 rad (57 deg) is the same bound in angle: it turns a point at
+  distance ``L`` by more than ``L``, and (beyond about 1.8 rad) makes the orientation a
+  uniformly random one.
+
+Both are refused (`InputError`, exit 2) before any work. ``L`` is the sum of the arm's
+link and tool lengths (`kinecal.kinematics.ik.characteristic_length`, an upper bound of
+its reach), and for a Stewart platform its longest leg or the largest distance of a joint
+or of the probe tip from the centre (`stewart_size`). The bound is generous on purpose:
+it refuses nonsense, not a poor instrument.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from kinecal.errors import InputError
+
+__all__ = ["MAX_ANGLE_NOISE", "check_angle_noise", "check_length_noise", "serial_size",
+           "stewart_size"]
+
+#: largest plausible angular noise (rad): 1 rad turns a point at the machine's size by
+#: the machine's size
+MAX_ANGLE_NOISE = 1.0
+
+
+def serial_size(model) -> float:
+    """The size ``L`` of a serial arm: the sum of its absolute link and tool lengths
+    (an upper bound of its reach; at least 1 length unit)."""
+    from kinecal.kinematics.ik import characteristic_length
+
+    return characteristic_length(model)
+
+
+def stewart_size(geom) -> float:
+    """The size ``L`` of a Stewart platform: its longest leg reading (when bounded), or the
+    largest distance of a base joint, a platform joint or the probe tip from its frame's
+    origin when larger (length unit of the geometry)."""
+    hi = float(geom.leg_range[1])
+    sizes = [hi if math.isfinite(hi) else 0.0,
+             float(np.linalg.norm(geom.base_joints, axis=1).max()),
+             float(np.linalg.norm(geom.platform_joints, axis=1).max()) + abs(geom.probe_offset)]
+    return max(sizes)
+
+
+def check_length_noise(value: float | None, size: float, option: str, unit: str,
+                       what: str = "noise standard deviation") -> None:
+    """Refuse a length noise or error amplitude larger than the machine's size `size`.
+
+    Parameters
+    ----------
+    value : float or None
+        The value given (None: not given; finiteness and sign are checked elsewhere).
+    size : float
+        The machine's size ``L`` (`serial_size`, `stewart_size`), same unit.
+    option : str
+        Where the value was given (named in the error).
+    unit : str
+        Length unit, for the message.
+    what : str
+        What the value is, for the message.
+    """
+    if value is None or not value > size:
+        return
+    raise InputError(f"a {what} of {value:.4g} {unit} is larger than the whole machine "
+                     f"({size:.4g} {unit}): such data carry no information on its geometry; "
+                     f"expected at most {size:.4g} {unit} (is the unit right?)", option=option)
+
+
+def check_angle_noise(value_rad: float | None, option: str, shown: str) -> None:
+    """Refuse an angular noise above `MAX_ANGLE_NOISE` (1 rad); `shown` is the value as the
+    user gave it (with its unit), for the message."""
+    if value_rad is None or not value_rad > MAX_ANGLE_NOISE:
+        return
+    raise InputError(f"an orientation noise of {shown} is more than 1 rad (57.3 deg, 206265 "
+                     "arcsec): it turns a point at the machine's size by more than the "
+                     "machine's size and leaves no information on orientations; expected at "
+                     "most 1 rad (is the unit right?)", option=option)
