@@ -198,9 +198,10 @@ def levenberg_marquardt(
     -----
     Stopping (kinecal solver; defaults 1e-12): relative cost reduction of an accepted step
     ``<= ftol``, or predicted and actual relative reductions of a trial step both
-    ``<= ftol`` (the cost's round-off floor), step ``<= xtol (||x|| + xtol)``, gradient
-    ``max |J^T r| <= gtol ||r||``, a zero residual, or no decrease possible at round-off
-    level. MINPACK defaults: 1e-15.
+    ``<= ftol`` (the cost's round-off floor), or a predicted relative reduction ``<= ftol``
+    right after a step that the quadratic model predicted well (gain ratio > 0.75), step
+    ``<= xtol (||x|| + xtol)``, gradient ``max |J^T r| <= gtol ||r||``, a zero residual,
+    or no decrease possible at round-off level. MINPACK defaults: 1e-15.
     """
     if loss not in LOSSES:
         raise InputError(f"loss: expected one of {', '.join(LOSSES)}, got {loss!r}",
@@ -293,6 +294,7 @@ def _lm_normal_equations(
     history = [monitor(r)]
     # dimensionless: the damping is mu * diag(J^T J) (Marquardt scaling)
     mu, fallback = (damping, None) if np.isscalar(damping) else damping
+    trusted = False  # the last accepted step agreed with the quadratic model
     nu = 2.0
     status, message = 0, "maximum number of function evaluations reached"
     while nfev < max_nfev:
@@ -314,11 +316,16 @@ def _lm_normal_equations(
         if np.linalg.norm(h) <= xtol * (np.linalg.norm(x) + xtol):
             status, message = 2, "step below xtol"
             break
+        predicted = 0.5 * float(h @ (mu * d * h - g))
+        if trusted and 0.0 <= predicted <= ftol * F:
+            # the quadratic model, just confirmed by an accepted step, promises less than
+            # ftol: converged without spending an evaluation to confirm it
+            status, message = 3, "predicted reduction of the cost below ftol"
+            break
         x_new = x + h
         r_new = evaluate(x_new)
         nfev += 1
         F_new = 0.5 * float(r_new @ r_new)
-        predicted = 0.5 * float(h @ (mu * d * h - g))
         rho = (F - F_new) / predicted if predicted > 0 else -1.0
         if predicted <= ftol * F and abs(F - F_new) <= ftol * F:
             # both reductions at round-off level (MINPACK's ftol test): converged; a
@@ -341,6 +348,7 @@ def _lm_normal_equations(
             mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
             nu = 2.0
             fallback = None
+            trusted = rho > 0.75
             if reduction <= ftol * F_new:
                 status, message = 3, "relative reduction of the cost below ftol"
                 break
