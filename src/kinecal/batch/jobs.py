@@ -57,6 +57,12 @@ class _Common(BaseModel):
     maxiter: int | None = Field(None, ge=1)
     target: float | None = Field(None, ge=0, allow_inf_nan=False)
     options: dict[str, Any] | None = None
+    error_model: str | None = Field(None, min_length=1)
+    harmonics: int | None = Field(None, ge=1)
+    folds: int | None = Field(None, ge=2)
+    sigma: float | None = Field(None, gt=0, allow_inf_nan=False)
+    base_link: str | None = Field(None, min_length=1)
+    tip_link: str | None = Field(None, min_length=1)
 
 
 class Job(_Common):
@@ -88,6 +94,14 @@ class Job(_Common):
         Seed of the simulation and of the calibration's randomness.
     method, free, loss, maxiter, target, options
         Passed to `kinecal.calibrate`.
+    error_model, harmonics, folds
+        Non-geometric joint errors, as ``kinecal calibrate --error-model``, ``--harmonics``,
+        ``--folds`` (`kinecal.calibration.error_model.calibrate_error_model`).
+    sigma : float, optional
+        The instrument's stated noise per coordinate (``--sigma``): the residual is tested
+        against it (`kinecal.calibration.diagnostics.noise`).
+    base_link, tip_link : str, optional
+        URDF models: the chain's first and last link (``--base-link``, ``--tip-link``).
     """
 
     name: str = Field(pattern=_NAME, max_length=200)
@@ -196,7 +210,7 @@ def _resolve(spec: str | None, base: Path, bundled: bool) -> str | None:
     candidate = base / path
     if candidate.exists() or (path.suffix and not bundled):
         return str(candidate.resolve())
-    if bundled and path.suffix in (".yaml", ".yml"):
+    if bundled and path.suffix.lower() in (".yaml", ".yml", ".urdf"):
         return str(candidate.resolve())
     return spec  # bundled model name or NAME:PART dataset
 
@@ -252,6 +266,7 @@ def parse_jobs(doc: Any, base: str | Path = ".", source: str | Path | None = Non
             raise InputError(f"job name {job.name!r} {twice}", file=source)
         seen[key] = job.name
         _check_job(job, source)
+    _check_models(jobs, source)
     return jobs
 
 
@@ -276,11 +291,90 @@ def _check_job(job: Job, source: str | Path | None) -> None:
         check_method_options(job.method, loss=job.loss, maxiter=job.maxiter,
                              target=job.target, options=job.options,
                              names={k: k for k in ("loss", "maxiter", "target", "options")})
+        _check_error_model(job)
+        if (job.base_link is not None or job.tip_link is not None) and not _is_urdf(job.model):
+            raise InputError("base_link and tip_link apply to URDF models (.urdf) only, not "
+                             f"to {job.model!r}", option="base_link")
         if job.poses is not None:
             check_count(job.poses + job.validation_poses, "poses",
                         bytes_per_item=JOB_POSE_BYTES)
     except InputError as exc:
-        raise InputError(f"job {job.name}: {exc.option}: {exc.message}", file=source) from None
+        raise InputError(f"job {job.name}: {_key(exc.option)}: {exc.message}",
+                         file=source) from None
+
+
+def _key(option: str | None) -> str:
+    """The jobs-file key of an option named as on the command line (``--error-model`` ->
+    ``error_model``)."""
+    if option is None:
+        return "job"
+    return option[2:].replace("-", "_") if option.startswith("--") else option
+
+
+def _is_urdf(model: str) -> bool:
+    return Path(model).suffix.lower() in (".urdf", ".xacro")
+
+
+def _check_error_model(job: Job) -> None:
+    """The error-model keys as ``kinecal calibrate`` checks ``--error-model``, ``--harmonics``
+    and ``--folds``: known families, options the choice uses, a least-squares method."""
+    from kinecal.calibration.error_model import (
+        LSQ_METHODS,
+        MAX_HARMONICS,
+        parse_error_model,
+    )
+    from kinecal.calibration.method_options import check_error_model_options
+
+    if job.error_model is not None:
+        families = parse_error_model(job.error_model)
+        if families != () and job.method not in LSQ_METHODS:
+            raise InputError(f"error model {job.error_model} needs a least-squares method "
+                             f"({', '.join(LSQ_METHODS)}), got method {job.method}",
+                             option="error_model")
+    check_error_model_options(job.error_model, harmonics=job.harmonics, folds=job.folds)
+    if job.harmonics is not None and job.harmonics > MAX_HARMONICS:
+        raise InputError(f"expected a harmonic order 1..{MAX_HARMONICS}, got {job.harmonics}",
+                         option="harmonics")
+
+
+def _check_models(jobs: list[Job], source: str | Path | None) -> None:
+    """What needs the model itself, once per distinct (model, base_link, tip_link):
+
+    * the chain of a URDF model with ``base_link`` / ``tip_link`` (as the command line
+      loads it: unknown links are refused);
+    * simulated ``noise`` and a stated ``sigma`` not larger than the machine
+      (`kinecal.calibration.diagnostics.sizes`).
+
+    A model that cannot be loaded otherwise is left to its jobs, which record the error.
+    """
+    from kinecal.calibration.diagnostics.sizes import check_length_noise, serial_size
+    from kinecal.io.models import load_model
+
+    loaded: dict[tuple, Any] = {}
+    for job in jobs:
+        links = job.base_link is not None or job.tip_link is not None
+        if not (links or job.noise > 0 or job.sigma is not None):
+            continue
+        key = (job.model, job.base_link, job.tip_link)
+        try:
+            if key not in loaded:
+                try:
+                    loaded[key] = load_model(job.model, base_link=job.base_link,
+                                             tip_link=job.tip_link)
+                except InputError:
+                    if links:
+                        raise
+                    loaded[key] = None
+            model = loaded[key]
+            if model is None:
+                continue
+            size = serial_size(model)
+            check_length_noise(job.noise, size, "noise", model.length_unit)
+            check_length_noise(job.sigma, size, "sigma", model.length_unit, "stated noise")
+        except InputError as exc:
+            text = (f"{_key(exc.option)}: {' '.join(exc.message.split())}"
+                    if exc.option is not None else f"model: {exc.one_line()}")
+            raise InputError(f"job {job.name}: {text}", file=source) from None
 
 
 def load_jobs(path: str | Path) -> list[Job]:

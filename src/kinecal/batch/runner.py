@@ -31,7 +31,7 @@ import json
 import math
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, CancelledError, Executor, wait
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -54,7 +54,9 @@ class JobRecord:
 
     ``status`` is ``done`` (computed now), ``resumed`` (result found from an earlier
     run), ``failed`` or ``not run`` (interrupted). Means are mean distance errors in the
-    model's length unit (NaN when unknown); ``seconds`` is the job's time in its worker.
+    model's length unit (NaN when unknown); ``seconds`` is the job's time in its worker;
+    ``warnings`` the job's plausibility warnings ``[{code, message}]`` (in the CSV: the
+    codes, joined by ``;``).
     """
 
     name: str
@@ -69,6 +71,7 @@ class JobRecord:
     error: str = ""
     attempts: int = 0
     kind: str = ""
+    warnings: list[dict[str, str]] = field(default_factory=list)
 
     @classmethod
     def from_job(cls, job: Job) -> JobRecord:
@@ -84,6 +87,7 @@ class JobRecord:
         self.validation_mean = float(val["after"]["mean"]) if val else math.nan
         self.seconds = float(seconds)
         self.status = status
+        self.warnings = _warning_list(result.get("warnings"))
 
 
 @dataclass
@@ -105,8 +109,17 @@ class BatchResult:
         return all(r.status in ("done", "resumed") for r in self.records)
 
 
+def _warning_list(items: Any) -> list[dict[str, str]]:
+    """``[{code, message}]`` from a result's or an outcome's ``warnings`` (anything else
+    in an old or edited result file is ignored)."""
+    if not isinstance(items, list):
+        return []
+    return [{"code": str(w["code"]), "message": str(w.get("message", ""))} for w in items
+            if isinstance(w, dict) and "code" in w]
+
+
 SUMMARY_COLUMNS = ("name", "method", "seed", "noise", "poses", "calibration_mean",
-                   "validation_mean", "seconds", "status", "error")
+                   "validation_mean", "seconds", "status", "error", "warnings")
 
 
 def write_summary(path: str | Path, records: Iterable[JobRecord]) -> None:
@@ -121,7 +134,9 @@ def write_summary(path: str | Path, records: Iterable[JobRecord]) -> None:
             out = []
             for col in SUMMARY_COLUMNS:
                 v = row[col]
-                if v is None or (isinstance(v, float) and math.isnan(v)):
+                if col == "warnings":
+                    out.append(";".join(dict.fromkeys(w["code"] for w in v)))
+                elif v is None or (isinstance(v, float) and math.isnan(v)):
                     out.append("")
                 elif isinstance(v, float):
                     out.append(f"{v:.6g}" if col == "seconds" else repr(v))
@@ -269,6 +284,7 @@ def run_batch(
         else:
             rec.status, rec.error, rec.kind = "failed", outcome["error"], outcome["kind"]
             rec.seconds = outcome["seconds"]
+            rec.warnings = _warning_list(outcome.get("warnings"))
         settle(rec)
         return isinstance(exc, BrokenExecutor)
 

@@ -88,45 +88,73 @@ def _truth_table(model: Any, true_params: np.ndarray) -> dict[str, float]:
     return {n: float(v) for n, v in zip(model.parameter_names, true_params * conv, strict=True)}
 
 
+def _calibrate_job(job: Job, model: Any, data: Any, val: Any, free: Any) -> Any:
+    """The job's calibration, as ``kinecal calibrate`` runs it: `kinecal.calibrate`, or the
+    joint-error calibration when the job (or the model file) asks for an error model."""
+    from kinecal.calibration.serial import calibrate
+
+    kw = dict(free=free, validate=val, rng=job.seed, loss=job.loss, maxiter=job.maxiter,
+              target=job.target, options=job.options, sigma=job.sigma)
+    if job.error_model is None and model.joint_errors is None and job.harmonics is None:
+        return calibrate(model, data, job.method, **kw)
+    from kinecal.calibration.error_model import calibrate_error_model
+
+    return calibrate_error_model(model, data, job.error_model or "model", method=job.method,
+                                 harmonics=job.harmonics,
+                                 **kw, **({} if job.folds is None else {"folds": job.folds}))
+
+
 def run_job(job: Job) -> dict[str, Any]:
     """Run one job; return its outcome (never raises for the job's own errors).
+
+    The job runs inside a silent collector of `kinecal.diagnostics`: its plausibility
+    warnings (readers, simulation, calibration) are not issued as Python warnings on the
+    worker's stderr, but returned, for the coordinating process to report once (numpy's
+    floating-point warnings are off, as on the command line: kinecal checks its inputs
+    and results itself).
 
     Returns
     -------
     dict
         ``{"name", "status": "done" | "failed", "seconds", "result": dict | None,
-        "error": str, "kind": "" | "input" | "internal"}``; ``result`` is the
-        calibration JSON with ``job`` (and ``truth`` for simulated jobs) added.
+        "error": str, "kind": "" | "input" | "internal", "warnings": [{code, message}]}``;
+        ``result`` is the calibration JSON with ``job`` (and ``truth`` for simulated jobs)
+        added, its ``warnings`` the same as the outcome's.
     """
-    from kinecal.calibration.serial import calibrate
+    from kinecal import diagnostics
     from kinecal.io.measurements import read_measurements
     from kinecal.io.models import load_model
 
     t0 = time.perf_counter()
+    found: list = []
+
+    def outcome(status: str, result: Any = None, error: str = "", kind: str = "") -> dict:
+        return {"name": job.name, "status": status, "seconds": time.perf_counter() - t0,
+                "result": result, "error": error, "kind": kind,
+                "warnings": [d.to_dict() for d in found]}
+
     try:
-        model = load_model(job.model)
-        truth, free = None, job.free
-        if job.simulated:
-            data, val, truth, names = simulate_job(job, model)
-            free = free if names is None else names
-        else:
-            data = read_measurements(job.data, model)
-            val = None if job.validation is None else read_measurements(job.validation, model)
-        res = calibrate(model, data, job.method, free=free, validate=val, rng=job.seed,
-                        loss=job.loss, maxiter=job.maxiter, target=job.target,
-                        options=job.options)
-        result = res.to_dict()
+        # np.errstate, unlike warnings.catch_warnings, is safe in a thread pool's threads
+        with diagnostics.collect() as found, np.errstate(all="ignore"):
+            model = load_model(job.model, base_link=job.base_link, tip_link=job.tip_link)
+            truth, free = None, job.free
+            if job.simulated:
+                data, val, truth, names = simulate_job(job, model)
+                free = free if names is None else names
+            else:
+                data = read_measurements(job.data, model)
+                val = (None if job.validation is None
+                       else read_measurements(job.validation, model))
+            res = _calibrate_job(job, model, data, val, free)
+            res.warnings = list(found)  # the readers' warnings as well as the calibration's
+            result = res.to_dict()
         result["job"] = job.spec()
         if truth is not None:
             result["truth"] = _truth_table(model, truth)
     except InputError as exc:
-        return {"name": job.name, "status": "failed", "seconds": time.perf_counter() - t0,
-                "result": None, "error": exc.one_line(), "kind": "input"}
+        return outcome("failed", error=exc.one_line(), kind="input")
     except Exception as exc:  # a job's failure must not stop the batch
         last = traceback.extract_tb(exc.__traceback__)[-1]
         where = f" ({last.filename.rsplit('/', 1)[-1]}:{last.lineno})"
-        return {"name": job.name, "status": "failed", "seconds": time.perf_counter() - t0,
-                "result": None, "error": f"{type(exc).__name__}: {exc}{where}",
-                "kind": "internal"}
-    return {"name": job.name, "status": "done", "seconds": time.perf_counter() - t0,
-            "result": result, "error": "", "kind": ""}
+        return outcome("failed", error=f"{type(exc).__name__}: {exc}{where}", kind="internal")
+    return outcome("done", result)

@@ -111,7 +111,8 @@ def simulate(
         passed by mistake (the arm would be twice its size) raise the ``absolute-errors``
         warning.
     noise : float
-        Standard deviation of the Gaussian noise added to each coordinate (length unit).
+        Standard deviation of the Gaussian noise added to each coordinate (length unit; at
+        most the arm's size, `kinecal.calibration.diagnostics.sizes`).
     rng : int or Generator, optional
         Randomness (poses, errors, noise).
     q : ndarray, shape (N, n_joints), optional
@@ -119,7 +120,8 @@ def simulate(
     orientation : bool
         Also measure the tool frame's orientation (a 6-DoF instrument).
     angle_noise : float
-        Standard deviation (rad) of the orientation noise, a random rotation vector per pose.
+        Standard deviation (rad) of the orientation noise, a random rotation vector per pose
+        (at most 1 rad).
     marker : ndarray of int, shape (N,), optional
         Models with several markers: the marker each row of `q` measures. Default: every
         configuration is measured at every marker (``N * M`` rows, markers in turn), as a
@@ -150,6 +152,11 @@ def simulate(
             raise InputError(f"errors: expected {model.n_params} values, got {e.shape}")
     if not angle_noise >= 0:
         raise InputError(f"angle noise: expected >= 0, got {angle_noise}", option="--angle-noise")
+    from kinecal.calibration.diagnostics import sizes  # noise and errors within the machine
+
+    sizes.check_length_noise(noise, sizes.serial_size(model), "--noise", model.length_unit)
+    sizes.check_angle_noise(angle_noise, "--angle-noise", f"{angle_noise:.4g} rad")
+    sizes.check_deviations(model, e)
     if not isinstance(errors, str):
         from kinecal.calibration.diagnostics.simulate import check_absolute_errors
 

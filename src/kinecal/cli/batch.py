@@ -28,6 +28,32 @@ def _row_text(rec) -> str:
     return text + (f"  {rec.error}" if rec.error else "")
 
 
+def _print_warnings(records) -> None:
+    """Each job's plausibility warnings, once, on stderr (also under ``--quiet``).
+
+    ``kinecal: warning: JOB: MESSAGE [CODE]`` per job and warning when at most
+    `MAX_PRINTED_ROWS` jobs warned; beyond that one line per code, with the number of jobs
+    and the first job's message (``summary.csv`` names the codes of every job, each
+    result JSON has the messages).
+    """
+    from kinecal.diagnostics import Diagnostic, format_warning
+
+    warned = [r for r in records if r.warnings]
+    if len(warned) <= MAX_PRINTED_ROWS:
+        lines = [Diagnostic(w["code"], f"{r.name}: {w['message']}")
+                 for r in warned for w in r.warnings]
+    else:
+        by_code: dict[str, list] = {}
+        for r in warned:
+            for w in r.warnings:
+                by_code.setdefault(w["code"], []).append((r.name, w["message"]))
+        lines = [Diagnostic(code, f"{len(hits)} of {len(records)} jobs (codes per job in "
+                            f"summary.csv); the first, {hits[0][0]}: {hits[0][1]}")
+                 for code, hits in by_code.items()]
+    for d in lines:
+        typer.echo(format_warning(d), err=True)
+
+
 @app.command()
 def batch(
     jobs_file: Path = typer.Argument(..., metavar="JOBS.yaml", help="Jobs file (YAML)."),
@@ -122,6 +148,7 @@ def batch(
             if cov:
                 typer.echo("\ncoverage of the 95 % intervals (identified +- 1.96 std):\n"
                            + format_table(cov))
+    _print_warnings(records)
     counts = ", ".join(f"{n} {s}" for s, n in sorted(result.counts.items()))
     typer.echo(f"{len(records)} jobs: {counts}; summary in {result.summary_path}", err=True)
     failed = [r for r in records if r.status != "done" and r.status != "resumed"]

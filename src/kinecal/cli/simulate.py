@@ -44,6 +44,7 @@ def simulate(
     quiet: bool = quiet_option(),
 ) -> None:
     """Simulate measurements of a model with true errors and noise."""
+    from kinecal.calibration.diagnostics.sizes import check_angle_noise
     from kinecal.calibration.simulate import read_truth, write_truth
     from kinecal.calibration.simulate import simulate as run
     from kinecal.io.measurements import write_measurements
@@ -62,6 +63,8 @@ def simulate(
         if angle_noise and not orientation:
             raise InputError("--angle-noise needs --orientation", option="--angle-noise")
         to_rad = np.pi / 180.0 if m.angle_unit == "deg" else 1.0
+        check_angle_noise(angle_noise * to_rad, "--angle-noise", f"{angle_noise:g} "
+                          f"{m.angle_unit}")  # in the unit given (simulate checks the rest)
         sim = run(m, poses, errors=err, noise=noise, rng=seed, orientation=orientation,
                   angle_noise=angle_noise * to_rad)
         write_measurements(out, sim.data, m)

@@ -194,14 +194,22 @@ def simulate(
     errors: str = typer.Option(
         "1e-3", "--errors", help="Amplitude of uniform geometry errors, or a TRUE.yaml geometry."
     ),
-    noise_position: float = typer.Option(1e-6, "--noise-position", help="Tip position std."),
-    noise_rotation: float = typer.Option(1.0, "--noise-rotation", help="Orientation std, arcsec."),
-    noise_legs: float = typer.Option(1e-6, "--noise-legs", help="Leg reading std."),
+    noise_position: float = typer.Option(1e-6, "--noise-position", help="Tip position std "
+                                         "(at most the machine's size)."),
+    noise_rotation: float = typer.Option(1.0, "--noise-rotation", help="Orientation std, "
+                                         "arcsec (at most 1 rad = 206265 arcsec)."),
+    noise_legs: float = typer.Option(1e-6, "--noise-legs", help="Leg reading std (at most "
+                                     "the machine's size)."),
     seed: int = seed_option(),
     out: Path = typer.Option(..., "--out", help="DATA.csv: x..gamma (deg) and l1..l6."),
     truth_out: Path | None = typer.Option(None, "--truth-out", help="Write the true geometry."),
 ) -> None:
     """Simulate calibration data: measured poses and leg readings of a perturbed machine."""
+    from kinecal.calibration.diagnostics.sizes import (
+        check_angle_noise,
+        check_length_noise,
+        stewart_size,
+    )
     from kinecal.calibration.stewart import ARCSEC, perturb_geometry, simulate_stewart
     from kinecal.io.csvtable import write_table
     from kinecal.io.geometry import load_geometry, save_geometry
@@ -220,6 +228,11 @@ def simulate(
                     ("--noise-legs", noise_legs)):  # fmt: skip
         if not (np.isfinite(v) and v >= 0):
             raise InputError("expected a non-negative number", option=name)
+    # plausible for the machine's size (kinecal.calibration.diagnostics.sizes)
+    size, unit = stewart_size(geom), _geometry_unit(geometry)
+    check_length_noise(noise_position, size, "--noise-position", unit)
+    check_length_noise(noise_legs, size, "--noise-legs", unit)
+    check_angle_noise(noise_rotation * ARCSEC, "--noise-rotation", f"{noise_rotation:g} arcsec")
     rng = np.random.default_rng(seed)
     try:
         amplitude = float(errors)
@@ -228,6 +241,7 @@ def simulate(
     else:
         if not (np.isfinite(amplitude) and amplitude >= 0):
             raise InputError("expected a non-negative amplitude or a YAML file", option="--errors")
+        check_length_noise(amplitude, size, "--errors", unit, "geometry error amplitude")
         true = perturb_geometry(geom, amplitude, rng)
     data = simulate_stewart(
         true,

@@ -10,7 +10,10 @@ positions of 1e300 m and exited 0. The bound used here is the machine's own size
   is less precise than the machine is large;
 * an angular noise above 1 rad (57 deg) is the same bound in angle: it turns a point at
   distance ``L`` by more than ``L``, and (beyond about 1.8 rad) makes the orientation a
-  uniformly random one.
+  uniformly random one;
+* a true deviation of a geometric parameter (``simulate(errors=...)``, ``--errors
+  TRUTH.json``) larger than ``L`` for a length, or than half a turn for an angle, is not an
+  error of this machine but another machine.
 
 Both are refused (`InputError`, exit 2) before any work. ``L`` is the sum of the arm's
 link and tool lengths (`kinecal.kinematics.ik.characteristic_length`, an upper bound of
@@ -27,8 +30,8 @@ import numpy as np
 
 from kinecal.errors import InputError
 
-__all__ = ["MAX_ANGLE_NOISE", "check_angle_noise", "check_length_noise", "serial_size",
-           "stewart_size"]
+__all__ = ["MAX_ANGLE_NOISE", "check_angle_noise", "check_deviations", "check_length_noise",
+           "serial_size", "stewart_size"]
 
 #: largest plausible angular noise (rad): 1 rad turns a point at the machine's size by
 #: the machine's size
@@ -74,7 +77,7 @@ def check_length_noise(value: float | None, size: float, option: str, unit: str,
     if value is None or not value > size:
         return
     raise InputError(f"a {what} of {value:.4g} {unit} is larger than the whole machine "
-                     f"({size:.4g} {unit}): such data carry no information on its geometry; "
+                     f"({size:.4g} {unit}), which no measurement or machine of this size has; "
                      f"expected at most {size:.4g} {unit} (is the unit right?)", option=option)
 
 
@@ -87,3 +90,39 @@ def check_angle_noise(value_rad: float | None, option: str, shown: str) -> None:
                      "arcsec): it turns a point at the machine's size by more than the "
                      "machine's size and leaves no information on orientations; expected at "
                      "most 1 rad (is the unit right?)", option=option)
+
+
+def check_deviations(model, errors, option: str = "--errors") -> None:
+    """Refuse true deviations of geometric parameters beyond the machine: a length deviation
+    larger than `serial_size`, an angle deviation larger than half a turn (joint-error
+    coefficients are not checked here).
+
+    Parameters
+    ----------
+    model : SerialModel
+        The nominal model.
+    errors : ndarray, shape (n_params,)
+        Deviations from nominal (length unit, rad).
+    option : str
+        Where they were given (named in the error).
+    """
+    e = np.asarray(errors, dtype=float)
+    n_geo = int(getattr(model, "_n_geometric", model.n_params))
+    angle = model.is_angle()[:n_geo]
+    size = serial_size(model)
+    limit = np.where(angle, np.pi, size)
+    bad = np.flatnonzero(~(np.abs(e[:n_geo]) <= limit))
+    if bad.size == 0:
+        return
+    k = int(bad[np.argmax(np.abs(e[bad]) / limit[bad])])
+    name = model.parameter_names[k]
+    if angle[k]:
+        deg = model.angle_unit == "deg"
+        shown = f"{np.degrees(e[k]):.4g} deg" if deg else f"{e[k]:.4g} rad"
+        raise InputError(f"{name} deviates by {shown} from nominal, more than half a turn: "
+                         "not an error of this machine but another one (expected deviations "
+                         "from nominal, not absolute values)", option=option)
+    raise InputError(f"{name} deviates by {e[k]:.4g} {model.length_unit} from nominal, more "
+                     f"than the whole machine ({size:.4g} {model.length_unit}): not an error of "
+                     "this machine but another one (expected deviations from nominal, not "
+                     "absolute values)", option=option)
