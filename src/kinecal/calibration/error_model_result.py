@@ -83,7 +83,10 @@ def error_model_text(result: CalibrationResult) -> str:
         for name in terms["unidentifiable"]:
             combo = terms["confounded_with"].get(name, {})
             top = sorted(combo.items(), key=lambda kv: -abs(kv[1]))[:3]
-            what = (", ".join(f"{c:+.3g} {n}" for n, c in top) + (" ..." if len(combo) > 3
-                                                                   else "")) or "no effect"
+            if not combo:
+                lines.append(f"  {name}: no effect on these poses")
+                continue
+            what = ", ".join(f"{c:+.3g} {n}" for n, c in top) + (" ..." if len(combo) > 3
+                                                                  else "")
             lines.append(f"  {name}: confounded with {what}")
     return "\n".join(lines)

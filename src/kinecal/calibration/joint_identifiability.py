@@ -87,7 +87,11 @@ class CoefficientAnalysis:
         else:
             self.Rs = gram_root(gram[:k, :k] * np.outer(self.scale, self.scale))
         kg = len(self.geometric)
-        self.norms = np.linalg.norm(self.Rs, axis=0)
+        if gram is None:
+            self.norms = np.linalg.norm(self.Rs, axis=0)
+        else:  # exact from the diagonal: the root's columns carry sqrt(eps) round-off, and
+            # a column without effect (an exact zero) must stay one ("no effect")
+            self.norms = np.sqrt(np.clip(np.diag(gram[:k, :k]), 0.0, None)) * self.scale
         self.geo_norm = float(self.norms[:kg].max(initial=0.0))
         if kg:  # the coefficients' columns beyond the geometric span, once
             Q, _ = np.linalg.qr(self.Rs[:, :kg])
