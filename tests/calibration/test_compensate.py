@@ -274,3 +274,28 @@ def test_long_programs_in_blocks_give_the_same_bits(monkeypatch):
     assert calls == [(10, 45), (20, 45), (30, 45), (40, 45), (45, 45)]
     for f in ("q", "converged", "status", "correction", "residual"):
         np.testing.assert_array_equal(getattr(blocks, f), getattr(one, f))
+
+
+def test_prismatic_joint_corrections_are_lengths_not_degrees(tmp_path):
+    """A SCARA quill: its correction is reported in the length unit, never as degrees."""
+    path = tmp_path / "scara.yaml"
+    path.write_text(
+        "name: scara\nconvention: dh\nlength_unit: mm\nangle_unit: deg\njoints:\n"
+        "  - {theta: 0, d: 400, a: 250, alpha: 0}\n  - {theta: 0, d: 0, a: 200, alpha: 180}\n"
+        "  - {theta: 0, d: 0, a: 0, alpha: 0, type: prismatic}\n"
+        "  - {theta: 0, d: 50, a: 0, alpha: 0}\ntool: [10, 0, 30]\n"
+        "joint_limits: [[-143, 143], [-143, 143], [0, 150], [-180, 180]]\n"
+        "tolerances: {length: 0.5, angle: 0.1}\n")
+    model = load_model(path)
+    true_params = model.nominal.copy()
+    true_params[model.index(["d3"])] += 1.5  # the quill reads 1.5 mm short
+    q = np.array([[0.2, 0.3, 100.0, 0.5], [-0.5, 0.7, 5.0, 0.0]])
+    c = compensate(true_params, model, joints=q)
+    assert c.converged.all()
+    np.testing.assert_allclose(np.abs(c.dq[:, 2]), 1.5, atol=1e-6)
+    rev, lin = c.joint_motion()
+    np.testing.assert_allclose(lin, 1.5, atol=1e-6)
+    assert np.degrees(rev.max()) < 0.01
+    text = c.summary()
+    assert "1.5 mm (prismatic)" in text and "85.94 deg" not in text
+    assert c.stats()["joint_correction_length"]["max"] == pytest.approx(1.5, abs=1e-6)

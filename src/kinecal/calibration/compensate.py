@@ -186,7 +186,8 @@ def compensate(
         intended=intended, filtered=filtered, correction=corr, correction_rotation=corr_rot,
         error_before=before, error_before_rotation=before_rot, residual=res.position_error,
         residual_rotation=res.rotation_error, converged=res.converged, status=res.status,
-        nominal_converged=nominal_ok, ik=res, length_unit=nom.length_unit)
+        nominal_converged=nominal_ok, ik=res, length_unit=nom.length_unit,
+        prismatic=nom.is_prismatic())
     if diagnose:
         _warn_rows(out)
     return out

@@ -53,6 +53,8 @@ class CompensationResult:
     ik : IKResult
         The inverse kinematics on the calibrated model.
     length_unit : str
+    prismatic : ndarray of bool, shape (n_joints,), optional
+        True for prismatic joints (their `dq` is a length, not an angle).
     """
 
     kind: str
@@ -73,6 +75,7 @@ class CompensationResult:
     nominal_converged: NDArray[np.bool_]
     ik: IKResult
     length_unit: str = ""
+    prismatic: NDArray[np.bool_] | None = None
 
     def __len__(self) -> int:
         return int(self.q.shape[0])
@@ -86,7 +89,7 @@ class CompensationResult:
         if n:
             c = self.correction
             lines.append(f"correction: mean {c.mean():.4g} {unit}, max {c.max():.4g} {unit}; "
-                         f"joints up to {np.degrees(np.abs(self.dq).max()):.4g} deg")
+                         + self._joint_motion(unit))
             if self.outputs == "pose":
                 a = np.degrees(self.correction_rotation)
                 lines.append(f"correction angle: mean {a.mean():.4g} deg, max {a.max():.4g} deg")
@@ -98,6 +101,31 @@ class CompensationResult:
             if k and s != "converged":
                 lines.append(f"  {s}: {k} rows")
         return "\n".join(lines)
+
+    def _prismatic(self) -> NDArray[np.bool_]:
+        return (np.zeros(self.dq.shape[1], dtype=bool) if self.prismatic is None
+                else np.asarray(self.prismatic, dtype=bool))
+
+    def joint_motion(self) -> tuple[Array, Array]:
+        """Largest joint change per row ``(N,)``: over the revolute joints (rad) and over
+        the prismatic ones (length unit); zeros where the arm has none of that kind."""
+        pris = self._prismatic()
+        dq = np.abs(self.dq)
+        n = dq.shape[0]
+        rev = dq[:, ~pris].max(axis=1) if (~pris).any() else np.zeros(n)
+        lin = dq[:, pris].max(axis=1) if pris.any() else np.zeros(n)
+        return rev, lin
+
+    def _joint_motion(self, unit: str) -> str:
+        """``joints up to 0.8 deg`` (revolute in degrees, prismatic in the length unit)."""
+        pris = self._prismatic()
+        rev, lin = self.joint_motion()
+        parts = []
+        if (~pris).any():
+            parts.append(f"{np.degrees(rev.max()):.4g} deg")
+        if pris.any():
+            parts.append(f"{lin.max():.4g} {unit} (prismatic)")
+        return "joints up to " + ", ".join(parts)
 
     def stats(self) -> dict[str, Any]:
         """JSON-ready statistics: counts, corrections, residuals."""
@@ -115,5 +143,7 @@ class CompensationResult:
                 "correction_rotation_rad": s(self.correction_rotation),
                 "error_before": s(self.error_before),
                 "residual": s(self.residual[self.converged]),
-                "joint_correction_rad": s(np.abs(self.dq).max(axis=1)) if len(self) else None}
+                "joint_correction_rad": s(self.joint_motion()[0]) if len(self) else None,
+                **({"joint_correction_length": s(self.joint_motion()[1]) if len(self) else None}
+                   if self._prismatic().any() else {})}
 

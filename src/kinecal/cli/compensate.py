@@ -287,7 +287,7 @@ def demo_compensation(result, out: Path, label: str) -> tuple[object, Path, str]
     path = out / "compensated.csv"
     write_program(path, ["pose", *joints], cells, {}, _columns(res, nom, joints))
     unit = nom.length_unit
-    dq = np.degrees(np.abs(res.dq).max(axis=1))
+    dq = np.degrees(res.joint_motion()[0])  # revolute joints (prismatic: a length)
     lines = [f"compensation of the {len(res)} held-out poses as a joint program ({label}):",
              f"  {'pose':>4s} {'max |dq| [deg]':>15s} {'correction [' + unit + ']':>17s} "
              f"{'angle [deg]':>12s}  status"]

@@ -48,7 +48,7 @@ def compensation_section(result: Any) -> str:
         return section("compensation", "Compensation",
                        f"<p>Not computed: {html.escape(exc.message)}</p>")
     unit = nom.length_unit
-    dq = np.degrees(np.abs(res.dq).max(axis=1))
+    dq = np.degrees(res.joint_motion()[0])  # revolute joints (prismatic: a length)
     ok = res.converged
     rows = [
         ("poses compensated", f"{len(res)} ({which} poses, as a joint program)"),
