@@ -73,18 +73,24 @@ def check_parameter_tolerance(model: SerialModel, params: Array, std: Array,
                               confounded_with: dict[str, dict[str, float]] | None = None) -> None:
     """``parameter-tolerance``: identified values far beyond the model's tolerances.
 
-    Checks the free, identifiable parameters except the base frame (the instrument's
-    frame is arbitrary). A free parameter also takes up the errors of the parameters
-    confounded with it (``d6`` of a tool point on the last axis moves ``a5`` by
-    ``d6 * alpha6``): its allowance is its own tolerance plus ``sum |c| * tolerance`` over
-    the confounded parameters (coefficients `confounded_with` of the identifiability
-    report). Warns on a change larger than `TOLERANCE_MULTIPLE` allowances plus three
-    standard errors. `params` is the full vector, `std` that of the free `names`
-    (``inf`` where not identifiable).
+    Checks the free, identifiable parameters except the base frame and the tool points
+    (the measurement set-up, not the arm: where the instrument stands is arbitrary, and
+    where its reflectors sit on the flange is rarely known to the tolerances of the arm;
+    a URDF's tool point and markers named by a file start at the flange). A free
+    parameter also takes up the errors of the parameters confounded with it (``d6`` of a
+    tool point on the last axis moves ``a5`` by ``d6 * alpha6``): its allowance is its own
+    tolerance plus ``sum |c| * tolerance`` over the confounded parameters (coefficients
+    `confounded_with` of the identifiability report; unbounded when a held tool point or
+    base parameter is among them). Warns on a change larger than `TOLERANCE_MULTIPLE`
+    allowances plus three standard errors. `params` is the full vector, `std` that of the
+    free `names` (``inf`` where not identifiable).
     """
     def tol_of(n: str) -> float:
         a = model.is_angle()[model.index([n])[0]]
         return float(model.tolerances["angle"] if a else model.tolerances["length"])
+
+    def setup(n: str) -> bool:
+        return n in BASE_NAMES or n.startswith("tool.")
 
     idx = model.index(list(names))
     delta = np.asarray(params)[idx] - model.nominal[idx]
@@ -96,9 +102,12 @@ def check_parameter_tolerance(model: SerialModel, params: Array, std: Array,
             continue
         for n, c in combo.items():
             if n in pos:
-                allow[pos[n]] += abs(c) * tol_of(other)
+                # a held set-up parameter (a marker's tool point the joint geometry stands
+                # in for, e.g. a6 for tool.A.x) can be anywhere: so can its stand-in
+                allow[pos[n]] += (np.inf if setup(other) and abs(c) > 1e-3
+                                  else abs(c) * tol_of(other))
     std = np.asarray(std, dtype=float)
-    base = np.array([n in BASE_NAMES for n in names])
+    base = np.array([setup(n) for n in names])
     bad = (np.isfinite(std) & ~base
            & (np.abs(delta) > TOLERANCE_MULTIPLE * allow + 3.0 * std))
     if not bad.any():
