@@ -6,7 +6,7 @@ import contextlib
 import json
 import os
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -90,6 +90,7 @@ def check_paths(
     inputs: dict[str, str | Path | None],
     outputs: dict[str, str | Path | None],
     folders: dict[str, tuple[str | Path | None, list[str]]] | None = None,
+    reads: dict[str, Sequence[str]] | None = None,
 ) -> None:
     """Refuse, before any work, outputs that would overwrite an input or each other.
 
@@ -110,6 +111,9 @@ def check_paths(
     folders : dict of str to (path, list of str), optional
         Option name -> an output directory (created when missing) and the names of the
         files the command writes into it; each such file is checked like an output.
+    reads : dict of str to sequence of str, optional
+        Input name (a folder input) -> the suffixes of the files the command reads from
+        that folder (``IMAGES_DIR`` -> ``.png``, ``.jpg``, ...), lower case.
 
     Raises
     ------
@@ -117,7 +121,11 @@ def check_paths(
         An output equal to an input or to another output (the same file under any
         name: symbolic links, ``./``, hard links), an output that is a directory or
         read-only, a file output whose folder does not exist or is not writable, a name
-        longer than 255 bytes, or an output directory that is a file.
+        longer than 255 bytes, or an output directory that is a file. A folder input
+        protects the files in it: an output inside it (at any depth, through links too)
+        that already exists, or one directly in it with a suffix of `reads` (the command,
+        or its next run, would read it as an input), is refused as well. The check is
+        cheap: the folder is never listed.
     """
     from kinecal.io.bundled import input_file
 
@@ -135,6 +143,7 @@ def check_paths(
             raise InputError(f"{folder} is a file, expected a directory", option=opt)
         made.add(folder.resolve())
         outs.extend((opt, folder / n) for n in names)
+    in_dirs = {name: Path(os.path.realpath(p)) for name, p in ins.items() if p.is_dir()}
     seen: list[tuple[str, Path]] = []
     for opt, path in outs:
         if len(os.fsencode(path.name)) > 255:
@@ -156,12 +165,34 @@ def check_paths(
             if _same_file(path, src):
                 raise InputError(f"{path} is also the input {name}: refusing to overwrite an "
                                  "input, choose another output path", option=opt)
+        _check_in_folders(opt, path, in_dirs, reads or {})
         for other, prev in seen:
             if _same_file(path, prev):
                 what = f"given to {other}" if other != opt else f"written by {opt} twice"
                 raise InputError(f"{path} is also {what}: two outputs cannot share a path",
                                  option=opt)
         seen.append((opt, path))
+
+
+def _check_in_folders(opt: str, path: Path, in_dirs: dict[str, Path],
+                      reads: dict[str, Sequence[str]]) -> None:
+    """Refuse an output inside a folder input: an existing file there, or a file the
+    command reads from that folder (by suffix). See `check_paths`."""
+    if not in_dirs:
+        return
+    real = Path(os.path.realpath(path))  # the file a link points to, inside or not
+    for name, folder in in_dirs.items():
+        if folder != real.parent and folder not in real.parents:
+            continue
+        if os.path.lexists(path) or real.exists():
+            raise InputError(f"{path} is a file inside the input folder {name} ({folder}): "
+                             "refusing to overwrite a file in an input folder; write the "
+                             "output outside it", option=opt)
+        suffixes = {s.lower() for s in reads.get(name, ())}
+        if real.parent == folder and real.suffix.lower() in suffixes:
+            raise InputError(f"{path} would be a {real.suffix} file in the input folder {name} "
+                             f"({folder}), which the command reads as input: write the output "
+                             "outside it", option=opt)
 
 
 def seed_option(help: str = "Random seed (an integer >= 0).") -> Any:

@@ -83,7 +83,8 @@ def handeye_images(
 ) -> None:
     """Hand-eye calibration from images of a calibration board and the robot poses."""
     check_paths({"IMAGES_DIR": images_dir, "ROBOT_POSES": robot_poses,
-                 "--intrinsics": intrinsics}, {"--out": out, "--report": report})
+                 "--intrinsics": intrinsics}, {"--out": out, "--report": report},
+                reads={"IMAGES_DIR": IMAGE_SUFFIXES})
     from kinecal.calibration.handeye import METHODS, SETUPS
     from kinecal.io.handeye import read_robot_poses
 
