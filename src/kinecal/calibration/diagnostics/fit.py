@@ -169,10 +169,14 @@ def pose_leverage(problem, x: Array, normal: Array | None = None) -> Array:
     A = rows.gram(p, problem.index)[0][:-1, :-1] if normal is None else normal
     Ainv = np.linalg.pinv(A)
     h = np.empty(len(problem.data))
-    for sel in rows.chunks(problem.n_free):
+    k = problem.n_free
+    for sel in rows.chunks(k):
         _, Jt, _ = rows.evaluate(p, sel, problem.index)
-        J = Jt[:, :3, :]  # (k, 3, n): position rows
-        h[sel] = np.einsum("krn,kl,lrn->n", J, Ainv, J) / 3.0
+        J = np.ascontiguousarray(Jt[:, :3, :]).reshape(k, -1)  # (k, 3 n): position rows
+        # diag(J^T Ainv J) by one matrix product and a column-wise dot (a three-operand
+        # einsum would loop over k^2 3 n terms without BLAS)
+        d = np.einsum("kj,kj->j", J, Ainv @ J)
+        h[sel] = d.reshape(3, -1).sum(axis=0) / 3.0
     return np.clip(h, 0.0, 1.0)
 
 
