@@ -65,14 +65,15 @@ def _outliers(d: np.ndarray) -> list[int]:
 
 def _uncertainty(problem: CalibrationProblem, x: np.ndarray, outliers: list[int],
                  unique_rows: np.ndarray | None, normal: np.ndarray | None, rss: float,
-                 rank: int) -> Uncertainty:
+                 rank: int, positions: np.ndarray | None = None) -> Uncertainty:
     """Covariance of the free parameters at `x` on their identifiable subspace.
 
     The rows entering it: every pose but the robust loss' outliers, and of exact copies of a
     row only the first (a copied row adds no information; counting it would shrink the
     standard errors by the square root of the number of copies). `normal` and `rss`:
     ``J^T W J`` and the weighted RSS at `x` when the solver already has them for all poses
-    (LM); otherwise one chunked pass over the kept poses.
+    (LM); otherwise one chunked pass over the kept poses. `positions`: the model's tool
+    points at `x` when known.
     """
     k = problem.n_free
     n = len(problem.data)
@@ -84,7 +85,7 @@ def _uncertainty(problem: CalibrationProblem, x: np.ndarray, outliers: list[int]
         G = problem.gram(x, keep=keep)
         normal, rss = G[:k, :k], G[k, k]
     n_rows = problem.rows * (n if keep is None else len(keep))
-    P = problem.errors(x) + problem.xyz
+    P = problem.errors(x) + problem.xyz if positions is None else positions
     scale = column_scale(problem.model, problem.data, problem.free, positions=P)
     return subspace_uncertainty(normal, rss, n_rows, rank, scale)
 
@@ -278,10 +279,13 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
     x = np.asarray(res.x, dtype=float)
     explicit = list(first_report.names) == list(names)
     normal = res.get("normal_matrix") if loss == "linear" else None
+    # errors at the solution: from LM's last residual when it has one (no FK pass)
+    e_after = (problem.errors_from_residuals(res.residual) if normal is not None
+               else problem.errors(x))
     if explicit:  # what the poses identify at the identified values, not at nominal
         report = _solution_report(problem, x, report, normal, rank_tol)
     unc = _uncertainty(problem, x, outliers, info.unique_rows, normal, 2.0 * float(res.fun),
-                       report.rank if explicit else len(names))
+                       report.rank if explicit else len(names), e_after + problem.xyz)
     unc.estimable &= ~np.isin(names, report.unidentifiable)  # the report has the last word
     params = problem.full(x)
     std = np.zeros(model.n_params)
@@ -296,7 +300,7 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
     outliers = outliers or flagged
     calibrated = model.with_params(params, name=f"{model.name}-calibrated")
     x_nom = problem.x0
-    e_before, e_after = problem.errors(x_nom), problem.errors(x)
+    e_before = problem.errors(x_nom)
     axes = {"calibration": {"before": axis_stats(e_before), "after": axis_stats(e_after)}}
     val_before = val_after = None
     if validate is not None:
