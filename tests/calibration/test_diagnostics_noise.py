@@ -142,8 +142,10 @@ def test_cli_sigma(tmp_path, capsys):
     assert main(["simulate", "irb120", "--poses", "40", "--noise", "0.01", "--seed", "2",
                  "--out", str(data), "--quiet"]) == 0
     out = tmp_path / "r.json"
+    report = tmp_path / "r.html"
     assert main(["calibrate", "irb120", str(data), "--sigma", "0.01", "--out", str(out),
-                 "--quiet"]) == 0
+                 "--report", str(report), "--quiet"]) == 0
+    assert "stated noise 0.01 mm per coordinate" in report.read_text()
     noise = json.loads(out.read_text())["noise"]
     assert noise["verdict"] == "consistent" and set(noise["predicted_error"]) >= {
         "calibration_mean", "validation_mean"}

@@ -192,6 +192,10 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
         errors += ("<p>Uncertainty the calibration leaves in the model (1 sigma RMS position "
                    "error from the parameter covariance, first order): "
                    f"{html.escape(', '.join(parts))}.</p>")
+    if "noise" in getattr(result, "extra", {}):  # --sigma: the test, known-noise uncertainty
+        from kinecal.calibration.diagnostics.noise import noise_lines
+
+        errors += "".join(f"<p>{html.escape(line)}.</p>" for line in noise_lines(result))
     captions = {
         "errors": "Per-pose position error on the calibration poses, before (grey) and "
                   "after (blue) calibration.",
