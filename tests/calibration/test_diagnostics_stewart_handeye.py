@@ -181,7 +181,8 @@ def test_handeye_target_in_metres_robot_in_millimetres(make):
     C[:, :3, 3] /= 1000.0
     res, found = handeye(G, C)
     assert "scale-mismatch" in found
-    assert "metres" in next(d.message for d in res.warnings if d.code == "scale-mismatch")
+    msg = next(d.message for d in res.warnings if d.code == "scale-mismatch")
+    assert "robot poses in millimetres and target poses in metres" in msg, msg
 
 
 def test_handeye_uncertainty_of_x_matches_monte_carlo():

@@ -242,3 +242,25 @@ def test_oblique_unreadable_and_odd_sized_images_rejected(tmp_path):
     assert len(res.used) == 8 - len(tilted) >= 3
     with pytest.raises(InputError, match="one pose per image"):
         calibrate_handeye_images(paths, F, BOARD)
+
+
+def test_wrong_square_size_and_robot_in_metres_are_named():
+    """A board given with the wrong square size, or robot poses in metres for a millimetre
+    board: the reprojection cannot close, and the warnings say where to look."""
+    from kinecal.diagnostics import collect
+    from kinecal.vision.intrinsics import CameraIntrinsics
+
+    sc = render_handeye_scene(BOARD, K, DIST, SIZE, 8, seed=2, supersample=1)
+    cam = CameraIntrinsics(K, DIST, SIZE)
+    with collect():
+        clean = calibrate_handeye_images(sc.images, sc.flange2base, BOARD, intrinsics=cam)
+        wrong = calibrate_handeye_images(sc.images, sc.flange2base, Chessboard(9, 6, 25.0),
+                                         intrinsics=cam)
+        F = sc.flange2base.copy()
+        F[:, :3, 3] /= 1000.0
+        metres = calibrate_handeye_images(sc.images, F, BOARD, intrinsics=cam)
+    assert clean.warnings == []
+    msg = {w["code"]: w["message"] for w in wrong.warnings}
+    assert "square size (--board)" in msg["reprojection-rms"]
+    msg = {w["code"]: w["message"] for w in metres.warnings}
+    assert "robot poses in metres and target poses in millimetres" in msg["scale-mismatch"]

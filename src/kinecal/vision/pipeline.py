@@ -448,8 +448,8 @@ def _plausibility(ref: ReprojectionRefinement, records: list[ImageRecord],
     if ref.rms_px > 2.0:
         diagnostics.warn("reprojection-rms",
                          f"the hand-eye solution reprojects the corners to {ref.rms_px:.2f} px "
-                         "RMS: the robot poses, their unit or frame, the setup or the "
-                         "intrinsics are probably wrong")
+                         "RMS: the robot poses, their unit or frame, the --setup, the "
+                         "board's square size (--board) or the intrinsics are probably wrong")
     if ref.outliers and len(ref.outliers) > 0.3 * len(ref.station_rms):
         diagnostics.warn("many-outliers",
                          f"{len(ref.outliers)} of {len(ref.station_rms)} stations flagged as "

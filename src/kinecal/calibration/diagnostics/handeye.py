@@ -136,10 +136,26 @@ def check_handeye_units(G: Array, C: Array, X: Array, what: str = "stations") ->
         return False
     warn("scale-mismatch",
          f"the robot's translations are {s:.4g} times the target's in G X C = Y over the "
-         f"{what} (looks like {unit_factor_name(1.0 / s).replace(' model', ' robot file')}; "
+         f"{what} ({_units(1.0 / s)}; "
          f"residual {rms_s:.3g} instead of {rms_1:.3g}): give the flange and target poses in "
          "one length unit")
     return True
+
+
+_PLURAL = {"metre": "metres", "millimetre": "millimetres", "centimetre": "centimetres",
+           "inch": "inches"}
+
+
+def _units(ratio: float) -> str:
+    """``looks like robot poses in metres and target poses in millimetres`` for a target /
+    robot length ratio (the serial check's "B in an A model" says which file is which)."""
+    name = unit_factor_name(ratio)
+    if " in a" not in name:
+        return f"looks like {name}"
+    target, robot = name.split(" in a", 1)
+    robot = robot.removeprefix("n").strip().removesuffix(" model")
+    return (f"looks like robot poses in {_PLURAL.get(robot, robot)} and target poses in "
+            f"{target}")
 
 
 def _spread(P: Array) -> float:
@@ -163,11 +179,10 @@ def _spread_units(G: Array, C: Array, what: str) -> bool:
     factor = min((1e3, 1e-3, 25.4, 1 / 25.4), key=lambda f: abs(np.log(r / f)))
     if abs(np.log(r / factor)) > np.log(2.5):
         return False
-    name = unit_factor_name(1.0 / factor)
     warn("scale-mismatch",
          f"the robot's positions over the {what} spread {r:.4g} times more than the camera's "
-         f"positions relative to the target (looks like {name.replace(' model', ' robot file')}"
-         "): give the flange and target poses in one length unit")
+         f"positions relative to the target ({_units(1.0 / factor)}): give the flange and "
+         "target poses in one length unit")
     return True
 
 
