@@ -89,7 +89,7 @@ def ik(
         True, "--check-range/--no-check-range", help="Reject poses whose legs leave the range."
     ),
 ) -> None:
-    """Inverse kinematics (Liu, Liu, Wei 2008, eq. 4-5): leg readings l1..l6 on stdout."""
+    """Inverse kinematics: leg readings l1..l6 on stdout (Liu, Liu, Wei 2008, eqs 4-5)."""
     geom = _geometry(geometry)
     x = _poses_rad(_read(poses, POSE_COLUMNS, "POSES"))
     legs = geom.inverse(x)
