@@ -138,3 +138,11 @@ def test_doc_links_stay_inside_the_repository():
             elif anchor and dest.suffix == ".md" and anchor not in _anchors(dest):
                 bad.append(f"{page.name}: {target} has no such heading")
     assert bad == []
+
+
+def test_every_docs_page_is_linked_from_the_index_and_the_readme():
+    index = (ROOT / "docs" / "index.md").read_text(encoding="utf-8")
+    readme = README.read_text(encoding="utf-8")
+    pages = [p.name for p in sorted((ROOT / "docs").glob("*.md")) if p.name != "index.md"]
+    assert [p for p in pages if f"]({p})" not in index] == []
+    assert [p for p in pages if f"](docs/{p}" not in readme] == []
