@@ -272,7 +272,8 @@ def pivoted_qr_diagonal(
     piv = np.arange(n)
     diag = np.zeros(min(m, n))
     for j in range(min(m, n)):
-        norms = np.linalg.norm(W[j:, j:], axis=0)
+        Wj = W[j:, j:]
+        norms = np.sqrt(np.einsum("ij,ij->j", Wj, Wj))
         top = norms.max()
         if top <= stop:
             break
@@ -287,7 +288,7 @@ def pivoted_qr_diagonal(
         vv = float(v @ v)
         diag[j] = abs(alpha)
         if vv > 0.0:
-            W[j:, j:] -= np.outer(v, (2.0 / vv) * (v @ W[j:, j:]))
+            W[j:, j:] -= v[:, None] * ((2.0 / vv) * (v @ W[j:, j:]))[None, :]
     return diag, piv
 
 
