@@ -72,6 +72,9 @@ def test_urdf_job_with_chain_ends():
     model = load_model(URDF, base_link="base_link", tip_link="link_6")
     assert set(out["result"]["parameters"]) == set(model.parameter_names)
     assert out["result"]["job"]["tip_link"] == "link_6"
+    # keys not given are left out of the recorded specification (older results resume)
+    plain = parse_jobs({"jobs": [{"name": "p", "model": "irb120", "poses": 5}]})[0].spec()
+    assert not {"error_model", "sigma", "base_link"} & set(plain) and "maxiter" in plain
     assert out["result"]["validation"] is None and out["result"]["calibration"]["n"] == 40
 
 

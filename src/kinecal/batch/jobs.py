@@ -31,6 +31,9 @@ __all__ = ["Job", "JobsFile", "Study", "expand_study", "load_jobs", "parse_jobs"
 
 _NAME = r"^[A-Za-z0-9_][A-Za-z0-9_.+-]*$"
 
+#: keys recorded in a job's specification only when given (see `Job.spec`)
+OPTIONAL_KEYS = ("error_model", "harmonics", "folds", "sigma", "base_link", "tip_link")
+
 #: how the true geometry of a simulated job deviates from nominal
 ErrorsMode = Literal["random", "zero", "identifiable"]
 
@@ -132,8 +135,13 @@ class Job(_Common):
         return self.data is None
 
     def spec(self) -> dict[str, Any]:
-        """The job as a plain dict (file keys), recorded in its result for resuming."""
-        return self.model_dump(by_alias=True, mode="json")
+        """The job as a plain dict (file keys), recorded in its result for resuming.
+
+        The keys added after the first release (`OPTIONAL_KEYS`) appear only when given,
+        so that results written before them still resume.
+        """
+        out = self.model_dump(by_alias=True, mode="json")
+        return {k: v for k, v in out.items() if not (k in OPTIONAL_KEYS and v is None)}
 
 
 class Study(_Common):
