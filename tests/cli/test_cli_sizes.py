@@ -84,3 +84,24 @@ def test_python_api_refuses_them_too():
             simulate(m, 3, rng=0, **kw)
     ok = simulate(m, 3, rng=0, noise=1000.0)  # noisy, but not beyond the machine
     assert np.isfinite(ok.data.xyz).all()
+
+
+@pytest.mark.parametrize("tolerances, words", [("{length: 1e200, angle: 2.86}", "length tolerance"),
+                                               ("{length: 0.25, angle: 1e5}", "angle tolerance")])
+def test_tolerances_beyond_the_machine_are_refused(tmp_path, capsys, tolerances, words):
+    """A metaheuristic searched a 1e200 mm box (internal error, exit 1); simulate drew
+    errors from it."""
+    from kinecal.io.models import model_path
+
+    text = model_path("irb120").read_text()
+    path = tmp_path / "wide.yaml"
+    path.write_text("\n".join(f"tolerances: {tolerances}" if ln.startswith("tolerances:")
+                              else ln for ln in text.splitlines()) + "\n")
+    data = tmp_path / "d.csv"
+    assert main(["simulate", "irb120", "--poses", "30", "--out", str(data), "--quiet"]) == 0
+    for args in (["simulate", str(path), "--poses", "5", "--out", str(tmp_path / "x.csv")],
+                 ["calibrate", str(path), str(data), "--method", "pso", "--maxiter", "2"],
+                 ["calibrate", str(path), str(data)]):
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        assert words in err and err.count("\n") == 1, err

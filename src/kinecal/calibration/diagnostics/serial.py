@@ -266,8 +266,12 @@ def check_serial_data(model: SerialModel, data: Measurements, names: Sequence[st
     Raises
     ------
     InputError
-        ``too-few-poses``.
+        ``too-few-poses``; tolerances larger than the machine
+        (`kinecal.calibration.diagnostics.sizes.check_tolerances`).
     """
+    from kinecal.calibration.diagnostics.sizes import check_tolerances
+
+    check_tolerances(model)  # the search box and the tolerance check need sane ones
     q = np.asarray(data.q, dtype=float)
     rows = 3 if data.rotations is None else 6
     groups, n_distinct = repeat_groups(q, _marker_column(data))

@@ -13,7 +13,9 @@ positions of 1e300 m and exited 0. The bound used here is the machine's own size
   uniformly random one;
 * a true deviation of a geometric parameter (``simulate(errors=...)``, ``--errors
   TRUTH.json``) larger than ``L`` for a length, or than half a turn for an angle, is not an
-  error of this machine but another machine.
+  error of this machine but another machine; so is a model file's ``tolerances`` (how far
+  the real machine may be from nominal: the random errors of ``simulate`` and the search
+  box of the metaheuristics) beyond the same bounds.
 
 Both are refused (`InputError`, exit 2) before any work. ``L`` is the sum of the arm's
 link and tool lengths (`kinecal.kinematics.ik.characteristic_length`, an upper bound of
@@ -31,7 +33,7 @@ import numpy as np
 from kinecal.errors import InputError
 
 __all__ = ["MAX_ANGLE_NOISE", "check_angle_noise", "check_deviations", "check_length_noise",
-           "serial_size", "stewart_size"]
+           "check_tolerances", "serial_size", "stewart_size"]
 
 #: largest plausible angular noise (rad): 1 rad turns a point at the machine's size by
 #: the machine's size
@@ -114,6 +116,7 @@ def check_deviations(model, errors, option: str = "--errors") -> None:
     bad = np.flatnonzero(~(np.abs(e[:n_geo]) <= limit))
     if bad.size == 0:
         return
+    check_tolerances(model)  # random errors within absurd tolerances: name the cause
     k = int(bad[np.argmax(np.abs(e[bad]) / limit[bad])])
     name = model.parameter_names[k]
     if angle[k]:
@@ -126,3 +129,24 @@ def check_deviations(model, errors, option: str = "--errors") -> None:
                      f"than the whole machine ({size:.4g} {model.length_unit}): not an error of "
                      "this machine but another one (expected deviations from nominal, not "
                      "absolute values)", option=option)
+
+
+def check_tolerances(model) -> None:
+    """Refuse a model whose ``tolerances`` exceed the machine: a length tolerance larger
+    than `serial_size`, an angle tolerance larger than half a turn (a metaheuristic would
+    search a box of that size, `simulate` draw errors from it)."""
+    tol = model.tolerances or {}
+    size = serial_size(model)
+    length, angle = float(tol.get("length", 0.0)), float(tol.get("angle", 0.0))
+    where = f"model {model.name}: tolerances"
+    if not length <= size:
+        raise InputError(f"{where}: a length tolerance of {length:.4g} {model.length_unit} "
+                         f"is larger than the whole machine ({size:.4g} {model.length_unit}); "
+                         "expected how far the real machine may be from nominal (is the unit "
+                         "right?)")
+    if not angle <= np.pi:
+        deg = model.angle_unit == "deg"
+        shown = f"{np.degrees(angle):.4g} deg" if deg else f"{angle:.4g} rad"
+        raise InputError(f"{where}: an angle tolerance of {shown} is more than half a turn; "
+                         "expected how far the real machine may be from nominal (is the unit "
+                         "right?)")
