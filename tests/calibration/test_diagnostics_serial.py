@@ -94,7 +94,10 @@ def test_python_api_issues_kinecal_warnings_and_cli_scope_does_not(irb):
 def test_too_few_distinct_poses_are_refused(irb):
     m, sim, _ = irb
     one = Measurements(sim.data.q[[0, 0, 0]], sim.data.xyz[[0, 0, 0]])
-    with diagnostics.collect(), pytest.raises(InputError, match=r"too-few-poses"):
+    # one pose identifies only 3 parameters: the advice counts what well-spread poses
+    # identify (20 for the IRB-120), not the 3 the single pose determines
+    with diagnostics.collect(), pytest.raises(InputError, match=r"well-spread poses identify "
+                                              r"20 parameters: measure at least 7 distinct"):
         calibrate(m, one)
     seven = sim.data.subset(np.arange(7))  # 21 equations for the identifiable parameters
     with diagnostics.collect(), pytest.raises(InputError, match=r"too-few-poses"):

@@ -152,8 +152,13 @@ def reference(model: SerialModel, names: Sequence[str], rotations: bool = False,
 
 # ------------------------------------------------------------------- pose counts
 def check_pose_count(n_rows: int, n_distinct: int, rows_per_pose: int, n_free: int,
-                     what: str = "poses", repeats: str = "joint readings") -> None:
+                     what: str = "poses", repeats: str = "joint readings",
+                     well_spread: int = 0) -> None:
     """Refuse too few distinct poses; warn on few or repeated ones.
+
+    `well_spread` is the number of parameters well-spread poses identify (0: unknown):
+    when the few poses given identify fewer (one pose identifies 3), the advice on how
+    many poses to measure counts those, not the few the poses at hand determine.
 
     Raises
     ------
@@ -169,12 +174,15 @@ def check_pose_count(n_rows: int, n_distinct: int, rows_per_pose: int, n_free: i
              f"row ({n_distinct} distinct): repeated rows add no geometry, and standard errors "
              f"assume independent measurements; measure distinct {what}")
     if eq <= n_free:
-        least = n_free // rows_per_pose + 1
-        good = -(-MIN_EQUATION_RATIO * n_free // rows_per_pose)
+        need = max(n_free, well_spread)
+        least = need // rows_per_pose + 1
+        good = -(-MIN_EQUATION_RATIO * need // rows_per_pose)
+        spread = (f"well-spread {what} identify {need} parameters: measure " if need > n_free
+                  else "")
         raise InputError(
             f"{plural(n_distinct, 'distinct ' + what.rstrip('s'))} {gives} {eq} equations for "
-            f"{n_free} free parameters: expected more than {n_free} (at least {least} distinct "
-            f"{what}, {good} or more recommended) [too-few-poses]")
+            f"{n_free} free parameters: expected more than {n_free} ({spread}at least {least} "
+            f"distinct {what}, {good} or more recommended) [too-few-poses]")
     if eq < MIN_EQUATION_RATIO * n_free:
         warn("few-poses",
              f"{plural(n_distinct, 'distinct ' + what.rstrip('s'))} {gives} {eq} equations for "
@@ -275,7 +283,11 @@ def check_serial_data(model: SerialModel, data: Measurements, names: Sequence[st
     q = np.asarray(data.q, dtype=float)
     rows = 3 if data.rotations is None else 6
     groups, n_distinct = repeat_groups(q, _marker_column(data))
-    check_pose_count(len(q), n_distinct, rows, len(names))
+    well_spread = 0
+    if rows * n_distinct <= len(names):  # refused below: say how many poses would do
+        well_spread = reference(model, report.names, data.rotations is not None,
+                                rank_tol).report.rank
+    check_pose_count(len(q), n_distinct, rows, len(names), well_spread=well_spread)
     unique_rows = None
     if n_distinct < len(q):
         parts = [q, _marker_column(data), data.xyz] + [x for x in (data.rotations, data.weights)
