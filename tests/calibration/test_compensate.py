@@ -299,3 +299,32 @@ def test_prismatic_joint_corrections_are_lengths_not_degrees(tmp_path):
     text = c.summary()
     assert "1.5 mm (prismatic)" in text and "85.94 deg" not in text
     assert c.stats()["joint_correction_length"]["max"] == pytest.approx(1.5, abs=1e-6)
+
+
+def test_a_measured_target_is_not_the_programs_tool():
+    """The calibration measured a tracker reflector 50 mm off the flange's tool point: by
+    default the compensation warns (it would move the reflector onto the program's
+    poses); tool='nominal' puts the program's tool on the calibrated arm, and the true arm
+    carrying that tool then reaches the program's poses."""
+    model = load_model("puma560")
+    e = np.zeros(model.n_params)
+    e[model.index(["theta2", "a2", "d3", "alpha3", "d4"])] = [1e-3, 0.3, -0.2, 1e-3, 0.25]
+    e[model.index(["tool.x", "tool.y", "tool.z"])] = [40.0, -25.0, 30.0]  # the reflector
+    sim = simulate(model, 60, errors=e, noise=0.0, rng=21)
+    res = calibrate(model, sim.data)
+    q = random_configurations(model, 40, np.random.default_rng(22)) * 0.6
+    with collect() as found:
+        compensate(res, joints=q)
+    assert "tool-point-far" in [d.code for d in found]
+    with collect() as found:
+        c = compensate(res, joints=q, tool="nominal")
+    assert "tool-point-far" not in [d.code for d in found]
+    truth_with_tcp = sim.true_params.copy()
+    idx = model.index(["tool.x", "tool.y", "tool.z"])
+    truth_with_tcp[idx] = model.nominal[idx]
+    ok = c.converged
+    assert ok.mean() >= 0.9
+    rot, pos = pose_errors(model.fk(c.q[ok], truth_with_tcp), model.fk(q[ok]))
+    assert pos.max() < 1e-6 and rot.max() < 1e-9
+    with pytest.raises(InputError, match="tool"):
+        compensate(res, joints=q, tool="flange")

@@ -311,3 +311,22 @@ def test_the_readme_tutorial_steps(tmp_path, capsys, monkeypatch):
     qc = np.radians([[float(c[f"q{i}"][r]) for i in range(1, 7)] for r in range(2)])
     np.testing.assert_allclose(model.positions(qc, true), [[450, 0, 550], [400, 150, 500]],
                                atol=0.05)  # the true arm: within the calibration's accuracy
+
+
+def test_tool_option(calibrated, program, tmp_path, capsys):
+    """--tool nominal: the program's tool on the calibrated arm (a result JSON or model
+    file of the nominal model); a calibrated URDF is another description: refused."""
+    path, _ = program
+    out = tmp_path / "t.csv"
+    assert main(["compensate", str(calibrated / "result.json"), str(path), "--tool",
+                 "nominal", "--out", str(out), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["tool"] == "nominal"
+    assert main(["compensate", str(calibrated / "result.json"), str(path), "--tool",
+                 "flange", "--out", str(tmp_path / "u.csv")]) == 2
+    assert "option --tool" in capsys.readouterr().err
+    urdf = tmp_path / "ur5-cal.urdf"
+    assert main(["export", str(calibrated / "result.json"), "--out", str(urdf)]) == 0
+    assert main(["compensate", str(urdf), str(path), "--nominal", "ur5", "--tool", "nominal",
+                 "--out", str(tmp_path / "v.csv")]) == 2
+    assert "nominal model's parameters" in capsys.readouterr().err
+    assert not (tmp_path / "u.csv").exists() and not (tmp_path / "v.csv").exists()

@@ -39,9 +39,11 @@ from numpy.typing import ArrayLike, NDArray
 from kinecal import diagnostics
 from kinecal.calibration.compensate_inputs import (
     check_base,
+    check_tool,
     program_joints,
     program_models,
     program_targets,
+    with_nominal_tool,
 )
 from kinecal.calibration.compensation_result import CompensationResult
 from kinecal.calibration.same_arm import check_same_arm, with_registered_base
@@ -73,6 +75,7 @@ def compensate(
     seeds: ArrayLike | None = None,
     outputs: str | None = None,
     base: str = "calibrated",
+    tool: str = "calibrated",
     restarts: int = 10,
     rng: int | np.random.Generator | None = 0,
     diagnose: bool = True,
@@ -108,6 +111,11 @@ def compensate(
         the calibration measured in), or the one that registers the calibrated arm best
         onto the nominal arm over the workspace (measurements taken in an instrument's
         frame: base-frame errors are left to the user frame).
+    tool : {"calibrated", "nominal"}
+        Tool of the calibrated model used: its own (the calibration measured the program's
+        tool), or the nominal model's (the calibration measured a target such as a tracker
+        reflector: the program's tool, as the controller knows it, on the calibrated arm;
+        needs a calibrated model with the nominal model's parameters).
     restarts, rng : int
         Random restarts of the nominal IK of unseeded targets (same rng, same result).
     diagnose : bool
@@ -136,7 +144,14 @@ def compensate(
     if base not in ("calibrated", "nominal"):
         raise InputError(f"base: expected 'calibrated' or 'nominal', got {base!r}",
                          option="--base")
+    if tool not in ("calibrated", "nominal"):
+        raise InputError(f"tool: expected 'calibrated' or 'nominal', got {tool!r}",
+                         option="--tool")
     nom, cal = program_models(calibrated, nominal)
+    if tool == "nominal":
+        cal = with_nominal_tool(cal, nom)
+    else:
+        check_tool(nom, cal, warn)
     reg = check_same_arm(nom, cal)
     if base == "calibrated":
         check_base(nom, reg, warn)

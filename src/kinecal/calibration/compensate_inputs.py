@@ -10,12 +10,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinecal.calibration.same_arm import Registration, in_length_unit
 from kinecal.errors import InputError
+from kinecal.kinematics.chain import TOOL_NAMES
 from kinecal.kinematics.ik import characteristic_length
 from kinecal.kinematics.serial import SerialModel
 from kinecal.spatial import check_transform, transform_from_pq
 
-__all__ = ["BASE_FAR_ANGLE", "BASE_FAR_LENGTH", "check_base", "program_joints",
-           "program_models", "program_targets"]
+__all__ = ["BASE_FAR_ANGLE", "BASE_FAR_LENGTH", "TOOL_FAR_LENGTH", "TOOL_FAR_TOLERANCES",
+           "check_base", "check_tool", "program_joints", "program_models", "program_targets",
+           "with_nominal_tool"]
 
 Array = NDArray[np.float64]
 
@@ -36,6 +38,56 @@ def check_base(nominal: SerialModel, reg: Registration, warn: Any) -> None:
             f"{np.degrees(reg.turn):.3g} deg from the nominal one: the measurements were "
             "probably taken in an instrument's frame, not the robot's; compensate with "
             "base='nominal' (--base nominal) unless the program's poses are in that frame")
+
+
+TOOL_POINT = TOOL_NAMES[:3]
+
+#: calibrated tool point this far from nominal (the larger of a fraction of the arm's
+#: length and a number of length tolerances): it is probably a measurement target
+TOOL_FAR_LENGTH = 0.01
+TOOL_FAR_TOLERANCES = 10.0
+
+
+def _tool_names(model: SerialModel) -> list[str]:
+    return [n for n in model.parameter_names if n.startswith("tool.")]
+
+
+def check_tool(nominal: SerialModel, calibrated: SerialModel, warn: Any) -> None:
+    """Warn (``tool-point-far``) when the calibrated tool point lies further from the
+    nominal one than `TOOL_FAR_LENGTH` of the arm and `TOOL_FAR_TOLERANCES` length
+    tolerances: a calibration identifies where its *target* sits (a tracker reflector),
+    which compensation would then move to the program's poses instead of the program's
+    tool. Compared only when both models have the same parameters."""
+    names = [n for n in _tool_names(nominal) if n in TOOL_POINT]
+    if not names or list(calibrated.parameter_names) != list(nominal.parameter_names):
+        return
+    idx = nominal.index(names)
+    d = float(np.linalg.norm(calibrated.nominal[idx] - nominal.nominal[idx]))
+    tol = float((nominal.tolerances or {}).get("length", 0.0))
+    limit = max(TOOL_FAR_LENGTH * characteristic_length(nominal), TOOL_FAR_TOLERANCES * tol)
+    if d > limit:
+        warn("tool-point-far",
+             f"the calibrated tool point is {d:.4g} {nominal.length_unit} from the nominal "
+             "one: if it is the calibration's measurement target (a tracker reflector) and "
+             "not the program's tool, compensate with tool='nominal' (--tool nominal: the "
+             "nominal tool on the calibrated arm)")
+
+
+def with_nominal_tool(calibrated: SerialModel, nominal: SerialModel) -> SerialModel:
+    """`calibrated` with the nominal model's tool (point and frame): the program's tool on
+    the calibrated arm, when the calibration measured another target."""
+    if list(calibrated.parameter_names) != list(nominal.parameter_names):
+        raise InputError(
+            "tool='nominal' needs a calibrated model with the nominal model's parameters (a "
+            "result JSON or a --model-out file of it), not another description of the arm",
+            option="--tool")
+    if calibrated.marker_names:
+        raise InputError("tool='nominal' needs a model with one tool point, not markers",
+                         option="--tool")
+    idx = nominal.index(_tool_names(nominal))
+    p = calibrated.nominal
+    p[idx] = nominal.nominal[idx]
+    return calibrated.with_params(p, name=calibrated.name)
 
 
 def program_models(calibrated: Any, nominal: SerialModel | None) -> tuple[SerialModel, SerialModel]:

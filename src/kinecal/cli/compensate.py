@@ -186,6 +186,10 @@ def compensate_cmd(
     base: str = typer.Option("calibrated", "--base", help="calibrated (the program lives in "
                              "the measured frame) or nominal (measured in an instrument's "
                              "frame: the base is registered onto the nominal arm)."),
+    tool: str = typer.Option("calibrated", "--tool", help="calibrated (the calibration "
+                             "measured the program's tool) or nominal (it measured a target, "
+                             "e.g. a tracker reflector: the nominal tool on the calibrated "
+                             "arm)."),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the statistics as JSON."),
@@ -200,6 +204,8 @@ def compensate_cmd(
                 {"--out": out})
     if base not in ("calibrated", "nominal"):
         raise InputError(f"expected calibrated or nominal, got {base!r}", option="--base")
+    if tool not in ("calibrated", "nominal"):
+        raise InputError(f"expected calibrated or nominal, got {tool!r}", option="--tool")
     with warnings_scope(strict) as found:
         nom, cal = load_calibrated(calibrated, nominal, base_link, tip_link)
         path = resolve_data_path(program, "PROGRAM")
@@ -222,10 +228,10 @@ def compensate_cmd(
                                if "qw" in table else xyz)
                     seeds = None if q_file is None else q_file * scale
                     res = compensate(cal, nom, targets=targets, seeds=seeds, outputs=outputs,
-                                     base=base, progress=step)
+                                     base=base, tool=tool, progress=step)
                 else:
                     res = compensate(cal, nom, joints=q_file * scale, outputs=outputs,
-                                     base=base, progress=step)
+                                     base=base, tool=tool, progress=step)
             except InputError as exc:  # a row of the program: name the file
                 if exc.row is None or exc.file is not None:
                     raise
@@ -234,7 +240,7 @@ def compensate_cmd(
         write_program(out, header, cells, {c: res.q[:, k] / scale[k]
                                            for k, c in enumerate(joints)}, extra)
     stats = {"program": str(program), "out": str(out), "model": nom.name,
-             "base": base, **res.stats()}
+             "base": base, "tool": tool, **res.stats()}
     if json_out:
         echo_json(with_warnings(stats, found))
     elif not quiet:

@@ -47,6 +47,7 @@ CODES: dict[str, str] = {
     "no-seed-joints": "targets without seed joints: inverse kinematics chose the configuration",
     "joints-outside-limits": "program or seed joints outside the model's joint limits",
     "base-frame-far": "the calibrated base frame is far from the nominal one",
+    "tool-point-far": "the calibrated tool point is far from the nominal one (a target?)",
     "compensation-not-converged": "rows whose compensated joints did not converge",
     "nominal-ik-not-converged": "targets out of reach of the nominal model",
     "near-singular": "rows close to a singularity: large, sensitive joint corrections",
