@@ -19,10 +19,9 @@ than one chunk. Three kernels share one representation:
   run element by element, 8x slower). Absolute error below 3e-16 against 6e-17 for
   libm's sine and cosine, i.e. 3e-13 mm at a one-metre reach.
 
-Every coordinate is either an array broadcastable to ``(*batch, n)`` or a plain float;
-operations with an exact float zero (or one) are folded away, so the constant part of a
-chain (a base frame before the first joint, a tool point on a joint axis, the identity
-frame at the start) costs nothing per pose.
+Every coordinate is either an array broadcastable to ``(*batch, n)`` or a plain float,
+combined by the folded arithmetic of `kinecal.kinematics.folded` (an exact float zero or
+one folds away: the constant part of a chain costs nothing per pose).
 """
 
 from __future__ import annotations
@@ -32,6 +31,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal.kinematics.folded import add, axpy, comb, dense, mul, sub, turn
 from kinecal.kinematics.motions import ROTATION, TRANSLATION, Motion
 
 __all__ = ["CHUNK_ELEMENTS", "chunk_size", "chunks", "frame_chain", "joint_trig",
@@ -48,90 +48,6 @@ def chunk_size(n_poses: int, batch: int = 1, elements: int = CHUNK_ELEMENTS) -> 
     if elements <= 0:
         return max(n_poses, 1)
     return max(16, min(n_poses, elements // max(batch, 1)))
-
-
-# ---------------------------------------------------------------- folded arithmetic
-def _zero(x) -> bool:
-    return isinstance(x, float) and x == 0.0
-
-
-def _mul(a, x):
-    if _zero(x) or _zero(a):
-        return 0.0
-    if isinstance(a, float) and a == 1.0:
-        return x
-    if isinstance(x, float) and x == 1.0:
-        return a
-    return a * x
-
-
-def _add(x, y):
-    if _zero(x):
-        return y
-    if _zero(y):
-        return x
-    return x + y
-
-
-def _sub(x, y):
-    if _zero(y):
-        return x
-    if _zero(x):
-        return -y
-    return x - y
-
-
-def _turn(c, s, x, y):
-    """``(c x - s y, s x + c y)``: a plane rotation of the coordinate pair (x, y)."""
-    return _sub(_mul(c, x), _mul(s, y)), _add(_mul(s, x), _mul(c, y))
-
-
-# A frame's vector (an axis, the origin) is a list of 3 coordinates (floats or arrays) until
-# all three are arrays of one shape; then one array (3, *batch, n): an operation on it is
-# one numpy call instead of three (what matters at a few thousand poses per chunk).
-def _dense(v: list):
-    a, b, c = v
-    if (type(a) is np.ndarray and type(b) is np.ndarray and type(c) is np.ndarray
-            and a.shape == b.shape == c.shape):
-        out = np.empty((3, *a.shape))
-        out[0], out[1], out[2] = a, b, c
-        return out
-    return v
-
-
-def _fits(v, c, s=0.0) -> bool:
-    """Whether coefficients broadcast over the pose axes of the stacked vector `v`."""
-    return (type(v) is np.ndarray and getattr(c, "ndim", 0) < v.ndim
-            and getattr(s, "ndim", 0) < v.ndim)
-
-
-def _comb(c, va, s, vb, minus: bool = False):
-    """``c va + s vb`` (``c va - s vb`` with `minus`) of two vectors."""
-    if _fits(va, c, s) and type(vb) is np.ndarray and va.ndim == vb.ndim:
-        out, t = c * va, s * vb  # new arrays (frames keep references)
-        if out.shape != t.shape:  # (3, P, 1) against (3, P, n): no in-place result
-            return out - t if minus else out + t
-        if minus:
-            out -= t
-        else:
-            out += t
-        return out
-    f = _sub if minus else _add
-    return _dense([f(_mul(c, va[k]), _mul(s, vb[k])) for k in range(3)])
-
-
-def _axpy(o, v, u):
-    """``o + v u``: the origin moved by `v` along the unit vector `u`."""
-    if _fits(u, v):
-        if isinstance(o, np.ndarray) and o.ndim == u.ndim:
-            out = v * u
-            if out.shape != np.broadcast_shapes(out.shape, o.shape):
-                return out + o
-            out += o
-            return out
-        if not isinstance(o, np.ndarray) and all(_zero(x) for x in o):
-            return v * u
-    return _dense([_add(o[k], _mul(v, u[k])) for k in range(3)])
 
 
 # ---------------------------------------------------------------- values and trig
@@ -248,23 +164,23 @@ def point_chain(motions: Sequence[Motion], values: list, skip: list, qT: Array,
         if m.kind == TRANSLATION:
             v = _motion_shift(m, values[i], qT)
             if m.direction is None:
-                p[m.axis] = _add(p[m.axis], v)
+                p[m.axis] = add(p[m.axis], v)
             else:
-                p = [_add(p[k], _mul(v, m.direction[k])) for k in range(3)]
+                p = [add(p[k], mul(v, m.direction[k])) for k in range(3)]
             continue
         c, s = _motion_cs(i, m, values, trig)
         if m.direction is None:
             a, b = (m.axis + 1) % 3, (m.axis + 2) % 3
-            p[a], p[b] = _turn(c, s, p[a], p[b])
+            p[a], p[b] = turn(c, s, p[a], p[b])
             continue
         # Rodrigues about the unit axis d of the moving frame: c p + s (d x p) + (1-c)(d.p) d
         d = m.direction
-        cross = [_sub(_mul(d[1], p[2]), _mul(d[2], p[1])),
-                 _sub(_mul(d[2], p[0]), _mul(d[0], p[2])),
-                 _sub(_mul(d[0], p[1]), _mul(d[1], p[0]))]
-        along = _mul(_sub(1.0, c), _add(_add(_mul(d[0], p[0]), _mul(d[1], p[1])),
-                                         _mul(d[2], p[2])))
-        p = [_add(_add(_mul(c, p[k]), _mul(s, cross[k])), _mul(along, d[k]))
+        cross = [sub(mul(d[1], p[2]), mul(d[2], p[1])),
+                 sub(mul(d[2], p[0]), mul(d[0], p[2])),
+                 sub(mul(d[0], p[1]), mul(d[1], p[0]))]
+        along = mul(sub(1.0, c), add(add(mul(d[0], p[0]), mul(d[1], p[1])),
+                                         mul(d[2], p[2])))
+        p = [add(add(mul(c, p[k]), mul(s, cross[k])), mul(along, d[k]))
              for k in range(3)]
     return p
 
@@ -299,30 +215,30 @@ def frame_chain(motions: Sequence[Motion], values: list, skip: list, qT: Array,
             u = axes[m.axis]
         else:
             d = m.direction
-            u = _dense([_add(_add(_mul(d[0], axes[0][k]), _mul(d[1], axes[1][k])),
-                             _mul(d[2], axes[2][k])) for k in range(3)])
+            u = dense([add(add(mul(d[0], axes[0][k]), mul(d[1], axes[1][k])),
+                             mul(d[2], axes[2][k])) for k in range(3)])
         if record:
             frames.append((u, o))
         if skip[i]:
             continue
         if m.kind == TRANSLATION:
-            o = _axpy(o, _motion_shift(m, values[i], qT), u)
+            o = axpy(o, _motion_shift(m, values[i], qT), u)
             continue
         c, s = _motion_cs(i, m, values, trig)
         if m.direction is None:
             a, b = (m.axis + 1) % 3, (m.axis + 2) % 3
             va, vb = axes[a], axes[b]
-            axes[a] = _comb(c, va, s, vb)
-            axes[b] = _comb(c, vb, s, va, minus=True)
+            axes[a] = comb(c, va, s, vb)
+            axes[b] = comb(c, vb, s, va, minus=True)
             continue
         # Rodrigues on each axis: v' = c v + s (u x v) + (1 - c)(u . v) u, with u . a_k =
         # d_k and u x a_k written through the right-handed frame
         d = m.direction
         a0, a1, a2 = axes
-        k1 = _sub(1.0, c)
+        k1 = sub(1.0, c)
         lin = [(a1, a2, d[2], d[1]), (a2, a0, d[0], d[2]), (a0, a1, d[1], d[0])]
-        axes = [_dense([_add(_add(_mul(c, v[k]), _mul(s, _sub(_mul(p, x[k]), _mul(r, y[k])))),
-                             _mul(_mul(k1, d[j]), u[k])) for k in range(3)])
+        axes = [dense([add(add(mul(c, v[k]), mul(s, sub(mul(p, x[k]), mul(r, y[k])))),
+                             mul(mul(k1, d[j]), u[k])) for k in range(3)])
                 for j, (v, (x, y, p, r)) in enumerate(zip(axes, lin, strict=True))]
     return axes, o, frames
 
