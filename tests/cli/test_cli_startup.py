@@ -26,8 +26,11 @@ def test_help_imports_no_heavy_library():
 
 
 def test_stewart_solvers_do_not_import_the_platform_class():
-    """stewart.py calls stewart_fk and stewart_modes, never the other way round."""
-    loaded = _modules_after("import kinecal.kinematics.stewart_modes")
+    """stewart.py calls stewart_fk, stewart_pso, stewart_poses and stewart_modes, never the
+    other way round."""
+    loaded = _modules_after("import kinecal.kinematics.stewart_modes\n"
+                            "import kinecal.kinematics.stewart_pso\n"
+                            "import kinecal.kinematics.stewart_poses")
     assert "kinecal.kinematics.stewart_fk" in loaded
     assert "kinecal.kinematics.stewart" not in loaded
 

@@ -18,15 +18,21 @@ This convention reproduces Table 3 of papers/004 to all printed digits.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
-from kinecal.kinematics import stewart_fk, stewart_modes
-from kinecal.spatial import matrix_from_rpy, rpy_from_matrix
+from kinecal.kinematics import stewart_fk, stewart_modes, stewart_pso
+from kinecal.kinematics.stewart_poses import (
+    as_poses,
+    check_leg_readings,
+    degrees_to_radians,
+    poses_from_rt,
+    radians_to_degrees,
+)
+from kinecal.spatial import matrix_from_rpy
 
 __all__ = [
     "N_PARAMETERS",
@@ -207,7 +213,7 @@ class StewartPlatform:
         ndarray, shape (..., 6, 3)
             ``R (p_i - s) + p_s - b_i`` in the base frame (length unit).
         """
-        x = _as_poses(poses)
+        x = as_poses(poses)
         R = matrix_from_rpy(x[..., 3:])
         return self.leg_vectors_from(R, x[..., :3])
 
@@ -247,50 +253,15 @@ class StewartPlatform:
             ``|l_i|`` per translation of the tip and per small rotation (rad) about base axes
             through the tip.
         """
-        x = _as_poses(poses)
+        x = as_poses(poses)
         R = matrix_from_rpy(x[..., 3:])
         return leg_jacobian(R, self.leg_vectors_from(R, x[..., :3]), self.tip_joints)
 
     def check_legs(self, legs: ArrayLike, *, file: str | None = None, row_offset: int = 1) -> Array:
-        """Validate leg readings: shape ``(N, 6)``, finite, inside `leg_range`.
-
-        Parameters
-        ----------
-        legs : array_like, shape (6,) or (N, 6)
-            Leg readings (length unit).
-        file : str, optional
-            File name for the error message.
-        row_offset : int
-            Number of the first row in messages (1 = first data row).
-
-        Returns
-        -------
-        ndarray, shape (N, 6)
-
-        Raises
-        ------
-        InputError
-            Naming the first bad row.
-        """
-        L = np.atleast_2d(np.asarray(legs, dtype=float))
-        if L.ndim != 2 or L.shape[1] != 6:
-            raise InputError(f"leg lengths must have 6 columns, got shape {L.shape}", file=file)
-        bad = ~np.isfinite(L).all(axis=1)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise InputError("leg lengths must be finite numbers", file=file, row=i + row_offset)
-        lo, hi = self.leg_range
-        tol = 1e-12 * max(1.0, hi)
-        out = ((L < lo - tol) | (L > hi + tol)).any(axis=1)
-        if out.any():
-            i = int(np.argmax(out))
-            raise InputError(
-                f"leg lengths {np.array2string(L[i], precision=6)} outside the leg range "
-                f"[{lo:g}, {hi:g}]",
-                file=file,
-                row=i + row_offset,
-            )
-        return L
+        """Validated leg readings ``(N, 6)`` (length unit) from ``(6,)`` or ``(N, 6)``:
+        finite, inside `leg_range`; an `InputError` names the first bad row, counting from
+        `row_offset`, and `file` (`kinecal.kinematics.stewart_poses.check_leg_readings`)."""
+        return check_leg_readings(legs, self.leg_range, file=file, row_offset=row_offset)
 
     # ------------------------------------------------------------------ forward kinematics
     def neutral_pose(self) -> Array:
@@ -332,7 +303,7 @@ class StewartPlatform:
             ``newton``: batched damped Newton-Raphson on ``|l_i| - L_i`` with the analytic
             Jacobian `pose_jacobian`, from `x0` or the neutral pose, with multi-start
             retries for rows that do not converge. ``pso``: the paper's solver, particle
-            swarm on eq. 6 (see :func:`kinecal.kinematics.stewart_fk.forward_pso`).
+            swarm on eq. 6 (see :func:`kinecal.kinematics.stewart_pso.forward_pso`)
         x0 : array_like, shape (6,) or (N, 6), optional
             Start poses for newton (default: `neutral_pose`).
         rng : Generator or int, optional
@@ -356,7 +327,7 @@ class StewartPlatform:
         if method == "newton":
             res = stewart_fk.forward_newton(self, L, x0=x0, rng=rng, **(options or {}))
         elif method == "pso":
-            res = stewart_fk.forward_pso(self, L, rng=rng, **(options or {}))
+            res = stewart_pso.forward_pso(self, L, rng=rng, **(options or {}))
         else:
             raise InputError(f"unknown method {method!r}; expected newton or pso", option="method")
         if on_failure == "raise" and not res.converged.all():
@@ -392,33 +363,3 @@ def leg_jacobian(R: Array, legs: Array, q: Array) -> Array:
     n = legs / np.linalg.norm(legs, axis=-1, keepdims=True)
     rq = np.sum(R[..., None, :, :] * q[:, None, :], axis=-1)
     return np.concatenate([n, np.cross(rq, n)], axis=-1)
-
-
-def _as_poses(poses: ArrayLike) -> Array:
-    x = np.asarray(poses, dtype=float)
-    if x.shape[-1:] != (6,):
-        raise InputError(f"poses must have 6 columns (x, y, z, alpha, beta, gamma), got {x.shape}")
-    bad = ~np.isfinite(x).all(axis=-1)
-    if bad.any():
-        i = int(np.argmax(bad.reshape(-1)))
-        raise InputError("poses must be finite numbers", row=i + 1)
-    return x
-
-
-def poses_from_rt(R: Array, t: Array) -> Array:
-    """Poses ``(..., 6)`` (rad) from rotations ``(..., 3, 3)`` and tip positions ``(..., 3)``."""
-    return np.concatenate([t, rpy_from_matrix(R)], axis=-1)
-
-
-def degrees_to_radians(poses_deg: Sequence[float] | ArrayLike) -> Array:
-    """Convert poses (x, y, z, alpha, beta, gamma in deg) to the API's radians."""
-    x = np.array(poses_deg, dtype=float)
-    x[..., 3:] = np.deg2rad(x[..., 3:])
-    return x
-
-
-def radians_to_degrees(poses: ArrayLike) -> Array:
-    """Convert poses (angles in rad) to (x, y, z, alpha, beta, gamma in deg)."""
-    x = np.array(poses, dtype=float)
-    x[..., 3:] = np.rad2deg(x[..., 3:])
-    return x
