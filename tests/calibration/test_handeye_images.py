@@ -10,12 +10,8 @@ import pytest
 from kinecal import InputError
 from kinecal.calibration.handeye.camera import check_camera, project
 from kinecal.calibration.handeye.errors import pose_error
-from kinecal.calibration.handeye.images import (
-    _model,
-    _Problem,
-    predict_corners,
-    refine_reprojection,
-)
+from kinecal.calibration.handeye.images import predict_corners, refine_reprojection
+from kinecal.calibration.handeye.reprojection import ReprojectionProblem, predict_pixels
 from kinecal.spatial import invert_transform, matrix_from_axis_angle, transform_from
 from kinecal.vision.boards import Chessboard, parse_board
 from kinecal.vision.pipeline import calibrate_handeye_images
@@ -55,16 +51,17 @@ def test_jacobian_matches_finite_differences(setup, n_int, robot):
     F, pts, pix, X, Y = _stations(setup, n=4)
     d8 = check_camera(K, DIST)[1]
     sid = np.repeat(np.arange(4), [len(p) for p in pts])
-    pr = _Problem(F, np.concatenate(pts), np.concatenate(pix), sid, setup == "eye-in-hand",
-                  K, d8, _perturb(X), _perturb(Y, seed=1), n_int, robot)
+    pr = ReprojectionProblem(F, np.concatenate(pts), np.concatenate(pix), sid,
+                             setup == "eye-in-hand", K, d8, _perturb(X), _perturb(Y, seed=1),
+                             n_int, robot)
     rng = np.random.default_rng(3)
     p = rng.normal(size=pr.n_params) * 1e-3
-    _, J = _model(pr, p, True)
+    _, J = predict_pixels(pr, p, True)
     h = 1e-6
     for k in range(pr.n_params):
         e = np.zeros_like(p)
         e[k] = h
-        num = (_model(pr, p + e, False)[0] - _model(pr, p - e, False)[0]) / (2 * h)
+        num = (predict_pixels(pr, p + e, False)[0] - predict_pixels(pr, p - e, False)[0]) / (2 * h)
         scale = max(1.0, np.abs(num).max())
         assert np.abs(num - J[:, :, k]).max() < 2e-5 * scale, k
 

@@ -12,8 +12,7 @@ pose-based cost weighs those errors wrongly. Here the unknowns are
   rotation vector and a translation in the flange frame) with a zero-mean Gaussian prior of
   the given standard deviations (robot-pose noise modelled instead of ignored).
 
-The corner ``P`` of station i is predicted at ``project(K, d, X^-1 F_i^-1 Y P)`` eye-in-hand
-and ``project(K, d, X^-1 F_i Y P)`` eye-to-hand (``F_i = flange2base_i``, `camera.project`).
+The corner model and its Jacobian are in `kinecal.calibration.handeye.reprojection`.
 Residuals are predicted minus observed pixels divided by the corner noise sigma (estimated
 robustly from the residuals). Robust mode: Huber loss per corner (3 sigma) and iteratively
 reweighted stations (Cauchy weights on a station's RMS relative to the median station RMS);
@@ -37,15 +36,15 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.special import chdtri
 
-from kinecal.calibration.handeye.camera import (
-    check_camera,
-    intrinsic_vector,
-    project_jacobian,
-    with_intrinsics,
+from kinecal.calibration.handeye.camera import check_camera
+from kinecal.calibration.handeye.reprojection import (
+    ReprojectionProblem,
+    parameter_names,
+    predict_corners,
+    predict_pixels,
+    unpack,
 )
-from kinecal.calibration.handeye.refine import _jr
 from kinecal.errors import InputError
-from kinecal.spatial import matrix_from_axis_angle, skew, transform_from
 
 Array = NDArray[np.float64]
 
@@ -128,137 +127,6 @@ class ReprojectionRefinement:
         return float(np.sqrt(np.mean(np.sum(allr**2, axis=1)))) if allr.size else 0.0
 
 
-@dataclass
-class _Problem:
-    """Stacked corners of all stations and the fixed parts of the model."""
-
-    F: Array  # (n, 4, 4) flange2base
-    P: Array  # (M, 3) board points
-    uv: Array  # (M, 2) observed pixels
-    sid: NDArray[np.intp]  # (M,) station of each corner
-    eye_in_hand: bool
-    K0: Array
-    d0: Array
-    X0: Array
-    Y0: Array
-    n_int: int  # free intrinsics (0, 9 or 12)
-    robot: tuple[float, float] | None
-
-    @property
-    def n(self) -> int:
-        return len(self.F)
-
-    @property
-    def n_params(self) -> int:
-        return 12 + self.n_int + (6 * self.n if self.robot else 0)
-
-
-def _unpack(pr: _Problem, p: Array) -> tuple[Array, Array, Array, Array, Array | None]:
-    X = transform_from(pr.X0[:3, :3] @ matrix_from_axis_angle(p[0:3]), pr.X0[:3, 3] + p[3:6])
-    Y = transform_from(pr.Y0[:3, :3] @ matrix_from_axis_angle(p[6:9]), pr.Y0[:3, 3] + p[9:12])
-    K, d = pr.K0, pr.d0
-    if pr.n_int:
-        K, d = with_intrinsics(pr.K0, pr.d0, intrinsic_vector(pr.K0, pr.d0, pr.n_int == 12)
-                               + p[12:12 + pr.n_int])
-    E = p[12 + pr.n_int:].reshape(-1, 6) if pr.robot else None
-    return X, Y, K, d, E
-
-
-def _model(pr: _Problem, p: Array, jac: bool) -> tuple[Array, Array | None]:
-    """Predicted pixels ``(M, 2)`` and (optionally) their Jacobian ``(M, 2, n_params)``."""
-    X, Y, K, d, E = _unpack(pr, p)
-    s = pr.sid
-    RF, tF = pr.F[:, :3, :3], pr.F[:, :3, 3]
-    RY, tY, RX, tX = Y[:3, :3], Y[:3, 3], X[:3, :3], X[:3, 3]
-    w = pr.P @ RY.T + tY  # board point in the base (eye-in-hand) or flange frame
-    if E is not None:
-        RE = matrix_from_axis_angle(E[:, :3])
-        tE = E[:, 3:]
-    else:
-        RE = np.broadcast_to(np.eye(3), (pr.n, 3, 3))
-        tE = np.zeros((pr.n, 3))
-    if pr.eye_in_hand:  # q = E^-1 F^-1 w
-        z = np.einsum("mji,mj->mi", RF[s], w - tF[s])
-        q = np.einsum("mji,mj->mi", RE[s], z - tE[s])
-        dq_dw = np.swapaxes(RE, 1, 2) @ np.swapaxes(RF, 1, 2)  # per station
-    else:  # q = F E w
-        ew = np.einsum("mij,mj->mi", RE[s], w) + tE[s]
-        q = np.einsum("mij,mj->mi", RF[s], ew) + tF[s]
-        dq_dw = RF @ RE
-    pc = (q - tX) @ RX  # R_X^T (q - t_X)
-    if np.any(pc[:, 2] <= 0):
-        bad = int(s[np.argmax(pc[:, 2] <= 0)])
-        raise InputError(f"station {bad}: board behind the camera for the current X; the "
-                         "robot poses do not fit the images (wrong setup or pose convention?)")
-    uv, Jp, Jint = project_jacobian(K, d, pc, rational=pr.n_int == 12)
-    if not jac:
-        return uv, None
-    M = len(pc)
-    J = np.zeros((M, 2, pr.n_params))
-    J[:, :, 0:3] = Jp @ (skew(pc) @ _jr(p[0:3]))
-    J[:, :, 3:6] = Jp @ (-RX.T)
-    JpR = Jp @ RX.T  # d uv / d q
-    A = JpR @ dq_dw[s]  # d uv / d w
-    J[:, :, 6:9] = A @ (-RY @ skew(pr.P) @ _jr(p[6:9]))
-    J[:, :, 9:12] = A
-    if pr.n_int:
-        J[:, :, 12:12 + pr.n_int] = Jint
-    if E is not None:
-        c0 = 12 + pr.n_int
-        jr = _jr(E[:, :3])  # (n, 3, 3)
-        if pr.eye_in_hand:
-            dq_de = -np.swapaxes(RE, 1, 2)[s]
-            dq_deps = skew(q) @ jr[s]
-        else:
-            dq_de = RF[s]
-            dq_deps = -(RF @ RE)[s] @ skew(w) @ jr[s]
-        blk_rot = JpR @ dq_deps  # (M, 2, 3)
-        blk_tr = JpR @ dq_de
-        rows = np.arange(M)
-        for k in range(3):
-            J[rows, :, c0 + 6 * s + k] = blk_rot[:, :, k]
-            J[rows, :, c0 + 6 * s + 3 + k] = blk_tr[:, :, k]
-    return uv, J
-
-
-def predict_corners(flange2base: Array, points: list[Array], K: Array, dist: Array | None,
-                    X: Array, Y: Array, setup: str = "eye-in-hand") -> list[Array]:
-    """Predicted pixels of every station's board points (see the module docstring).
-
-    Parameters
-    ----------
-    flange2base : ndarray, shape (n, 4, 4)
-    points : list of ndarray, shape (N_i, 3)
-        Board coordinates per station.
-    K, dist
-        Camera.
-    X, Y : ndarray, shape (4, 4)
-    setup : {"eye-in-hand", "eye-to-hand"}
-
-    Returns
-    -------
-    list of ndarray, shape (N_i, 2)
-    """
-    K, d8 = check_camera(K, dist)
-    sid = np.concatenate([np.full(len(p), i) for i, p in enumerate(points)]).astype(np.intp)
-    P = np.concatenate(points)
-    pr = _Problem(np.asarray(flange2base, float), P, np.zeros((len(P), 2)), sid,
-                  setup == "eye-in-hand", K, d8, X, Y, 0, None)
-    uv, _ = _model(pr, np.zeros(12), False)
-    return np.split(uv, np.cumsum([len(p) for p in points])[:-1])
-
-
-def _param_names(pr: _Problem) -> list[str]:
-    names = [f"X.{c}" for c in ("rx", "ry", "rz", "x", "y", "z")]
-    names += [f"target.{c}" for c in ("rx", "ry", "rz", "x", "y", "z")]
-    names += list(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
-                  [:pr.n_int])
-    if pr.robot:
-        for i in range(pr.n):
-            names += [f"robot{i}.{c}" for c in ("rx", "ry", "rz", "x", "y", "z")]
-    return names
-
-
 def refine_reprojection(
     flange2base: Array,
     points: list[Array],
@@ -330,14 +198,14 @@ def refine_reprojection(
     P = np.concatenate([np.asarray(p, float).reshape(-1, 3) for p in points])
     uv = np.concatenate([np.asarray(p, float).reshape(-1, 2) for p in pixels])
     n_int = (12 if rational else 9) if refine_intrinsics else 0
-    pr = _Problem(F, P, uv, sid, setup == "eye-in-hand", K, d8, np.asarray(X0, float),
+    pr = ReprojectionProblem(F, P, uv, sid, setup == "eye-in-hand", K, d8, np.asarray(X0, float),
                   np.asarray(Y0, float), n_int, robot_noise)
     p = np.zeros(pr.n_params)
     nfev = 0
     history: list[float] = []
 
     def residual_stats(p: Array) -> tuple[Array, Array]:
-        pred, _ = _model(pr, p, False)
+        pred, _ = predict_pixels(pr, p, False)
         r = pred - uv
         ss = np.bincount(sid, weights=np.sum(r * r, axis=1), minlength=n)
         return r, np.sqrt(ss / np.maximum(counts, 1))
@@ -356,14 +224,14 @@ def refine_reprojection(
                  if robot_noise else None)
 
         def fun(q: Array) -> Array:
-            pred, _ = _model(pr, q, False)
+            pred, _ = predict_pixels(pr, q, False)
             r = (sw * (pred[keep] - uv[keep]) / sigma).ravel()
             if prior is not None:
                 r = np.concatenate([r, (q[12 + n_int:].reshape(-1, 6) * prior).ravel()])
             return r
 
         def jacobian(q: Array) -> Array:
-            _, J = _model(pr, q, True)
+            _, J = predict_pixels(pr, q, True)
             Jk = (J[keep] * (sw[:, :, None] / sigma)).reshape(npix, -1)
             if prior is not None:
                 Jp = np.zeros((6 * n, pr.n_params))
@@ -413,11 +281,11 @@ def refine_reprojection(
         cov = s2 * np.linalg.inv(J.T @ J)
     except np.linalg.LinAlgError:
         cov = np.full((pr.n_params, pr.n_params), np.inf)
-    X, Y, Kf, df, E = _unpack(pr, p)
+    X, Y, Kf, df, E = unpack(pr, p)
     res = np.split(-r, np.cumsum(counts)[:-1])
     outliers = [int(i) for i in np.flatnonzero(~inlier)]
     return ReprojectionRefinement(X, Y, Kf, df, None if E is None else E.copy(), res, srms,
-                                  outliers, float(sigma), cov, _param_names(pr), nfev,
+                                  outliers, float(sigma), cov, parameter_names(pr), nfev,
                                   history, time.perf_counter() - t0)
 
 
