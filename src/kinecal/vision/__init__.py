@@ -7,7 +7,8 @@ The image side of hand-eye calibration from pictures (`kinecal.vision.pipeline`)
 - `intrinsics`: camera intrinsics read from ROS / OpenCV / JSON files or estimated;
 - `pnp`: the board pose per image with its covariance;
 - `render`: synthetic images of a board seen by a known camera (tests, docs, planning);
-- `pipeline`: images + robot poses -> X, refined on the reprojection error.
+- `pipeline`: images + robot poses -> X, refined on the reprojection error;
+- `results`: what the pipeline returns, per image and as a whole (JSON).
 
 OpenCV (``opencv-python-headless``, the ``vision`` extra) is imported lazily: importing
 this package works on the core install, and the first function that needs OpenCV raises

@@ -13,13 +13,15 @@
 5. the refinement on the reprojection error of every corner
    (`kinecal.calibration.handeye.images.refine_reprojection`): X and the board pose
    jointly, intrinsics and robot-pose errors optionally, robust, outlier stations flagged.
+
+The result types (`ImageRecord`, `ImageHandEyeResult`, re-exported here) are in
+`kinecal.vision.results`.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -27,168 +29,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal import diagnostics
-from kinecal.calibration.handeye import HandEyeResult, calibrate_handeye
+from kinecal.calibration.handeye import calibrate_handeye
 from kinecal.calibration.handeye.images import ReprojectionRefinement, refine_reprojection
 from kinecal.errors import InputError
 from kinecal.vision import require_cv2
 from kinecal.vision.boards import Board
-from kinecal.vision.detect import Detection, QualityLimits, detect, orientation_ambiguous
+from kinecal.vision.detect import QualityLimits, detect, orientation_ambiguous
 from kinecal.vision.intrinsics import CameraIntrinsics, estimate_intrinsics
-from kinecal.vision.pnp import BoardPose, board_pose
+from kinecal.vision.pnp import board_pose
+from kinecal.vision.results import ImageHandEyeResult, ImageRecord
 
 Array = NDArray[np.float64]
 
 __all__ = ["ImageHandEyeResult", "ImageRecord", "calibrate_handeye_images", "load_gray"]
-
-
-@dataclass
-class ImageRecord:
-    """What happened to one image.
-
-    Attributes
-    ----------
-    name : str
-    status : str
-        ``used``, ``outlier`` (used for nothing after the robust refinement flagged its
-        station) or ``rejected``.
-    reason : str
-        Why it was rejected or flagged ("" when used).
-    detection : Detection or None
-    pose : BoardPose or None
-        PnP board pose (accepted detections).
-    residuals : ndarray, shape (N, 2) or None
-        Observed minus predicted corners after the refinement (px).
-    """
-
-    name: str
-    status: str
-    reason: str = ""
-    detection: Detection | None = None
-    pose: BoardPose | None = None
-    residuals: Array | None = None
-
-    @property
-    def rms_px(self) -> float | None:
-        """RMS corner residual after the refinement (px)."""
-        if self.residuals is None or not len(self.residuals):
-            return None
-        return float(np.sqrt(np.mean(np.sum(self.residuals**2, axis=1))))
-
-    @property
-    def max_px(self) -> float | None:
-        """Largest corner residual after the refinement (px)."""
-        if self.residuals is None or not len(self.residuals):
-            return None
-        return float(np.max(np.linalg.norm(self.residuals, axis=1)))
-
-    def to_dict(self) -> dict[str, Any]:
-        """The per-image entry of the JSON result."""
-        det, pose = self.detection, self.pose
-        return {
-            "image": self.name, "status": self.status, "reason": self.reason,
-            "corners": 0 if det is None else len(det.corners),
-            "rms_px": self.rms_px, "max_px": self.max_px,
-            "pnp_rms_px": None if pose is None else pose.rms_px,
-            "tilt_deg": None if pose is None else pose.tilt_deg,
-            "edge_width_px": (None if det is None or not np.isfinite(det.edge_width)
-                              else det.edge_width),
-        }
-
-
-@dataclass
-class ImageHandEyeResult:
-    """Result of `calibrate_handeye_images`.
-
-    Attributes
-    ----------
-    X : ndarray, shape (4, 4)
-        ``cam2flange`` (eye-in-hand) or ``cam2base`` (eye-to-hand), board length unit.
-    target : ndarray, shape (4, 4)
-        Board pose: ``target2base`` (eye-in-hand) or ``target2flange`` (eye-to-hand).
-    setup, method : str
-        Set-up and the closed form that seeded the refinement.
-    board : Board
-    intrinsics : CameraIntrinsics
-        As used (refined values when ``refine_intrinsics``).
-    intrinsics_refined : bool
-    records : list of ImageRecord
-        One per input image, in input order.
-    refinement : ReprojectionRefinement
-    seed : HandEyeResult
-        The pose-based solution that started the refinement.
-    warnings : list of dict
-        Plausibility warnings raised on the way (``code``, ``message``).
-    seconds : float
-    """
-
-    X: Array
-    target: Array
-    setup: str
-    method: str
-    board: Board
-    intrinsics: CameraIntrinsics
-    intrinsics_refined: bool
-    records: list[ImageRecord]
-    refinement: ReprojectionRefinement
-    seed: HandEyeResult
-    warnings: list[dict[str, str]] = field(default_factory=list)
-    seconds: float = 0.0
-
-    @property
-    def used(self) -> list[ImageRecord]:
-        """Records of the images the final solution rests on."""
-        return [r for r in self.records if r.status == "used"]
-
-    @property
-    def rejected(self) -> list[ImageRecord]:
-        """Records of the rejected images."""
-        return [r for r in self.records if r.status == "rejected"]
-
-    @property
-    def outliers(self) -> list[str]:
-        """Names of the images whose station the refinement flagged."""
-        return [r.name for r in self.records if r.status == "outlier"]
-
-    @property
-    def X_std(self) -> tuple[Array, Array]:
-        """Standard deviations of X: rotation (deg, about X's axes), translation."""
-        return self.refinement.X_std
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON of ``kinecal handeye-images --json``."""
-        xr, xt = self.refinement.X_std
-        yr, yt = self.refinement.Y_std
-        ref = self.refinement
-        return {
-            "X": self.X.tolist(),
-            "X_frame": "cam2flange" if self.setup == "eye-in-hand" else "cam2base",
-            "X_std": {"rotation_deg": xr.tolist(), "translation": xt.tolist()},
-            "X_cov": ref.X_cov.tolist(),
-            "target": self.target.tolist(),
-            "target_frame": "target2base" if self.setup == "eye-in-hand" else "target2flange",
-            "board_pose": self.target.tolist(),
-            "target_std": {"rotation_deg": yr.tolist(), "translation": yt.tolist()},
-            "setup": self.setup,
-            "board": self.board.spec,
-            "length_unit": "board unit (the --board lengths, mm by convention)",
-            "method": self.method,
-            "refine": "reprojection",
-            "intrinsics": {**self.intrinsics.to_dict(), "refined": self.intrinsics_refined},
-            "reprojection_rms_px": ref.rms_px,
-            "corner_sigma_px": ref.sigma_px,
-            "n_images": len(self.records),
-            "n_used": len(self.used),
-            "images": [r.to_dict() for r in self.records],
-            "rejected": [{"image": r.name, "reason": r.reason} for r in self.rejected],
-            "outliers": self.outliers,
-            "robot_corrections": (None if ref.corrections is None
-                                  else ref.corrections.tolist()),
-            "seed": {"method": self.method, "X": self.seed.X.tolist(),
-                     "rotation_rms_deg": self.seed.rotation_rms_deg,
-                     "translation_rms": self.seed.translation_rms},
-            "warnings": list(self.warnings),
-            "seconds": self.seconds,
-        }
 
 
 def load_gray(path: str | Path) -> NDArray[np.uint8] | None:
