@@ -6,7 +6,9 @@ The image side of hand-eye calibration from pictures (`kinecal.vision.pipeline`)
 - `detect`: detection with sub-pixel corners and per-image quality checks with reasons;
 - `intrinsics`: camera intrinsics read from ROS / OpenCV / JSON files or estimated;
 - `pnp`: the board pose per image with its covariance;
-- `render`: synthetic images of a board seen by a known camera (tests, docs, planning);
+- `imaging`: a board's image through a known camera (distortion, light, blur, noise);
+- `render`: synthetic hand-eye scenes: planned views, rendered images, truth (tests,
+  docs, planning);
 - `pipeline`: images + robot poses -> X, refined on the reprojection error;
 - `results`: what the pipeline returns, per image and as a whole (JSON).
 
