@@ -32,7 +32,7 @@ def compensation_section(result: Any) -> str:
         A serial-arm calibration with its joint values (validation or calibration poses).
     """
     from kinecal.calibration.compensate import compensate
-    from kinecal.report.html import section, table
+    from kinecal.report.markup import section, table
 
     nom = result.nominal_model
     q, which = result.q_validation, "held-out validation"

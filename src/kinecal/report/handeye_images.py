@@ -19,7 +19,7 @@ import numpy as np
 
 from kinecal._files import write_text_atomic
 from kinecal.report.figures import figure_png, new_figure
-from kinecal.report.html import image_tag, page, section, table
+from kinecal.report.markup import image_tag, page, section, table
 
 __all__ = ["handeye_images_report", "plot_image_errors", "thumbnail_jpeg"]
 

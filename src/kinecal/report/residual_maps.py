@@ -167,7 +167,7 @@ def _png_tag(fig: Any, alt: str, caption: str) -> str:
 def error_model_section(result: Any) -> list[str]:
     """The report sections of an error-model calibration ([] for a plain one): the choice
     (cross-validation table), the coefficients' identifiability, the residual maps."""
-    from kinecal.report.html import fmt, section, table
+    from kinecal.report.markup import fmt, section, table
 
     info = result.extra.get("error_model") if isinstance(result.extra, dict) else None
     if not info:

@@ -11,7 +11,7 @@ from typing import Any
 from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
 from kinecal.report.figures import _per_pose, figure_png, new_figure
-from kinecal.report.html import _kv, image_tag, page, section, table
+from kinecal.report.markup import image_tag, kv, page, section, table
 from kinecal.report.warnings import warnings_section
 
 __all__ = ["stewart_report"]
@@ -27,7 +27,7 @@ def stewart_report(result: Any, path: str | Path) -> Path:
     u = result.length_unit
     name = result.nominal.name or "Stewart platform"
     cal = result.calibration
-    summary = _kv([
+    summary = kv([
         ("geometry", name), ("length unit", u), ("calibration poses", cal["n"]),
         ("validation poses", None if result.validation is None else result.validation["n"]),
         ("rank (42 parameters)", f"{result.rank} of 42"),
