@@ -326,7 +326,7 @@ def _is_urdf(model: str) -> bool:
 def _check_error_model(job: Job) -> None:
     """The error-model keys as ``kinecal calibrate`` checks ``--error-model``, ``--harmonics``
     and ``--folds``: known families, options the choice uses, a least-squares method."""
-    from kinecal.calibration.error_model import (
+    from kinecal.calibration.error_model_spec import (
         LSQ_METHODS,
         MAX_HARMONICS,
         parse_error_model,

@@ -37,6 +37,16 @@ import numpy as np
 from kinecal.calibration.cross_validation import CVScore, FoldedRows, one_standard_error
 from kinecal.calibration.diagnostics import CODES
 from kinecal.calibration.error_model_result import ErrorModelResult, error_model_text
+from kinecal.calibration.error_model_spec import (
+    AUTO_HARMONICS,
+    DEFAULT_FOLDS,
+    DEFAULT_HARMONICS,
+    ERROR_MODELS,
+    LSQ_METHODS,
+    MAX_HARMONICS,
+    candidates,
+    parse_error_model,
+)
 from kinecal.calibration.identifiability import IdentifiabilityReport
 from kinecal.calibration.joint_identifiability import CoefficientAnalysis, correlated_with
 from kinecal.calibration.result import CalibrationResult
@@ -47,60 +57,14 @@ from kinecal.errors import InputError
 from kinecal.kinematics.joint_errors import FAMILIES, JointErrors, joint_errors_for
 from kinecal.kinematics.serial import SerialModel
 
-__all__ = ["ERROR_MODELS", "ErrorModelResult", "calibrate_error_model", "candidates",
+__all__ = ["AUTO_HARMONICS", "DEFAULT_FOLDS", "DEFAULT_HARMONICS", "ERROR_MODELS", "LSQ_METHODS",
+           "MAX_HARMONICS", "ErrorModelResult", "calibrate_error_model", "candidates",
            "error_model_text", "parse_error_model"]
 
-#: the choices of ``--error-model`` (``+``-joined family lists are accepted as well)
-ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto", "model")
-#: default harmonic order of the fixed choices, and the largest order ``auto`` tries
-DEFAULT_HARMONICS = 2
-AUTO_HARMONICS = 3
-MAX_HARMONICS = 12
 #: diagnostics on a fit's residual (`kinecal.calibration.diagnostics`): those of the
 #: geometric stage are not reported when a joint-error model is chosen
 FIT_CODES = frozenset(("outliers", "lack-of-fit", "residual-offset", "parameter-tolerance",
                        "unidentifiable-free", "residual-above-noise"))
-#: default number of cross-validation folds
-DEFAULT_FOLDS = 10
-#: the methods that fit joint-error terms (the metaheuristics search a box of geometric
-#: tolerances, which has no meaning for compliance coefficients)
-LSQ_METHODS = ("lm", "householder")
-
-
-def parse_error_model(spec: str) -> tuple[str, ...] | None:
-    """Families of an ``--error-model`` value; None for ``auto`` and ``model``.
-
-    ``geometric`` -> (), ``full`` -> all families, ``compliance+harmonic`` -> both.
-    """
-    if spec in ("auto", "model"):
-        return None
-    if spec == "geometric":
-        return ()
-    if spec == "full":
-        return FAMILIES
-    parts = [p.strip() for p in spec.split("+") if p.strip()]
-    bad = [p for p in parts if p not in FAMILIES]
-    if not parts or bad:
-        raise InputError(f"unknown error model {spec!r}; expected one of "
-                         f"{', '.join(ERROR_MODELS)} or families joined by '+' "
-                         f"({', '.join(FAMILIES)})", option="--error-model")
-    return tuple(f for f in FAMILIES if f in parts)
-
-
-def candidates(max_harmonics: int) -> list[tuple[str, tuple[str, ...], int]]:
-    """``auto``'s candidates ``(label, families, harmonic order)``, smallest first."""
-    out: list[tuple[str, tuple[str, ...], int]] = []
-    orders = [0, *range(1, max_harmonics + 1)]
-    for h in orders:
-        for comp in (False, True):
-            for scale in (False, True):
-                fam = (("compliance",) if comp else ()) + (("harmonic",) if h else ()) \
-                    + (("scale",) if scale else ())
-                label = "+".join(
-                    (["compliance"] if comp else []) + ([f"harmonic{h}"] if h else [])
-                    + (["scale"] if scale else [])) or "geometric"
-                out.append((label, fam, h))
-    return out
 
 
 def _label(families: Sequence[str], h: int) -> str:

@@ -200,7 +200,7 @@ def identifiability_with_terms(model: SerialModel, data: Measurements,
     """
     import dataclasses
 
-    from kinecal.calibration.error_model import DEFAULT_HARMONICS, parse_error_model
+    from kinecal.calibration.error_model_spec import DEFAULT_HARMONICS, parse_error_model
     from kinecal.calibration.problem import resolve_free
     from kinecal.errors import InputError
     from kinecal.kinematics.joint_errors import joint_errors_for
