@@ -28,15 +28,19 @@ import csv
 from pathlib import Path
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 
-from kinecal._files import load_yaml, read_text, write_text_atomic
+from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
 from kinecal.io.csvtable import write_table
+from kinecal.io.matrices import (
+    load_filestorage,
+    matrix_entry,
+    matrix_yaml,
+    read_matrix_lists,
+)
 from kinecal.io.poses import (
     PoseFormat,
-    check_matrices,
     finish,
     first_csv_row,
     keyed_format,
@@ -158,65 +162,6 @@ def write_handeye_csv(path: str | Path, flange2base: Array, target2cam: Array) -
     write_table(path, cols)
 
 
-class _OpenCVLoader(yaml.SafeLoader):
-    """Safe loader that accepts OpenCV's ``!!opencv-matrix`` tags."""
-
-
-def _opencv_matrix(loader: yaml.SafeLoader, node: yaml.Node) -> dict:
-    return loader.construct_mapping(node, deep=True)
-
-
-_OpenCVLoader.add_constructor("tag:yaml.org,2002:opencv-matrix", _opencv_matrix)
-
-
-def _matrix_node(node, key: str, path: Path) -> Array:
-    # The key (T1_<station>, base2gripper[3]) locates the error in a FileStorage file.
-    try:
-        rows, cols = int(node["rows"]), int(node["cols"])
-        data = np.asarray(node["data"], dtype=float)
-    except (KeyError, TypeError, ValueError):
-        raise InputError(f"{key}: expected an opencv-matrix with rows, cols and data",
-                         file=path) from None
-    if (rows, cols) != (4, 4) or data.size != 16:
-        raise InputError(f"{key}: {rows}x{cols} matrix with {data.size} values, expected 4x4",
-                         file=path)
-    T = data.reshape(4, 4)
-    if not np.isfinite(T).all():
-        raise InputError(f"{key}: contains NaN or infinite values", file=path)
-    check_matrices(T[None], key, path, rows=[""])
-    return T
-
-
-def _matrix(doc: dict, key: str, path: Path) -> Array:
-    node = doc.get(key)
-    if node is None:
-        raise InputError(f"missing matrix {key}", file=path)
-    return _matrix_node(node, key, path)
-
-
-def _load_filestorage(path: Path) -> dict:
-    lines = read_text(path).splitlines()
-    if lines and lines[0].startswith("%YAML:"):  # OpenCV's non-standard directive
-        lines = lines[1:]
-    doc = load_yaml("\n".join(lines), path, loader=_OpenCVLoader)
-    if not isinstance(doc, dict):
-        raise InputError("expected a mapping (OpenCV FileStorage)", file=path)
-    return doc
-
-
-def read_matrix_lists(path: str | Path) -> dict[str, Array]:
-    """Every list of 4x4 matrices in an OpenCV FileStorage YAML: ``{key: (n, 4, 4)}``, as
-    stored (``cv::FileStorage << "key" << std::vector<cv::Mat>``)."""
-    path = Path(path)
-    doc = _load_filestorage(path)
-    out = {}
-    for key, value in doc.items():
-        if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
-            out[str(key)] = np.stack([_matrix_node(v, f"{key}[{i}]", path)
-                                      for i, v in enumerate(value)])
-    return out
-
-
 _ROBOT_LISTS = ("flange2base", "gripper2base", "base2flange", "base2gripper")
 _TARGET_LISTS = ("target2cam", "cam2target")
 
@@ -232,15 +177,15 @@ def read_handeye_yaml(path: str | Path, robot: PoseFormat = PoseFormat(),
         Rebuilt from translation and unit quaternion (lengths in the file's unit).
     """
     path = Path(path)
-    doc = _load_filestorage(path)
+    doc = load_filestorage(path)
     if "frameCount" in doc or "T1_0" in doc:
         try:
             n = int(doc["frameCount"])
         except (KeyError, TypeError, ValueError):
             n = sum(1 for k in doc if str(k).startswith("T1_"))
         _enough(n, path)
-        F = np.stack([_matrix(doc, f"T1_{i}", path) for i in range(n)])
-        C = np.stack([_matrix(doc, f"T2_{i}", path) for i in range(n)])
+        F = np.stack([matrix_entry(doc, f"T1_{i}", path) for i in range(n)])
+        C = np.stack([matrix_entry(doc, f"T2_{i}", path) for i in range(n)])
         return finish(F, robot), finish(C, target)
     lists = read_matrix_lists(path)
     found = {k.lower(): k for k in lists}
@@ -260,19 +205,14 @@ def read_handeye_yaml(path: str | Path, robot: PoseFormat = PoseFormat(),
     return finish(F, robot), finish(C, target)
 
 
-def _fs_matrix(name: str, T: Array) -> str:
-    vals = ", ".join(repr(float(v)) for v in np.asarray(T, dtype=float).ravel())
-    return f"{name}: !!opencv-matrix\n   rows: 4\n   cols: 4\n   dt: d\n   data: [ {vals} ]\n"
-
-
 def write_handeye_yaml(path: str | Path, flange2base: Array, target2cam: Array) -> None:
     """Write pose pairs ``(n, 4, 4)`` as OpenCV FileStorage YAML (``T1_i``, ``T2_i``), atomic."""
     F = np.asarray(flange2base, dtype=float)
     C = np.asarray(target2cam, dtype=float)
     parts = ["%YAML:1.0\n", f"frameCount: {len(F)}\n"]
     for i in range(len(F)):
-        parts.append(_fs_matrix(f"T1_{i}", F[i]))
-        parts.append(_fs_matrix(f"T2_{i}", C[i]))
+        parts.append(matrix_yaml(f"T1_{i}", F[i]))
+        parts.append(matrix_yaml(f"T2_{i}", C[i]))
     write_text_atomic(path, "".join(parts))
 
 

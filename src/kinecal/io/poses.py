@@ -39,8 +39,8 @@ from numpy.typing import NDArray
 
 from kinecal.errors import InputError
 from kinecal.io.csvtable import read_table
+from kinecal.io.matrices import check_matrices, read_matrix_lists
 from kinecal.spatial import (
-    check_rotation,
     invert_transform,
     matrix_from_axis_angle,
     matrix_from_rpy,
@@ -113,21 +113,6 @@ def pose_columns(rotation: str, prefix: str = "") -> list[str]:
 def canonical_poses(T: Array) -> Array:
     """Transforms ``(n, 4, 4)`` rebuilt from translation and unit quaternion (``w >= 0``)."""
     return transform_from_pq(pq_from_transform(T))
-
-
-def check_matrices(M: Array, what: str, path: Path, rows: list | None = None) -> None:
-    """Refuse 4x4 matrices whose last row is not ``0 0 0 1`` or whose rotation part is not
-    orthonormal (`InputError` naming the data row, or the entry of `rows`)."""
-    for k, T in enumerate(M):
-        where = {"row": k + 1} if rows is None else {}
-        label = f"{what}" if rows is None else f"{what} {rows[k]}"
-        if np.abs(T[3] - [0.0, 0.0, 0.0, 1.0]).max() > 1e-6:
-            raise InputError(f"{label}: last row {T[3].tolist()}, expected 0 0 0 1",
-                             file=path, **where)
-        try:
-            check_rotation(T[:3, :3], tol=1e-4, name=label)
-        except InputError as exc:
-            raise InputError(exc.message, file=path, **where) from None
 
 
 def _detect(header: list[str], prefix: str, path: Path, option: str | None) -> str:
@@ -266,15 +251,13 @@ def finish(T: Array, fmt: PoseFormat, quaternion: bool = False) -> Array:
 def read_poses(path: str | Path, fmt: PoseFormat = PoseFormat(), *,
                option: str | None = None) -> Array:
     """One pose per row of a CSV, or the list of 4x4 matrices of an OpenCV FileStorage
-    YAML (`kinecal.io.handeye.read_matrix_lists`), as canonical transforms ``(n, 4, 4)``.
+    YAML (`kinecal.io.matrices.read_matrix_lists`), as canonical transforms ``(n, 4, 4)``.
     """
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".csv":
         return read_csv_poses(path, {"": fmt}, option=option)[0]
     if suffix in (".yml", ".yaml"):
-        from kinecal.io.handeye import read_matrix_lists
-
         lists = read_matrix_lists(path)
         if len(lists) != 1:
             raise InputError(f"{len(lists)} lists of 4x4 matrices ({', '.join(lists) or 'none'})"
