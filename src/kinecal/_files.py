@@ -16,11 +16,9 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import hashlib
 import json
 import os
 import re
-import socket
 import stat
 import tempfile
 import time
@@ -68,6 +66,9 @@ _DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO}
 
 
 def _host_tag() -> str:
+    import hashlib  # lazily: 4 ms of every command's start-up
+    import socket
+
     return hashlib.sha1(socket.gethostname().encode("utf-8", "replace")).hexdigest()[:8]
 
 

@@ -36,6 +36,8 @@ def _exception_types(name: str) -> tuple[type[BaseException], ...]:
     """
     found = []
     for module in ("click.exceptions", "typer._click.exceptions", "typer.exceptions"):
+        if module == "click.exceptions" and "click" not in sys.modules:
+            continue  # typer did not import click (it bundles its own): nothing raises it
         try:
             cls = getattr(importlib.import_module(module), name, None)
         except ImportError:
