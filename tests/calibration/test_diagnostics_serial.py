@@ -144,6 +144,15 @@ def test_metres_in_a_millimetre_model(irb):
     assert "metres in a millimetre model" in res.warnings[0].message
 
 
+def test_millimetres_in_a_metre_model(irb):
+    # the residual of the similarity fit is in the measured unit: a true arm a few tenths of
+    # a millimetre off nominal, read 1000 times too large, must still show the scale
+    m, sim, _ = irb
+    res, found = run(m, Measurements(sim.data.q, sim.data.xyz * 1000.0))
+    assert "scale-mismatch" in found
+    assert "millimetres in a metre model" in res.warnings[0].message
+
+
 def test_radians_in_a_degree_model(irb):
     m, sim, _ = irb
     as_rad = Measurements(sim.data.q * np.pi / 180.0, sim.data.xyz)  # radians read as degrees

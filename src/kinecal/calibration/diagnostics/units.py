@@ -125,8 +125,9 @@ def check_frame_and_units(model: SerialModel, data: Measurements, ref,
     aligned = rigid_rms(P0, xyz)
     s, e_sim = similarity_fit(P0, xyz)
     spread = float(np.sqrt(((P0 - P0.mean(axis=0)) ** 2).sum(axis=1).mean()))
+    # e_sim is in the measured unit: / s puts it in the model's, like the spread
     if (np.isfinite(s) and s > 0 and abs(np.log(s)) > np.log(2.0)
-            and spread > 3.0 * e_sim / min(s, 1.0)):
+            and spread > 3.0 * e_sim / s):
         warn("scale-mismatch",
              f"the measured positions of the {what} span {s:.3g} times what the model "
              f"predicts (looks like {unit_factor_name(s)}): give positions in the model's "
