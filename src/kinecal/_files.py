@@ -72,14 +72,15 @@ def _host_tag() -> str:
     return hashlib.sha1(socket.gethostname().encode("utf-8", "replace")).hexdigest()[:8]
 
 
-def _pid_alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
+    """Whether process `pid` exists (True when it cannot be probed: Windows, no permission)."""
     if os.name == "nt":  # os.kill(pid, 0) is not a probe there: rely on the age rule
         return True
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
-    except (PermissionError, OverflowError):
+    except (PermissionError, OverflowError, OSError):  # exists, or cannot be probed
         return True
     return True
 
@@ -108,7 +109,7 @@ def sweep_stale_temp_files(folder: str | Path, *, now: float | None = None) -> l
             if not stat.S_ISREG(st.st_mode):
                 continue
             dead = m.group(1) == host and int(m.group(2)) != os.getpid() \
-                and not _pid_alive(int(m.group(2)))
+                and not pid_alive(int(m.group(2)))
             if dead or now - st.st_mtime > STALE_TEMP_SECONDS:
                 os.unlink(entry.path)
                 removed.append(Path(entry.path))

@@ -12,6 +12,7 @@ import os
 from collections.abc import Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 
+from kinecal._files import pid_alive
 from kinecal.errors import InputError
 
 __all__ = ["BLAS_THREAD_VARS", "dask_executor", "local_executor", "single_thread_blas"]
@@ -59,16 +60,6 @@ def local_executor(workers: int | None = None) -> ProcessPoolExecutor:
 WATCH_INTERVAL = 0.5
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except (PermissionError, OSError):
-        return True
-    return True
-
-
 def watch_parent(pid: int, interval: float = WATCH_INTERVAL) -> None:
     """Make this worker process end when the coordinating process `pid` dies.
 
@@ -96,7 +87,7 @@ def watch_parent(pid: int, interval: float = WATCH_INTERVAL) -> None:
         return
 
     def watch() -> None:
-        while _alive(pid):
+        while pid_alive(pid):
             time.sleep(interval)
         os._exit(1)
 
