@@ -3,6 +3,7 @@ joints and Cartesian targets, and the calibrated base frame's distance from nomi
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -75,14 +76,22 @@ def check_tool(nominal: SerialModel, calibrated: SerialModel, warn: Any) -> None
 
 def with_nominal_tool(calibrated: SerialModel, nominal: SerialModel) -> SerialModel:
     """`calibrated` with the nominal model's tool (point and frame): the program's tool on
-    the calibrated arm, when the calibration measured another target."""
+    the calibrated arm, when the calibration measured another target (or several: the
+    markers of a calibration with several tracker targets are replaced by that tool)."""
+    if calibrated.marker_names and not nominal.marker_names:
+        calibrated = dataclasses.replace(
+            calibrated, markers=None, tool=None if nominal.tool is None else np.array(
+                nominal.tool, dtype=float), joint_limits=np.array(calibrated.joint_limits),
+            tolerances=dict(calibrated.tolerances or {}),
+            fixed=tuple(f for f in calibrated.fixed if not f.startswith("tool.")))
     if list(calibrated.parameter_names) != list(nominal.parameter_names):
         raise InputError(
             "tool='nominal' needs a calibrated model with the nominal model's parameters (a "
             "result JSON or a --model-out file of it), not another description of the arm",
             option="--tool")
     if calibrated.marker_names:
-        raise InputError("tool='nominal' needs a model with one tool point, not markers",
+        raise InputError("tool='nominal' needs a nominal model with the program's tool, not "
+                         "markers: give nominal= the model the controller runs (--nominal)",
                          option="--tool")
     idx = nominal.index(_tool_names(nominal))
     p = calibrated.nominal

@@ -86,13 +86,18 @@ class CompensationResult:
         ok = self.converged
         lines = [f"compensated {n} {'joint-program rows' if self.kind == 'joints' else 'targets'}"
                  f" ({self.outputs}): {int(ok.sum())} converged"]
-        if n:
-            c = self.correction
-            lines.append(f"correction: mean {c.mean():.4g} {unit}, max {c.max():.4g} {unit}; "
-                         + self._joint_motion(unit))
+        # corrections of the rows that converged: a failed row's "correction" is the distance
+        # to wherever its solver stopped (a target out of reach gave "mean 1320 mm")
+        rows = ok if ok.any() and not ok.all() else np.ones(n, dtype=bool)
+        which = " (converged rows)" if not ok.all() else ""
+        if n and ok.any():
+            c = self.correction[rows]
+            lines.append(f"correction{which}: mean {c.mean():.4g} {unit}, max {c.max():.4g} "
+                         f"{unit}; " + self._joint_motion(unit, rows))
             if self.outputs == "pose":
-                a = np.degrees(self.correction_rotation)
-                lines.append(f"correction angle: mean {a.mean():.4g} deg, max {a.max():.4g} deg")
+                a = np.degrees(self.correction_rotation[rows])
+                lines.append(f"correction angle{which}: mean {a.mean():.4g} deg, max "
+                             f"{a.max():.4g} deg")
             if ok.any():
                 lines.append(f"residual (converged rows): max {self.residual[ok].max():.3g} {unit}"
                              + (f", {self.residual_rotation[ok].max():.3g} rad"
@@ -116,10 +121,11 @@ class CompensationResult:
         lin = dq[:, pris].max(axis=1) if pris.any() else np.zeros(n)
         return rev, lin
 
-    def _joint_motion(self, unit: str) -> str:
-        """``joints up to 0.8 deg`` (revolute in degrees, prismatic in the length unit)."""
+    def _joint_motion(self, unit: str, rows: NDArray[np.bool_]) -> str:
+        """``joints up to 0.8 deg`` (revolute in degrees, prismatic in the length unit) over
+        `rows`."""
         pris = self._prismatic()
-        rev, lin = self.joint_motion()
+        rev, lin = (m[rows] for m in self.joint_motion())
         parts = []
         if (~pris).any():
             parts.append(f"{np.degrees(rev.max()):.4g} deg")

@@ -106,7 +106,8 @@ def register(nominal: SerialModel, calibrated: SerialModel) -> Registration:
         if m.marker_names:
             raise InputError(f"model {m.name!r} has several markers "
                              f"({', '.join(m.marker_names)}): a program is compensated for "
-                             "one tool point, give models with the program's tool")
+                             "one tool point; put the program's tool on the calibrated arm "
+                             "with tool='nominal' (--tool nominal)")
     calibrated = in_length_unit(calibrated, nominal.length_unit)
     lim = np.array(nominal.joint_limits, dtype=float)
     rev = ~nominal.is_prismatic()

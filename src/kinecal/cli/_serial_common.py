@@ -13,11 +13,35 @@ import numpy as np
 from kinecal.errors import InputError
 
 __all__ = ["POSE_BYTES", "free_option", "model_for_result", "parameters_from_result",
-           "result_markers"]
+           "result_markers", "serial_result_parameters"]
 
 #: peak memory of simulate / identifiability per random pose and per joint (+10): measured
 #: 330 B (irb120, 6 joints) and 580 B with orientations, taken with a margin
 POSE_BYTES = 64
+
+
+def serial_result_parameters(data: object, path: Path) -> dict:
+    """The ``parameters`` mapping of a serial-arm calibration result (``calibrate --out``).
+
+    Raises
+    ------
+    InputError
+        A hand-eye or Stewart-platform result (named as such: their JSON is easily passed
+        where an arm's result is expected), or JSON without a non-empty ``parameters``.
+    """
+    params = data.get("parameters") if isinstance(data, dict) else None
+    other = None
+    if isinstance(data, dict) and "X" in data and params is None:
+        other = "a hand-eye calibration result (kinecal handeye)"
+    elif isinstance(params, dict) and {"b1.x", "p1.x"} <= set(params):
+        other = "a Stewart-platform calibration result (kinecal stewart calibrate)"
+    if other is not None:
+        raise InputError(f"{other}, expected a serial-arm calibration result (kinecal "
+                         "calibrate --out)", file=path)
+    if not isinstance(params, dict) or not params:
+        raise InputError("expected a calibration result (kinecal calibrate --out) with a "
+                         "non-empty 'parameters' mapping", file=path)
+    return params
 
 
 def result_markers(params: dict) -> list[str]:
@@ -32,9 +56,7 @@ def model_for_result(model, path: Path):
     from kinecal.kinematics.markers import model_for_markers
 
     data = read_json(path)
-    params = data.get("parameters") if isinstance(data, dict) else None
-    if not isinstance(params, dict):
-        raise InputError("expected a calibration result with a 'parameters' mapping", file=path)
+    params = serial_result_parameters(data, path)
     model = _with_result_joint_errors(model, data, path)
     return model_for_markers(model, result_markers(params))
 
@@ -49,10 +71,7 @@ def parameters_from_result(model, path: Path) -> np.ndarray:
     from kinecal._files import read_json
 
     data = read_json(path)
-    params = data.get("parameters") if isinstance(data, dict) else None
-    if not isinstance(params, dict) or not params:
-        raise InputError("expected a calibration result with a non-empty 'parameters' mapping",
-                         file=path)
+    params = serial_result_parameters(data, path)
     for key, mine in (("length_unit", model.length_unit), ("angle_unit", model.angle_unit)):
         theirs = data.get(key)
         if theirs is not None and theirs != mine:

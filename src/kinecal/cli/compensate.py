@@ -39,15 +39,18 @@ def _is_urdf(spec: str | Path | None) -> bool:
 
 
 def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None,
-                    tip_link: str | None = None):
+                    tip_link: str | None = None, tool: str = "calibrated"):
     """(nominal model, calibrated model) from a model file or a result JSON.
 
     A result JSON names its nominal model (``"model"``); a model file written by
     ``calibrate --model-out`` is called ``NAME-calibrated``. Either gives the default of
     `nominal` when that is a bundled model; otherwise ``--nominal`` is required. Joint-error
     terms of a result (``--error-model``) come with it. `base_link` and `tip_link` choose
-    the chain of the nominal model when it is a URDF, else of a calibrated URDF.
+    the chain of the nominal model when it is a URDF, else of a calibrated URDF. With
+    `tool` ``"nominal"`` the calibrated model carries the nominal model's tool (markers of
+    a calibration with several targets replaced by it).
     """
+    from kinecal.calibration.compensate_inputs import with_nominal_tool
     from kinecal.calibration.same_arm import check_same_arm
     from kinecal.io.models import bundled_models
     from kinecal.io.models import load_model as _load_model
@@ -68,12 +71,21 @@ def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None
 
     path = Path(spec)
     if not path.exists():
+        if spec in bundled_models():
+            raise InputError(f"{spec} is a bundled nominal model: expected the calibrated "
+                             "model (calibrate --model-out) or result JSON (calibrate --out); "
+                             "the nominal model goes to --nominal", option="CALIBRATED")
         raise InputError(f"file not found: {spec}", option="CALIBRATED")
     if path.suffix.lower() == ".json":
         from kinecal._files import read_json
-        from kinecal.cli._serial_common import model_for_result, parameters_from_result
+        from kinecal.cli._serial_common import (
+            model_for_result,
+            parameters_from_result,
+            serial_result_parameters,
+        )
 
         data = read_json(path)
+        serial_result_parameters(data, path)
         named = data.get("model") if isinstance(data, dict) else None
         if nominal is None:
             if not (isinstance(named, str) and named in bundled_models()):
@@ -96,8 +108,12 @@ def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None
             nominal = stem
         nom = load_model(nominal)
     try:
+        if tool == "nominal":
+            cal = with_nominal_tool(cal, nom)
         check_same_arm(nom, cal)
     except InputError as exc:
+        if exc.option is not None:
+            raise
         raise InputError(exc.message, file=path) from None
     return nom, cal
 
@@ -198,6 +214,7 @@ def compensate_cmd(
 ) -> None:
     """Rewrite a joint program or Cartesian targets for the calibrated arm."""
     from kinecal.calibration.compensate import compensate
+    from kinecal.calibration.diagnostics.serial import check_joint_units
     from kinecal.io.measurements import joint_columns
 
     check_paths({"CALIBRATED": calibrated, "PROGRAM": program, "--nominal": nominal},
@@ -207,13 +224,16 @@ def compensate_cmd(
     if tool not in ("calibrated", "nominal"):
         raise InputError(f"expected calibrated or nominal, got {tool!r}", option="--tool")
     with warnings_scope(strict) as found:
-        nom, cal = load_calibrated(calibrated, nominal, base_link, tip_link)
+        nom, cal = load_calibrated(calibrated, nominal, base_link, tip_link, tool)
         path = resolve_data_path(program, "PROGRAM")
         header, cells, table = read_program(path, nom)
         scale = nom.joint_scale()  # file units -> API units per joint
         joints = joint_columns(header, nom, path, required=False)
         outputs = "position" if position_only else None
         q_file = np.column_stack([table[c] for c in joints]) if joints[0] in table else None
+        if q_file is not None:  # radians left in a degree program, as fk and calibrate warn
+            check_joint_units(nom, q_file * scale,
+                              "seed joints" if "x" in table else "program joints")
         with progress(f"compensate {len(cells)} rows", len(cells), quiet or json_out) as bar:
             done = [0]
 

@@ -32,6 +32,9 @@ def _format(fmt: str | None, out: Path) -> str:
                              "or --format yaml", option="--format")
     if fmt not in FORMATS:
         raise InputError(f"unknown format {fmt!r}; expected urdf or yaml", option="--format")
+    if fmt == "yaml" and out.name.lower().endswith((".urdf", ".xacro")):
+        raise InputError(f"a model file (yaml) named {out.name!r} would be read back as a "
+                         "URDF: name it .yaml, or give --format urdf", option="--format")
     return fmt
 
 
@@ -67,7 +70,11 @@ def model_and_params(source: str, nominal: str | None, base_link: str | None,
     result the nominal model is `nominal`, or the bundled model the result names.
     """
     from kinecal._files import read_json
-    from kinecal.cli._serial_common import model_for_result, parameters_from_result
+    from kinecal.cli._serial_common import (
+        model_for_result,
+        parameters_from_result,
+        serial_result_parameters,
+    )
 
     if not source.lower().endswith(".json"):
         if nominal is not None:
@@ -76,9 +83,7 @@ def model_and_params(source: str, nominal: str | None, base_link: str | None,
         return load_model_arg(source, base_link, tip_link), None, _urdf_path(source)
     path = Path(source)
     data = read_json(path)
-    if not isinstance(data, dict) or not isinstance(data.get("parameters"), dict):
-        raise InputError("expected a calibration result (kinecal calibrate --out) with a "
-                         "'parameters' mapping", file=path)
+    serial_result_parameters(data, path)
     if nominal is None:
         from kinecal.io.models import bundled_models
 

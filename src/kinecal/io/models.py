@@ -223,19 +223,32 @@ def _validation_message(exc: ValidationError) -> str:
     return f"{loc}: {err['msg']}"
 
 
+def _is_xml(path: str | Path) -> bool:
+    """True for a regular file that starts like XML (a URDF saved as ``robot.xml``)."""
+    try:
+        if not Path(path).is_file():
+            return False
+        with open(path, "rb") as fh:
+            head = fh.read(256)
+    except (OSError, ValueError):
+        return False
+    return head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<")
+
+
 def load_model(name_or_path: str | Path, *, base_link: str | None = None,
                tip_link: str | None = None) -> SerialModel:
     """Load a serial-arm model from a bundled name (``irb120``), a YAML path or a URDF.
 
     Angles are converted to radians; lengths stay in the file's unit. A ``.urdf`` path is
-    read by `kinecal.io.urdf.load_urdf` (chain from `base_link` to `tip_link`).
+    read by `kinecal.io.urdf.load_urdf` (chain from `base_link` to `tip_link`), and so is
+    a file of another suffix that starts like XML (``robot.xml``).
 
     Raises
     ------
     InputError
         Unknown name, unreadable file, or a schema violation (named key and reason).
     """
-    if str(name_or_path).lower().endswith((".urdf", ".xacro")):
+    if str(name_or_path).lower().endswith((".urdf", ".xacro")) or _is_xml(name_or_path):
         from kinecal.io.urdf import load_urdf
 
         return load_urdf(name_or_path, base_link=base_link, tip_link=tip_link)

@@ -82,6 +82,17 @@ def read_urdf(path: str | Path):
         raise InputError(f"cannot read: {exc}", file=path) from None
     if root.tag != "robot":
         raise InputError(f"root element <{root.tag}>, expected <robot>", file=path)
+    for tag in ("link", "joint"):
+        seen: set = set()
+        for element in root.findall(tag):
+            name = element.get("name")
+            if name in seen:
+                raise InputError(f"two <{tag}> elements named {name!r}: expected unique "
+                                 f"{tag} names", file=path)
+            seen.add(name)
+    if not root.findall("joint"):
+        raise InputError("no <joint> elements: expected a chain of joints between links",
+                         file=path)
     for k, joint in enumerate(root.findall("joint")):
         missing = [t for t in ("parent", "child") if joint.find(t) is None
                    or not joint.find(t).get("link")]
@@ -89,6 +100,7 @@ def read_urdf(path: str | Path):
             what = "a name" if joint.get("name") is None else " and ".join(
                 f"<{t} link=...>" for t in missing)
             raise InputError(f"joint {joint.get('name') or k + 1}: missing {what}", file=path)
+        _check_numbers(joint, path)
         if joint.get("type") in ("revolute", "prismatic") and joint.find("limit") is None:
             raise InputError(f"{joint.get('type')} joint {joint.get('name')}: missing <limit "
                              "lower=... upper=... effort=... velocity=...> (URDF requires it)",
@@ -112,6 +124,24 @@ def read_urdf(path: str | Path):
     if errors:
         raise InputError(f"invalid URDF: {errors[0]}", file=path)
     return urdf
+
+
+def _check_numbers(joint: ET.Element, path: Path) -> None:
+    """A joint's origin xyz / rpy and axis xyz: three finite numbers each (yourdfpy turns an
+    infinite origin into NaNs of other components, and a short one into a numpy error)."""
+    for tag, attr in (("origin", "xyz"), ("origin", "rpy"), ("axis", "xyz")):
+        element = joint.find(tag)
+        text = None if element is None else element.get(attr)
+        if text is None:
+            continue
+        cells = text.split()
+        try:
+            values = [float(c) for c in cells]
+        except ValueError:
+            values = []
+        if len(cells) != 3 or len(values) != 3 or not np.isfinite(values).all():
+            raise InputError(f"joint {joint.get('name')}: <{tag} {attr}=\"{text.strip()}\">: "
+                             "expected three finite numbers", file=path)
 
 
 def _tree(joints, path: Path) -> tuple[dict, dict, str]:

@@ -32,6 +32,7 @@ from kinecal.kinematics.motions import (
     PRISMATIC,
     REVOLUTE,
     RXYZ,
+    TRANSLATION,
     Motion,
     frame_motions,
     pose_motions,
@@ -42,6 +43,9 @@ __all__ = ["BASE_NAMES", "TOOL_NAMES", "Chain", "build_chain", "chain_entries"]
 BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
 TOOL_NAMES = ("tool.x", "tool.y", "tool.z", "tool.rx", "tool.ry", "tool.rz")
 _RESERVED = ("base", "tool")
+#: largest length (model's unit) a chain accepts: 1000 km in mm, beyond any machine in m;
+#: an origin of 1e300 let FK run but overflowed the Jacobian's squares (NaN everywhere)
+MAX_LENGTH = 1e9
 
 
 @dataclass(frozen=True)
@@ -189,11 +193,24 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
     motions += tm
     owners += ["tool"] * len(tm)
     names = (*chain_names, *BASE_NAMES, *tool_names)
+    _check_lengths(values, [m.name for m in motions if m.kind == TRANSLATION]
+                   + [n for n in tool_names if n not in TOOL_NAMES[3:]])
     duplicate = sorted(set(chain_names) & set(tool_names))
     if duplicate:
         raise InputError(f"parameter {duplicate[0]!r} appears twice in the chain")
     return Chain(tuple(motions), tuple(owners), names, values, tuple(kinds), frozenset(frozen),
                  tuple(points) if markers is not None else ())
+
+
+def _check_lengths(values: Mapping[str, float], lengths: Sequence[str]) -> None:
+    """Every length finite and within `MAX_LENGTH` (a unit or exponent typo otherwise
+    overflows the identification Jacobian far from the file that caused it)."""
+    for name in lengths:
+        v = values[name]
+        if not np.isfinite(v) or abs(v) > MAX_LENGTH:
+            raise InputError(f"{name} = {v:g} length units: expected a finite length of at "
+                             f"most {MAX_LENGTH:g} in size (no machine is that large; check "
+                             "the number and the length unit)")
 
 
 def chain_entries(chain: Chain, entries: Sequence[Mapping], values: Mapping[str, float]

@@ -106,11 +106,15 @@ class Problem:
 
     def project(self, q: Array) -> Array:
         """Joints `q` ``(M, n)`` brought into the limits: full-turn revolute joints wrapped
-        by multiples of 2 pi, the others clipped."""
+        by the fewest turns that bring them back (a joint of range +-360 deg at 370 deg
+        goes to 10 deg, not to -350), the others clipped."""
         if self.wrap.any():
-            out = self.wrap & ((q < self.lo) | (q > self.hi))
-            if out.any():
-                q = np.where(out, self.lo + np.mod(q - self.lo, 2.0 * np.pi), q)
+            turn = 2.0 * np.pi
+            above = self.wrap & (q > self.hi)
+            below = self.wrap & (q < self.lo)
+            if above.any() or below.any():
+                q = np.where(above, q - turn * np.ceil((q - self.hi) / turn), q)
+                q = np.where(below, q + turn * np.ceil((self.lo - q) / turn), q)
         return np.clip(q, self.lo, self.hi)
 
     def evaluate(self, q: Array, idx: NDArray[np.intp]
