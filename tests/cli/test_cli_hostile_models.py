@@ -1,0 +1,172 @@
+"""Hostile inputs to the model readers, export and compensate, as an outside tester tries
+them: corrupt URDF numbers and names, absurd lengths, the wrong kind of result JSON, a URDF
+saved as .xml, a model file written under a .urdf name. Every case: exit 2, one line naming
+the file and what was expected, nothing written; or the right answer."""
+
+from __future__ import annotations
+
+import json
+from importlib import resources
+
+import numpy as np
+import pytest
+import yaml
+
+from kinecal.cli import main
+from kinecal.io.models import load_model
+
+KR16 = resources.files("rtbdata") / "xacro" / "kuka_description/kuka_kr16/urdf/kr16_2.urdf"
+LIMIT = '<limit lower="-3" upper="3" effort="1" velocity="1"/>'
+
+
+def _joint(name, parent, child, xyz="0 0 0.1", rpy="0 0 0", axis="0 0 1", kind="revolute"):
+    limit = LIMIT if kind != "fixed" else ""
+    return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/>'
+            f'<child link="{child}"/><origin xyz="{xyz}" rpy="{rpy}"/>'
+            f'<axis xyz="{axis}"/>{limit}</joint>')
+
+
+def _urdf(body: str) -> str:
+    return f'<?xml version="1.0"?>\n<robot name="r">\n{body}\n</robot>\n'
+
+
+def _chain(**first) -> str:
+    links = "".join(f'<link name="l{i}"/>' for i in range(4))
+    joints = _joint("j1", "l0", "l1", **first) + _joint("j2", "l1", "l2") + \
+        _joint("j3", "l2", "l3")
+    return links + joints
+
+
+def _fail(args, capsys) -> str:
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("kinecal: error:") and err.count("\n") == 1, err
+    return err
+
+
+@pytest.fixture
+def joints3(tmp_path):
+    path = tmp_path / "j.csv"
+    path.write_text("q1,q2,q3\n10,20,30\n")
+    return path
+
+
+@pytest.mark.parametrize(("body", "needle"), [
+    # yourdfpy turned an infinite x into NaNs of other components: "yaw: got nan"
+    (_chain(xyz="inf 0 0.1"), 'joint j1: <origin xyz="inf 0 0.1">: expected three finite'),
+    (_chain(rpy="0 nan 0"), 'joint j1: <origin rpy="0 nan 0">: expected three finite'),
+    (_chain(xyz="0 0"), 'joint j1: <origin xyz="0 0">'),  # was a numpy broadcast error
+    (_chain(axis="1 abc 0"), 'joint j1: <axis xyz="1 abc 0">'),
+    # was accepted: two links of one name (urdfdom refuses them)
+    (_chain() + '<link name="l2"/>', "two <link> elements named 'l2'"),
+    # a duplicate joint name off the chain was accepted
+    (_chain() + '<link name="s"/>' + _joint("j2", "l3", "s", kind="fixed"),
+     "two <joint> elements named 'j2'"),
+    # was "0 root links (a cycle)"
+    ('<link name="only"/>', "no <joint> elements"),
+])
+def test_corrupt_urdf_is_named(body, needle, tmp_path, joints3, capsys):
+    path = tmp_path / "bad.urdf"
+    path.write_text(_urdf(body))
+    err = _fail(["fk", str(path), str(joints3)], capsys)
+    assert "bad.urdf" in err and needle in err
+
+
+@pytest.mark.parametrize("command", [["fk", "J"], ["identifiability", "--poses", "20"],
+                                     ["simulate", "--poses", "20", "--out", "OUT"]])
+def test_absurd_length_refused_before_the_jacobian_overflows(command, tmp_path, joints3,
+                                                           capsys):
+    """1e300 m in an origin: fk printed 2.9e300, identifiability said 'scale: expected 30
+    positive factors', calibrate 'Jacobian contains NaN or infinite values'."""
+    path = tmp_path / "big.urdf"
+    path.write_text(_urdf(_chain(xyz="1e300 0 0.1")))
+    args = [a.replace("J", str(joints3)).replace("OUT", str(tmp_path / "o.csv"))
+            for a in command]
+    err = _fail([args[0], str(path), *args[1:]], capsys)
+    assert "big.urdf" in err and "j1.x = 1e+300" in err and "at most 1e+09" in err
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_absurd_length_in_a_model_file(tmp_path, capsys):
+    data = yaml.safe_load((resources.files("kinecal") / "robots" / "ur5.yaml").read_text())
+    data["joints"][1]["a"] = 1e300
+    path = tmp_path / "big.yaml"
+    path.write_text(yaml.safe_dump(data))
+    err = _fail(["identifiability", str(path), "--poses", "20"], capsys)
+    assert "big.yaml" in err and "a2 = 1e+300" in err
+    # the largest machines stay far inside the bound
+    data["joints"][1]["a"] = 1e6  # 1 km in mm
+    path.write_text(yaml.safe_dump(data))
+    assert load_model(path).nominal[load_model(path).index(["a2"])[0]] == 1e6
+
+
+def test_urdf_saved_as_xml_is_read_as_urdf(tmp_path, capsys):
+    """A URDF named robot.xml was parsed as YAML: 'expected a YAML mapping'."""
+    xml = tmp_path / "kr16.xml"
+    xml.write_text(KR16.read_text())
+    q = np.radians([[10, -80, 60, 20, 50, 60], [0, -30, 20, 0, 40, 0]])
+    ours = load_model(xml).positions(q)
+    np.testing.assert_array_equal(ours, load_model(str(KR16)).positions(q))
+    joints = tmp_path / "j.csv"
+    joints.write_text("q1,q2,q3,q4,q5,q6\n10,-80,60,20,50,60\n")
+    assert main(["fk", str(xml), str(joints)]) == 0
+    got = np.array(capsys.readouterr().out.splitlines()[1].split(","), dtype=float)
+    np.testing.assert_allclose(got, ours[0], rtol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def other_results(tmp_path_factory):
+    d = tmp_path_factory.mktemp("results")
+    assert main(["handeye", "handeye-camodocal", "--out", str(d / "he.json"), "--quiet"]) == 0
+    assert main(["stewart", "simulate", "liu2008-cmm", "--poses", "30", "--seed", "1",
+                 "--out", str(d / "st.csv")]) == 0
+    assert main(["stewart", "calibrate", "liu2008-cmm", str(d / "st.csv"), "--out",
+                 str(d / "st.json"), "--quiet"]) == 0
+    (d / "prog.csv").write_text("q1,q2,q3,q4,q5,q6\n10,-80,60,20,50,60\n")
+    return d
+
+
+@pytest.mark.parametrize(("name", "kind"), [("he.json", "a hand-eye calibration result"),
+                                            ("st.json", "a Stewart-platform calibration")])
+@pytest.mark.parametrize("command", ["export", "compensate", "compensate-nominal", "fk"])
+def test_results_of_other_calibrations_are_named(name, kind, command, other_results, capsys):
+    """Before: 'give --nominal MODEL', 'the result is for model liu2008-cmm, not a bundled
+    one' (it is a bundled geometry), 'expected ... a parameters mapping'."""
+    result, prog, out = (str(other_results / n) for n in (name, "prog.csv", "o.out"))
+    args = {"export": ["export", result, "--out", out + ".urdf"],
+            "compensate": ["compensate", result, prog, "--out", out],
+            "compensate-nominal": ["compensate", result, prog, "--nominal", "ur5", "--out",
+                                   out],
+            "fk": ["fk", "ur5", prog, "--params", result]}[command]
+    err = _fail(args, capsys)
+    assert name in err and kind in err and "kinecal calibrate --out" in err
+    assert not list(other_results.glob("o.out*"))
+
+
+def test_export_yaml_under_a_urdf_name_is_refused(tmp_path, capsys):
+    """It was written, and every later command read it as broken XML."""
+    out = tmp_path / "ur5.urdf"
+    err = _fail(["export", "ur5", "--format", "yaml", "--out", str(out)], capsys)
+    assert "--format" in err and "ur5.urdf" in err
+    assert not out.exists()
+    assert main(["export", "ur5", "--format", "urdf", "--out", str(out)]) == 0
+    assert out.read_text().lstrip().startswith("<")
+
+
+def test_bundled_name_as_calibrated_model(tmp_path, capsys):
+    prog = tmp_path / "p.csv"
+    prog.write_text("q1,q2,q3,q4,q5,q6\n10,-80,60,20,50,60\n")
+    err = _fail(["compensate", "ur5", str(prog), "--out", str(tmp_path / "o.csv")], capsys)
+    assert "bundled nominal model" in err and "--nominal" in err
+
+
+def test_result_json_round_trip_still_works(other_results, tmp_path, capsys):
+    """The kind checks leave serial results alone."""
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "ur5", "--poses", "40", "--seed", "2", "--out", str(meas),
+                 "--quiet"]) == 0
+    res = tmp_path / "r.json"
+    assert main(["calibrate", "ur5", str(meas), "--out", str(res), "--quiet"]) == 0
+    assert json.loads(res.read_text())["model"] == "ur5"
+    assert main(["export", str(res), "--out", str(tmp_path / "c.urdf")]) == 0
+    capsys.readouterr()
