@@ -148,6 +148,7 @@ def poses_from_table(cols: dict[str, Array], rotation: str, angle_unit: str, pre
                              f"{norm[k]:.6f}, expected a unit quaternion (qw, qx, qy, qz)",
                              file=path, row=k + 1)
         return transform_from_pq(np.column_stack([t, r]))
+    _check_angle_unit(r, rotation, angle_unit, prefix, path)
     r = r * (np.pi / 180.0 if angle_unit == "deg" else 1.0)
     if rotation == "rotvec":
         R = matrix_from_axis_angle(r)
@@ -156,6 +157,33 @@ def poses_from_table(cols: dict[str, Array], rotation: str, angle_unit: str, pre
     else:  # roll, pitch, yaw
         R = matrix_from_rpy(r)
     return transform_from(R, t)
+
+
+def _check_angle_unit(r: Array, rotation: str, angle_unit: str, prefix: str,
+                      path: Path) -> None:
+    """Angles in the other unit than the format says: radians beyond 2 pi (an Euler angle
+    or a rotation vector never needs more) are degrees, an error naming ``:deg``; degrees
+    that all stay within 2 pi (no station turned by more than 6 deg: no hand-eye motion)
+    look like radians, a warning (``angle-units``)."""
+    from kinecal.diagnostics import warn
+
+    cols = ", ".join(prefix + c for c in ROTATIONS[rotation])
+    size = np.linalg.norm(r, axis=1) if rotation == "rotvec" else np.max(np.abs(r), axis=1)
+    limit = 2.0 * np.pi * (1.0 + 1e-6)
+    if angle_unit == "rad":
+        bad = np.flatnonzero(size > limit)
+        if bad.size:
+            k = int(bad[0])
+            what = "rotation angle" if rotation == "rotvec" else "angle"
+            raise InputError(f"columns {cols}: {what} {size[k]:.6g} is beyond 2 pi for "
+                             f"radians; degrees? give the format as {rotation}:deg",
+                             file=path, row=k + 1)
+    elif len(r) > 1 and 0.0 < float(size.max()) <= limit:
+        warn("angle-units",
+             f"{path.name}: columns {cols} read in degrees stay within "
+             f"{float(size.max()):.3g} deg of zero in every row, too little turning for any "
+             f"calibration: they look like radians; give the format as {rotation} (radians) "
+             "if so")
 
 
 def numeric_row(row: list[str]) -> bool:

@@ -125,7 +125,9 @@ def calibrate_handeye_images(
                              "counts both even or both odd): its frame can flip between "
                              "images and is then guessed from the robot poses; use a board "
                              "with one even and one odd count, or ChArUco")
-        records, size = _detect_all(images, names, board, limits, progress)
+        expected = None if intrinsics is None or not intrinsics.size else \
+            tuple(intrinsics.size)
+        records, size = _detect_all(images, names, board, limits, progress, expected)
         intr = _intrinsics(records, board, size, intrinsics)
         if refine_intrinsics is None:
             refine_intrinsics = intrinsics is None
@@ -165,28 +167,40 @@ def calibrate_handeye_images(
 
 
 def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
-                limits: QualityLimits, progress: Callable[..., None] | None
+                limits: QualityLimits, progress: Callable[..., None] | None,
+                expected: tuple[int, int] | None = None
                 ) -> tuple[list[ImageRecord], tuple[int, int] | None]:
+    """Detect the board in every readable image; the session's image size is the size of
+    most images (ties: the first image's), or `expected` (the intrinsics' size) when images
+    have it, so one odd image, first or not, is the one rejected."""
     records: list[ImageRecord] = []
-    size: tuple[int, int] | None = None
+    sizes: list[tuple[int, int] | None] = []
     for name, im in zip(names, images, strict=True):
         gray = load_gray(im) if isinstance(im, str | Path) else np.asarray(im)
         if gray is None or gray.size == 0:
             records.append(ImageRecord(str(name), "rejected", "cannot read the image file"))
+            sizes.append(None)
         else:
             h, w = gray.shape[:2]
-            if size is not None and (w, h) != size:
-                records.append(ImageRecord(str(name), "rejected",
-                                           f"image size {w}x{h} differs from the first image's "
-                                           f"{size[0]}x{size[1]}"))
-            else:
-                size = size or (w, h)
-                det = detect(gray, board, limits)
-                records.append(ImageRecord(str(name), "used" if det.ok else "rejected",
-                                           det.reason, det))
+            sizes.append((w, h))
+            det = detect(gray, board, limits)
+            records.append(ImageRecord(str(name), "used" if det.ok else "rejected",
+                                       det.reason, det))
         if progress is not None:
             progress()
-    return records, size
+    seen = [z for z in sizes if z is not None]
+    if not seen:
+        return records, None
+    if expected is not None and tuple(expected) in seen:
+        size = tuple(expected)
+    else:
+        size = max(dict.fromkeys(seen), key=seen.count)  # most frequent, first on ties
+    for r, z in zip(records, sizes, strict=True):
+        if z is not None and z != size:
+            r.status, r.detection = "rejected", None
+            r.reason = (f"image size {z[0]}x{z[1]} differs from the other images' "
+                        f"{size[0]}x{size[1]}")
+    return records, size  # type: ignore[return-value]
 
 
 def _intrinsics(records: list[ImageRecord], board: Board, size: tuple[int, int] | None,
@@ -281,13 +295,17 @@ def _turn_flipped(records: list[ImageRecord], used: list[int], board: Board, F: 
 def _too_few(records: list[ImageRecord]) -> str:
     used = sum(r.status == "used" for r in records)
     reasons: dict[str, int] = {}
+    example: dict[str, ImageRecord] = {}
     for r in records:
         if r.status == "rejected":
             key = r.reason.split(":")[0].split(";")[0].split("(")[0].strip()
             reasons[key] = reasons.get(key, 0) + 1
-    summary = ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items(), key=lambda kv: -kv[1]))
+            example.setdefault(key, r)
+    ranked = sorted(reasons.items(), key=lambda kv: -kv[1])
+    summary = ", ".join(f"{k}: {v}" for k, v in ranked)
+    first = example[ranked[0][0]] if ranked else None
     return (f"{used} usable image(s) of {len(records)}: hand-eye calibration needs at least 3"
-            + (f" (rejected: {summary})" if summary else ""))
+            + (f" (rejected: {summary}; e.g. {first.name}: {first.reason})" if first else ""))
 
 
 def _plausibility(ref: ReprojectionRefinement, records: list[ImageRecord],

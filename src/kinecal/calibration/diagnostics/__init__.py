@@ -33,6 +33,9 @@ CODES: dict[str, str] = {
     "leg-range": "Stewart leg readings outside the geometry's leg range",
     "angle-units": "Stewart pose angles that look like radians",
     "handeye-conditioning": "hand-eye motions too close to one rotation axis for the noise",
+    "handeye-inconsistent": "robot and target poses that fit no X (inverted, quaternion order, "
+    "angle unit, --setup)",
+    "angle-units": "pose-file angles read in degrees that look like radians",
     "absolute-errors": "simulate(errors=...) got absolute parameter values, not deviations",
     # hand-eye calibration from images
     "board-symmetric": "a board that looks the same turned by 180 deg (frames can flip)",

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.diagnostics._common import repeat_groups, unit_factor_name
+from kinecal.calibration.diagnostics.handeye_consistency import TRANSLATION_LIMIT
 from kinecal.calibration.diagnostics.serial import check_pose_count
 from kinecal.diagnostics import warn
 from kinecal.spatial import invert_transform, skew
@@ -133,6 +134,12 @@ def check_handeye_units(G: Array, C: Array, X: Array, what: str = "stations") ->
     # a unit factor, not noise: far from 1, and many standard deviations from it (with
     # rotations about one axis only, s trades off against the translations along it)
     if not (s > 0 and abs(np.log(s)) > np.log(2.0) and (s - 1.0) ** 2 > SIGMAS**2 * var_s):
+        return False
+    # a unit factor explains the data: with it the stations fit (quaternions in another
+    # order, degrees read as radians or inverted poses also pull s away from 1, but leave
+    # a residual no scale removes: `handeye-inconsistent` reports those)
+    dist = s * float(np.sqrt(np.mean(np.sum(tc**2, axis=1))))  # in the robot's unit
+    if np.sqrt(3.0) * rms_s > TRANSLATION_LIMIT * dist:
         return False
     warn("scale-mismatch",
          f"the robot's translations are {s:.4g} times the target's in G X C = Y over the "

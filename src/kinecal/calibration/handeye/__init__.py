@@ -246,6 +246,10 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
         check_handeye_units,
         handeye_uncertainty,
     )
+    from kinecal.calibration.diagnostics.handeye_consistency import (
+        find_inconsistency,
+        warn_inconsistent,
+    )
 
     t0 = time.perf_counter()
     _choice(setup, SETUPS, "setup")
@@ -265,7 +269,7 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
                          "radian", option="rotation_weight")
     G = F if setup == "eye-in-hand" else invert_transform(F)
     X, Y = solve(G, C, method, pairs)
-    check_handeye_units(G, C, X)
+    X0 = X
     history: list[float] = []
     nfev = 0
     outliers: list[int] = []
@@ -296,6 +300,13 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
     inliers = np.setdiff1d(np.arange(len(G)), outliers)
     unc = handeye_uncertainty(G, C, X, Y, inliers if len(inliers) >= 3 else None)
     check_handeye_conditioning(unc, G[inliers] if len(inliers) >= 3 else G)
+    # stations that fit no X: a mix-up that makes them fit is named first; else a unit
+    # factor between robot and target (`scale-mismatch`); else the generic warning
+    inc = find_inconsistency(F, C, setup, X, Y, method)
+    if inc is not None and inc.fits_with is not None:
+        warn_inconsistent(inc)
+    elif not check_handeye_units(G, C, X0) and inc is not None:
+        warn_inconsistent(inc)
     res = HandEyeResult(X, Y, setup, method, refine, rot, tr, arot, atr, outliers, history,
                         nfev, time.perf_counter() - t0)
     res.x_uncertainty = unc
