@@ -70,7 +70,7 @@ def test_quaternions_in_xyzw_order_are_named_not_a_unit_mismatch(stations):
         out[:, :3, :3] = matrix_from_quaternion(q[:, [1, 2, 3, 0]])  # (x, y, z, w) read as wxyz
         return out
 
-    res, found = _codes(xyzw(G), xyzw(C))
+    _, found = _codes(xyzw(G), xyzw(C))
     assert "scale-mismatch" not in found  # before: "looks like ... inches"
     assert "both quaternions read in (x, y, z, w) order" in found["handeye-inconsistent"]
 

@@ -31,11 +31,10 @@ CODES: dict[str, str] = {
     "residual-above-noise": "the residual is far above the instrument's stated noise (--sigma)",
     "outliers": "poses whose error is far outside the others' spread",
     "leg-range": "Stewart leg readings outside the geometry's leg range",
-    "angle-units": "Stewart pose angles that look like radians",
+    "angle-units": "Stewart pose angles or hand-eye pose-file angles that look like radians",
     "handeye-conditioning": "hand-eye motions too close to one rotation axis for the noise",
     "handeye-inconsistent": "robot and target poses that fit no X (inverted, quaternion order, "
     "angle unit, --setup)",
-    "angle-units": "pose-file angles read in degrees that look like radians",
     "absolute-errors": "simulate(errors=...) got absolute parameter values, not deviations",
     # hand-eye calibration from images
     "board-symmetric": "a board that looks the same turned by 180 deg (frames can flip)",
