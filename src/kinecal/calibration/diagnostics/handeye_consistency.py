@@ -93,7 +93,16 @@ def find_inconsistency(F: Array, C: Array, setup: str, X: Array, Y: Array,
     method : str
         Closed form used to try the alternatives.
     """
-    from kinecal.calibration.handeye import solve
+    from kinecal.calibration.handeye._motions import check_motions, motion_pairs
+    from kinecal.calibration.handeye.axxb import SOLVERS
+    from kinecal.calibration.handeye.errors import mean_target_pose
+
+    def solve(G: Array, Ca: Array) -> tuple[Array, Array]:
+        """Park's closed form and the mean target pose (`calibration.handeye.solve`)."""
+        check_motions(invert_transform(G[:1]) @ G[1:], "robot motions")
+        check_motions(Ca[:1] @ invert_transform(Ca[1:]), "camera motions")
+        Xa = SOLVERS["park"](*motion_pairs(G, Ca, "all"))
+        return Xa, mean_target_pose(G, Xa, Ca)
 
     def robot(Fa: Array) -> Array:
         return Fa if setup == "eye-in-hand" else invert_transform(Fa)
@@ -101,7 +110,7 @@ def find_inconsistency(F: Array, C: Array, setup: str, X: Array, Y: Array,
     def screen(Fa: Array, Ca: Array) -> tuple[float, float] | None:
         """Scores of Park's closed form (fast, the same for every reading)."""
         try:
-            Xa, Ya = solve(robot(Fa), Ca, "park")
+            Xa, Ya = solve(robot(Fa), Ca)
         except InputError:
             return None
         return consistency_scores(robot(Fa), Ca, Xa, Ya)
