@@ -363,3 +363,6 @@ def test_auto_with_few_poses_never_chooses_what_a_fold_cannot_fit(ur5):
     with expect("few-poses", "rank-deficient", "too-few-poses"):
         tiny = calibrate_error_model(ur5, sim.data.subset(np.arange(9)), "auto")
     assert tiny.extra["error_model"]["folds"] == 9  # leave-one-out
+    # an explicit fold count beyond the poses is refused, not silently cut to leave-one-out
+    with pytest.raises(InputError, match=r"2 <= folds <= 15 poses, got 100"):
+        calibrate_error_model(ur5, sim.data, "auto", folds=100)

@@ -92,7 +92,7 @@ def calibrate_error_model(
     free: str | Sequence[str] = "identifiable",
     validate: Measurements | None = None,
     harmonics: int | None = None,
-    folds: int = DEFAULT_FOLDS,
+    folds: int | None = None,
     rank_tol: float = CALIBRATION_RANK_TOL,
     rotation_weight: float | None = None,
     **kwargs: Any,
@@ -117,8 +117,9 @@ def calibrate_error_model(
     harmonics : int, optional
         Harmonic order of the fixed choices (default 2); the largest order ``auto`` tries
         (default 3).
-    folds : int
-        Number of cross-validation folds (``auto``).
+    folds : int, optional
+        Number of cross-validation folds (``auto``), 2 to the number of poses; default 10,
+        or one fold per pose (leave-one-out) with fewer than 10 poses.
     rank_tol : float
         Relative pivot threshold of the identifiability analyses.
     rotation_weight : float, optional
@@ -174,7 +175,8 @@ def calibrate_error_model(
         # and the identifiability of every coefficient; each candidate is scored by K-fold
         # cross-validation, the one-standard-error rule chooses
         cols = list(geo.free) + coef_names
-        k = min(folds, len(data))  # few poses: leave-one-out
+        # default: 10 folds, leave-one-out below 10 poses; an explicit count is checked
+        k = min(DEFAULT_FOLDS, len(data)) if folds is None else int(folds)
         folded = FoldedRows(union, data, params, union.index(cols), k, rw)
         analysis = CoefficientAnalysis(union, data, geo.free, coef_names, params, rw,
                                        gram=folded.total, positions=folded.positions)
