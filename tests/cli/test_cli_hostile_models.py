@@ -170,3 +170,52 @@ def test_result_json_round_trip_still_works(other_results, tmp_path, capsys):
     assert json.loads(res.read_text())["model"] == "ur5"
     assert main(["export", str(res), "--out", str(tmp_path / "c.urdf")]) == 0
     capsys.readouterr()
+
+
+def test_urdf_directory_device_and_size_cap(tmp_path, joints3, capsys, monkeypatch):
+    folder = tmp_path / "robot.urdf"
+    folder.mkdir()
+    assert "is a directory, expected a URDF file" in _fail(["fk", str(folder), str(joints3)],
+                                                           capsys)
+    device = tmp_path / "zero.urdf"
+    device.symlink_to("/dev/zero")
+    assert "is a device" in _fail(["fk", str(device), str(joints3)], capsys)
+    # the whole file is read once (bounded) and parsed in one feed
+    import kinecal.io.urdf as urdf_module
+
+    path = tmp_path / "padded.urdf"
+    path.write_text(_urdf(_chain() + "<!-- " + "x" * 5000 + " -->"))
+    monkeypatch.setattr(urdf_module, "MAX_TEXT_BYTES", 4000)
+    err = _fail(["fk", str(path), str(joints3)], capsys)
+    assert "padded.urdf" in err and "too large for a URDF" in err
+
+
+def _gripper(tmp_path):
+    """An arm whose flange carries two prismatic fingers (the second mimics the first)."""
+    body = _chain() + '<link name="f1"/><link name="f2"/>' + \
+        _joint("fa", "l3", "f1", kind="prismatic") + \
+        _joint("fb", "l3", "f2", kind="prismatic").replace("</joint>",
+                                                           '<mimic joint="fa"/></joint>')
+    path = tmp_path / "gripper.urdf"
+    path.write_text(_urdf(body))
+    return path
+
+
+def test_noise_free_fit_reports_no_outliers(tmp_path, capsys):
+    """Round-off residuals (1.8e-15 m against a 3.6e-16 m median) were flagged as an
+    outlier pose on a clean, noise-free calibration."""
+    urdf = _gripper(tmp_path)
+    err = _fail(["fk", str(urdf), str(tmp_path / "none.csv")], capsys)
+    assert "branches (fa, fb)" in err and "f1, f2" in err
+    meas = tmp_path / "g.csv"
+    assert main(["simulate", str(urdf), "--tip-link", "f1", "--poses", "30", "--seed", "2",
+                 "--out", str(meas), "--quiet"]) == 0
+    out = tmp_path / "r.json"
+    assert main(["calibrate", str(urdf), str(meas), "--tip-link", "f1", "--out", str(out),
+                 "--quiet"]) == 0
+    assert "outliers" not in capsys.readouterr().err
+    result = json.loads(out.read_text())
+    assert result["calibration"]["after"]["max"] < 1e-12
+    assert not [w for w in result["warnings"] if w["code"] == "outliers"]
+    assert "mimics joint fa" in _fail(["fk", str(urdf), str(meas), "--tip-link", "f2"],
+                                      capsys)

@@ -4,6 +4,7 @@ joints and Cartesian targets, and the calibrated base frame's distance from nomi
 from __future__ import annotations
 
 import dataclasses
+from os import PathLike
 from typing import Any
 
 import numpy as np
@@ -109,6 +110,10 @@ def program_models(calibrated: Any, nominal: SerialModel | None) -> tuple[Serial
             raise InputError("compensate needs the nominal model (what the controller runs) "
                              "beside a calibrated model", option="--nominal")
         nom, cal = nominal, calibrated
+    elif isinstance(calibrated, (str, bytes, PathLike)):
+        raise InputError(f"calibrated: got the path or name {str(calibrated)!r}; expected a "
+                         "SerialModel (kinecal.load_model(path)), a CalibrationResult or a "
+                         "parameter vector")
     else:
         if nominal is None:
             raise InputError("a calibrated parameter vector needs its nominal model",

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from kinecal import diagnostics
+from kinecal._files import MAX_TEXT_BYTES, check_input_file
 from kinecal.errors import InputError
 from kinecal.kinematics.serial import SerialModel
 from kinecal.spatial import xyz_rpy_from_transform
@@ -72,14 +73,25 @@ def read_urdf(path: str | Path):
     if path.suffix.lower() == ".xacro" or path.name.lower().endswith(".urdf.xacro"):
         raise InputError("a xacro file: expand it first (xacro robot.urdf.xacro > robot.urdf)",
                          file=path)
-    if not path.is_file():
+    check_input_file(path, "a URDF file")
+    if path.is_dir():
+        raise InputError("is a directory, expected a URDF file", file=path)
+    if not path.exists():
         raise InputError("file not found", file=path)
-    try:  # a clean message with the line before yourdfpy's recovering parser sees it
-        root = ET.parse(path).getroot()
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(MAX_TEXT_BYTES + 1)
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
+    if len(data) > MAX_TEXT_BYTES:
+        raise InputError(f"more than {MAX_TEXT_BYTES / 1e6:.0f} MB: too large for a URDF",
+                         file=path)
+    try:  # a clean message with the line before yourdfpy's recovering parser sees it; one
+        # feed of the whole text (ET.parse's 64 kB feeds made expat quadratic in a long
+        # token: a 300 MB comment took many minutes)
+        root = ET.fromstring(data)
     except ET.ParseError as exc:
         raise InputError(f"not well-formed XML: {exc}", file=path) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc}", file=path) from None
     if root.tag != "robot":
         raise InputError(f"root element <{root.tag}>, expected <robot>", file=path)
     for tag in ("link", "joint"):

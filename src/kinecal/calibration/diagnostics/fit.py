@@ -18,6 +18,7 @@ from kinecal.calibration.diagnostics._common import (
     chi3_outliers,
     plural,
 )
+from kinecal.calibration.diagnostics.sizes import serial_size
 from kinecal.diagnostics import warn
 from kinecal.kinematics.chain import BASE_NAMES
 from kinecal.kinematics.serial import SerialModel
@@ -180,11 +181,20 @@ def pose_leverage(problem, x: Array, normal: Array | None = None) -> Array:
     return np.clip(h, 0.0, 1.0)
 
 
-def check_outliers(distances: Array, unit: str, leverage: Array | None = None) -> list[int]:
+#: errors below this fraction of the machine's size are round-off, not measurements: a
+#: noise-free fit's 1e-15 m "outlier" against a 4e-16 m median is no finding
+ROUND_OFF = 1e-9
+
+
+def check_outliers(distances: Array, unit: str, leverage: Array | None = None,
+                   size: float | None = None) -> list[int]:
     """``outliers``: poses whose distance error after a least-squares fit is an outlier
-    (`chi3_outliers` on the errors studentized by the poses' `leverage`, when given).
+    (`chi3_outliers` on the errors studentized by the poses' `leverage`, when given);
+    none when every error is below `ROUND_OFF` times the machine's `size`.
     Returns their 0-based indices."""
     d = np.asarray(distances, dtype=float)
+    if size is not None and d.size and d.max() <= ROUND_OFF * size:
+        return []
     if leverage is not None:
         d = d / np.sqrt(np.maximum(1.0 - np.asarray(leverage, dtype=float), 1e-3))
     out = chi3_outliers(d)
@@ -290,7 +300,7 @@ def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_ch
         return []
     e = problem.errors(x) if residual is None else problem.errors_from_residuals(residual)
     out = check_outliers(np.linalg.norm(e, axis=1), model.length_unit,
-                         pose_leverage(problem, x, normal))
+                         pose_leverage(problem, x, normal), serial_size(model))
     if groups is not None:
         check_lack_of_fit(e, groups, rank, model.length_unit)
     return out
