@@ -219,3 +219,46 @@ def test_noise_free_fit_reports_no_outliers(tmp_path, capsys):
     assert not [w for w in result["warnings"] if w["code"] == "outliers"]
     assert "mimics joint fa" in _fail(["fk", str(urdf), str(meas), "--tip-link", "f2"],
                                       capsys)
+
+
+def test_calibrate_model_out_under_a_urdf_name_is_refused_before_work(tmp_path, capsys):
+    """--model-out calibrated.urdf wrote YAML that fk, compensate and export then failed to
+    read ('not well-formed XML')."""
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", "ur5", "--poses", "40", "--seed", "2", "--out", str(meas),
+                 "--quiet"]) == 0
+    out, res = tmp_path / "cal.urdf", tmp_path / "r.json"
+    err = _fail(["calibrate", "ur5", str(meas), "--model-out", str(out), "--out", str(res)],
+                capsys)
+    assert "--model-out" in err and "cal.urdf" in err and "kinecal export" in err
+    assert not out.exists() and not res.exists()
+    from kinecal.errors import InputError
+    from kinecal.io.models import save_model
+
+    with pytest.raises(InputError, match="named like a URDF"):
+        save_model(load_model("ur5"), tmp_path / "x.URDF")
+
+
+def test_csv_from_a_pipe_is_named(tmp_path, capsys):
+    """A CSV read from a pipe was reported as 'empty file' (its header had been consumed
+    by a first reading)."""
+    import os
+    import threading
+
+    fifo = tmp_path / "joints.csv"
+    os.mkfifo(fifo)
+
+    def feed():
+        try:
+            with open(fifo, "w") as fh:
+                fh.write("q1,q2,q3,q4,q5,q6\n10,20,30,40,50,60\n")
+        except BrokenPipeError:
+            pass
+
+    writer = threading.Thread(target=feed, daemon=True)
+    writer.start()
+    err = _fail(["fk", "ur5", str(fifo)], capsys)
+    assert "is a pipe, not a file" in err and "JOINTS" in err
+    with open(fifo):  # let the writer finish if nothing opened the pipe
+        pass
+    writer.join(timeout=5)

@@ -71,6 +71,9 @@ def resolve_data_path(spec: str, option: str = "DATA") -> Path:
         raise InputError(f"{spec} is a directory, expected a CSV file", option=option)
     check_input_file(path, "a CSV file")
     if path.exists():
+        if not path.is_file():  # a pipe: the readers open a CSV more than once
+            raise InputError(f"{spec} is a pipe, not a file: CSV inputs are read more than "
+                             "once; save the data to a file first", option=option)
         return path
     if ":" in spec and not path.suffix:
         return bundled_csv(spec)

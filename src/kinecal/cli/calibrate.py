@@ -139,6 +139,10 @@ def calibrate(
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
     check_paths({"MODEL": model, "DATA": data, "--validate": validate},
                 {"--out": out, "--model-out": model_out, "--report": report})
+    if model_out is not None:
+        from kinecal.io.models import check_model_file_name
+
+        check_model_file_name(model_out, "--model-out")
     if maxiter is not None and maxiter < 1:
         raise InputError(f"expected a positive iteration budget, got {maxiter}",
                          option="--maxiter")

@@ -44,7 +44,8 @@ from kinecal.errors import InputError
 from kinecal.io.bundled import bundled_names, resolve_machine_file
 from kinecal.kinematics.serial import SerialModel
 
-__all__ = ["ModelFile", "bundled_models", "load_model", "model_path", "read_yaml", "save_model"]
+__all__ = ["ModelFile", "bundled_models", "check_model_file_name", "load_model", "model_path",
+           "read_yaml", "save_model"]
 
 _STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)  # NaN/inf: exit 2
 
@@ -355,11 +356,27 @@ def model_to_dict(model: SerialModel, angle_unit: str = "deg") -> dict:
     return data
 
 
+def check_model_file_name(path: str | Path, option: str | None = None) -> None:
+    """Refuse a model file (YAML) named ``.urdf`` or ``.xacro``: `load_model` would read it
+    back as a URDF and fail on the YAML (URDF output: ``kinecal export --format urdf``)."""
+    if str(path).lower().endswith((".urdf", ".xacro")):
+        raise InputError(f"{Path(path).name}: a kinecal model file (YAML) named like a URDF "
+                         "would be read back as a URDF: name it .yaml (for a calibrated "
+                         "URDF: kinecal export RESULT.json --nominal MODEL --out FILE.urdf)",
+                         option=option)
+
+
 def save_model(model: SerialModel, path: str | Path, angle_unit: str | None = None) -> None:
     """Write `model` as a model file that `load_model` reads back (atomic write).
 
     Angles are written in `angle_unit` (default: the model's own file unit).
+
+    Raises
+    ------
+    InputError
+        `path` is named like a URDF (`check_model_file_name`).
     """
+    check_model_file_name(path)
     angle_unit = angle_unit or model.angle_unit
     text = yaml.safe_dump(model_to_dict(model, angle_unit), sort_keys=False, width=100)
     write_text_atomic(path, text)
