@@ -132,3 +132,28 @@ def test_several_markers_compensated_for_the_nominal_tool(tmp_path, capsys):
     before = np.linalg.norm(arm.positions(q, p_true) - intended, axis=1)
     after = np.linalg.norm(arm.positions(q_comp, p_true) - intended, axis=1)
     assert before.min() > 0.1 and after.max() < 1e-6, (before, after)
+
+
+RAIL = """<?xml version="1.0"?>
+<robot name="rail">
+<link name="floor"/><link name="carriage"/>
+<joint name="rail" type="prismatic"><parent link="floor"/><child link="carriage"/>
+<origin xyz="0.1 0.2 0.5" rpy="0 0 0"/><axis xyz="1 0 0"/>
+<limit lower="0" upper="4" effort="1" velocity="1"/></joint>
+</robot>
+"""
+
+
+def test_a_linear_axis_is_recognised_as_its_own_calibration(tmp_path):
+    """Tool points on a line leave the registration's turn about it free: a calibrated
+    linear rail was refused as 'another arm' (tool frames 97 deg apart)."""
+    from kinecal.calibration.same_arm import check_same_arm
+
+    path = tmp_path / "rail.urdf"
+    path.write_text(RAIL)
+    nominal = load_model(path)
+    p = nominal.nominal
+    p[nominal.index(["base.rx", "base.ry", "tool.x", "tool.y", "tool.z"])] = [
+        0.004, -0.003, 1e-3, -2e-3, 5e-4]
+    reg = check_same_arm(nominal, nominal.with_params(p))
+    assert reg.rotation.max() < 0.01 and reg.position.max() < 0.01

@@ -88,6 +88,12 @@ def _kabsch(P: Array, Q: Array) -> Array:
     return transform_from(R, cq - R @ cp)
 
 
+def _on_a_line(P: Array) -> bool:
+    """True when the points ``(N, 3)`` lie on a line (or on one point)."""
+    sv = np.linalg.svd(P - P.mean(axis=0), compute_uv=False)
+    return bool(sv[1] <= 1e-6 * sv[0])
+
+
 def register(nominal: SerialModel, calibrated: SerialModel) -> Registration:
     """Register `calibrated` onto `nominal` over `SAMPLES` workspace configurations (in
     the nominal model's length unit).
@@ -114,7 +120,14 @@ def register(nominal: SerialModel, calibrated: SerialModel) -> Registration:
     lim[rev] = np.clip(lim[rev], -np.pi, np.pi)
     q = np.random.default_rng(0).uniform(lim[:, 0], lim[:, 1], (SAMPLES, nominal.n_joints))
     Tn, Tc = nominal.fk(q), calibrated.fk(q)
-    X = _kabsch(Tc[:, :3, 3], Tn[:, :3, 3])
+    P, Q = Tc[:, :3, 3], Tn[:, :3, 3]
+    if _on_a_line(P) or _on_a_line(Q):
+        # tool points on a line (an arm of parallel prismatic axes, a tool point on every
+        # joint axis) leave the turn about that line free: the tool frames' axes fix it
+        L = characteristic_length(nominal)
+        P = np.vstack([P + L * Tc[:, :3, k] for k in range(3)] + [P])
+        Q = np.vstack([Q + L * Tn[:, :3, k] for k in range(3)] + [Q])
+    X = _kabsch(P, Q)
     Tr = X @ Tc
     pos = np.linalg.norm(Tr[:, :3, 3] - Tn[:, :3, 3], axis=1)
     rot = rotation_angle(np.swapaxes(Tn[:, :3, :3], 1, 2) @ Tr[:, :3, :3])
