@@ -157,3 +157,18 @@ def test_a_linear_axis_is_recognised_as_its_own_calibration(tmp_path):
         0.004, -0.003, 1e-3, -2e-3, 5e-4]
     reg = check_same_arm(nominal, nominal.with_params(p))
     assert reg.rotation.max() < 0.01 and reg.position.max() < 0.01
+
+
+def test_a_compensated_program_given_back_is_refused_before_work(ur5_result, tmp_path,
+                                                                 capsys):
+    """The column clash was found after every row had been solved (and its warnings
+    printed)."""
+    prog = tmp_path / "p.csv"
+    prog.write_text("q1,q2,q3,q4,q5,q6\n0,0,0,0,0,0\n10,-80,60,20,50,60\n")
+    out, again = tmp_path / "o.csv", tmp_path / "o2.csv"
+    assert main(["compensate", str(ur5_result), str(prog), "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["compensate", str(ur5_result), str(out), "--out", str(again)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "o.csv" in err and "output of kinecal compensate" in err
+    assert "compensation-not-converged" not in err and not again.exists()

@@ -262,3 +262,14 @@ def test_csv_from_a_pipe_is_named(tmp_path, capsys):
     with open(fifo):  # let the writer finish if nothing opened the pipe
         pass
     writer.join(timeout=5)
+
+
+@pytest.mark.parametrize("kind", ["floating", "planar"])
+def test_a_mobile_base_joint_suggests_the_base_link(kind, tmp_path, joints3, capsys):
+    body = '<link name="world"/>' + _joint("mobile", "world", "l0", kind=kind) + _chain()
+    path = tmp_path / "mobile.urdf"
+    path.write_text(_urdf(body))
+    err = _fail(["fk", str(path), str(joints3)], capsys)
+    assert f"joint mobile is {kind}" in err and "--base-link l0" in err
+    assert main(["fk", str(path), str(joints3), "--base-link", "l0"]) == 0
+    assert capsys.readouterr().out.splitlines()[1] == "0,0,0.3"

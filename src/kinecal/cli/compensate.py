@@ -136,6 +136,14 @@ def read_program(path: Path, model) -> tuple[list[str], list[list[str]], dict]:
     if qcols and sorted(qcols) != sorted(joints):
         raise InputError(f"joint columns {', '.join(qcols)}: the model has {len(joints)} joints, "
                          f"expected {', '.join(joints)}", file=path)
+    written = ["converged", "correction", "correction_angle", "residual", "residual_angle",
+               "status", *(f"filtered_{c}" for c in ("x", "y", "z", *QUATERNION)),
+               *(f"d{c}" for c in joints)]
+    clash = [c for c in header if c in written]
+    if clash:  # found before any work (a compensated program given back, say)
+        raise InputError(f"column(s) {', '.join(clash)} are written by compensate (is this "
+                         "an output of kinecal compensate? give the original program); "
+                         "rename them", file=path)
     quat = [c for c in QUATERNION if c in header]
     if quat and len(quat) != 4:
         raise InputError(f"orientation columns {', '.join(quat)} without the others: expected "

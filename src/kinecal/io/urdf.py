@@ -257,8 +257,10 @@ def urdf_entries(chain: list, path: str | Path = "") -> tuple[list[dict], np.nda
             raise InputError(f"joint {j.name} mimics joint {j.mimic.joint}: coupled joints are "
                              "not supported; end the chain before it with --tip-link", file=path)
         if j.type in _UNSUPPORTED:
+            hint = (f"; start the chain below it with --base-link {j.child}"
+                    if not any(c.type in MOVING for c in chain[:chain.index(j)]) else "")
             raise InputError(f"joint {j.name} is {j.type}: kinecal models revolute, continuous, "
-                             "prismatic and fixed joints", file=path)
+                             f"prismatic and fixed joints{hint}", file=path)
         x, y, z, roll, pitch, yaw = _origin(j)
         pose = {"x": x, "y": y, "z": z, "roll": roll, "pitch": pitch, "yaw": yaw,
                 "parent": j.parent, "child": j.child}
