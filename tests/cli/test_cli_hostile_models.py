@@ -62,6 +62,8 @@ def joints3(tmp_path):
     # a duplicate joint name off the chain was accepted
     (_chain() + '<link name="s"/>' + _joint("j2", "l3", "s", kind="fixed"),
      "two <joint> elements named 'j2'"),
+    # was accepted: a joint's child that is not a link of the file (urdfdom refuses it)
+    (_chain() + _joint("j4", "l3", "ghost"), "joint j4: child link 'ghost' is not a <link>"),
     # was "0 root links (a cycle)"
     ('<link name="only"/>', "no <joint> elements"),
 ])
@@ -273,3 +275,18 @@ def test_a_mobile_base_joint_suggests_the_base_link(kind, tmp_path, joints3, cap
     assert f"joint mobile is {kind}" in err and "--base-link l0" in err
     assert main(["fk", str(path), str(joints3), "--base-link", "l0"]) == 0
     assert capsys.readouterr().out.splitlines()[1] == "0,0,0.3"
+
+
+def test_export_beside_a_gripper_names_the_tool_link_on_reading_back(tmp_path, joints3,
+                                                                     capsys):
+    """The patched URDF's tool link sits beside the fingers: the branching error listed
+    only the fingers, not the 'tool' link the user needs."""
+    urdf = _gripper(tmp_path)
+    out = tmp_path / "exported.urdf"
+    assert main(["export", str(urdf), "--tip-link", "l3", "--out", str(out)]) == 0
+    err = _fail(["fk", str(out), str(joints3)], capsys)
+    assert "--tip-link" in err and "f1, f2, tool" in err
+    assert main(["fk", str(out), str(joints3), "--tip-link", "tool"]) == 0
+    theirs = capsys.readouterr().out
+    assert main(["fk", str(urdf), str(joints3), "--tip-link", "l3"]) == 0
+    assert capsys.readouterr().out == theirs

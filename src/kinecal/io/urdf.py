@@ -102,6 +102,7 @@ def read_urdf(path: str | Path):
                 raise InputError(f"two <{tag}> elements named {name!r}: expected unique "
                                  f"{tag} names", file=path)
             seen.add(name)
+    links = {link.get("name") for link in root.findall("link")}
     if not root.findall("joint"):
         raise InputError("no <joint> elements: expected a chain of joints between links",
                          file=path)
@@ -113,6 +114,11 @@ def read_urdf(path: str | Path):
                 f"<{t} link=...>" for t in missing)
             raise InputError(f"joint {joint.get('name') or k + 1}: missing {what}", file=path)
         _check_numbers(joint, path)
+        for t in ("parent", "child"):
+            if joint.find(t).get("link") not in links:
+                raise InputError(f"joint {joint.get('name')}: {t} link "
+                                 f"{joint.find(t).get('link')!r} is not a <link> of the file",
+                                 file=path)
         if joint.get("type") in ("revolute", "prismatic") and joint.find("limit") is None:
             raise InputError(f"{joint.get('type')} joint {joint.get('name')}: missing <limit "
                              "lower=... upper=... effort=... velocity=...> (URDF requires it)",
@@ -233,7 +239,9 @@ def chain_path(urdf, base_link: str | None = None, tip_link: str | None = None,
             nxt = kids[0]
         else:
             branches = moving or kids
-            tips = sorted({t for j in branches for t in _leaves(j.child, by_parent)})
+            # every leaf below, fixed-only side branches too (the tool link of a kinecal
+            # export sits beside a gripper's fingers)
+            tips = sorted({t for j in kids for t in _leaves(j.child, by_parent)})
             raise InputError(
                 f"link {cur!r} branches ({', '.join(j.name for j in branches)}): choose the "
                 f"chain's end with --tip-link (one of {', '.join(tips)})", file=path)
