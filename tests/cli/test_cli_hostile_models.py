@@ -284,6 +284,7 @@ def test_export_beside_a_gripper_names_the_tool_link_on_reading_back(tmp_path, j
     urdf = _gripper(tmp_path)
     out = tmp_path / "exported.urdf"
     assert main(["export", str(urdf), "--tip-link", "l3", "--out", str(out)]) == 0
+    capsys.readouterr()
     err = _fail(["fk", str(out), str(joints3)], capsys)
     assert "--tip-link" in err and "f1, f2, tool" in err
     assert main(["fk", str(out), str(joints3), "--tip-link", "tool"]) == 0
