@@ -291,3 +291,36 @@ def test_export_beside_a_gripper_names_the_tool_link_on_reading_back(tmp_path, j
     theirs = capsys.readouterr().out
     assert main(["fk", str(urdf), str(joints3), "--tip-link", "l3"]) == 0
     assert capsys.readouterr().out == theirs
+
+
+def test_compensate_with_the_calibrated_urdf_of_an_arm_with_a_gripper(tmp_path, capsys):
+    """--tip-link names the nominal URDF's chain end; the calibrated export of an arm with
+    fingers could not be read at all (its default chain branches at the fingers)."""
+    links = "".join(f'<link name="{n}"/>' for n in ("l0", "l1", "l2", "l3", "f1", "f2"))
+    body = links + _joint("j1", "l0", "l1", xyz="0 0 0.3") + \
+        _joint("j2", "l1", "l2", xyz="0.05 0 0.1", axis="0 1 0") + \
+        _joint("j3", "l2", "l3", xyz="0.4 0 0", axis="0 1 0") + \
+        _joint("fa", "l3", "f1", xyz="0.3 0.02 0", axis="0 1 0", kind="prismatic") + \
+        _joint("fb", "l3", "f2", xyz="0.3 -0.02 0", axis="0 -1 0", kind="prismatic")
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(_urdf(body))
+    meas, res, cal = tmp_path / "m.csv", tmp_path / "r.json", tmp_path / "cal.urdf"
+    assert main(["simulate", str(urdf), "--tip-link", "l3", "--poses", "40", "--seed", "3",
+                 "--out", str(meas), "--quiet"]) == 0
+    assert main(["calibrate", str(urdf), str(meas), "--tip-link", "l3", "--out", str(res),
+                 "--quiet"]) == 0
+    assert main(["export", str(res), "--nominal", str(urdf), "--tip-link", "l3", "--out",
+                 str(cal)]) == 0
+    prog = tmp_path / "p.csv"
+    prog.write_text("q1,q2,q3\n10,20,30\n-40,25,60\n")
+    outs = []
+    for calibrated in (res, cal):
+        out = tmp_path / f"o-{calibrated.stem}.csv"
+        assert main(["compensate", str(calibrated), str(prog), "--nominal", str(urdf),
+                     "--tip-link", "l3", "--out", str(out), "--quiet"]) == 0
+        lines = out.read_text().splitlines()
+        header = lines[0].split(",")
+        outs.append(np.array([[float(v) for v in line.split(",")[:3]] for line in lines[1:]]))
+        assert all(line.split(",")[header.index("converged")] == "true" for line in lines[1:])
+    np.testing.assert_allclose(outs[0], outs[1], atol=1e-9)
+    capsys.readouterr()

@@ -67,7 +67,18 @@ def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None
     def load_model(name: str | Path):
         if _is_urdf(name) and str(name) == str(links_for):
             return _load_model(name, base_link=base_link, tip_link=tip_link)
-        return _load_model(name)
+        try:
+            return _load_model(name)
+        except InputError as exc:
+            # an export's tool link beside a gripper's fingers: the calibrated chain ends
+            # there (the --tip-link option names the nominal URDF's tip)
+            if not (_is_urdf(name) and "branches" in exc.message):
+                raise
+            from kinecal.io.urdf import read_urdf
+
+            if "tool" not in {link.name for link in read_urdf(name).robot.links}:
+                raise
+            return _load_model(name, tip_link="tool")
 
     path = Path(spec)
     if not path.exists():
