@@ -114,6 +114,24 @@ def test_urdf_saved_as_xml_is_read_as_urdf(tmp_path, capsys):
     assert main(["fk", str(xml), str(joints)]) == 0
     got = np.array(capsys.readouterr().out.splitlines()[1].split(","), dtype=float)
     np.testing.assert_allclose(got, ours[0], rtol=1e-9)
+    # every command that takes --tip-link, and the export into a copy of the file, treat it
+    # as the URDF it is (they judged by the suffix: 'applies to URDF models only')
+    assert main(["fk", str(xml), str(joints), "--tip-link", "tool0"]) == 0
+    assert capsys.readouterr().out.splitlines()[1] == ",".join(f"{v:.10g}" for v in ours[0])
+    meas = tmp_path / "m.csv"
+    assert main(["simulate", str(xml), "--poses", "30", "--seed", "1", "--out", str(meas),
+                 "--quiet"]) == 0
+    jobs = tmp_path / "jobs.yaml"
+    jobs.write_text(f"jobs:\n  - {{name: a, model: {xml}, data: {meas}, tip_link: tool0}}\n")
+    assert main(["batch", str(jobs), "--out", str(tmp_path / "runs"), "--quiet"]) == 0
+    res = tmp_path / "r.json"
+    assert main(["calibrate", str(xml), str(meas), "--out", str(res), "--quiet"]) == 0
+    assert main(["compensate", str(res), str(joints), "--nominal", str(xml), "--tip-link",
+                 "tool0", "--out", str(tmp_path / "c.csv"), "--quiet"]) == 0
+    assert main(["export", str(res), "--nominal", str(xml), "--out",
+                 str(tmp_path / "cal.urdf")]) == 0
+    assert (tmp_path / "cal.urdf").read_text().count("<mesh") == KR16.read_text().count("<mesh")
+    capsys.readouterr()
 
 
 @pytest.fixture(scope="module")

@@ -301,7 +301,7 @@ def _check_job(job: Job, source: str | Path | None) -> None:
                              names={k: k for k in ("loss", "maxiter", "target", "options")})
         _check_error_model(job)
         if (job.base_link is not None or job.tip_link is not None) and not _is_urdf(job.model):
-            raise InputError("base_link and tip_link apply to URDF models (.urdf) only, not "
+            raise InputError("base_link and tip_link apply to URDF models only, not "
                              f"to {job.model!r}", option="base_link")
         if job.poses is not None:
             check_count(job.poses + job.validation_poses, "poses",
@@ -320,7 +320,9 @@ def _key(option: str | None) -> str:
 
 
 def _is_urdf(model: str) -> bool:
-    return Path(model).suffix.lower() in (".urdf", ".xacro")
+    from kinecal.io.models import is_urdf_path
+
+    return is_urdf_path(model)
 
 
 def _check_error_model(job: Job) -> None:

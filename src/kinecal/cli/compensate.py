@@ -35,7 +35,9 @@ _SUFFIX = "-calibrated"
 
 
 def _is_urdf(spec: str | Path | None) -> bool:
-    return spec is not None and str(spec).lower().endswith((".urdf", ".xacro"))
+    from kinecal.io.models import is_urdf_path
+
+    return is_urdf_path(spec)
 
 
 def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None,

@@ -99,7 +99,9 @@ def model_and_params(source: str, nominal: str | None, base_link: str | None,
 
 
 def _urdf_path(spec: str) -> Path | None:
-    return Path(spec) if spec.lower().endswith(".urdf") else None
+    from kinecal.io.models import is_urdf_path
+
+    return Path(spec) if is_urdf_path(spec) else None
 
 
 @app.command("export")

@@ -44,8 +44,8 @@ from kinecal.errors import InputError
 from kinecal.io.bundled import bundled_names, resolve_machine_file
 from kinecal.kinematics.serial import SerialModel
 
-__all__ = ["ModelFile", "bundled_models", "check_model_file_name", "load_model", "model_path",
-           "read_yaml", "save_model"]
+__all__ = ["ModelFile", "bundled_models", "check_model_file_name", "is_urdf_path", "load_model",
+           "model_path", "read_yaml", "save_model"]
 
 _STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)  # NaN/inf: exit 2
 
@@ -236,6 +236,14 @@ def _is_xml(path: str | Path) -> bool:
     return head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<")
 
 
+def is_urdf_path(path: str | Path | None) -> bool:
+    """True for a path `load_model` reads as a URDF: a ``.urdf`` or ``.xacro`` name, or a
+    file that starts like XML (``robot.xml``)."""
+    if path is None:
+        return False
+    return str(path).lower().endswith((".urdf", ".xacro")) or _is_xml(path)
+
+
 def load_model(name_or_path: str | Path, *, base_link: str | None = None,
                tip_link: str | None = None) -> SerialModel:
     """Load a serial-arm model from a bundled name (``irb120``), a YAML path or a URDF.
@@ -249,7 +257,7 @@ def load_model(name_or_path: str | Path, *, base_link: str | None = None,
     InputError
         Unknown name, unreadable file, or a schema violation (named key and reason).
     """
-    if str(name_or_path).lower().endswith((".urdf", ".xacro")) or _is_xml(name_or_path):
+    if is_urdf_path(name_or_path):
         from kinecal.io.urdf import load_urdf
 
         return load_urdf(name_or_path, base_link=base_link, tip_link=tip_link)
