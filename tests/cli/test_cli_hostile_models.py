@@ -342,3 +342,28 @@ def test_compensate_with_the_calibrated_urdf_of_an_arm_with_a_gripper(tmp_path, 
         assert all(line.split(",")[header.index("converged")] == "true" for line in lines[1:])
     np.testing.assert_allclose(outs[0], outs[1], atol=1e-9)
     capsys.readouterr()
+
+
+def test_a_result_of_another_chain_of_the_urdf_is_refused(tmp_path, capsys):
+    """Calibrated from link_1 (5 joints), exported or compensated without --base-link: the
+    6-joint chain took the result's values silently (its base frame then meant another
+    frame, joint 1 stayed nominal)."""
+    urdf = str(KR16)
+    meas, res = tmp_path / "m.csv", tmp_path / "r.json"
+    assert main(["simulate", urdf, "--base-link", "link_1", "--poses", "40", "--seed", "1",
+                 "--out", str(meas), "--quiet"]) == 0
+    assert main(["calibrate", urdf, str(meas), "--base-link", "link_1", "--out", str(res),
+                 "--quiet"]) == 0
+    prog = tmp_path / "p.csv"
+    prog.write_text("q1,q2,q3,q4,q5,q6\n10,-80,60,20,50,60\n")
+    out = tmp_path / "out.urdf"
+    for args in (["export", str(res), "--nominal", urdf, "--out", str(out)],
+                 ["fk", urdf, str(prog), "--params", str(res)],
+                 ["compensate", str(res), str(prog), "--nominal", urdf, "--out",
+                  str(tmp_path / "c.csv")]):
+        err = _fail(args, capsys)
+        assert "r.json" in err and "no values for 7 parameters" in err and "--base-link" in err
+    assert not out.exists()
+    assert main(["export", str(res), "--nominal", urdf, "--base-link", "link_1", "--out",
+                 str(out)]) == 0
+    capsys.readouterr()

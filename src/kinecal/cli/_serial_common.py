@@ -104,6 +104,18 @@ def parameters_from_result(model, path: Path) -> np.ndarray:
                              f"{mine:.6g} in model {model.name!r}: a result of another model",
                              file=path)
         p[k] = value * conv
+    if "kinecal" in data and isinstance(data.get("free"), list):
+        # a result written by calibrate lists every parameter of the chain it calibrated:
+        # one without some of this model's is of another chain (a URDF read with other
+        # --base-link / --tip-link), whose base frame means something else here
+        geometric = model.parameter_names[: getattr(model, "_n_geometric", model.n_params)]
+        missing = [n for n in geometric if n not in params]
+        if missing:
+            raise InputError(
+                f"the result has no values for {len(missing)} parameters of model "
+                f"{model.name!r} ({', '.join(missing[:4])}{', ...' if len(missing) > 4 else ''})"
+                ": it calibrated another chain; give the --base-link / --tip-link (or model) "
+                "it was calibrated with", file=path)
     return p
 
 
