@@ -114,6 +114,17 @@ def test_simulate_then_calibrate(tmp_path, capsys):
     assert np.abs(load_geometry("liu2008-cmm").parameters - true).max() > 5e-4
 
 
+def test_simulate_quiet_and_strict(tmp_path, capsys):
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    assert main(["stewart", "simulate", "liu2008-cmm", "--poses", "5", "--seed", "3",
+                 "--out", str(a)]) == 0  # fmt: skip
+    assert "wrote 5 poses" in capsys.readouterr().err
+    assert main(["stewart", "simulate", "liu2008-cmm", "--poses", "5", "--seed", "3",
+                 "--out", str(b), "--quiet", "--strict"]) == 0  # fmt: skip
+    assert capsys.readouterr().err == ""
+    assert a.read_bytes() == b.read_bytes()  # same seed, same file
+
+
 def test_calibrate_too_few_rows(tmp_path, capsys):
     data = tmp_path / "d.csv"
     assert main(["stewart", "simulate", "liu2008-cmm", "--poses", "3", "--out", str(data)]) == 0

@@ -203,6 +203,8 @@ def simulate(
     seed: int = seed_option(),
     out: Path = typer.Option(..., "--out", help="DATA.csv: x..gamma (deg) and l1..l6."),
     truth_out: Path | None = typer.Option(None, "--truth-out", help="Write the true geometry."),
+    strict: bool = strict_option(),
+    quiet: bool = quiet_option(),
 ) -> None:
     """Simulate calibration data: measured poses and leg readings of a perturbed machine."""
     from kinecal.calibration.diagnostics.sizes import (
@@ -222,42 +224,45 @@ def simulate(
         errors_file = errors
     check_paths({"GEOMETRY": geometry, "--errors": errors_file},
                 {"--out": out, "--truth-out": truth_out})
-    geom = _geometry(geometry)
-    check_count(poses, "--poses", bytes_per_item=_SIM_POSE_BYTES)
-    for name, v in (("--noise-position", noise_position), ("--noise-rotation", noise_rotation),
-                    ("--noise-legs", noise_legs)):  # fmt: skip
-        if not (np.isfinite(v) and v >= 0):
-            raise InputError("expected a non-negative number", option=name)
-    # plausible for the machine's size (kinecal.calibration.diagnostics.sizes)
-    size, unit = stewart_size(geom), _geometry_unit(geometry)
-    check_length_noise(noise_position, size, "--noise-position", unit)
-    check_length_noise(noise_legs, size, "--noise-legs", unit)
-    check_angle_noise(noise_rotation * ARCSEC, "--noise-rotation", f"{noise_rotation:g} arcsec")
-    rng = np.random.default_rng(seed)
-    try:
-        amplitude = float(errors)
-    except ValueError:
-        true = load_geometry(errors)
-    else:
-        if not (np.isfinite(amplitude) and amplitude >= 0):
-            raise InputError("expected a non-negative amplitude or a YAML file", option="--errors")
-        check_length_noise(amplitude, size, "--errors", unit, "geometry error amplitude")
-        true = perturb_geometry(geom, amplitude, rng)
-    data = simulate_stewart(
-        true,
-        poses,
-        rng=rng,
-        position_noise=noise_position,
-        rotation_noise=noise_rotation * ARCSEC,
-        leg_noise=noise_legs,
-    )
-    deg = radians_to_degrees(data.poses)
-    cols = {c: deg[:, k] for k, c in enumerate(POSE_COLUMNS)}
-    cols.update({c: data.legs[:, k] for k, c in enumerate(LEG_COLUMNS)})
-    write_table(out, cols)
-    if truth_out is not None:
-        save_geometry(true, truth_out)
-    typer.echo(f"wrote {poses} poses to {out}", err=True)
+    with warnings_scope(strict):
+        geom = _geometry(geometry)
+        check_count(poses, "--poses", bytes_per_item=_SIM_POSE_BYTES)
+        for name, v in (("--noise-position", noise_position), ("--noise-rotation", noise_rotation),
+                        ("--noise-legs", noise_legs)):  # fmt: skip
+            if not (np.isfinite(v) and v >= 0):
+                raise InputError("expected a non-negative number", option=name)
+        # plausible for the machine's size (kinecal.calibration.diagnostics.sizes)
+        size, unit = stewart_size(geom), _geometry_unit(geometry)
+        check_length_noise(noise_position, size, "--noise-position", unit)
+        check_length_noise(noise_legs, size, "--noise-legs", unit)
+        check_angle_noise(noise_rotation * ARCSEC, "--noise-rotation", f"{noise_rotation:g} arcsec")
+        rng = np.random.default_rng(seed)
+        try:
+            amplitude = float(errors)
+        except ValueError:
+            true = load_geometry(errors)
+        else:
+            if not (np.isfinite(amplitude) and amplitude >= 0):
+                raise InputError("expected a non-negative amplitude or a YAML file",
+                                 option="--errors")
+            check_length_noise(amplitude, size, "--errors", unit, "geometry error amplitude")
+            true = perturb_geometry(geom, amplitude, rng)
+        data = simulate_stewart(
+            true,
+            poses,
+            rng=rng,
+            position_noise=noise_position,
+            rotation_noise=noise_rotation * ARCSEC,
+            leg_noise=noise_legs,
+        )
+        deg = radians_to_degrees(data.poses)
+        cols = {c: deg[:, k] for k, c in enumerate(POSE_COLUMNS)}
+        cols.update({c: data.legs[:, k] for k, c in enumerate(LEG_COLUMNS)})
+        write_table(out, cols)
+        if truth_out is not None:
+            save_geometry(true, truth_out)
+    if not quiet:
+        typer.echo(f"wrote {poses} poses to {out}", err=True)
 
 
 def _geometry_unit(spec: str) -> str:
