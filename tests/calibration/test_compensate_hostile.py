@@ -91,6 +91,11 @@ def test_summary_corrections_leave_out_rows_that_failed(ur5_result):
     assert "correction (converged rows): mean" in text
     mean = float(text.split("correction (converged rows): mean ")[1].split()[0])
     assert mean == pytest.approx(res.correction[0], rel=1e-3) and mean < 10.0
+    stats = res.stats()  # the JSON says the same, and says over which rows
+    assert stats["correction_rows"] == "converged"
+    assert stats["correction"]["mean"] == pytest.approx(res.correction[0], rel=1e-12)
+    assert stats["joint_correction_rad"]["max"] == pytest.approx(
+        np.abs(res.dq[0]).max(), rel=1e-12)
 
 
 def test_several_markers_compensated_for_the_nominal_tool(tmp_path, capsys):

@@ -86,9 +86,7 @@ class CompensationResult:
         ok = self.converged
         lines = [f"compensated {n} {'joint-program rows' if self.kind == 'joints' else 'targets'}"
                  f" ({self.outputs}): {int(ok.sum())} converged"]
-        # corrections of the rows that converged: a failed row's "correction" is the distance
-        # to wherever its solver stopped (a target out of reach gave "mean 1320 mm")
-        rows = ok if ok.any() and not ok.all() else np.ones(n, dtype=bool)
+        rows = self._statistics_rows()
         which = " (converged rows)" if not ok.all() else ""
         if n and ok.any():
             c = self.correction[rows]
@@ -106,6 +104,13 @@ class CompensationResult:
             if k and s != "converged":
                 lines.append(f"  {s}: {k} rows")
         return "\n".join(lines)
+
+    def _statistics_rows(self) -> NDArray[np.bool_]:
+        """The rows the correction statistics describe (summary and JSON alike): those that
+        converged, when some did; a failed row's "correction" is the distance to wherever
+        its solver stopped (a target out of reach gave "mean 1320 mm")."""
+        ok = self.converged
+        return ok if ok.any() and not ok.all() else np.ones(len(self), dtype=bool)
 
     def _prismatic(self) -> NDArray[np.bool_]:
         return (np.zeros(self.dq.shape[1], dtype=bool) if self.prismatic is None
@@ -142,14 +147,18 @@ class CompensationResult:
             return {"mean": float(x.mean()), "rms": float(np.sqrt(np.mean(x ** 2))),
                     "max": float(x.max())}
 
+        rows = self._statistics_rows()
+        rev, lin = self.joint_motion()
         return {"kind": self.kind, "outputs": self.outputs, "rows": len(self),
                 "converged": int(self.converged.sum()), "status": self.ik.counts(),
                 "length_unit": self.length_unit,
-                "correction": s(self.correction),
-                "correction_rotation_rad": s(self.correction_rotation),
+                # like the summary: corrections over the converged rows when some failed
+                "correction_rows": "all" if rows.all() else "converged",
+                "correction": s(self.correction[rows]),
+                "correction_rotation_rad": s(self.correction_rotation[rows]),
                 "error_before": s(self.error_before),
                 "residual": s(self.residual[self.converged]),
-                "joint_correction_rad": s(self.joint_motion()[0]) if len(self) else None,
-                **({"joint_correction_length": s(self.joint_motion()[1]) if len(self) else None}
+                "joint_correction_rad": s(rev[rows]) if len(self) else None,
+                **({"joint_correction_length": s(lin[rows]) if len(self) else None}
                    if self._prismatic().any() else {})}
 
