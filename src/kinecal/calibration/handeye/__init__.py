@@ -154,6 +154,12 @@ def solve(G: Array, C: Array, method: str = "tsai", pairs: str = "all") -> tuple
     X, Y : ndarray, shape (4, 4)
     """
     _choice(method, METHODS, "method")
+    return _solve(G, C, method, pairs)[:2]
+
+
+def _solve(G: Array, C: Array, method: str, pairs: str
+           ) -> tuple[Array, Array, Array | None, Array | None]:
+    """`solve`, and the motion pairs ``A, B`` it used (None for the AX = ZB methods)."""
     # motions relative to station 0 suffice to detect degeneracy: if all of them turn about
     # one axis, so does every pair
     A0 = invert_transform(G[:1]) @ G[1:]
@@ -163,10 +169,10 @@ def solve(G: Array, C: Array, method: str = "tsai", pairs: str = "all") -> tuple
     if method in axxb.SOLVERS:
         A, B = motion_pairs(G, C, pairs)
         X = axxb.SOLVERS[method](A, B)
-        return X, mean_target_pose(G, X, C)
+        return X, mean_target_pose(G, X, C), A, B
     # A_i X' = Z' B_i with A_i = C_i, B_i = G_i^-1, X' = Y^-1, Z' = X^-1
     Xp, Zp = axzb.SOLVERS[method](C, invert_transform(G))
-    return invert_transform(Zp), invert_transform(Xp)
+    return invert_transform(Zp), invert_transform(Xp), None, None
 
 
 def calibrate_handeye(
@@ -248,6 +254,7 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
     )
     from kinecal.calibration.diagnostics.handeye_consistency import (
         find_inconsistency,
+        station_scores,
         warn_inconsistent,
     )
 
@@ -268,7 +275,7 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
         raise InputError(f"rotation_weight {rotation_weight}: expected a positive length per "
                          "radian", option="rotation_weight")
     G = F if setup == "eye-in-hand" else invert_transform(F)
-    X, Y = solve(G, C, method, pairs)
+    X, Y, A, B = _solve(G, C, method, pairs)
     X0 = X
     history: list[float] = []
     nfev = 0
@@ -296,13 +303,15 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
 
         outliers = flag_outliers(G, C, X, Y)
     rot, tr = station_residuals(G, X, C, Y)
-    arot, atr = axxb_station_rms(G, C, X)
+    # the motion pairs of the closed form serve the A X - X B residuals (no second copy)
+    arot, atr = axxb_station_rms(G, C, X, motions=(A, B) if pairs == "all" and A is not None
+                                 else None)
     inliers = np.setdiff1d(np.arange(len(G)), outliers)
     unc = handeye_uncertainty(G, C, X, Y, inliers if len(inliers) >= 3 else None)
     check_handeye_conditioning(unc, G[inliers] if len(inliers) >= 3 else G)
     # stations that fit no X: a mix-up that makes them fit is named first; else a unit
     # factor between robot and target (`scale-mismatch`); else the generic warning
-    inc = find_inconsistency(F, C, setup, X, Y, method)
+    inc = find_inconsistency(F, C, setup, X, Y, method, scores=station_scores(rot, tr, C))
     if inc is not None and inc.fits_with is not None:
         warn_inconsistent(inc)
     elif not check_handeye_units(G, C, X0) and inc is not None:

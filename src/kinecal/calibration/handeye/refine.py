@@ -301,5 +301,5 @@ def flag_outliers(G: Array, C: Array, X: Array, Y: Array, level: float = 0.999) 
     L = max(float(np.sqrt(np.mean(np.sum(C[:, :3, 3] ** 2, axis=1)))), 1e-300)
     rot, tr = camera_residuals(G, C, X, Y)
     sr, st = _scales(rot, tr, L)
-    d = _distances(G, C, X, Y, sr, st)
+    d = np.sqrt(np.sum((rot / sr) ** 2, 1) + np.sum((tr / st) ** 2, 1))  # `_distances`
     return [int(i) for i in np.flatnonzero(d**2 > chdtri(6, 1.0 - level))]
