@@ -138,31 +138,74 @@ def edge_width(gray: NDArray[np.uint8], mask: NDArray[np.bool_] | None = None) -
     magnitude; NaN when the region has no contrast.
     """
     cv2 = require_cv2()
-    g = gray.astype(np.float32)
+    g = gray if gray.dtype == np.uint8 else gray.astype(np.float32)
+    n = gray.size if mask is None else int(np.count_nonzero(mask))
+    if n < 16:
+        return float("nan")
+    if gray.dtype == np.uint8:  # grey levels: the percentiles from their histogram
+        m8 = None if mask is None else mask.view(np.uint8)
+        counts = cv2.calcHist([g], [0], m8, [256], [0, 256]).ravel()
+        lo, hi = _percentiles_of_levels(counts, (2.0, 98.0))
+    else:
+        lo, hi = np.percentile(g[mask] if mask is not None else g, [2.0, 98.0])
+    if hi - lo < 10.0:
+        return float("nan")
     gx = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3) / 8.0
     gy = cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3) / 8.0
     mag = np.sqrt(gx * gx + gy * gy)
-    if mask is not None:
-        vals, mags = g[mask], mag[mask]
-    else:
-        vals, mags = g.ravel(), mag.ravel()
-    if vals.size < 16:
-        return float("nan")
-    lo, hi = np.percentile(vals, [2.0, 98.0])
-    peak = float(np.percentile(mags, 99.5))
-    if hi - lo < 10.0 or peak <= 0:
+    peak = float(np.percentile(mag[mask] if mask is not None else mag.ravel(), 99.5))
+    if peak <= 0:
         return float("nan")
     return float(0.78 * (hi - lo) / peak)
 
 
-def _hull_mask(shape: tuple[int, int], pts: Array, grow: float) -> NDArray[np.bool_]:
+def _percentiles_of_levels(counts: Array, q: tuple[float, ...]) -> Array:
+    """``numpy.percentile`` (linear method) of integer levels given by their histogram
+    ``counts`` (level i counted ``counts[i]`` times): the order statistics from the
+    cumulative counts, interpolated exactly as numpy does (same values, bit for bit;
+    tests/vision)."""
+    cum = np.cumsum(counts.astype(np.int64))
+    n = int(cum[-1])
+    vi = (n - 1) * np.true_divide(np.asarray(q, dtype=float), 100)
+    prev = np.floor(vi)
+    i0 = np.clip(prev, 0, n - 1).astype(np.intp)
+    i1 = np.clip(prev + 1, 0, n - 1).astype(np.intp)
+    a = np.searchsorted(cum, i0, side="right").astype(float)  # level of rank i0
+    b = np.searchsorted(cum, i1, side="right").astype(float)
+    gamma = vi - prev
+    diff = b - a
+    return np.where(gamma >= 0.5, b - diff * (1 - gamma), a + diff * gamma)
+
+
+def _hull_polygon(pts: Array, grow: float) -> NDArray[np.int32]:
+    """Integer vertices ``(k, 2)`` of the convex hull of `pts` grown about its centroid."""
     cv2 = require_cv2()
     hull = cv2.convexHull(pts.astype(np.float32)).reshape(-1, 2)
     c = hull.mean(axis=0)
     hull = c + (hull - c) * grow
+    return np.round(hull).astype(np.int32)
+
+
+def _hull_mask(shape: tuple[int, int], pts: Array, grow: float) -> NDArray[np.bool_]:
+    cv2 = require_cv2()
     mask = np.zeros(shape, np.uint8)
-    cv2.fillConvexPoly(mask, np.round(hull).astype(np.int32), 1)
+    cv2.fillConvexPoly(mask, _hull_polygon(pts, grow), 1)
     return mask.astype(bool)
+
+
+def _board_edge_width(gray: NDArray[np.uint8], pts: Array, grow: float) -> float:
+    """`edge_width` within the grown hull of `pts`, on the hull's bounding box plus 2 px
+    (the Sobel gradient needs one; same pixels, same values as on the whole image)."""
+    cv2 = require_cv2()
+    poly = _hull_polygon(pts, grow)
+    h, w = gray.shape
+    x0, y0 = np.maximum(poly.min(axis=0) - 2, 0)
+    x1, y1 = np.minimum(poly.max(axis=0) + 3, (w, h))
+    if x1 <= x0 or y1 <= y0:
+        return float("nan")
+    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    cv2.fillConvexPoly(mask, poly - np.array([x0, y0], np.int32), 1)
+    return edge_width(gray[y0:y1, x0:x1], mask.astype(bool))
 
 
 def _spacing(corners: Array, cols: int) -> float:
@@ -179,10 +222,26 @@ def _subpix(gray: NDArray[np.uint8], corners: Array, spacing: float) -> Array:
     cv2 = require_cv2()
     half = int(np.clip(np.floor(0.45 * spacing), 2, 15))
     sigma = min(1.5, spacing / 12.0)
-    img = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), sigma) if sigma >= 0.3 else gray
+    img = _blurred_around(gray, corners, sigma, 2 * half + 3) if sigma >= 0.3 else gray
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
     c = corners.astype(np.float32).reshape(-1, 1, 2)
     return cv2.cornerSubPix(img, c, (half, half), (-1, -1), crit).reshape(-1, 2).astype(float)
+
+
+def _blurred_around(gray: NDArray[np.uint8], pts: Array, sigma: float,
+                    reach: int) -> NDArray[np.float32]:
+    """The image smoothed by a Gaussian of `sigma`, computed only where it is read: within
+    `reach` px of `pts` (elsewhere zero). The blur runs on that box plus the kernel's
+    radius, so every pixel within reach has exactly the value the whole image's blur gives
+    (the box edge is the image border, or farther than the kernel reaches)."""
+    cv2 = require_cv2()
+    h, w = gray.shape
+    margin = reach + int(np.ceil(4.0 * sigma)) + 2  # OpenCV's float kernel: 4 sigma radius
+    x0, y0 = np.maximum(np.floor(pts.min(axis=0)).astype(int) - margin, 0)
+    x1, y1 = np.minimum(np.ceil(pts.max(axis=0)).astype(int) + margin + 1, (w, h))
+    out = np.zeros((h, w), np.float32)
+    out[y0:y1, x0:x1] = cv2.GaussianBlur(gray[y0:y1, x0:x1].astype(np.float32), (0, 0), sigma)
+    return out
 
 
 def _sample(gray: NDArray[np.uint8], p: Array) -> float:
@@ -370,7 +429,7 @@ def detect(image: NDArray[Any], board: Board,
         return det.reject(f"board partly visible: a corner {max(near.min(), 0):.1f} px from "
                           f"the image border (< {limits.border:g} px)")
     if len(c) >= 3:
-        det.edge_width = edge_width(gray, _hull_mask(gray.shape, c, 1.15))
+        det.edge_width = _board_edge_width(gray, c, 1.15)
         if np.isfinite(det.edge_width) and det.edge_width > limits.max_edge_width:
             return det.reject(f"blurred: edge width {det.edge_width:.1f} px > "
                               f"{limits.max_edge_width:g} px")

@@ -2,17 +2,19 @@
 
 `calibrate_handeye_images` is what ``kinecal handeye-images`` runs:
 
-1. detect the board in every image (`kinecal.vision.detect`); rejected images keep their
-   reason and are never used;
+1. detect the board in every image (`kinecal.vision.detect`), the images in parallel on a
+   thread pool sized to the CPUs; rejected images keep their reason and are never used;
 2. camera intrinsics from the user's file, or estimated from the accepted images
    (``cv2.calibrateCamera``, reprojection RMS reported);
 3. the board pose of every accepted image by PnP with its covariance
    (`kinecal.vision.pnp`); views tilted beyond the limit are rejected as too oblique;
-4. a closed form on the poses with the robust pose-level refinement
+4. a closed form on the poses and its plausibility checks
    (`kinecal.calibration.handeye.calibrate_handeye`), the seed;
 5. the refinement on the reprojection error of every corner
    (`kinecal.calibration.handeye.images.refine_reprojection`): X and the board pose
-   jointly, intrinsics and robot-pose errors optionally, robust, outlier stations flagged.
+   jointly, intrinsics and robot-pose errors optionally, robust, outlier stations flagged;
+   when it flags stations, it runs again from the robust pose-level solution (RANSAC
+   start, reweighted LM), which the outliers cannot pull.
 
 The result types (`ImageRecord`, `ImageHandEyeResult`, re-exported here) are in
 `kinecal.vision.results`.
@@ -20,8 +22,10 @@ The result types (`ImageRecord`, `ImageHandEyeResult`, re-exported here) are in
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -140,13 +144,10 @@ def calibrate_handeye_images(
         if orientation_ambiguous(board) and _turn_flipped(records, used, board, F[idx], C,
                                                           setup, method):
             C = np.array([records[k].pose.target2cam for k in used])
-        seed = calibrate_handeye(F[idx], C, setup=setup, method=method, refine="lm")
         obj = [records[k].detection.object_points(board) for k in used]
         pix = [records[k].detection.corners for k in used]
-        ref = refine_reprojection(F[idx], obj, pix, intr.K, intr.dist, seed.X, seed.target,
-                                  setup=setup, refine_intrinsics=refine_intrinsics,
-                                  rational=intr.rational, robot_noise=robot_noise,
-                                  robust=robust)
+        seed, ref = _seed_and_refine(F[idx], C, obj, pix, intr, setup, method,
+                                     refine_intrinsics, robot_noise, robust)
         for j, k in enumerate(used):
             records[k].residuals = ref.residuals[j]
         for j in ref.outliers:
@@ -166,6 +167,28 @@ def calibrate_handeye_images(
                               records, ref, seed, warnings, time.perf_counter() - t0)
 
 
+def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
+                     intr: CameraIntrinsics, setup: str, method: str, refine_intrinsics: bool,
+                     robot_noise: tuple[float, float] | None, robust: bool
+                     ) -> tuple[Any, ReprojectionRefinement]:
+    """The closed form (with the pose-level checks) seeds the refinement on the pixels,
+    which is robust itself. When that refinement flags stations, it runs again from the
+    robust pose-level solution (RANSAC start, reweighted LM), which outlier stations
+    cannot pull, and that run is the result."""
+    def refine(seed: Any) -> ReprojectionRefinement:
+        return refine_reprojection(F, obj, pix, intr.K, intr.dist, seed.X, seed.target,
+                                   setup=setup, refine_intrinsics=refine_intrinsics,
+                                   rational=intr.rational, robot_noise=robot_noise,
+                                   robust=robust)
+
+    seed = calibrate_handeye(F, C, setup=setup, method=method, refine="none")
+    ref = refine(seed)
+    if robust and ref.outliers:
+        seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm")
+        ref = refine(seed)
+    return seed, ref
+
+
 def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
                 limits: QualityLimits, progress: Callable[..., None] | None,
                 expected: tuple[int, int] | None = None
@@ -173,21 +196,28 @@ def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
     """Detect the board in every readable image; the session's image size is the size of
     most images (ties: the first image's), or `expected` (the intrinsics' size) when images
     have it, so one odd image, first or not, is the one rejected."""
-    records: list[ImageRecord] = []
-    sizes: list[tuple[int, int] | None] = []
-    for name, im in zip(names, images, strict=True):
+    def one(item: tuple[str, Any]) -> tuple[ImageRecord, tuple[int, int] | None]:
+        name, im = item
         gray = load_gray(im) if isinstance(im, str | Path) else np.asarray(im)
         if gray is None or gray.size == 0:
-            records.append(ImageRecord(str(name), "rejected", "cannot read the image file"))
-            sizes.append(None)
-        else:
-            h, w = gray.shape[:2]
-            sizes.append((w, h))
-            det = detect(gray, board, limits)
-            records.append(ImageRecord(str(name), "used" if det.ok else "rejected",
-                                       det.reason, det))
-        if progress is not None:
-            progress()
+            return ImageRecord(str(name), "rejected", "cannot read the image file"), None
+        h, w = gray.shape[:2]
+        det = detect(gray, board, limits)
+        return ImageRecord(str(name), "used" if det.ok else "rejected", det.reason, det), (w, h)
+
+    records: list[ImageRecord] = []
+    sizes: list[tuple[int, int] | None] = []
+    # images in parallel: OpenCV's detectors, blurs and numpy's large-array work release
+    # the GIL; results come back in input order
+    workers = min(len(images), _cpu_count())
+    with ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
+        done = pool.map(one, zip(names, images, strict=True)) if workers > 1 else \
+            map(one, zip(names, images, strict=True))
+        for record, size in done:
+            records.append(record)
+            sizes.append(size)
+            if progress is not None:
+                progress()
     seen = [z for z in sizes if z is not None]
     if not seen:
         return records, None
@@ -201,6 +231,14 @@ def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
             r.reason = (f"image size {z[0]}x{z[1]} differs from the other images' "
                         f"{size[0]}x{size[1]}")
     return records, size  # type: ignore[return-value]
+
+
+def _cpu_count() -> int:
+    """CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return os.cpu_count() or 1
 
 
 def _intrinsics(records: list[ImageRecord], board: Board, size: tuple[int, int] | None,

@@ -17,9 +17,10 @@ iteratively reweighted Levenberg-Marquardt with Cauchy weights on the station di
 ``d_i = |r_i|`` and then flags stations with ``d_i^2`` beyond the chi-square(6) quantile
 ``outlier_level`` as outliers; a last non-robust pass uses the inliers only.
 
-Each pass is scipy's MINPACK Levenberg-Marquardt with the analytic Jacobian
-(`residual_jacobian`, through the right Jacobian of SO(3)), checked against finite
-differences in the tests.
+Each pass is kinecal's Levenberg-Marquardt on the normal equations
+(`kinecal.optimize.lsq.levenberg_marquardt`: 6 n residuals, 12 unknowns) with the analytic
+Jacobian (`residual_jacobian`, through the right Jacobian of SO(3)), checked against
+finite differences in the tests.
 """
 
 from __future__ import annotations
@@ -28,9 +29,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 from scipy.special import chdtri
 
+from kinecal.optimize.lsq import levenberg_marquardt
 from kinecal.spatial import (
     axis_angle_from_matrix,
     invert_transform,
@@ -93,7 +94,8 @@ def camera_residuals(G: Array, C: Array, X: Array, Y: Array) -> tuple[Array, Arr
     C : ndarray, shape (n, 4, 4)
         ``target2cam`` measurements.
     X, Y : ndarray, shape (4, 4)
-        Hand-eye transform and target pose.
+        Hand-eye transform and target pose (stacks broadcast: e.g. ``(h, 1, 4, 4)``
+        against ``(1, n, 4, 4)`` poses give ``(h, n, 3)`` residuals).
 
     Returns
     -------
@@ -103,8 +105,8 @@ def camera_residuals(G: Array, C: Array, X: Array, Y: Array) -> tuple[Array, Arr
         ``t_Ci - t^_i`` (length unit).
     """
     pred = invert_transform(X) @ invert_transform(G) @ Y
-    rot = axis_angle_from_matrix(np.swapaxes(pred[:, :3, :3], 1, 2) @ C[:, :3, :3])
-    return rot, C[:, :3, 3] - pred[:, :3, 3]
+    rot = axis_angle_from_matrix(np.swapaxes(pred[..., :3, :3], -1, -2) @ C[..., :3, :3])
+    return rot, C[..., :3, 3] - pred[..., :3, 3]
 
 
 def _jr(w: Array) -> Array:
@@ -141,6 +143,12 @@ def residual_jacobian(G: Array, C: Array, X0: Array, Y0: Array, p: Array) -> Arr
     - ``d t / d omega_X = -[t^]x J_r(omega_X)``, ``d t / d v_X = R_X^T``,
       ``d t / d v_Y = -R_X^T R_G^T`` for the translation residual ``t = t_C - t^``.
     """
+    return _residuals_and_jacobian(G, C, X0, Y0, p)[2]
+
+
+def _residuals_and_jacobian(G: Array, C: Array, X0: Array, Y0: Array, p: Array
+                            ) -> tuple[Array, Array, Array]:
+    """`camera_residuals` at ``p`` and `residual_jacobian` there, sharing the work."""
     X = _update(X0, p[:6])
     Y = _update(Y0, p[6:])
     rot, tr = camera_residuals(G, C, X, Y)
@@ -156,7 +164,7 @@ def residual_jacobian(G: Array, C: Array, X0: Array, Y0: Array, p: Array) -> Arr
     J[:, 3:, 0:3] = -skew(pred_t) @ _jr(p[0:3])
     J[:, 3:, 3:6] = RX.T
     J[:, 3:, 9:12] = -RX.T @ np.swapaxes(G[:, :3, :3], 1, 2)
-    return J
+    return rot, tr, J
 
 
 def _scales(rot: Array, trans: Array, L: float) -> tuple[float, float]:
@@ -217,20 +225,22 @@ def lm(
     def solve(X: Array, Y: Array, w: Array, sr: float, st: float) -> tuple[Array, Array, float]:
         nonlocal nfev
         sw = np.sqrt(w)[:, None]
-
         scale = np.r_[[1.0 / sr] * 3, [1.0 / st] * 3]
 
         def fun(p: Array) -> Array:
             rot, tr = camera_residuals(G, C, _update(X, p[:6]), _update(Y, p[6:]))
             return np.concatenate([sw * rot / sr, sw * tr / st], axis=1).ravel()
 
-        def jac(p: Array) -> Array:
-            J = residual_jacobian(G, C, X, Y, p)  # (n, 6, 12)
-            return (J * (scale[None, :, None] * sw[:, :, None])).reshape(-1, 12)
+        def normal_equations(p: Array) -> tuple[Array, Array, Array]:
+            rot, tr, J = _residuals_and_jacobian(G, C, X, Y, p)  # (n, 6, 12)
+            r = np.concatenate([sw * rot / sr, sw * tr / st], axis=1).ravel()
+            Js = (J * (scale[None, :, None] * sw[:, :, None])).reshape(-1, 12)
+            return r, Js.T @ Js, Js.T @ r
 
-        sol = least_squares(fun, np.zeros(12), jac=jac, method="lm", x_scale="jac")
+        sol = levenberg_marquardt(fun, None, np.zeros(12), normal_equations=normal_equations,
+                                  ftol=1e-10, xtol=1e-10, gtol=1e-10)
         nfev += int(sol.nfev)
-        return _update(X, sol.x[:6]), _update(Y, sol.x[6:]), float(2.0 * sol.cost)
+        return _update(X, sol.x[:6]), _update(Y, sol.x[6:]), float(2.0 * sol.fun)
 
     def scales(mask: Array) -> tuple[float, float]:
         rot, tr = camera_residuals(G[mask], C[mask], X, Y)
