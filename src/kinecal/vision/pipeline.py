@@ -131,7 +131,11 @@ def calibrate_handeye_images(
                              "with one even and one odd count, or ChArUco")
         expected = None if intrinsics is None or not intrinsics.size else \
             tuple(intrinsics.size)
-        records, size = _detect_all(images, names, board, limits, progress, expected)
+        # with the intrinsics given, each image's board pose is taken in its detection
+        # worker too (OpenCV's PnP releases the GIL as its detectors do)
+        pose_of = None if intrinsics is None else \
+            (lambda r: _pose_of(r, board, intrinsics, limits))
+        records, size = _detect_all(images, names, board, limits, progress, expected, pose_of)
         intr = _intrinsics(records, board, size, intrinsics)
         if refine_intrinsics is None:
             refine_intrinsics = intrinsics is None
@@ -191,7 +195,8 @@ def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
 
 def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
                 limits: QualityLimits, progress: Callable[..., None] | None,
-                expected: tuple[int, int] | None = None
+                expected: tuple[int, int] | None = None,
+                pose_of: Callable[[ImageRecord], None] | None = None
                 ) -> tuple[list[ImageRecord], tuple[int, int] | None]:
     """Detect the board in every readable image; the session's image size is the size of
     most images (ties: the first image's), or `expected` (the intrinsics' size) when images
@@ -203,7 +208,10 @@ def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
             return ImageRecord(str(name), "rejected", "cannot read the image file"), None
         h, w = gray.shape[:2]
         det = detect(gray, board, limits)
-        return ImageRecord(str(name), "used" if det.ok else "rejected", det.reason, det), (w, h)
+        record = ImageRecord(str(name), "used" if det.ok else "rejected", det.reason, det)
+        if pose_of is not None and det.ok:
+            pose_of(record)
+        return record, (w, h)
 
     records: list[ImageRecord] = []
     sizes: list[tuple[int, int] | None] = []
@@ -227,7 +235,7 @@ def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
         size = max(dict.fromkeys(seen), key=seen.count)  # most frequent, first on ties
     for r, z in zip(records, sizes, strict=True):
         if z is not None and z != size:
-            r.status, r.detection = "rejected", None
+            r.status, r.detection, r.pose = "rejected", None, None
             r.reason = (f"image size {z[0]}x{z[1]} differs from the other images' "
                         f"{size[0]}x{size[1]}")
     return records, size  # type: ignore[return-value]
@@ -269,16 +277,8 @@ def _poses(records: list[ImageRecord], board: Board, intr: CameraIntrinsics,
            limits: QualityLimits) -> None:
     ok = [r for r in records if r.status == "used"]
     for r in ok:
-        try:
-            r.pose = board_pose(r.detection.object_points(board), r.detection.corners,
-                                intr.K, intr.dist)
-        except InputError as exc:
-            r.status, r.reason = "rejected", f"no board pose: {exc.message}"
-            continue
-        if r.pose.tilt_deg > limits.max_tilt_deg:
-            r.status = "rejected"
-            r.reason = (f"too oblique: board tilted {r.pose.tilt_deg:.0f} deg from facing the "
-                        f"camera (> {limits.max_tilt_deg:g} deg)")
+        if r.pose is None:  # not yet taken in the detection worker
+            _pose_of(r, board, intr, limits)
     with_pose = [r for r in ok if r.pose is not None and r.status == "used"]
     if not with_pose:
         return
@@ -292,6 +292,21 @@ def _poses(records: list[ImageRecord], board: Board, intr: CameraIntrinsics,
             r.status = "rejected"
             r.reason = (f"corners do not fit a board pose ({r.pose.rms_px:.2f} px RMS): "
                         "mis-detected or mis-ordered corners")
+
+
+def _pose_of(r: ImageRecord, board: Board, intr: CameraIntrinsics,
+             limits: QualityLimits) -> None:
+    """The board pose of one accepted image; rejected when PnP fails or too oblique."""
+    try:
+        r.pose = board_pose(r.detection.object_points(board), r.detection.corners,
+                            intr.K, intr.dist)
+    except InputError as exc:
+        r.status, r.reason = "rejected", f"no board pose: {exc.message}"
+        return
+    if r.pose.tilt_deg > limits.max_tilt_deg:
+        r.status = "rejected"
+        r.reason = (f"too oblique: board tilted {r.pose.tilt_deg:.0f} deg from facing the "
+                    f"camera (> {limits.max_tilt_deg:g} deg)")
 
 
 def _turn_flipped(records: list[ImageRecord], used: list[int], board: Board, F: Array,

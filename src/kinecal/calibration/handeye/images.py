@@ -208,7 +208,7 @@ def refine_reprojection(
         sigma = max(float(np.sqrt(np.mean(r**2))), 1e-6)
     # final pass: inliers, unit weights; sigma from their residuals
     p, cost, A_cov, raw = fit.solve(p, inlier.astype(float), sigma,
-                                    "huber" if robust else "linear")
+                                    "huber" if robust else "linear", final=True)
     history.append(cost)
     r, srms = fit.residual_stats(p)
     if not robust:
@@ -284,10 +284,19 @@ class _Fit:
         self.prior = (np.r_[[1.0 / pr.robot[0]] * 3, [1.0 / pr.robot[1]] * 3]
                       if pr.robot else None)
         self.nfev = 0
+        self._last: tuple[Array, tuple] | None = None
+
+    def blocks(self, p: Array) -> tuple[Array, Array, Array | None]:
+        """`predict_blocks` at `p`, kept for the next call at the same point (the end of
+        one pass is where the next starts and where the statistics are taken)."""
+        if self._last is None or not np.array_equal(self._last[0], p):
+            self._last = (p.copy(), predict_blocks(self.pr, p))
+        return self._last[1]
 
     def residual_stats(self, p: Array) -> tuple[Array, Array]:
         """Residuals ``(M, 2)`` (predicted minus observed, px) and station RMS ``(n,)``."""
-        pred, _ = predict_pixels(self.pr, p, False)
+        pred = self.blocks(p)[0] if self._last is not None and \
+            np.array_equal(self._last[0], p) else predict_pixels(self.pr, p, False)[0]
         r = pred - self.pr.uv
         ss = np.bincount(self.pr.sid, weights=np.sum(r * r, axis=1), minlength=self.pr.n)
         return r, np.sqrt(ss / np.maximum(self.counts, 1))
@@ -298,48 +307,56 @@ class _Fit:
         s = 1.4826 * float(np.median(np.abs(sel))) if sel.size else 1.0
         return max(s, 1e-6)
 
-    def solve(self, p: Array, w: Array, sigma: float, loss: str
-              ) -> tuple[Array, float, Array, Array]:
+    def solve(self, p: Array, w: Array, sigma: float, loss: str, final: bool = False
+              ) -> tuple[Array, float, Array | None, Array | None]:
         """Minimise ``sum rho(r^2)`` over corners weighted by station weights `w` ``(n,)``
         (residuals in units of `sigma`, Huber threshold `_HUBER`) and the robot prior.
 
-        Returns p, the cost (twice scipy's ``0.5 sum rho``), the normal matrix with
-        scipy's robust scaling of the Jacobian (for the covariance) and the raw residuals
-        of the weighted rows (zero-weight stations left out)."""
+        Returns p, the cost (twice scipy's ``0.5 sum rho``) and, for the `final` pass, the
+        normal matrix with scipy's robust scaling of the Jacobian (for the covariance) and
+        the raw residuals of the weighted rows (zero-weight stations left out)."""
         pr, g, prior = self.pr, self.g, self.prior
         scale = (np.sqrt(w) / sigma)[pr.sid]  # (M,) per corner
 
         def rows(q: Array) -> tuple[Array, Array, Array | None, Array | None]:
-            pred, Jg, Je = predict_blocks(pr, q)
+            pred, Jg, Je = self.blocks(q)
             res = (pred - pr.uv) * scale[:, None]
-            Jg *= scale[:, None, None]
+            Jg = Jg * scale[:, None, None]
             if Je is not None:
-                Je *= scale[:, None, None]
+                Je = Je * scale[:, None, None]
             rp = None if prior is None else q[g:].reshape(-1, 6) * prior
             return res, Jg, Je, rp
 
-        def equations(q: Array, for_covariance: bool = False) -> tuple[Array, Array, Array]:
+        def equations(q: Array) -> tuple[Array, Array, Array]:
             res, Jg, Je, rp = rows(q)
-            pseudo, wr, c = robust_residuals(res, loss, _HUBER)
+            pseudo, wr, _ = robust_residuals(res, loss, _HUBER)
             pri = None
             out = [pseudo.ravel()]
             if rp is not None:
-                pp, wp, cp = robust_residuals(rp, loss, _HUBER)
-                pri = (np.broadcast_to(prior, rp.shape), cp if for_covariance else wp, rp)
+                pp, wp, _ = robust_residuals(rp, loss, _HUBER)
+                pri = (np.broadcast_to(prior, rp.shape), wp, rp)
                 out.append(pp.ravel())
-            A, b = normal_equations(Jg, Je, c if for_covariance else wr, res, self.starts, pri)
+            A, b = normal_equations(Jg, Je, wr, res, self.starts, pri)
             return np.concatenate(out), A, b
 
+        # the passes before the last only set the station weights: 1e-9 suffices there
+        tol = 1e-12 if final else 1e-9
         sol = levenberg_marquardt(None, None, p, normal_equations=equations,
                                   linear_solver=lambda A, d, b: schur_solve(A, d, b, g),
-                                  ftol=1e-12, xtol=1e-12, gtol=1e-12, max_nfev=200)
+                                  ftol=tol, xtol=tol, gtol=tol, max_nfev=200,
+                                  damping=(1e-9, 1e-3))
         self.nfev += int(sol.nfev)
         q = sol.x
-        _, A_cov, _ = equations(q, for_covariance=True)
-        res, _, _, rp = rows(q)
+        if not final:
+            return q, float(2.0 * sol.fun), None, None
+        res, Jg, Je, rp = rows(q)
+        _, _, c = robust_residuals(res, loss, _HUBER)
+        pri = None
         raw = res[w[pr.sid] > 0].ravel()
         if rp is not None:
+            pri = (np.broadcast_to(prior, rp.shape), robust_residuals(rp, loss, _HUBER)[2], rp)
             raw = np.concatenate([raw, rp.ravel()])
+        A_cov, _ = normal_equations(Jg, Je, c, res, self.starts, pri)
         return q, float(2.0 * sol.fun), A_cov, raw
 
 

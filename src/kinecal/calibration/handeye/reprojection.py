@@ -112,11 +112,15 @@ def predict_blocks(pr: ReprojectionProblem, p: Array) -> tuple[Array, Array, Arr
     RY, RX = Y[:3, :3], X[:3, :3]
     M = len(pc)
     Jg = np.empty((M, 2, 12 + pr.n_int))
-    Jg[:, :, 0:3] = Jp @ (skew(pc) @ _jr(p[0:3]))
-    Jg[:, :, 3:6] = Jp @ (-RX.T)
-    JpR = Jp @ RX.T  # d uv / d q
+
+    def times(B: Array, R: Array) -> Array:  # (M, 2, 3) @ (3, 3) as one matrix product
+        return (B.reshape(-1, 3) @ R).reshape(M, 2, 3)
+
+    Jg[:, :, 0:3] = times(Jp @ skew(pc), _jr(p[0:3]))
+    Jg[:, :, 3:6] = times(Jp, -RX.T)
+    JpR = times(Jp, RX.T)  # d uv / d q
     A = JpR @ dq_dw[s]  # d uv / d w
-    Jg[:, :, 6:9] = A @ (-RY @ skew(pr.P) @ _jr(p[6:9]))
+    Jg[:, :, 6:9] = times(times(A, -RY) @ skew(pr.P), _jr(p[6:9]))
     Jg[:, :, 9:12] = A
     if pr.n_int:
         Jg[:, :, 12:12 + pr.n_int] = Jint
