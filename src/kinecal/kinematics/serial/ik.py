@@ -173,8 +173,12 @@ def characteristic_length(model: SerialModel, params: ArrayLike | None = None) -
 def default_tol_position(model: SerialModel, params: ArrayLike | None = None) -> float:
     """Default position tolerance: 1e-9 mm in the model's unit, or 64 round-off units of
     the arm's `characteristic_length` when that is larger (very large machines)."""
+    return _tol_of_length(model, characteristic_length(model, params))
+
+
+def _tol_of_length(model: SerialModel, length: float) -> float:
     nm = 1e-9 if model.length_unit == "mm" else 1e-12  # 1e-9 mm
-    return max(nm, 64.0 * np.finfo(float).eps * characteristic_length(model, params))
+    return max(nm, 64.0 * np.finfo(float).eps * length)
 
 
 def _check_targets(targets: ArrayLike) -> Array:
@@ -278,7 +282,7 @@ def solve_ik(
             raise InputError(f"params: expected one finite parameter vector ({model.n_params},), "
                              f"got shape {p.shape}")
     length = characteristic_length(model, p)
-    tol_p = default_tol_position(model, p) if tol_position is None else float(tol_position)
+    tol_p = _tol_of_length(model, length) if tol_position is None else float(tol_position)
     if not tol_p > 0:
         raise InputError(f"tol_position: expected > 0, got {tol_position}")
     if not tol_rotation > 0:
