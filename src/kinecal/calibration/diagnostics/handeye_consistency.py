@@ -131,7 +131,7 @@ def find_inconsistency(F: Array, C: Array, setup: str, X: Array, Y: Array,
     ]
     Gs = np.stack([robot(F)] + [robot(Fa) for _, Fa, _ in tries])
     Cs = np.stack([C] + [Ca for _, _, Ca in tries])
-    screened = screen_scores(Gs, Cs)
+    screened = screen_scores(Gs, Cs, ROTATION_LIMIT_DEG)
     found = Inconsistency(r, t)
     as_is = screened[0]
     best = np.inf if np.isnan(as_is[0]) else size(as_is) / FAR_BETTER
@@ -143,7 +143,7 @@ def find_inconsistency(F: Array, C: Array, setup: str, X: Array, Y: Array,
     return found
 
 
-def screen_scores(G: Array, C: Array) -> Array:
+def screen_scores(G: Array, C: Array, rotation_limit: float | None = None) -> Array:
     """`consistency_scores` of a closed form for stacks of readings, all in one pass.
 
     The closed form is Shah's (2013) on the absolute poses (``sum R_C (x) R_G^T``, its
@@ -158,6 +158,11 @@ def screen_scores(G: Array, C: Array) -> Array:
     G, C : ndarray, shape (r, n, 4, 4)
         Robot poses (``flange2base`` eye-in-hand, ``base2flange`` eye-to-hand) and
         ``target2cam`` of r readings of the same n stations.
+
+    rotation_limit : float, optional
+        Readings after the first whose rotation score exceeds this (deg) get no
+        translation score (inf): they cannot fit anyway, and the translation part is half
+        the work.
 
     Returns
     -------
@@ -176,32 +181,37 @@ def screen_scores(G: Array, C: Array) -> Array:
     # R_C,i R_Y^-1-part: (R_C (x) R_G^T) vec(R_Y^T R_...) -> Shah's K; R_X^T = R_Z' (left)
     K = (np.swapaxes(RC.reshape(r, n, 9), 1, 2) @ RGt.reshape(r, n, 9))  # sum vec vec^T
     K = K.reshape(r, 3, 3, 3, 3).transpose(0, 1, 3, 2, 4).reshape(r, 9, 9)  # -> Kronecker
-    U = np.linalg.svd(K)[0]
-    RX = np.swapaxes(_signed_rotations(U[:, :, 0]), 1, 2)
-    # translations: R_G t_X - t_Y = -t_G - R_G R_X t_C
+    U = np.linalg.eigh(K @ np.swapaxes(K, 1, 2))[1]  # left singular vectors of K
+    RX = np.swapaxes(_signed_rotations(U[:, :, -1]), 1, 2)
+    # the rotation score: the mean target rotation and every station's angle from it
     RGX = RG @ RX[:, None]
+    RP = RGX @ RC
+    RY = project_to_rotation(RP.mean(axis=1))
+    out = np.full((r, 2), np.inf)
+    out[:, 0] = np.median(np.degrees(_angles(np.swapaxes(RY, 1, 2)[:, None] @ RP)), axis=1)
+    full = np.ones(r, bool) if rotation_limit is None else out[:, 0] <= rotation_limit
+    full[0] = True
+    ok = ~bad & full
+    # the translation score: R_G t_X - t_Y = -t_G - R_G R_X t_C by least squares
+    RG, RGt, RGX, tG, tC = RG[ok], RGt[ok], RGX[ok], tG[ok], tC[ok]
+    m = len(RG)
     rhs = -tG - np.einsum("rnij,rnj->rni", RGX, tC)
-    N = np.zeros((r, 6, 6))
+    N = np.zeros((m, 6, 6))
     N[:, :3, :3] = n * np.eye(3)  # sum R_G^T R_G
     N[:, :3, 3:] = -RGt.sum(axis=1)
     N[:, 3:, :3] = -RG.sum(axis=1)
     N[:, 3:, 3:] = n * np.eye(3)
     b = np.concatenate([np.einsum("rnji,rnj->ri", RG, rhs), -rhs.sum(axis=1)], axis=1)
-    ok = ~bad & (np.abs(np.linalg.det(N)) > 1e-9 * n**6)
-    tX = np.zeros((r, 3))
-    if ok.any():
-        tX[ok] = np.linalg.solve(N[ok], b[ok][..., None])[:, :3, 0]
-    # target poses through every station, their mean and the median residuals
-    RP = RGX @ RC
+    solvable = np.abs(np.linalg.det(N)) > 1e-9 * n**6
+    tX = np.zeros((m, 3))
+    if solvable.any():
+        tX[solvable] = np.linalg.solve(N[solvable], b[solvable][..., None])[:, :3, 0]
     tP = np.einsum("rnij,rnj->rni", RGX, tC) + np.einsum("rnij,rj->rni", RG, tX) + tG
-    RY = project_to_rotation(RP.mean(axis=1))
-    tY = tP.mean(axis=1)
-    rot = np.degrees(_angles(np.swapaxes(RY, 1, 2)[:, None] @ RP))
-    tr = np.linalg.norm(tP - tY[:, None], axis=2)
+    tr = np.linalg.norm(tP - tP.mean(axis=1)[:, None], axis=2)
     dist = np.sqrt(np.mean(np.sum(tC**2, axis=2), axis=1))
-    out = np.stack([np.median(rot, axis=1), np.median(tr, axis=1) / np.maximum(dist, 1e-300)],
-                   axis=1)
-    out[~ok] = np.nan
+    out[ok, 1] = np.median(tr, axis=1) / np.maximum(dist, 1e-300)
+    out[bad] = np.nan
+    out[np.flatnonzero(ok)[~solvable]] = np.nan
     return out
 
 

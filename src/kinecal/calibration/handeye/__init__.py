@@ -298,17 +298,27 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
         res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **opts)
         X, history, nfev = res.X, res.history, res.nfev
         Y = mean_target_pose(G, X, C)
+    shared = None
     if refine != "lm":
-        from kinecal.calibration.handeye.refine import flag_outliers
+        from kinecal.calibration.handeye.refine import flag_outliers, residuals_and_jacobian
 
-        outliers = flag_outliers(G, C, X, Y)
-    rot, tr = station_residuals(G, X, C, Y)
+        # one evaluation of the camera residuals and their Jacobian serves the outlier flags,
+        # the station residuals (|log| and |t| of the same mismatch) and the uncertainty
+        shared = residuals_and_jacobian(G, C, X, Y, np.zeros(12))
+        outliers = flag_outliers(G, C, X, Y, residuals=shared[:2])
+        rot = np.degrees(np.linalg.norm(shared[0], axis=1))
+        tr = np.linalg.norm(shared[1], axis=1)
+    else:
+        rot, tr = station_residuals(G, X, C, Y)
     # the motion pairs of the closed form serve the A X - X B residuals (no second copy)
     arot, atr = axxb_station_rms(G, C, X, motions=(A, B) if pairs == "all" and A is not None
                                  else None)
-    inliers = np.setdiff1d(np.arange(len(G)), outliers)
-    unc = handeye_uncertainty(G, C, X, Y, inliers if len(inliers) >= 3 else None)
-    check_handeye_conditioning(unc, G[inliers] if len(inliers) >= 3 else G)
+    inliers = np.setdiff1d(np.arange(len(G)), outliers) if outliers else None
+    if inliers is not None and len(inliers) < 3:
+        inliers = None
+    unc = handeye_uncertainty(G, C, X, Y, inliers,
+                              residuals=shared if inliers is None else None)
+    check_handeye_conditioning(unc, G if inliers is None else G[inliers])
     # stations that fit no X: a mix-up that makes them fit is named first; else a unit
     # factor between robot and target (`scale-mismatch`); else the generic warning
     inc = find_inconsistency(F, C, setup, X, Y, method, scores=station_scores(rot, tr, C))

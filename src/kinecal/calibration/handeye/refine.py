@@ -26,6 +26,7 @@ finite differences in the tests.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,7 +43,8 @@ from kinecal.spatial import (
 
 Array = NDArray[np.float64]
 
-__all__ = ["LMRefinement", "camera_residuals", "flag_outliers", "lm", "residual_jacobian"]
+__all__ = ["LMRefinement", "camera_residuals", "flag_outliers", "lm", "residual_jacobian",
+           "residuals_and_jacobian"]
 
 #: Median of the chi distribution with 3 degrees of freedom (scale of |3-vector| of N(0, s)).
 _CHI3_MEDIAN = float(np.sqrt(chdtri(3, 0.5)))
@@ -143,12 +145,13 @@ def residual_jacobian(G: Array, C: Array, X0: Array, Y0: Array, p: Array) -> Arr
     - ``d t / d omega_X = -[t^]x J_r(omega_X)``, ``d t / d v_X = R_X^T``,
       ``d t / d v_Y = -R_X^T R_G^T`` for the translation residual ``t = t_C - t^``.
     """
-    return _residuals_and_jacobian(G, C, X0, Y0, p)[2]
+    return residuals_and_jacobian(G, C, X0, Y0, p)[2]
 
 
-def _residuals_and_jacobian(G: Array, C: Array, X0: Array, Y0: Array, p: Array
-                            ) -> tuple[Array, Array, Array]:
-    """`camera_residuals` at ``p`` and `residual_jacobian` there, sharing the work."""
+def residuals_and_jacobian(G: Array, C: Array, X0: Array, Y0: Array, p: Array
+                           ) -> tuple[Array, Array, Array]:
+    """`camera_residuals` ``(n, 3)`` twice at ``p`` and `residual_jacobian` ``(n, 6, 12)``
+    there, sharing the work."""
     X = _update(X0, p[:6])
     Y = _update(Y0, p[6:])
     rot, tr = camera_residuals(G, C, X, Y)
@@ -232,7 +235,7 @@ def lm(
             return np.concatenate([sw * rot / sr, sw * tr / st], axis=1).ravel()
 
         def normal_equations(p: Array) -> tuple[Array, Array, Array]:
-            rot, tr, J = _residuals_and_jacobian(G, C, X, Y, p)  # (n, 6, 12)
+            rot, tr, J = residuals_and_jacobian(G, C, X, Y, p)  # (n, 6, 12)
             r = np.concatenate([sw * rot / sr, sw * tr / st], axis=1).ravel()
             Js = (J * (scale[None, :, None] * sw[:, :, None])).reshape(-1, 12)
             return r, Js.T @ Js, Js.T @ r
@@ -288,7 +291,8 @@ def _distances(G: Array, C: Array, X: Array, Y: Array, sr: float, st: float) -> 
     return np.sqrt(np.sum((rot / sr) ** 2, 1) + np.sum((tr / st) ** 2, 1))
 
 
-def flag_outliers(G: Array, C: Array, X: Array, Y: Array, level: float = 0.999) -> list[int]:
+def flag_outliers(G: Array, C: Array, X: Array, Y: Array, level: float = 0.999,
+                  residuals: tuple[Array, Array] | None = None) -> list[int]:
     """Stations whose normalised residual exceeds the chi-square(6) `level` quantile.
 
     Scales are the robust (median-based) ones of `lm`, so a few gross outliers do not hide
@@ -302,6 +306,8 @@ def flag_outliers(G: Array, C: Array, X: Array, Y: Array, level: float = 0.999) 
         Hand-eye transform and target pose.
     level : float
         Chi-square(6) probability.
+    residuals : (ndarray, ndarray), optional
+        `camera_residuals` at X, Y when the caller has them.
 
     Returns
     -------
@@ -309,7 +315,13 @@ def flag_outliers(G: Array, C: Array, X: Array, Y: Array, level: float = 0.999) 
         0-based station indices.
     """
     L = max(float(np.sqrt(np.mean(np.sum(C[:, :3, 3] ** 2, axis=1)))), 1e-300)
-    rot, tr = camera_residuals(G, C, X, Y)
+    rot, tr = camera_residuals(G, C, X, Y) if residuals is None else residuals
     sr, st = _scales(rot, tr, L)
     d = np.sqrt(np.sum((rot / sr) ** 2, 1) + np.sum((tr / st) ** 2, 1))  # `_distances`
-    return [int(i) for i in np.flatnonzero(d**2 > chdtri(6, 1.0 - level))]
+    return [int(i) for i in np.flatnonzero(d**2 > _chi2_isf6(1.0 - level))]
+
+
+@lru_cache(maxsize=8)
+def _chi2_isf6(alpha: float) -> float:
+    """The chi-square(6) quantile exceeded with probability `alpha` (cached)."""
+    return float(chdtri(6, alpha))
