@@ -131,19 +131,19 @@ def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None
     return nom, cal
 
 
-def read_program(path: Path, model) -> tuple[list[str], list[list[str]], dict]:
-    """Header, raw cells and the numeric columns of a program CSV (validated)."""
-    from kinecal.io.csvtable import read_table
+def program_columns(path: Path, model) -> tuple[list[str], list[str], list[str]]:
+    """Header of a program CSV, checked, and its numeric columns: required and optional
+    (the rows are read block by block, `kinecal.io.csvtable.read_blocks`)."""
     from kinecal.io.measurements import joint_columns
 
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
-            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
+            first = next((r for r in csv.reader(fh) if r and any(c.strip() for c in r)), None)
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"cannot read CSV: {exc}", file=path) from None
-    if not rows:
+    if first is None:
         raise InputError("empty file; expected a header with q1..qn or x,y,z", file=path)
-    header = [h.strip() for h in rows[0]]
+    header = [h.strip() for h in first]
     joints = joint_columns(header, model, path, required=False)  # q1..qn or joint names
     qcols = [c for c in header if c.startswith("q") and c[1:].isdigit()]
     if qcols and sorted(qcols) != sorted(joints):
@@ -172,8 +172,7 @@ def read_program(path: Path, model) -> tuple[list[str], list[list[str]], dict]:
             raise InputError(f"expected joint columns {', '.join(joints)} or target columns "
                              "x, y, z", file=path)
         required, optional = joints, []
-    table = read_table(path, required, optional)
-    return header, [[c.strip() for c in r] for r in rows[1:]], table
+    return header, required, optional
 
 
 def _fmt(v: float) -> str:
@@ -193,13 +192,19 @@ def write_program(path: Path, header: list[str], cells: list[list[str]], replace
     with atomic_open(path, "w") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(cols)
-        for r, row in enumerate(cells):
-            values = dict(zip(header, row, strict=False))
-            for c, v in replace.items():
-                values[c] = _fmt(v[r])
-            for c, v in extra.items():
-                values[c] = v[r] if isinstance(v[r], str) else _fmt(v[r])
-            w.writerow([values.get(c, "") for c in cols])
+        write_rows(w, header, cols, cells, replace, extra)
+
+
+def write_rows(w, header: list[str], cols: list[str], cells: list[list[str]], replace: dict,
+               extra: dict) -> None:
+    """The rows of `cells` under the columns `cols` (`write_program`) to a csv writer."""
+    for r, row in enumerate(cells):
+        values = dict(zip(header, row, strict=False))
+        for c, v in replace.items():
+            values[c] = _fmt(v[r])
+        for c, v in extra.items():
+            values[c] = v[r] if isinstance(v[r], str) else _fmt(v[r])
+        w.writerow([values.get(c, "") for c in cols])
 
 
 def _bool(v: np.ndarray) -> list[str]:
@@ -234,8 +239,7 @@ def compensate_cmd(
     quiet: bool = quiet_option(),
 ) -> None:
     """Rewrite a joint program or Cartesian targets for the calibrated arm."""
-    from kinecal.calibration.diagnostics.serial import check_joint_units
-    from kinecal.compensation.api import compensate
+    from kinecal.compensation.api import prepare_arms
     from kinecal.io.measurements import joint_columns
 
     check_paths({"CALIBRATED": calibrated, "PROGRAM": program, "--nominal": nominal},
@@ -247,46 +251,112 @@ def compensate_cmd(
     with warnings_scope(strict) as found:
         nom, cal = load_calibrated(calibrated, nominal, base_link, tip_link, tool)
         path = resolve_data_path(program, "PROGRAM")
-        header, cells, table = read_program(path, nom)
-        scale = nom.joint_scale()  # file units -> API units per joint
+        header, required, optional = program_columns(path, nom)
         joints = joint_columns(header, nom, path, required=False)
-        outputs = "position" if position_only else None
-        q_file = np.column_stack([table[c] for c in joints]) if joints[0] in table else None
-        if q_file is not None:  # radians left in a degree program, as fk and calibrate warn
-            check_joint_units(nom, q_file * scale,
-                              "seed joints" if "x" in table else "program joints")
-        with progress(f"compensate {len(cells)} rows", len(cells), quiet or json_out) as bar:
-            done = [0]
-
-            def step(rows: int, total: int) -> None:
-                bar(rows - done[0])
-                done[0] = rows
-
-            try:
-                if "x" in table:
-                    xyz = np.column_stack([table[c] for c in "xyz"])
-                    targets = (np.column_stack([xyz] + [table[c] for c in QUATERNION])
-                               if "qw" in table else xyz)
-                    seeds = None if q_file is None else q_file * scale
-                    res = compensate(cal, nom, targets=targets, seeds=seeds, outputs=outputs,
-                                     base=base, tool=tool, progress=step)
-                else:
-                    res = compensate(cal, nom, joints=q_file * scale, outputs=outputs,
-                                     base=base, tool=tool, progress=step)
-            except InputError as exc:  # a row of the program: name the file
-                if exc.row is None or exc.file is not None:
-                    raise
-                raise InputError(exc.message, file=path, row=exc.row) from None
-        extra = _columns(res, nom, joints)
-        write_program(out, header, cells, {c: res.q[:, k] / scale[k]
-                                           for k, c in enumerate(joints)}, extra)
+        arms = prepare_arms(cal, nom, base=base, tool=tool)
+        with progress(f"compensate {_count_rows(path)} rows", _count_rows(path),
+                      quiet or json_out) as bar:
+            rows = _stream(path, out, header, required, optional, joints, arms,
+                           "position" if position_only else None, bar)
     stats = {"program": str(program), "out": str(out), "model": nom.name,
-             "base": base, "tool": tool, **res.stats()}
+             "base": base, "tool": tool, **rows.stats()}
     if json_out:
         echo_json(with_warnings(stats, found))
     elif not quiet:
-        typer.echo(res.summary())
-        typer.echo(f"wrote {len(res)} rows to {out}")
+        typer.echo(rows.summary())
+        typer.echo(f"wrote {len(rows)} rows to {out}")
+
+
+def _stream(path: Path, out: Path, header: list[str], required: list[str],
+            optional: list[str], joints: list[str], arms, outputs: str | None, bar):
+    """Compensate the program a block of `BLOCK` rows at a time, each block written as it
+    is done: memory stays that of one block (the cells of a million-line program as Python
+    strings, and the rows' 4x4 poses, would take gigabytes) plus a few numbers per row for
+    the statistics (`ProgramRows`). Every row's answer is that of one call on the whole
+    program; the per-row warnings count the whole program (`RowFindings`), issued before
+    the output is committed (``--strict`` leaves no file). Returns the `ProgramRows`."""
+    from kinecal._files import atomic_open
+    from kinecal.calibration.diagnostics.serial import check_joint_units
+    from kinecal.compensation.api import BLOCK, compensate
+    from kinecal.compensation.findings import RowFindings
+    from kinecal.compensation.result import ProgramRows
+    from kinecal.io.csvtable import read_blocks
+
+    nom = arms.nominal
+    scale = nom.joint_scale()  # file units -> API units per joint
+    targets = "x" in required
+    findings = RowFindings()
+    span = _JointSpan(nom.n_joints)
+    parts: list[ProgramRows] = []
+    with atomic_open(out, "w") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        cols = None
+        for first, cells, table in read_blocks(path, required, optional, rows=BLOCK):
+            if not cells:
+                continue
+            findings.offset = first
+            q_file = np.column_stack([table[c] for c in joints]) if joints[0] in table \
+                else None
+            if q_file is not None:
+                span.add(q_file * scale)
+            try:
+                if targets:
+                    xyz = np.column_stack([table[c] for c in "xyz"])
+                    t = (np.column_stack([xyz] + [table[c] for c in QUATERNION])
+                         if "qw" in table else xyz)
+                    res = compensate(arms, targets=t,
+                                     seeds=None if q_file is None else q_file * scale,
+                                     outputs=outputs, findings=findings)
+                else:
+                    res = compensate(arms, joints=q_file * scale, outputs=outputs,
+                                     findings=findings)
+            except InputError as exc:  # a row of the program: name the file and the row
+                if exc.row is None or exc.file is not None:
+                    raise
+                raise InputError(exc.message, file=path, row=first + exc.row) from None
+            extra = _columns(res, nom, joints)
+            replace = {c: res.q[:, k] / scale[k] for k, c in enumerate(joints)}
+            if cols is None:
+                cols = list(header) + [c for c in replace if c not in header] + list(extra)
+                w.writerow(cols)
+            write_rows(w, header, cols, cells, replace, extra)
+            parts.append(res.rows())
+            bar(len(cells))
+        if not parts:
+            raise InputError("0 data rows, expected at least 1", file=path)
+        # the whole program's findings, before the file is committed (--strict)
+        if span.rows:
+            check_joint_units(nom, span.summary(),
+                              "seed joints" if targets else "program joints")
+        findings.warn()
+    return ProgramRows.concatenate(parts)
+
+
+class _JointSpan:
+    """The largest absolute reading per joint over the blocks of a program, and the row
+    count: all `check_joint_units` reads of the whole program (``joint-units``)."""
+
+    def __init__(self, n_joints: int) -> None:
+        self.rows = 0
+        self.largest = np.zeros(n_joints)
+
+    def add(self, q: np.ndarray) -> None:
+        self.rows += q.shape[0]
+        self.largest = np.maximum(self.largest, np.abs(q).max(axis=0))
+
+    def summary(self) -> np.ndarray:
+        """Rows with the same span and (one or more than one) row count as the program."""
+        return self.largest[None] if self.rows < 2 else \
+            np.stack([self.largest, np.zeros_like(self.largest)])
+
+
+def _count_rows(path: Path) -> int:
+    """Lines after the header (the progress bar's total; blank lines count too)."""
+    n = 0
+    with open(path, "rb") as fh:
+        while chunk := fh.read(1 << 20):
+            n += chunk.count(b"\n")
+    return max(n - 1, 0)
 
 
 def _columns(res, nom, joints: list[str]) -> dict:
