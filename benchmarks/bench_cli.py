@@ -9,7 +9,9 @@ run, the median the typical one):
   against ``python -c "import numpy, scipy.linalg"``;
 * ``kinecal stewart fk liu2008-cmm LEGS.csv`` on 10^5 leg readings (the CSV written
   first, from random workspace poses) against the API's throughput: the same solve,
-  ``StewartPlatform.forward`` on the in-memory readings, timed in this process.
+  ``StewartPlatform.forward`` on the in-memory readings, timed in this process;
+* ``kinecal calibrate ur5 DATA.csv`` on 10^4 and 10^5 simulated poses: peak resident
+  memory of the process, per pose beyond the smaller run.
 
 ``kinecal`` is run as ``python -m kinecal`` with this interpreter (what the console script
 does: import ``kinecal.cli`` and call ``main``).
@@ -81,6 +83,41 @@ def stewart(n: int, repeat: int) -> None:
           "(median/median)")
 
 
+_PEAK = ("import resource, sys\nfrom kinecal.cli import main\nrc = main(sys.argv[1:])\n"
+         "sys.stderr.write(f'MAXRSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}\\n')"
+         "\nsys.exit(rc)")
+
+
+def peak_kb(args: list[str]) -> int:
+    """Peak resident memory (kB) of one ``kinecal ARGS`` process."""
+    out = subprocess.run([sys.executable, "-c", _PEAK, *args], capture_output=True, text=True,
+                         check=True)
+    return int(out.stderr.rsplit("MAXRSS ", 1)[1].split()[0])
+
+
+def calibrate_memory(sizes: tuple[int, ...], repeat: int) -> None:
+    """``kinecal calibrate ur5 DATA.csv`` on simulated poses: peak memory per pose beyond
+    the smallest size (the command without --out or --json builds no result dictionary)."""
+    from kinecal.calibration.serial.simulate import simulate
+    from kinecal.io.measurements import write_measurements
+    from kinecal.io.models import load_model
+
+    model = load_model("ur5")
+    with tempfile.TemporaryDirectory(prefix="kinecal-bench-") as tmp:
+        peaks = {}
+        for n in sizes:
+            path = Path(tmp) / f"meas{n}.csv"
+            sim = simulate(model, n, errors="random", noise=0.01, rng=1)
+            write_measurements(path, sim.data, model)
+            peaks[n] = min(peak_kb(["calibrate", "ur5", str(path), "--quiet"])
+                           for _ in range(repeat))
+    n0 = sizes[0]
+    for n in sizes[1:]:
+        per = (peaks[n] - peaks[n0]) * 1024 / (n - n0)
+        print(f"kinecal calibrate ur5, {n} poses: peak {peaks[n] / 1024:.0f} MB ({n0} poses: "
+              f"{peaks[n0] / 1024:.0f} MB): {per:.0f} B per pose beyond {n0}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer repeats, 10^4 Stewart rows")
@@ -96,6 +133,7 @@ def main() -> None:
             'python -c "import numpy, scipy.linalg"', [*py, "import numpy, scipy.linalg"],
             repeat)
     stewart(10_000 if args.quick else 100_000, max(3, repeat // 2))
+    calibrate_memory((10_000, 100_000) if not args.quick else (2_000, 20_000), 2)
 
 
 if __name__ == "__main__":
