@@ -48,7 +48,7 @@ def import_(
                                            "(with --images)."),
     dwell: float = typer.Option(0.3, "--dwell", help="Minimum time (s) the joints must be "
                                 "still for a row."),
-    still: float = typer.Option(0.01, "--still", help="Joint speed (rad/s) below which the "
+    still: float = typer.Option(0.002, "--still", help="Joint speed (rad/s) below which the "
                                 "joints count as still."),
     joint_names: str | None = typer.Option(None, "--joint-names", help="The bag's name of "
                                            "each model joint, in order, comma-separated."),
@@ -153,9 +153,9 @@ def _summary(res, opts, out: Path) -> None:
              f"{len(res.dropped)} dropped; {len(res.short)} shorter stops ignored"]
     for k, why in res.dropped:
         d = res.dwells[k]
-        lines.append(f"  dropped dwell {k + 1} (+{d.start:.2f} s, {d.duration:.2f} s): {why}")
+        lines.append(f"  dropped dwell {k + 1} (+{d.start:.2f} s, still {d.span:.2f} s): {why}")
     for d in res.short:
-        lines.append(f"  short stop at +{d.start:.2f} s: still for {d.duration:.2f} s only "
+        lines.append(f"  short stop at +{d.start:.2f} s: still for {d.span:.2f} s only "
                      f"(< --dwell {opts.dwell:g} s)")
     lines.append(f"wrote {out}")
     typer.echo("\n".join(lines), err=True)

@@ -17,8 +17,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
 from kinecal.io.urdf_export import urdf_joints, urdf_origin
-from kinecal.kinematics.chain import BASE_NAMES
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.chain import BASE_NAMES
+from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = ["add_camera_mount", "chain_links"]
 

@@ -1,15 +1,18 @@
 """Where a robot dwells: its joints still for at least a stated time.
 
-A joint sample at time ``t_k`` is *still* when every joint moved less than ``tol * h``
-since the latest sample at or before ``t_k - h`` (``h`` the speed window, default
-``min(0.1 s, dwell / 2)``): its speed over that window is below ``tol``. A speed over a
-window rather than between neighbouring samples is blind to the encoders' quantization
-at high rates and ends a stop's window only once the robot has settled for ``h``. A
-*dwell* is a maximal run of still samples spanning at least the dwell time; a shorter run
-(at least 3 samples) is a *short stop*, reported but not kept.
+A joint sample at time ``t_k`` is *still* when its speed is below ``tol`` over the speed
+window ``h`` (default ``min(0.1 s, dwell / 2)``) on both sides: every joint moved less than
+``tol`` times the time to the latest sample at or before ``t_k - h`` and to the first one
+at or after ``t_k + h`` (one side only at the ends of the recording). A speed over a
+window rather than between neighbouring samples is blind to the encoders' quantization at
+high rates; looking both ways keeps the last samples of a deceleration and the first of
+an acceleration, whose neighbours barely differ, out of the dwell. A *dwell* is a maximal
+run of still samples spanning at least the dwell time; a shorter run (at least 3 samples)
+is a *short stop*, reported but not kept.
 
-The joint stream is fed in chunks (`DwellFinder.feed`): memory holds one chunk, the last
-``h`` seconds before it, and the open run's sums, whatever the length of the recording.
+The joint stream is fed in chunks (`DwellFinder.feed`); a sample is judged once the
+samples ``h`` after it have come. Memory holds one chunk, ``h`` seconds on each side and
+the open run's sums, whatever the length of the recording.
 """
 
 from __future__ import annotations
@@ -31,7 +34,10 @@ class Dwell:
     Attributes
     ----------
     start, end : float
-        Times of its first and last sample (s, on the caller's clock).
+        Times of its first and last still sample (s, on the caller's clock): the window
+        averaged.
+    span : float
+        How long the joints were still: ``end - start`` plus the speed window on each side.
     q : ndarray, shape (n_joints,)
         Mean joint values over its samples.
     samples : int
@@ -41,10 +47,7 @@ class Dwell:
     end: float
     q: Array
     samples: int
-
-    @property
-    def duration(self) -> float:
-        return self.end - self.start
+    span: float = 0.0
 
 
 class DwellFinder:
@@ -68,6 +71,7 @@ class DwellFinder:
         self.window = float(min(0.1, dwell / 2) if window is None else window)
         self._t = np.empty(0)
         self._q = np.empty((0, n_joints))
+        self._pending = 0  # index in the buffer of the first sample not yet judged
         self._run: list | None = None  # [start, end, sum q, count]
         self.dwells: list[Dwell] = []
         self.short: list[Dwell] = []
@@ -77,8 +81,8 @@ class DwellFinder:
     def _close(self) -> None:
         start, end, total, count = self._run
         self._run = None
-        d = Dwell(start, end, total / count, count)
-        if d.duration >= self.dwell:
+        d = Dwell(start, end, total / count, count, end - start + 2 * self.window)
+        if d.span >= self.dwell:
             self.dwells.append(d)
         elif count >= 3:
             self.short.append(d)
@@ -96,12 +100,40 @@ class DwellFinder:
         if not t.size:
             return
         self.samples += t.size
-        T, Q = np.r_[self._t, t], np.vstack([self._q, q])
-        j = np.searchsorted(T, t - self.window, side="right") - 1
-        ok = j >= 0
-        jj = np.where(ok, j, 0)
-        speed = np.abs(q - Q[jj]).max(axis=1) / np.maximum(t - T[jj], 1e-300)
-        still = ok & (speed <= self.tol)
+        self._t, self._q = np.r_[self._t, t], np.vstack([self._q, q])
+        self._judge(final=False)
+
+    def _speeds(self, k: slice) -> NDArray[np.bool_]:
+        """Still mask of samples `k` of the buffer (module docstring)."""
+        T, Q, h = self._t, self._q, self.window
+        t, q = T[k], Q[k]
+        jb = np.searchsorted(T, t - h, side="right") - 1
+        jf = np.searchsorted(T, t + h, side="left")
+        back, fwd = jb >= 0, jf < T.size
+        jb, jf = np.where(back, jb, 0), np.where(fwd, jf, T.size - 1)
+        vb = np.abs(q - Q[jb]).max(axis=1) / np.maximum(t - T[jb], 1e-300)
+        vf = np.abs(Q[jf] - q).max(axis=1) / np.maximum(T[jf] - t, 1e-300)
+        return ((back | fwd) & np.where(back, vb <= self.tol, True)
+                & np.where(fwd, vf <= self.tol, True))
+
+    def _judge(self, final: bool) -> None:
+        """Judge the pending samples whose forward window is complete (all when `final`)."""
+        T, p = self._t, self._pending
+        n = T.size - p if final else int(np.searchsorted(T[p:], T[-1] - self.window,
+                                                         side="right"))
+        if n <= 0:
+            return
+        k = slice(p, p + n)
+        self._runs(T[k], self._q[k], self._speeds(k))
+        p += n
+        if p < T.size:  # keep h seconds before the next pending sample
+            first = max(int(np.searchsorted(T, T[p] - self.window, side="right")) - 1, 0)
+        else:
+            first = max(int(np.searchsorted(T, T[-1] - self.window, side="right")) - 1, 0)
+        self._t, self._q, self._pending = T[first:], self._q[first:], p - first
+
+    def _runs(self, t: Array, q: Array, still: NDArray[np.bool_]) -> None:
+        """Extend, open and close runs over judged samples in time order."""
         edges = np.flatnonzero(np.diff(np.r_[0, still.astype(np.int8), 0]))
         if self._run is not None and not still[0]:
             self._close()
@@ -115,12 +147,11 @@ class DwellFinder:
                 self._run = [t[a], t[b - 1], total, b - a]
             if b < t.size:
                 self._close()
-        keep = T >= t[-1] - self.window
-        first = max(int(np.argmax(keep)) - 1, 0)  # and the sample just before the window
-        self._t, self._q = T[first:], Q[first:]
 
     def finish(self) -> list[Dwell]:
         """Close the open run; the dwells found, in time order."""
+        if self._t.size:
+            self._judge(final=True)
         if self._run is not None:
             self._close()
         return self.dwells

@@ -23,7 +23,7 @@ from kinecal.io.ros.accumulate import StreamAverage, TfTree
 from kinecal.io.ros.bag import Bag
 from kinecal.io.ros.dwell import Dwell, DwellFinder
 from kinecal.io.ros.joints import JointMapper
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = ["BagImport", "ImportOptions", "import_bag"]
 
@@ -62,7 +62,7 @@ class ImportOptions:
     images: str | None = None
     camera_info: str | None = None
     dwell: float = 0.3
-    still: float = 0.01
+    still: float = 0.002
     joint_names: Sequence[str] | None = None
 
 

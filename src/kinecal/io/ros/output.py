@@ -22,7 +22,7 @@ from kinecal.errors import InputError
 from kinecal.io.csvtable import write_table
 from kinecal.io.ros.images import ImageWriter
 from kinecal.io.ros.importer import BagImport, ImportOptions, import_bag
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import pq_from_transform
 
 __all__ = ["flange_poses", "write_folder", "write_rows"]

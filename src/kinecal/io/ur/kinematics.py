@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
 from kinecal.io.ur.robots import nominal_dh, robot_type
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import rot_x, rot_z, rpy_from_matrix
 
 __all__ = ["SEGMENTS", "dh_table", "joint_origins", "save_ur_kinematics", "ur_kinematics",

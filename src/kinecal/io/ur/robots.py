@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = ["UR_ALPHA", "UR_TYPES", "nominal_dh", "robot_type", "ur_model"]
 
