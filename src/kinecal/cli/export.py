@@ -165,9 +165,10 @@ def export(
         _export_ros_tf(source, out, unit, parent_frame, child_frame)
         return
     if _handeye_json(source):
-        raise InputError(f"{source} is a hand-eye result: export it with --format ros-tf, or "
-                         f"into a robot's URDF with kinecal export MODEL --camera {source} "
-                         "--format urdf", option="SOURCE")
+        raise InputError(f"{source} is a hand-eye calibration result, not an arm's (kinecal "
+                         "calibrate --out): export it with --format ros-tf, or as the camera of "
+                         f"a robot's URDF with kinecal export MODEL --camera {source} --format "
+                         "urdf", option="SOURCE")
     if camera is not None and fmt != "urdf":
         raise InputError("--camera adds a camera mount to a URDF: give --format urdf",
                          option="--camera")
