@@ -70,9 +70,11 @@ BAR_POSES = 100
 def _per_pose(ax: Any, before: NDArray, after: NDArray, unit: str, title: str) -> None:
     """Per-pose distance errors before (grey) and after (blue), in pose order.
 
-    Up to `BAR_POSES` poses: a pair of bars per pose (pose numbers from 1, integer ticks).
-    Beyond: one point per pose and set, still in pose order (a pose is found by its number),
-    on a logarithmic axis, so that the after errors, often a hundred times smaller, are not
+    Up to `BAR_POSES` poses: a pair of bars per pose (pose numbers from 1, integer ticks),
+    on a logarithmic axis when every after error is below a tenth of the largest error (the
+    after bars would not show on a linear one). Beyond: one point per pose and set, still
+    in pose order (a pose is found by its number), on a logarithmic axis, so that the after
+    errors, often a hundred times smaller, are not
     flattened against the before ones. `_sorted` draws the same errors sorted.
     """
     from matplotlib.ticker import MaxNLocator
@@ -85,8 +87,15 @@ def _per_pose(ax: Any, before: NDArray, after: NDArray, unit: str, title: str) -
         ax.bar(idx - 0.2, before, width=0.4, color=_BEFORE, label="before")
         ax.bar(idx + 0.2, after, width=0.4, color=_AFTER, label="after")
         ax.set_xlim(0.4, n + 0.6)
-        top = float(np.concatenate([before, after]).max(initial=0.0))
-        ax.set_ylim(0.0, 1.25 * top if top > 0 else 1.0)  # room for the legend
+        both = np.concatenate([before, after])
+        top = float(both.max(initial=0.0))
+        if top > 0 and (both > 0).all() and after.max(initial=0.0) < 0.1 * top:
+            # the after bars would be invisible on a linear axis: a logarithmic one
+            ax.set_yscale("log")
+            ax.set_ylim(float(both.min()) / 2.0, top * 4.0)  # room for the legend
+            ax.grid(True, which="major", axis="y", alpha=0.3)
+        else:
+            ax.set_ylim(0.0, 1.25 * top if top > 0 else 1.0)  # room for the legend
     else:
         floor = max(float(np.concatenate([before, after]).max(initial=0.0)) * 1e-12, 1e-300)
         for values, color, label in ((before, _BEFORE, "before"), (after, _AFTER, "after")):

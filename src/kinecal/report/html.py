@@ -116,12 +116,13 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes],
                            rot_rows))
     pred = result.predicted_error_summary()
     if pred["calibration_mean"] is not None:
-        parts = [f"{pred['calibration_mean']:.3g} {unit} on the calibration poses"]
-        if pred["validation_mean"] is not None:
-            parts.append(f"{pred['validation_mean']:.3g} {unit} on the validation poses")
-        errors += ("<p>Uncertainty the calibration leaves in the model (1 sigma RMS position "
-                   "error from the parameter covariance, first order): "
-                   f"{html.escape(', '.join(parts))}; expanded (k = 2): twice these.</p>")
+        parts = [(k, pred[f"{k}_mean"]) for k in ("calibration", "validation")
+                 if pred[f"{k}_mean"] is not None]
+        text = ", ".join(f"u = {v:.3g} {unit}, U = {COVERAGE_K * v:.3g} {unit} on the {k} poses"
+                         for k, v in parts)
+        errors += ("<p>Uncertainty the calibration leaves in the model (RMS position error "
+                   "from the parameter covariance, first order; u: 1 sigma, U: expanded, "
+                   f"k = 2): {html.escape(text)}.</p>")
     if "noise" in getattr(result, "extra", {}):  # --sigma: the test, known-noise uncertainty
         from kinecal.calibration.diagnostics.noise import noise_lines
 

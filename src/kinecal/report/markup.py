@@ -37,7 +37,8 @@ table.files td:nth-child(3){font-family:ui-monospace,monospace;font-size:.85em;w
 sans-serif;color:#555}}
 @media print{body{margin:0;max-width:none;padding:0;font-size:9pt}
 img.fig{width:100%;height:auto}figure,tr{break-inside:avoid}h2{break-after:avoid}
-p.meta{string-set:meta content()}table{font-size:.9em}}
+p.meta{string-set:meta content()}table{font-size:.9em}
+#correlation table{font-size:.62em}#correlation th,#correlation td{padding:.15em .2em}}
 """
 
 #: pixel size of every embedded figure
