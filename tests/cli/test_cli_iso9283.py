@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 import kinecal
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.cli import main
+from kinecal.data import RepeatedPoses
 from kinecal.io.measurements import write_measurements
-from kinecal.metrology.iso9283 import RepeatedPoses, iso9283
+from kinecal.metrology.iso9283 import iso9283
 from kinecal.spatial import matrix_from_rpy, quaternion_from_matrix
 
 P, N = 5, 30

@@ -6,8 +6,9 @@ import math
 import numpy as np
 import pytest
 
+from kinecal.data import RepeatedPoses
 from kinecal.errors import InputError
-from kinecal.metrology.iso9283 import RepeatedPoses, iso9283
+from kinecal.metrology.iso9283 import iso9283
 from kinecal.spatial import matrix_from_rpy
 
 P, N = 5, 30

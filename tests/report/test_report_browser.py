@@ -89,7 +89,8 @@ def test_report_figures_are_drawn_in_chromium(ur5_result, tmp_path):
 
 
 def test_iso9283_report_is_drawn_in_chromium(tmp_path):
-    from kinecal.metrology.iso9283 import RepeatedPoses, iso9283
+    from kinecal.data import RepeatedPoses
+    from kinecal.metrology.iso9283 import iso9283
     from kinecal.report.iso9283 import iso9283_report
 
     rng = np.random.default_rng(0)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import kinecal
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.cli import main
 from kinecal.data import Measurements
 from kinecal.io.measurements import write_measurements

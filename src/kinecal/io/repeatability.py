@@ -23,9 +23,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal.data import RepeatedPoses
 from kinecal.errors import InputError
 from kinecal.io.csvtable import read_column, read_table
-from kinecal.metrology.iso9283 import STANDARD_CYCLES, RepeatedPoses
 from kinecal.spatial import matrix_from_quaternion
 
 __all__ = ["read_repeatability"]
@@ -140,8 +140,8 @@ def _cycles(path: Path, labels: list[str], cycle: NDArray[np.float64]
                 "cycle", file=path)
     if len(cycles) < 2:
         raise InputError(f"{len(cycles)} cycle (cycle {cycles[0]}): expected at least 2 cycles "
-                         f"of every pose for the repeatabilities (ISO 9283 prescribes "
-                         f"{STANDARD_CYCLES})", file=path)
+                         "of every pose for the repeatabilities (ISO 9283 prescribes 30)",
+                         file=path)
     return names, cycles, [[rows[c] for c in cycles] for rows in found]
 
 

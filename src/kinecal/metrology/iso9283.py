@@ -38,7 +38,8 @@ Conventions of this module:
 - Lengths are in the unit of the data; angles are radians here (`Iso9283Result.to_dict`
   gives degrees).
 
-Entry points: `iso9283` (every figure of a `RepeatedPoses` test) and the per-clause
+Entry points: `iso9283` (every figure of a `kinecal.data.RepeatedPoses` test) and the
+per-clause
 functions `pose_accuracy`, `pose_repeatability`, `orientation_accuracy`,
 `orientation_repeatability` and `distance_figures`.
 """
@@ -53,13 +54,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal.data import RepeatedPoses
 from kinecal.errors import InputError
 from kinecal.spatial import rpy_from_matrix
 
 __all__ = [
     "POSE_KEYS",
     "Iso9283Result",
-    "RepeatedPoses",
     "distance_figures",
     "iso9283",
     "orientation_accuracy",
@@ -78,69 +79,6 @@ POSE_KEYS = ("AP", "APx", "APy", "APz", "RP")
 ORIENTATION_KEYS = ("APa", "APb", "APc", "RPa", "RPb", "RPc")
 DISTANCE_KEYS = ("AD", "ADx", "ADy", "ADz", "RD", "RDx", "RDy", "RDz")
 ORIENTATION_DISTANCE_KEYS = ("ADa", "ADb", "ADc", "RDa", "RDb", "RDc")
-
-
-@dataclass(frozen=True)
-class RepeatedPoses:
-    """Measurements of P commanded poses, each measured once in each of n cycles.
-
-    Attributes
-    ----------
-    labels : tuple of str, length P
-        Pose names, in the order of the test.
-    cycles : ndarray of int, shape (n,)
-        Cycle numbers (increasing).
-    measured : ndarray, shape (P, n, 3)
-        Measured positions (length unit), ``measured[i, j]`` pose i in cycle j.
-    commanded : ndarray, shape (P, 3)
-        Commanded positions (length unit).
-    measured_rotations : ndarray, shape (P, n, 3, 3), optional
-        Measured orientations (rotation matrices), None for position-only instruments.
-    commanded_rotations : ndarray, shape (P, 3, 3), optional
-        Commanded orientations.
-    joints : ndarray, shape (P, n_joints), optional
-        Commanded joint values (rad; prismatic: length unit) when the commanded poses come
-        from a model's forward kinematics.
-    length_unit : str
-        Unit of the positions (a label).
-    source : str
-        Where the data came from.
-    """
-
-    labels: tuple[str, ...]
-    cycles: NDArray[np.int64]
-    measured: Array
-    commanded: Array
-    measured_rotations: Array | None = None
-    commanded_rotations: Array | None = None
-    joints: Array | None = None
-    length_unit: str = "mm"
-    source: str = ""
-
-    def __post_init__(self) -> None:
-        m = np.asarray(self.measured, dtype=float)
-        p = len(self.labels)
-        if m.ndim != 3 or m.shape[0] != p or m.shape[2] != 3:
-            raise InputError(f"measured positions: expected shape ({p}, n, 3), got {m.shape}")
-        n = m.shape[1]
-        shapes = {"cycles": (np.shape(self.cycles), (n,)),
-                  "commanded positions": (np.shape(self.commanded), (p, 3))}
-        if self.measured_rotations is not None:
-            shapes["measured orientations"] = (np.shape(self.measured_rotations), (p, n, 3, 3))
-        if self.commanded_rotations is not None:
-            shapes["commanded orientations"] = (np.shape(self.commanded_rotations), (p, 3, 3))
-        for what, (got, want) in shapes.items():
-            if got != want:
-                raise InputError(f"{what}: expected shape {want}, got {got}")
-        if len(set(self.labels)) != p:
-            raise InputError("pose labels repeat: expected one label per pose")
-        if not (np.isfinite(m).all() and np.isfinite(self.commanded).all()):
-            raise InputError("positions contain NaN or infinite values")
-
-    @property
-    def n_cycles(self) -> int:
-        """Number of cycles n."""
-        return int(np.shape(self.measured)[1])
 
 
 def orientation_angles(R: Array) -> Array:

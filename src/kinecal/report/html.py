@@ -14,8 +14,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from kinecal.calibration.stats import stat_rows
 from kinecal.errors import InputError
+from kinecal.metrology.stats import stat_rows
 from kinecal.report.details import axis_section, confounded_rows, correlation_section
 from kinecal.report.document import write_report
 from kinecal.report.figures import (

@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from kinecal.metrology.iso9283 import STANDARD_CYCLES, Iso9283Result, RepeatedPoses, iso9283
+from kinecal.data import RepeatedPoses
+from kinecal.metrology.iso9283 import STANDARD_CYCLES, Iso9283Result, iso9283
 from kinecal.report.document import write_report
 from kinecal.report.figures import figure_png, new_figure
 from kinecal.report.markup import image_tag, kv, page, section, table

@@ -23,7 +23,7 @@ def stewart_report(result: Any, path: str | Path, provenance: Provenance | None 
     """Write the report of a `StewartCalibrationResult` to `path` (atomic; PDF for a
     ``.pdf`` path) with its record (`provenance`: date and version when omitted); returns
     it."""
-    from kinecal.kinematics.stewart import PARAMETER_NAMES
+    from kinecal.kinematics.stewart.platform import PARAMETER_NAMES
 
     path = Path(path)
     if path.is_dir():
