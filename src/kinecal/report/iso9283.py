@@ -195,8 +195,8 @@ def validation_iso9283_section(result: Any, validation: Any = None) -> str:
     """ISO 9283 AP (before and after) and RP of the validation poses of a calibration, when
     `validation` (the validation `Measurements`) repeats poses (`repeated_validation`);
     else the empty string."""
-    if validation is None:
-        return ""
+    if validation is None or getattr(validation, "marker", None) is not None:
+        return ""  # several markers share joint values: equal joints are not one pose
     after = repeated_validation(validation.q, validation.xyz, result.model)
     if after is None:
         return ""
