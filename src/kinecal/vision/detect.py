@@ -31,7 +31,6 @@ sharp, pixel-integrated edge about 1-1.5 px).
 
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -40,6 +39,12 @@ from numpy.typing import NDArray
 
 from kinecal.vision import require_cv2
 from kinecal.vision.boards import AsymmetricCircleGrid, Board, Charuco, Chessboard
+from kinecal.vision.pixels import (
+    blurred_around,
+    hull_polygon,
+    percentiles_of_levels,
+    upper_percentile,
+)
 
 Array = NDArray[np.float64]
 
@@ -146,7 +151,7 @@ def edge_width(gray: NDArray[np.uint8], mask: NDArray[np.bool_] | None = None) -
     if gray.dtype == np.uint8:  # grey levels: the percentiles from their histogram
         m8 = None if mask is None else mask.view(np.uint8)
         counts = cv2.calcHist([g], [0], m8, [256], [0, 256]).ravel()
-        lo, hi = _percentiles_of_levels(counts, (2.0, 98.0))
+        lo, hi = percentiles_of_levels(counts, (2.0, 98.0))
     else:
         lo, hi = np.percentile(g[mask] if mask is not None else g, [2.0, 98.0])
     if hi - lo < 10.0:
@@ -159,68 +164,16 @@ def edge_width(gray: NDArray[np.uint8], mask: NDArray[np.bool_] | None = None) -
     gx *= gx
     gy *= gy
     gx += gy
-    peak = _upper_percentile(np.sqrt(gx, out=gx).ravel(), 99.5)
+    peak = upper_percentile(np.sqrt(gx, out=gx).ravel(), 99.5)
     if peak <= 0:
         return float("nan")
     return float(0.78 * (hi - lo) / peak)
 
 
-def _upper_percentile(x: NDArray[np.float32], q: float) -> float:
-    """``float(numpy.percentile(x, q))`` (linear method, scalar `q` near 100) for a float32
-    vector, selecting the two order statistics among the values above a threshold taken
-    from a subsample (a few hundred values instead of a partition of all); the same value,
-    bit for bit (tests/vision), numpy's own call when the threshold is not low enough."""
-    n = x.size
-    vi = (n - 1) * np.true_divide(q, 100)
-    k0 = int(np.floor(vi))
-    k1 = min(k0 + 1, n - 1)
-    if n < 4096 or vi >= n - 1:
-        return float(np.percentile(x, q))
-    sub = x[::16]
-    j = int(0.99 * (q / 100) * (sub.size - 1))  # a little below the quantile sought
-    t = np.partition(sub, j)[j]
-    cand = x[x >= t]
-    below = n - cand.size  # values under t: the ranks k0, k1 must lie above them
-    if below > k0:
-        return float(np.percentile(x, q))
-    cand.sort()
-    a, b = cand[k0 - below], cand[k1 - below]
-    gamma = float(vi - np.floor(vi))
-    diff = b - a  # float32, as numpy's interpolation with a scalar q
-    return float(b - diff * (1 - gamma) if gamma >= 0.5 else a + diff * gamma)
-
-
-def _percentiles_of_levels(counts: Array, q: tuple[float, ...]) -> Array:
-    """``numpy.percentile`` (linear method) of integer levels given by their histogram
-    ``counts`` (level i counted ``counts[i]`` times): the order statistics from the
-    cumulative counts, interpolated exactly as numpy does (same values, bit for bit;
-    tests/vision)."""
-    cum = np.cumsum(counts.astype(np.int64))
-    n = int(cum[-1])
-    vi = (n - 1) * np.true_divide(np.asarray(q, dtype=float), 100)
-    prev = np.floor(vi)
-    i0 = np.clip(prev, 0, n - 1).astype(np.intp)
-    i1 = np.clip(prev + 1, 0, n - 1).astype(np.intp)
-    a = np.searchsorted(cum, i0, side="right").astype(float)  # level of rank i0
-    b = np.searchsorted(cum, i1, side="right").astype(float)
-    gamma = vi - prev
-    diff = b - a
-    return np.where(gamma >= 0.5, b - diff * (1 - gamma), a + diff * gamma)
-
-
-def _hull_polygon(pts: Array, grow: float) -> NDArray[np.int32]:
-    """Integer vertices ``(k, 2)`` of the convex hull of `pts` grown about its centroid."""
-    cv2 = require_cv2()
-    hull = cv2.convexHull(pts.astype(np.float32)).reshape(-1, 2)
-    c = hull.mean(axis=0)
-    hull = c + (hull - c) * grow
-    return np.round(hull).astype(np.int32)
-
-
 def _hull_mask(shape: tuple[int, int], pts: Array, grow: float) -> NDArray[np.bool_]:
     cv2 = require_cv2()
     mask = np.zeros(shape, np.uint8)
-    cv2.fillConvexPoly(mask, _hull_polygon(pts, grow), 1)
+    cv2.fillConvexPoly(mask, hull_polygon(pts, grow), 1)
     return mask.astype(bool)
 
 
@@ -228,7 +181,7 @@ def _board_edge_width(gray: NDArray[np.uint8], pts: Array, grow: float) -> float
     """`edge_width` within the grown hull of `pts`, on the hull's bounding box plus 2 px
     (the Sobel gradient needs one; same pixels, same values as on the whole image)."""
     cv2 = require_cv2()
-    poly = _hull_polygon(pts, grow)
+    poly = hull_polygon(pts, grow)
     h, w = gray.shape
     x0, y0 = np.maximum(poly.min(axis=0) - 2, 0)
     x1, y1 = np.minimum(poly.max(axis=0) + 3, (w, h))
@@ -253,42 +206,10 @@ def _subpix(gray: NDArray[np.uint8], corners: Array, spacing: float) -> Array:
     cv2 = require_cv2()
     half = int(np.clip(np.floor(0.45 * spacing), 2, 15))
     sigma = min(1.5, spacing / 12.0)
-    img = _blurred_around(gray, corners, sigma, 2 * half + 3) if sigma >= 0.3 else gray
+    img = blurred_around(gray, corners, sigma, 2 * half + 3) if sigma >= 0.3 else gray
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
     c = corners.astype(np.float32).reshape(-1, 1, 2)
     return cv2.cornerSubPix(img, c, (half, half), (-1, -1), crit).reshape(-1, 2).astype(float)
-
-
-def _blurred_around(gray: NDArray[np.uint8], pts: Array, sigma: float,
-                    reach: int) -> NDArray[np.float32]:
-    """The image smoothed by a Gaussian of `sigma`, computed only where it is read: within
-    `reach` px of `pts` (elsewhere zero). The blur runs on that box plus the kernel's
-    radius, so every pixel within reach has exactly the value the whole image's blur gives
-    (the box edge is the image border, or farther than the kernel reaches)."""
-    cv2 = require_cv2()
-    h, w = gray.shape
-    margin = reach + int(np.ceil(4.0 * sigma)) + 2  # OpenCV's float kernel: 4 sigma radius
-    x0, y0 = np.maximum(np.floor(pts.min(axis=0)).astype(int) - margin, 0)
-    x1, y1 = np.minimum(np.ceil(pts.max(axis=0)).astype(int) + margin + 1, (w, h))
-    out = _zeroed_image((h, w))
-    out[y0:y1, x0:x1] = cv2.GaussianBlur(gray[y0:y1, x0:x1].astype(np.float32), (0, 0), sigma)
-    return out
-
-
-_SCRATCH = threading.local()
-
-
-def _zeroed_image(shape: tuple[int, int]) -> NDArray[np.float32]:
-    """A zeroed float32 image, this thread's buffer reused (a fresh megabyte-sized array
-    costs more in page faults than the blur that fills it). Valid until the thread's next
-    call."""
-    buf = getattr(_SCRATCH, "image", None)
-    if buf is None or buf.shape != shape:
-        buf = np.zeros(shape, np.float32)
-        _SCRATCH.image = buf
-    else:
-        buf.fill(0.0)
-    return buf
 
 
 def _sample(gray: NDArray[np.uint8], p: Array) -> float:
