@@ -131,7 +131,7 @@ def find_inconsistency(F: Array, C: Array, setup: str, X: Array, Y: Array,
     ]
     Gs = np.stack([robot(F)] + [robot(Fa) for _, Fa, _ in tries])
     Cs = np.stack([C] + [Ca for _, _, Ca in tries])
-    screened = screen_scores(Gs, Cs, ROTATION_LIMIT_DEG)
+    screened = screen_scores(Gs, Cs, ROTATION_LIMIT_DEG, FAR_BETTER)
     found = Inconsistency(r, t)
     as_is = screened[0]
     best = np.inf if np.isnan(as_is[0]) else size(as_is) / FAR_BETTER
@@ -143,7 +143,8 @@ def find_inconsistency(F: Array, C: Array, setup: str, X: Array, Y: Array,
     return found
 
 
-def screen_scores(G: Array, C: Array, rotation_limit: float | None = None) -> Array:
+def screen_scores(G: Array, C: Array, rotation_limit: float | None = None,
+                  far_better: float | None = None) -> Array:
     """`consistency_scores` of a closed form for stacks of readings, all in one pass.
 
     The closed form is Shah's (2013) on the absolute poses (``sum R_C (x) R_G^T``, its
@@ -163,6 +164,10 @@ def screen_scores(G: Array, C: Array, rotation_limit: float | None = None) -> Ar
         Readings after the first whose rotation score exceeds this (deg) get no
         translation score (inf): they cannot fit anyway, and the translation part is half
         the work.
+    far_better : float, optional
+        With `rotation_limit`: also readings after the first whose rotation score alone,
+        in units of `rotation_limit`, is already at least the first reading's score
+        (`find_inconsistency`'s size) over `far_better`: they cannot fit that much better.
 
     Returns
     -------
@@ -174,7 +179,7 @@ def screen_scores(G: Array, C: Array, rotation_limit: float | None = None) -> Ar
     from kinecal.calibration.handeye._motions import degenerate_motions
 
     r, n = G.shape[:2]
-    RG, tG, RC, tC = G[..., :3, :3], G[..., :3, 3], C[..., :3, :3], C[..., :3, 3]
+    RG, RC = G[..., :3, :3], C[..., :3, :3]
     RGt = np.swapaxes(RG, -1, -2)
     bad = degenerate_motions(np.stack([RGt[:, :1] @ RG[:, 1:],
                                        RC[:, :1] @ np.swapaxes(RC[:, 1:], -1, -2)])).any(axis=0)
@@ -189,30 +194,45 @@ def screen_scores(G: Array, C: Array, rotation_limit: float | None = None) -> Ar
     RY = project_to_rotation(RP.mean(axis=1))
     out = np.full((r, 2), np.inf)
     out[:, 0] = np.median(np.degrees(_angles(np.swapaxes(RY, 1, 2)[:, None] @ RP)), axis=1)
-    full = np.ones(r, bool) if rotation_limit is None else out[:, 0] <= rotation_limit
-    full[0] = True
-    ok = ~bad & full
-    # the translation score: R_G t_X - t_Y = -t_G - R_G R_X t_C by least squares
-    RG, RGt, RGX, tG, tC = RG[ok], RGt[ok], RGX[ok], tG[ok], tC[ok]
-    m = len(RG)
+    need = ~bad & (True if rotation_limit is None else out[:, 0] <= rotation_limit)
+    need[0] = not bad[0]
+    solvable = np.ones(r, bool)
+    if rotation_limit is not None and far_better is not None and need[0]:
+        out[0, 1], solvable[0] = (v[0] for v in _translation_scores(G[:1], C[:1], RX[:1]))
+        first = out[0, 0] / rotation_limit + out[0, 1] / TRANSLATION_LIMIT
+        if solvable[0] and np.isfinite(first):
+            need &= out[:, 0] / rotation_limit < first / far_better
+        need[0] = False
+    if need.any():
+        out[need, 1], solvable[need] = _translation_scores(G[need], C[need], RX[need])
+    out[bad | ~solvable] = np.nan
+    return out
+
+
+def _translation_scores(G: Array, C: Array, RX: Array) -> tuple[Array, NDArray[np.bool_]]:
+    """Median station translation residual over the RMS camera-target distance ``(r,)`` of
+    readings ``(r, n, 4, 4)`` with hand-eye rotations `RX` ``(r, 3, 3)`` (``t_X, t_Y`` by
+    least squares on ``R_G t_X - t_Y = -t_G - R_G R_X t_C``, then the mean target
+    position), and which readings had a solvable system ``(r,)``."""
+    r, n = G.shape[:2]
+    RG, tG, tC = G[..., :3, :3], G[..., :3, 3], C[..., :3, 3]
+    RGt = np.swapaxes(RG, -1, -2)
+    RGX = RG @ RX[:, None]
     rhs = -tG - np.einsum("rnij,rnj->rni", RGX, tC)
-    N = np.zeros((m, 6, 6))
+    N = np.zeros((r, 6, 6))
     N[:, :3, :3] = n * np.eye(3)  # sum R_G^T R_G
     N[:, :3, 3:] = -RGt.sum(axis=1)
     N[:, 3:, :3] = -RG.sum(axis=1)
     N[:, 3:, 3:] = n * np.eye(3)
     b = np.concatenate([np.einsum("rnji,rnj->ri", RG, rhs), -rhs.sum(axis=1)], axis=1)
     solvable = np.abs(np.linalg.det(N)) > 1e-9 * n**6
-    tX = np.zeros((m, 3))
+    tX = np.zeros((r, 3))
     if solvable.any():
         tX[solvable] = np.linalg.solve(N[solvable], b[solvable][..., None])[:, :3, 0]
     tP = np.einsum("rnij,rnj->rni", RGX, tC) + np.einsum("rnij,rj->rni", RG, tX) + tG
     tr = np.linalg.norm(tP - tP.mean(axis=1)[:, None], axis=2)
     dist = np.sqrt(np.mean(np.sum(tC**2, axis=2), axis=1))
-    out[ok, 1] = np.median(tr, axis=1) / np.maximum(dist, 1e-300)
-    out[bad] = np.nan
-    out[np.flatnonzero(ok)[~solvable]] = np.nan
-    return out
+    return np.median(tr, axis=1) / np.maximum(dist, 1e-300), solvable
 
 
 def _angles(R: Array) -> Array:
