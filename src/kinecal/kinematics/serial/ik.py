@@ -50,7 +50,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
-from kinecal.kinematics.serial.ik_lm import CONVERGED, Problem, condition_numbers, pose_error, run
+from kinecal.kinematics.serial.ik_lm import (
+    CONVERGED,
+    Problem,
+    condition_numbers,
+    pose_error,
+    run,
+    run_one,
+)
 from kinecal.spatial import check_transform
 
 if TYPE_CHECKING:
@@ -298,7 +305,10 @@ def solve_ik(
     tol_r = float(tol_rotation) if pose else np.inf
     prob = Problem(model, p, t, w, length)
     q = prob.project(q)
-    q, pos, rot, iters, status = run(prob, q, tol_p, tol_r, int(max_iterations))
+    # one target: the same iterations on plain floats and the single-pose chain
+    got = run_one(prob, q, tol_p, tol_r, int(max_iterations)) if N == 1 else None
+    q, pos, rot, iters, status = got if got is not None else \
+        run(prob, q, tol_p, tol_r, int(max_iterations))
     tries = np.zeros(N, dtype=int)
     bad = np.flatnonzero(~np.isin(status, CONVERGED))
     R = int(restarts)
