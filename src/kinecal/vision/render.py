@@ -99,7 +99,8 @@ def plan_views(
         c = rng.uniform(cos_max, 1.0)
         phi = rng.uniform(0, 2 * np.pi)
         s = np.sqrt(1 - c * c)
-        direction = np.array([s * np.cos(phi), s * np.sin(phi), -c])  # board z points away
+        # the camera on the printed side (-z for OpenCV's boards: board z points away)
+        direction = np.array([s * np.cos(phi), s * np.sin(phi), -board.faces * c])
         dist_ = d0 * (1.0 + distance_spread * rng.uniform(-1, 1))
         aim = centre + np.array([rng.uniform(-0.15, 0.15) * (x1 - x0),
                                  rng.uniform(-0.15, 0.15) * (y1 - y0), 0.0])
