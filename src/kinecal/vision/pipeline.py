@@ -65,6 +65,8 @@ def calibrate_handeye_images(
     robust: bool = True,
     limits: QualityLimits | None = None,
     progress: Callable[..., None] | None = None,
+    camera_height: float | None = None,
+    board_contact: Any = None,
 ) -> ImageHandEyeResult:
     """Hand-eye calibration from board images and robot poses.
 
@@ -96,6 +98,9 @@ def calibrate_handeye_images(
         Per-image quality thresholds.
     progress : callable, optional
         Called as ``progress()`` after each image is detected.
+    camera_height, board_contact : optional
+        Robots that turn about one axis only (SCARA): X's height along the axis, or a point
+        of the board plane touched by the tool (`kinecal.calibration.handeye.calibrate_handeye`).
 
     Returns
     -------
@@ -136,13 +141,15 @@ def calibrate_handeye_images(
         if orientation_ambiguous(board) and _turn_flipped(records, used, board, F[idx], C,
                                                           setup, method):
             C = np.array([records[k].pose.target2cam for k in used])
-        seed = calibrate_handeye(F[idx], C, setup=setup, method=method, refine="lm")
+        seed = calibrate_handeye(F[idx], C, setup=setup, method=method, refine="lm",
+                                 camera_height=camera_height, board_contact=board_contact)
+        one = _one_axis(seed, F[idx], setup, camera_height, board_contact)
         obj = [records[k].detection.object_points(board) for k in used]
         pix = [records[k].detection.corners for k in used]
         ref = refine_reprojection(F[idx], obj, pix, intr.K, intr.dist, seed.X, seed.target,
                                   setup=setup, refine_intrinsics=refine_intrinsics,
                                   rational=intr.rational, robot_noise=robot_noise,
-                                  robust=robust)
+                                  robust=robust, one_axis=one)
         for j, k in enumerate(used):
             records[k].residuals = ref.residuals[j]
         for j in ref.outliers:
@@ -158,8 +165,25 @@ def calibrate_handeye_images(
                                     intr.rational)
         _plausibility(ref, records, limits)
     warnings = [d.to_dict() for d in found]
-    return ImageHandEyeResult(ref.X, ref.Y, setup, method, board, intr, refine_intrinsics,
-                              records, ref, seed, warnings, time.perf_counter() - t0)
+    res = ImageHandEyeResult(ref.X, ref.Y, setup, seed.method, board, intr, refine_intrinsics,
+                             records, ref, seed, warnings, time.perf_counter() - t0)
+    if one is not None:
+        from kinecal.calibration.handeye.one_axis import one_axis_summary
+
+        res.one_axis = one_axis_summary(*one, ref.X, ref.Y)
+    return res
+
+
+def _one_axis(seed: Any, F: Array, setup: str, camera_height: float | None,
+              board_contact: Any) -> Any:
+    """(axis, height) when the seed found one-axis stations (SCARA), else None."""
+    if seed.one_axis is None:
+        return None
+    from kinecal.calibration.handeye.scara import AxisHeight, detect_one_axis
+    from kinecal.spatial import invert_transform
+
+    G = F if setup == "eye-in-hand" else invert_transform(F)
+    return detect_one_axis(G, setup), AxisHeight.from_options(camera_height, board_contact)
 
 
 def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
