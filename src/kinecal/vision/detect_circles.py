@@ -6,7 +6,9 @@ blobs over a range of thresholds) and ordered into the grid by ``cv2.findCircles
 tried with the pattern size transposed and with ``CALIB_CB_CLUSTERING``, as
 industrial_calibration's finder does). The blob detector is set for the image: areas from
 8 px up to twice the image area per dot (OpenCV's default stops at 5000 px, a dot of 80 px),
-circularity down to 0.6 and inertia ratio down to 0.1 (views tilted up to about 70 deg).
+circularity down to 0.6 and inertia ratio down to 0.1 (views tilted up to about 70 deg). A
+grid that lists one blob twice (OpenCV issue 4775, which industrial_calibration's finder
+also guards against) counts as not found.
 The centres are the blobs' centroids, as OpenCV's: a projected circle's centroid lies off
 the projection of its centre by a fraction of a pixel on oblique views (tests/vision
 measures it on renders).
@@ -57,7 +59,6 @@ def blob_detector(shape: tuple[int, ...], board: CircleGrid) -> Any:
     p.filterByCircularity, p.minCircularity = True, 0.6
     p.filterByInertia, p.minInertiaRatio = True, 0.1
     p.filterByConvexity, p.minConvexity = True, 0.85
-    p.minDistBetweenBlobs = 3.0
     return cv2.SimpleBlobDetector_create(p)
 
 
@@ -77,10 +78,20 @@ def _find_grid(gray: NDArray[np.uint8], board: CircleGrid, bd: Any) -> Array | N
                                                | extra, blobDetector=bd)
             except cv2.error:
                 found = False
-            if found and c is not None and len(c) == cols * rows:
+            if found and c is not None and len(c) == cols * rows and _distinct(c):
                 g = c.reshape(size[1], size[0], 2).astype(float)
                 return g.transpose(1, 0, 2) if transposed else g
     return None
+
+
+def _distinct(c: Array) -> bool:
+    """No two grid points closer than a third of the median neighbour distance (OpenCV can
+    list one blob twice, its issue 4775)."""
+    c = c.reshape(-1, 2).astype(float)
+    d = np.linalg.norm(c[:, None] - c[None], axis=2)
+    np.fill_diagonal(d, np.inf)
+    near = d.min(axis=1)
+    return bool(near.min() > np.median(near) / 3.0)
 
 
 def _right_handed(g: Array) -> Array:
