@@ -96,13 +96,17 @@ def one_axis_lines(one: dict | None, unit: str) -> list[str]:
     """Summary lines explaining a one-axis (SCARA) solution, none otherwise."""
     if not one:
         return []
-    a = one["axis_base"]
+    a = np.round(one["axis_base"], 3) + 0.0  # no "-0.000"
+
+    def length(v: float) -> str:
+        return f"{round(float(v), 6) + 0.0:.6g} {unit}"
+
     src = {"camera-height": "from --camera-height", "board-contact": "from --board-contact",
            "none": "ASSUMED 0 (give --camera-height or --board-contact)"}[one["height_from"]]
     return [f"rotations about one axis only ({a[0]:+.3f}, {a[1]:+.3f}, {a[2]:+.3f} in the base "
             f"frame; SCARA): X's translation along it is not in the data, {src}; camera "
-            f"{one['camera_height']:.6g} {unit} ({one['camera_height_is']}), board origin "
-            f"{one['board_height']:.6g} {unit} ({one['board_height_is']}) along the axis"]
+            f"{length(one['camera_height'])} ({one['camera_height_is']}), board origin "
+            f"{length(one['board_height'])} ({one['board_height_is']}) along the axis"]
 
 
 _FORMAT_HELP = ("auto, quaternion, matrix (4x4), rotvec (UR), euler-zyx (KUKA A, B, C) or "
