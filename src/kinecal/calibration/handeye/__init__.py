@@ -225,16 +225,10 @@ def calibrate_handeye(
         Metaheuristic options (``popsize``, ``maxiter``, ``rotation_box``,
         ``translation_box``, ``maxfev``, ``length``, ``method_options``), see
         `refine_meta.metaheuristic`.
-    camera_height : float, optional
-        Stations turning about one axis only (SCARA): X's translation along that axis, which
-        AX = XB cannot see: the camera's offset from the flange origin along it
-        (eye-in-hand) or its height in the base frame (eye-to-hand), length unit L. The axis
-        is oriented like the base frame's (+z for an upright SCARA).
-    board_contact : array_like, shape (3,), optional
-        Instead of `camera_height`: a point of the board's printed plane (the tool tip
-        touching it), in the base frame (eye-in-hand) or flange frame (eye-to-hand).
-        Neither given with one-axis stations: the camera is put level with the flange along
-        the axis and ``handeye-one-axis`` warns.
+    camera_height, board_contact : optional
+        Stations turning about one axis only (SCARA): X's translation along it, which AX = XB
+        cannot see, or a point (3,) of the board plane touched by the tool (base frame
+        eye-in-hand, flange frame eye-to-hand); `kinecal.calibration.handeye.scara`.
 
     Returns
     -------
@@ -295,8 +289,12 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
     if axis is not None:  # SCARA: Ulrich & Steger, the height from the caller
         from kinecal.calibration.handeye.one_axis import calibrate_one_axis
 
-        return calibrate_one_axis(F, C, G, setup, axis, height, refine, robust,
-                                  rotation_weight, seed, pairs, options, t0)
+        s = calibrate_one_axis(F, C, G, setup, axis, height, refine, robust, rotation_weight,
+                               seed, pairs, _meta_options(options))
+        res = HandEyeResult(s.X, s.Y, setup, "ulrich-steger", refine, *s.residuals,
+                            s.outliers, s.history, s.nfev, time.perf_counter() - t0)
+        res.x_uncertainty, res.one_axis = s.uncertainty, s.summary
+        return res
     X, Y = solve(G, C, method, pairs)
     X0 = X
     if height.given:
@@ -316,12 +314,7 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
     elif refine in ("igwo", "dlh-gwo-de"):
         from kinecal.calibration.handeye.refine_meta import metaheuristic
 
-        opts = dict(options or {})
-        unknown = sorted(set(opts) - _META_OPTIONS)
-        if unknown:
-            raise InputError(f"unknown option(s) {', '.join(unknown)}; expected "
-                             f"{', '.join(sorted(_META_OPTIONS))}", option="options")
-        res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **opts)
+        res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **_meta_options(options))
         X, history, nfev = res.X, res.history, res.nfev
         Y = mean_target_pose(G, X, C)
     if refine != "lm":
@@ -344,6 +337,16 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
                         nfev, time.perf_counter() - t0)
     res.x_uncertainty = unc
     return res
+
+
+def _meta_options(options: dict[str, Any] | None) -> dict[str, Any]:
+    """The metaheuristic refiners' options, unknown names refused."""
+    opts = dict(options or {})
+    unknown = sorted(set(opts) - _META_OPTIONS)
+    if unknown:
+        raise InputError(f"unknown option(s) {', '.join(unknown)}; expected "
+                         f"{', '.join(sorted(_META_OPTIONS))}", option="options")
+    return opts
 
 
 def _consensus_refinement(G: Array, C: Array, first: Any, seed: Any,

@@ -11,7 +11,7 @@ and its position across it are poorly determined).
 
 from __future__ import annotations
 
-import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -32,7 +32,7 @@ from kinecal.diagnostics import warn
 
 Array = NDArray[np.float64]
 
-__all__ = ["calibrate_one_axis", "one_axis_summary", "warn_height_unused"]
+__all__ = ["OneAxisSolution", "calibrate_one_axis", "one_axis_summary", "warn_height_unused"]
 
 #: what the heights are measured from, per setup (for messages and JSON)
 _FRAMES = {"eye-in-hand": ("the camera's offset from the flange origin",
@@ -46,23 +46,45 @@ def _axis_text(axis: OneAxis) -> str:
     return f"({a[0]:+.3f}, {a[1]:+.3f}, {a[2]:+.3f}) in the base frame"
 
 
+@dataclass
+class OneAxisSolution:
+    """What `calibrate_one_axis` found (the fields of a `HandEyeResult`).
+
+    Attributes
+    ----------
+    X, Y : ndarray, shape (4, 4)
+    residuals : tuple of 4 ndarray, shape (n,)
+        Station rotation (deg) and translation residuals, and their AX = XB rms.
+    outliers : list of int
+    history : list of float
+    nfev : int
+    uncertainty : XUncertainty or None
+    summary : dict
+        `one_axis_summary`.
+    """
+
+    X: Array
+    Y: Array
+    residuals: tuple[Array, Array, Array, Array]
+    outliers: list[int]
+    history: list[float]
+    nfev: int
+    uncertainty: Any
+    summary: dict[str, Any]
+
+
 def calibrate_one_axis(F: Array, C: Array, G: Array, setup: str, axis: OneAxis,
                        height: AxisHeight, refine: str, robust: bool,
                        rotation_weight: float | None, seed: Any, pairs: str,
-                       options: dict[str, Any] | None, t0: float) -> Any:
+                       options: dict[str, Any]) -> OneAxisSolution:
     """The one-axis branch of `kinecal.calibration.handeye.calibrate_handeye` (same
-    arguments, already validated; ``G`` the robot poses in the setup's direction).
-
-    Returns
-    -------
-    HandEyeResult
-        ``method`` is ``ulrich-steger``; ``one_axis`` explains the axis and the height.
+    arguments, already validated; ``G`` the robot poses in the setup's direction,
+    ``options`` the metaheuristic's checked options).
     """
     from kinecal.calibration.diagnostics.handeye_consistency import (
         find_inconsistency,
         warn_inconsistent,
     )
-    from kinecal.calibration.handeye import HandEyeResult
     from kinecal.calibration.handeye.refine import flag_outliers, lm
 
     X, Y = height.place(axis, *solve_one_axis(G, C, axis))
@@ -73,16 +95,9 @@ def calibrate_one_axis(F: Array, C: Array, G: Array, setup: str, axis: OneAxis,
         res = lm(G, C, X, Y, robust=robust, rotation_weight=rotation_weight)
         X, Y, outliers, history, nfev = res.X, res.Y, res.outliers, res.history, res.nfev
     elif refine in ("igwo", "dlh-gwo-de"):
-        from kinecal.calibration.handeye import _META_OPTIONS
         from kinecal.calibration.handeye.refine_meta import metaheuristic
-        from kinecal.errors import InputError
 
-        opts = dict(options or {})
-        unknown = sorted(set(opts) - _META_OPTIONS)
-        if unknown:
-            raise InputError(f"unknown option(s) {', '.join(unknown)}; expected "
-                             f"{', '.join(sorted(_META_OPTIONS))}", option="options")
-        res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **opts)
+        res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **options)
         X, history, nfev = res.X, res.history, res.nfev
         Y = mean_target_pose(G, X, C)
     X, Y = height.place(axis, X, Y)  # eq. (8) again: the refiners may drift along eq. (3)
@@ -104,11 +119,8 @@ def calibrate_one_axis(F: Array, C: Array, G: Array, setup: str, axis: OneAxis,
              "to put the camera level with the flange along it; give the camera's height "
              "(--camera-height, camera_height=) or a point of the board touched by the tool "
              "(--board-contact X,Y,Z, board_contact=)")
-    result = HandEyeResult(X, Y, setup, "ulrich-steger", refine, rot, tr, arot, atr, outliers,
-                           history, nfev, time.perf_counter() - t0)
-    result.x_uncertainty = unc
-    result.one_axis = one_axis_summary(axis, height, X, Y)
-    return result
+    return OneAxisSolution(X, Y, (rot, tr, arot, atr), outliers, history, nfev, unc,
+                           one_axis_summary(axis, height, X, Y))
 
 
 def one_axis_summary(axis: OneAxis, height: AxisHeight, X: Array, Y: Array) -> dict[str, Any]:
