@@ -52,10 +52,10 @@ def identifiability(
 ) -> None:
     """Rank, identifiable and unidentifiable parameters, condition number, O1-O5."""
     from kinecal.calibration.diagnostics.serial import check_pose_set
-    from kinecal.calibration.problem import resolve_free
-    from kinecal.calibration.simulate import simulate as run
+    from kinecal.calibration.serial.problem import resolve_free
+    from kinecal.calibration.serial.simulate import simulate as run
     from kinecal.io.measurements import read_measurements
-    from kinecal.kinematics.markers import model_for_markers
+    from kinecal.kinematics.serial.markers import model_for_markers
 
     for option, value in (("--poses", poses), ("--seed", seed)):
         if data is not None and value is not None:
@@ -70,7 +70,7 @@ def identifiability(
             meas = run(m, poses, errors="zero", rng=seed or 0).data
         m = model_for_markers(m, meas.marker_names)  # one tool point per marker measured
         if error_model is not None or harmonics is not None or m.joint_errors is not None:
-            from kinecal.calibration.joint_identifiability import identifiability_with_terms
+            from kinecal.calibration.serial.joint_identifiability import identifiability_with_terms
 
             # the geometry first, then the joint-error coefficients beyond it
             m, report = identifiability_with_terms(m, meas, free_option(free), error_model,
@@ -129,8 +129,8 @@ def calibrate(
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given)."""
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
-    from kinecal.calibration.serial import CALIBRATION_METHODS
-    from kinecal.calibration.serial import calibrate as run
+    from kinecal.calibration.serial.api import CALIBRATION_METHODS
+    from kinecal.calibration.serial.api import calibrate as run
     from kinecal.cli._common import progress
     from kinecal.io.measurements import read_measurements
 
@@ -171,7 +171,7 @@ def calibrate(
             if error_model is None and m.joint_errors is None and harmonics is None:
                 res = run(m, meas, method, **kw)
             else:
-                from kinecal.calibration.error_model import calibrate_error_model
+                from kinecal.calibration.serial.error_model import calibrate_error_model
 
                 res = calibrate_error_model(m, meas, error_model or "model", method=method,
                                             harmonics=harmonics, **kw,
@@ -201,9 +201,9 @@ def select_poses_cmd(
     out: Path = typer.Option(..., "--out", help="CSV of the selected q1..qn."),
 ) -> None:
     """Choose calibration poses maximising observability (O1, D-optimal)."""
-    from kinecal.calibration.pose_selection import candidate_measurements, select_poses
-    from kinecal.calibration.problem import resolve_free
-    from kinecal.calibration.simulate import random_configurations
+    from kinecal.calibration.serial.pose_selection import candidate_measurements, select_poses
+    from kinecal.calibration.serial.problem import resolve_free
+    from kinecal.calibration.serial.simulate import random_configurations
     from kinecal.io.csvtable import write_table
 
     check_paths({"MODEL": model}, {"--out": out})

@@ -255,7 +255,7 @@ def handeye_poses(
 ) -> None:
     """Plan hand-eye camera poses: the star-polygon scheme of Li, Xiao, Lai and Hu (2024), or
     random."""
-    from kinecal.calibration.poses import random_poses, star_polygon_poses
+    from kinecal.calibration.handeye.poses import random_poses, star_polygon_poses
     from kinecal.io.csvtable import write_table
     from kinecal.io.handeye import pose_columns
     from kinecal.spatial import invert_transform, pq_from_transform

@@ -58,7 +58,7 @@ def _read(path: str, columns: tuple[str, ...], option: str) -> np.ndarray:
 
 
 def _poses_rad(deg: np.ndarray) -> np.ndarray:
-    from kinecal.kinematics.stewart import degrees_to_radians
+    from kinecal.kinematics.stewart.platform import degrees_to_radians
 
     return degrees_to_radians(deg)
 
@@ -116,7 +116,7 @@ def fk(
     geom = _geometry(geometry)
     path = str(resolve_data_path(legs, "LEGS"))
     L = geom.check_legs(_read(legs, LEG_COLUMNS, "LEGS"), file=path)
-    from kinecal.kinematics.stewart import radians_to_degrees
+    from kinecal.kinematics.stewart.platform import radians_to_degrees
 
     if all_modes:
         _fk_all(geom, L, path, seed, json_out)
@@ -146,7 +146,7 @@ def fk(
 
 
 def _fk_all(geom, L: np.ndarray, path: str, seed: int, json_out: bool) -> None:
-    from kinecal.kinematics.stewart import radians_to_degrees
+    from kinecal.kinematics.stewart.platform import radians_to_degrees
 
     out = []
     for i in range(L.shape[0]):  # one multi-start batch per reading
@@ -212,10 +212,10 @@ def simulate(
         check_length_noise,
         stewart_size,
     )
-    from kinecal.calibration.stewart import ARCSEC, perturb_geometry, simulate_stewart
+    from kinecal.calibration.stewart.calibrate import ARCSEC, perturb_geometry, simulate_stewart
     from kinecal.io.csvtable import write_table
     from kinecal.io.geometry import load_geometry, save_geometry
-    from kinecal.kinematics.stewart import radians_to_degrees
+    from kinecal.kinematics.stewart.platform import radians_to_degrees
 
     try:
         float(errors)
@@ -289,7 +289,7 @@ def calibrate(
     quiet: bool = quiet_option(),
 ) -> None:
     """Identify the 42 geometric parameters from measured poses and leg readings."""
-    from kinecal.calibration.stewart import StewartData, calibrate_stewart
+    from kinecal.calibration.stewart.calibrate import StewartData, calibrate_stewart
     from kinecal.io.geometry import save_geometry
 
     check_paths({"GEOMETRY": geometry, "DATA": data, "--validate": validate},

@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from kinecal._files import write_text_atomic
-from kinecal.calibration.stats import stat_rows
 from kinecal.errors import InputError
+from kinecal.metrology.stats import stat_rows
 from kinecal.report.details import axis_section, confounded_rows, correlation_section
 from kinecal.report.figures import (
     calibration_figures,

@@ -19,7 +19,7 @@ __all__ = ["stewart_report"]
 
 def stewart_report(result: Any, path: str | Path) -> Path:
     """Write the report of a `StewartCalibrationResult` to `path` (atomic); returns it."""
-    from kinecal.kinematics.stewart import PARAMETER_NAMES
+    from kinecal.kinematics.stewart.platform import PARAMETER_NAMES
 
     path = Path(path)
     if path.is_dir():
