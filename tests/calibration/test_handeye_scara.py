@@ -166,3 +166,27 @@ def test_flange_turning_in_place_is_refused():
     C = invert_transform(X_EIH) @ invert_transform(F) @ Y_EIH
     with pytest.raises(InputError, match="one axis and about one line"):
         calibrate_handeye(F, C, camera_height=0.0)
+
+
+def test_arm_kept_in_a_corner_is_named_ill_conditioned():
+    """Shoulder and elbow moved by +-0.03 rad only: the motions' turning lines lie within
+    about 20 mm, X's rotation about the axis is poorly determined (the tilt is not), and
+    `handeye-conditioning` says so with the advice for a SCARA; the stated uncertainty is
+    the size of the actual error."""
+    rng = np.random.default_rng(4)
+    n = 15
+    q = np.column_stack([rng.uniform(-0.03, 0.03, n), 1.0 + rng.uniform(-0.03, 0.03, n),
+                         rng.uniform(-150, -50, n), rng.uniform(-2.5, 2.5, n)])
+    down = matrix_from_rpy([np.pi, 0.0, 0.0])
+    F = np.array([transform_from(rot_z(a), [0, 0, 400.0]) @ transform_from(rot_z(b), [350.0, 0, 0])
+                  @ transform_from(rot_z(d) @ down, [300.0, 0, z]) for a, b, z, d in q])
+    E = transform_from(matrix_from_axis_angle(rng.normal(size=(n, 3)) * np.radians(0.05)),
+                       rng.normal(size=(n, 3)) * 0.2)
+    C = invert_transform(X_EIH) @ invert_transform(F) @ Y_EIH @ E
+    res, codes = run(F, C, camera_height=60.0)
+    assert codes == ["handeye-conditioning"]
+    message = res.warnings[0].message
+    assert "rotation is" in message and "shoulder and elbow" in message
+    unc = res.x_uncertainty
+    assert unc.rotation_anisotropy > 10
+    assert pose_error(res.X, X_EIH)[0] < 3 * unc.rotation_deg

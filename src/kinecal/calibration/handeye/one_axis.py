@@ -168,11 +168,14 @@ def _check_conditioning(unc: Any) -> None:
 
     if unc is None or max(unc.anisotropy, unc.rotation_anisotropy) <= ANISOTROPY:
         return
+    if unc.rotation_anisotropy > ANISOTROPY:
+        what = (f"its rotation is {unc.rotation_anisotropy:.0f} times less certain about its "
+                f"weakest axis than about its best (1 sigma {unc.rotation_deg:.3g} deg in all)")
+    else:
+        what = (f"its translation across the rotation axis is {unc.anisotropy:.0f} times less "
+                "certain in its weakest direction than in its best (1 sigma "
+                f"{unc.weak_translation:.3g})")
     warn("handeye-conditioning",
-         f"X is ill-conditioned: its translation across the rotation axis is "
-         f"{unc.anisotropy:.0f} times less certain in its weakest direction than in its best "
-         f"(1 sigma {unc.weak_translation:.3g}; rotation {unc.rotation_deg:.3g} deg, "
-         f"anisotropy {unc.rotation_anisotropy:.0f}): with rotations about one axis only, X "
-         "rests on how far the motions' turning lines lie apart; spread the stations over the "
-         "workspace by moving the arm's first joints (a SCARA's shoulder and elbow), not only "
-         "the last")
+         f"X is ill-conditioned: {what}; with rotations about one axis only, X rests on how "
+         "far apart the motions' turning lines lie: spread the stations over the workspace "
+         "by moving the arm's first joints (a SCARA's shoulder and elbow), not only the last")
