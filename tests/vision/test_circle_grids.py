@@ -122,7 +122,7 @@ def test_square_symmetric_grid_frames_turned_back_in_a_hand_eye_scene(camera):
     comes out as from an asymmetric board."""
     K, dist, size = camera
     board = parse_board("circles:5x5:20")
-    scene = render_handeye_scene(board, K, dist, size, 10, seed=5,
+    scene = render_handeye_scene(board, K, dist, size, 8, seed=5, supersample=2,
                                  conditions=ImageConditions(noise=1.5, blur=0.6),
                                  view_options={"roll_deg": 180.0})
     res = calibrate_handeye_images(scene.images, scene.flange2base, board,
