@@ -23,8 +23,8 @@ __all__ = ["closed_form_start"]
 
 
 def closed_form_start(model: SerialModel, q: Array, target2cam: Array, setup: str,
-                      params: Array | None = None, method: str = "park"
-                      ) -> tuple[Array, Array, HandEyeResult]:
+                      params: Array | None = None, method: str = "park",
+                      robust: bool = True) -> tuple[Array, Array, HandEyeResult]:
     """X and the board pose from the model's flange poses and the per-image board poses.
 
     Parameters
@@ -39,6 +39,9 @@ def closed_form_start(model: SerialModel, q: Array, target2cam: Array, setup: st
         Arm parameters (default nominal).
     method : str
         Closed form (`kinecal.calibration.handeye.METHODS`).
+    robust : bool
+        The hand-eye solver's RANSAC start and outlier stations (slower; for data that
+        may hold wrong stations).
 
     Returns
     -------
@@ -61,5 +64,5 @@ def closed_form_start(model: SerialModel, q: Array, target2cam: Array, setup: st
         raise InputError(f"{len(q)} stations with joints and {len(C)} board poses: the start "
                          "needs at least 3 of each, one per station")
     F = model.fk(q, params)
-    seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm")
+    seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm", robust=robust)
     return np.asarray(seed.X, float), np.asarray(seed.target, float), seed
