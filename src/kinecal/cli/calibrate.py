@@ -126,8 +126,25 @@ def calibrate(
         None, "--sigma", help="The instrument's stated 1-sigma noise per coordinate (length "
         "unit): the residual is tested against it (chi-square) and the standard errors with "
         "it known are added. See docs/diagnostics.md."),
+    images: Path | None = typer.Option(None, "--images", help="Folder of board images: "
+                                       "DATA is then STATIONS.csv (image,q1..qn). See "
+                                       "docs/arm-from-images.md."),
+    board: str | None = typer.Option(None, "--board", help="With --images: the board, "
+                                     "e.g. chessboard:9x6:25."),
+    intrinsics: Path | None = typer.Option(None, "--intrinsics", help="With --images: "
+                                           "camera YAML (default: from the images)."),
+    setup: str = typer.Option("eye-in-hand", "--setup", help="With --images: eye-in-hand "
+                              "or eye-to-hand."),
 ) -> None:
-    """Calibrate a serial arm from measured tool positions (and orientations if given)."""
+    """Calibrate a serial arm from measured tool positions (and orientations if given),
+    or from board images with --images."""
+    if images is not None:  # the arm from camera images: its own module
+        from kinecal.cli.calibrate_images import calibrate_images
+
+        return calibrate_images(dict(locals()))
+    for option, value in (("--board", board), ("--intrinsics", intrinsics)):
+        if value is not None:
+            raise InputError("applies to --images only", option=option)
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.serial.api import CALIBRATION_METHODS
     from kinecal.calibration.serial.api import calibrate as run

@@ -42,8 +42,27 @@ def simulate(
                                       help="Orientation noise sigma (model angle unit)."),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
+    images: Path | None = typer.Option(None, "--images", help="Render board images of the "
+                                       "poses into this folder (--out is then STATIONS.csv; "
+                                       "--noise is image noise in grey levels). See "
+                                       "docs/arm-from-images.md."),
+    board: str | None = typer.Option(None, "--board", help="With --images: the board."),
+    setup: str = typer.Option("eye-in-hand", "--setup", help="With --images: eye-in-hand "
+                              "or eye-to-hand."),
+    home: str | None = typer.Option(None, "--home", help="With --images: joints q1,..,qn "
+                                    "(model units) where the camera faces the board."),
+    blur: float = typer.Option(0.0, "--blur", help="With --images: blur sigma (px)."),
+    intrinsics: Path | None = typer.Option(None, "--intrinsics", help="With --images: the "
+                                           "camera (default 800x600 px, f 900 px)."),
+    camera_out: Path | None = typer.Option(None, "--camera-out", help="With --images: "
+                                           "write the camera (ROS YAML)."),
 ) -> None:
-    """Simulate measurements of a model with true errors and noise."""
+    """Simulate measurements of a model with true errors and noise (or, with --images,
+    rendered board images of its stations)."""
+    if images is not None:  # rendered stations of the arm: its own module
+        from kinecal.cli.simulate_images import simulate_images
+
+        return simulate_images(dict(locals()))
     from kinecal.calibration.diagnostics.sizes import check_angle_noise
     from kinecal.calibration.serial.simulate import read_truth, write_truth
     from kinecal.calibration.serial.simulate import simulate as run

@@ -38,7 +38,8 @@ from kinecal.vision.render import plan_views
 
 Array = NDArray[np.float64]
 
-__all__ = ["ArmScene", "render_arm_stations", "write_arm_scene"]
+__all__ = ["ArmScene", "render_arm_stations", "write_arm_scene", "write_images",
+           "write_scene_truth", "write_stations"]
 
 
 @dataclass
@@ -232,30 +233,53 @@ def _reachable(model, truth, board, K, d8, size, n, setup, X, Y, home, rng, opts
     return np.array(q_out), np.array(C_out)
 
 
-def write_arm_scene(scene: ArmScene, folder: str | Path, *, images_dir: str = "images",
-                    stations: str = "stations.csv") -> Path:
-    """Write `scene`: ``images/*.png``, ``stations.csv`` (``image,q1..qn``, model units),
-    ``camera.yaml`` and ``truth.json``. Returns the folder."""
-    from kinecal._files import write_bytes_atomic, write_text_atomic
-    from kinecal.vision import require_cv2
+def write_arm_scene(scene: ArmScene, folder: str | Path) -> Path:
+    """Write `scene` into `folder`: ``images/*.png``, ``stations.csv`` (``image,q1..qn``,
+    model units), ``camera.yaml`` and ``truth.json``. Returns the folder."""
     from kinecal.vision.intrinsics import CameraIntrinsics, write_intrinsics
+
+    folder = Path(folder)
+    write_images(scene, folder / "images")
+    write_stations(scene, folder / "stations.csv")
+    write_intrinsics(folder / "camera.yaml",
+                     CameraIntrinsics(scene.K, scene.dist, scene.size, source="render"))
+    write_scene_truth(scene, folder / "truth.json")
+    return folder
+
+
+def write_images(scene: ArmScene, folder: str | Path) -> None:
+    """The images as PNG files named `ArmScene.names` in `folder` (created)."""
+    from kinecal._files import write_bytes_atomic
+    from kinecal.vision import require_cv2
 
     cv2 = require_cv2()
     folder = Path(folder)
-    (folder / images_dir).mkdir(parents=True, exist_ok=True)
-    for name, img in zip(scene.names, scene.images, strict=False):
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, img in zip(scene.names, scene.images, strict=True):
         ok, buf = cv2.imencode(".png", img)
         if not ok:  # pragma: no cover - OpenCV always encodes uint8 PNG
-            raise InputError("PNG encoding failed", file=folder / images_dir / name)
-        write_bytes_atomic(folder / images_dir / name, buf.tobytes())
+            raise InputError("PNG encoding failed", file=folder / name)
+        write_bytes_atomic(folder / name, buf.tobytes())
+
+
+def write_stations(scene: ArmScene, path: str | Path) -> None:
+    """STATIONS.csv: ``image,q1..qn`` (revolute joints in the model's angle unit)."""
+    from kinecal._files import write_text_atomic
+
     m = scene.model
     q = scene.q / m.joint_scale()
     lines = ["image," + ",".join(f"q{i + 1}" for i in range(m.n_joints))]
     lines += [name + "," + ",".join(repr(float(v)) for v in row)
               for name, row in zip(scene.names, q, strict=True)]
-    write_text_atomic(folder / stations, "\n".join(lines) + "\n")
-    write_intrinsics(folder / "camera.yaml",
-                     CameraIntrinsics(scene.K, scene.dist, scene.size, source="render"))
+    write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+def write_scene_truth(scene: ArmScene, path: str | Path) -> None:
+    """The truth JSON: the arm's true errors and values (`read_truth`'s format, model
+    units), the set-up, board, X, board pose, camera and home configuration."""
+    from kinecal._files import write_text_atomic
+
+    m = scene.model
     conv = np.where(m.is_angle(), 180.0 / np.pi if m.angle_unit == "deg" else 1.0, 1.0)
     truth = {"model": m.name, "length_unit": m.length_unit, "angle_unit": m.angle_unit,
              "errors": dict(zip(m.parameter_names, ((scene.true_params - m.nominal) * conv)
@@ -266,5 +290,4 @@ def write_arm_scene(scene: ArmScene, folder: str | Path, *, images_dir: str = "i
              "target": scene.target.tolist(), "K": scene.K.tolist(),
              "dist": scene.dist.tolist(), "size": list(scene.size),
              "q_home": (np.asarray(scene.q_home) / m.joint_scale()).tolist()}
-    write_text_atomic(folder / "truth.json", json.dumps(truth, indent=1) + "\n")
-    return folder
+    write_text_atomic(path, json.dumps(truth, indent=1) + "\n")

@@ -119,7 +119,7 @@ def camera_identifiability(block: PixelBlock, params: Array, nu: Array,
     Jn = Jn.reshape(m, -1)
     Js, Jn = Jn[:, -1], Jn[:, :-1]
     An, _ = _unit(Jn)
-    Aa, norms = _unit(Ja)
+    Aa, _ = _unit(Ja)
     Q = _orth(An)
     proj = Aa - Q @ (Q.T @ Aa)  # what the nuisance cannot imitate (unit columns)
     R = scipy.linalg.qr(proj, mode="r")[0][: len(names)]
