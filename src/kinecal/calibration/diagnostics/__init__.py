@@ -45,6 +45,9 @@ CODES: dict[str, str] = {
     "images-rejected": "more than half of the images rejected",
     "reprojection-rms": "the hand-eye solution reprojects the corners poorly",
     "many-outliers": "more than 30 % of the hand-eye stations flagged as outliers",
+    # arm calibration from images
+    "station-skipped": "stations whose board was not found or not trusted, left out",
+    "board-scale": "identified lengths uniformly off nominal: the --board size is wrong",
     # compensation
     "no-seed-joints": "targets without seed joints: inverse kinematics chose the configuration",
     "joints-outside-limits": "program or seed joints outside the model's joint limits",
