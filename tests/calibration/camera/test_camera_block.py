@@ -62,7 +62,7 @@ def test_jacobians_match_central_differences(kr6, setup):
     nu = rng.normal(0, 1e-3, blk.n_nuisance)
     nu[12:] *= 0.01
     cols = np.arange(kr6.n_params)
-    uv, Ja, Jn = blk.predict(p, nu, cols, jac=True, scale_column=True)
+    _, Ja, Jn = blk.predict(p, nu, cols, jac=True, scale_column=True)
     h = 1e-6
     for k in cols:
         d = np.zeros(kr6.n_params)
@@ -105,10 +105,8 @@ def test_identifiability_names_what_the_camera_cannot_see(kr6, setup):
 @pytest.mark.parametrize("setup", ["eye-in-hand", "eye-to-hand"])
 def test_exact_corners_recover_the_identifiable_arm(kr6, setup):
     """Truth perturbed on the parameters the camera identifies: recovered to round-off."""
-    st0, _, _ = _stations(kr6, setup, kr6.nominal, n=4)
     free = ["a2", "alpha2", "theta2", "a3", "alpha3", "theta3", "d3", "a4", "alpha4",
             "theta4", "d4", "a5", "alpha5", "theta5", "d5", "a6", "alpha6"]
-    del st0
     truth = kr6.nominal + random_errors(kr6, np.random.default_rng(4), free)
     st, X, Y = _stations(kr6, setup, truth)
     res = calibrate_arm_camera(kr6, st, K, DIST, setup=setup)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal import diagnostics
 from kinecal.calibration.handeye import HandEyeResult, calibrate_handeye
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
@@ -55,8 +56,9 @@ def closed_form_start(model: SerialModel, q: Array, target2cam: Array, setup: st
     Raises
     ------
     InputError
-        Fewer than 3 stations, or motions that do not determine X (from the hand-eye
-        solver: too little rotation between the stations).
+        Fewer than 3 stations, motions that do not determine X (from the hand-eye
+        solver: too little rotation between the stations), or stations that fit no X
+        (``handeye-inconsistent``: the message says whether the other set-up fits).
     """
     q = np.atleast_2d(np.asarray(q, float))
     C = np.asarray(target2cam, float)
@@ -64,5 +66,23 @@ def closed_form_start(model: SerialModel, q: Array, target2cam: Array, setup: st
         raise InputError(f"{len(q)} stations with joints and {len(C)} board poses: the start "
                          "needs at least 3 of each, one per station")
     F = model.fk(q, params)
-    seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm", robust=robust)
+    with diagnostics.expect("handeye-inconsistent") as bad:
+        seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm", robust=robust)
+    if bad:
+        raise InputError(_no_mount(model, F, C, setup, method))
     return np.asarray(seed.X, float), np.asarray(seed.target, float), seed
+
+
+def _no_mount(model: SerialModel, F: Array, C: Array, setup: str, method: str) -> str:
+    """Why no X fits: the other set-up, or joints that do not move the camera as the model
+    says (another arm, chain, joint order or unit)."""
+    other = "eye-to-hand" if setup == "eye-in-hand" else "eye-in-hand"
+    with diagnostics.expect("handeye-inconsistent", "handeye-conditioning") as bad:
+        calibrate_handeye(F, C, setup=other, method=method, refine="lm", robust=False)
+    if not bad:
+        return (f"the joints and the images fit no {setup} camera mount, but they fit "
+                f"--setup {other}")
+    return (f"the joints and the images fit no camera mount of model {model.name!r}: the "
+            "joints move the camera otherwise than the model's chain does (joints in another "
+            "order or unit, another arm, or a chain that ends before the camera: "
+            "--tip-link), or the images belong to other stations")
