@@ -30,6 +30,8 @@ ALLOWED: dict[str, set[str]] = {
     "calibration": {"ground", "optimize", "kinematics.serial"},
     "calibration.serial": {"ground", "calibration", "calibration.diagnostics",
                            "kinematics.serial", "optimize", "metrology"},
+    "calibration.blocks": {"ground", "calibration", "calibration.diagnostics",
+                           "calibration.serial", "kinematics.serial", "optimize", "metrology"},
     "calibration.stewart": {"ground", "calibration", "calibration.diagnostics",
                             "kinematics.stewart", "optimize", "metrology"},
     "calibration.handeye": {"ground", "calibration", "calibration.diagnostics", "optimize"},
@@ -53,14 +55,14 @@ ALLOWED: dict[str, set[str]] = {
 #: helpers, the command line loading one command's module on demand)
 LATE_ALLOWED: dict[str, set[str]] = {
     "calibration": {"calibration.serial"},
-    "calibration.serial": {"io", "report", "kinecal"},
+    "calibration.serial": {"io", "report", "kinecal", "calibration.blocks"},
     "calibration.stewart": {"report"},
-    "batch": {"calibration.serial", "io"},
+    "batch": {"calibration.serial", "calibration.blocks", "io"},
     "report": {"calibration.diagnostics", "compensation", "experiments", "vision", "kinecal"},
     "experiments": {"cli"},
-    "cli": {"batch", "calibration.diagnostics", "calibration.handeye", "calibration.serial",
-            "calibration.stewart", "compensation", "datasets", "io", "kinematics.serial",
-            "kinematics.stewart", "report", "vision", "metrology"},
+    "cli": {"batch", "calibration.blocks", "calibration.diagnostics", "calibration.handeye",
+            "calibration.serial", "calibration.stewart", "compensation", "datasets", "io",
+            "kinematics.serial", "kinematics.stewart", "report", "vision", "metrology"},
 }
 #: below no kind of machine: compensation is the apply step on top of calibration results
 NEVER = [("calibration", "compensation"), ("io", "calibration"), ("kinematics", "calibration"),
