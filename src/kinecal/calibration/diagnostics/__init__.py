@@ -30,6 +30,10 @@ CODES: dict[str, str] = {
     "lack-of-fit": "the residual is far above the repeatability of repeated poses",
     "residual-above-noise": "the residual is far above the instrument's stated noise (--sigma)",
     "outliers": "poses whose error is far outside the others' spread",
+    # measurement kinds: ballbar and pair distances, fixed points, planes
+    "pivot-moved": "a ballbar's distances fit no single pivot to the noise",
+    "point-spread": "a fixed point's touches disagree by more than the noise",
+    "plane-not-flat": "a plane's touches are not flat to the noise",
     "leg-range": "Stewart leg readings outside the geometry's leg range",
     "angle-units": "Stewart pose angles or hand-eye pose-file angles that look like radians",
     "handeye-conditioning": "hand-eye motions too close to one rotation axis for the noise",
