@@ -1,6 +1,10 @@
 """Calibrate a serial arm from camera images: arm, camera mount and board in one bundle
 adjustment (issue 24).
 
+The camera pixels are one residual block of issue 25's stacked calibration
+(`kinecal.calibration.blocks`): `CameraBlock` (`kinecal.calibration.camera.residual_block`)
+mixes with tracker points, ballbars, sockets and planes in one problem.
+
 The measurement is the pixel position of every board corner seen by a camera on the
 flange (eye-in-hand) or fixed beside the arm (eye-to-hand). The residual block
 (`kinecal.calibration.camera.block.PixelBlock`) predicts every corner through the arm's
@@ -15,7 +19,8 @@ free, as in ROS robot_calibration's ``chain3d_to_camera2d`` and industrial_calib
 Entry points:
 
 - `calibrate_arm_camera` (`kinecal.calibration.camera.solve`): the bundle adjustment from
-  joints and detected corners, started by `closed_form_start`
+  joints and detected corners (the stacked calibration on one camera block), started by
+  `closed_form_start`
   (`kinecal.calibration.camera.start`: nominal flange poses, per-image board poses,
   ``AX = XB`` / ``AX = ZB``);
 - `camera_identifiability` (`kinecal.calibration.camera.identify`): what the pixels
@@ -29,12 +34,14 @@ perturbed arm are rendered by `kinecal.vision.stations`.
 
 from kinecal._lazy import lazy_exports
 
-__all__ = ["ArmCameraResult", "PixelBlock", "calibrate_arm_camera", "camera_identifiability",
-           "closed_form_start"]
+__all__ = ["ArmCameraResult", "CameraBlock", "PixelBlock", "Stations", "calibrate_arm_camera",
+           "camera_identifiability", "closed_form_start"]
 
 __getattr__, __dir__ = lazy_exports(__name__, {
     "ArmCameraResult": "kinecal.calibration.camera.result",
+    "CameraBlock": "kinecal.calibration.camera.residual_block",
     "PixelBlock": "kinecal.calibration.camera.block",
+    "Stations": "kinecal.calibration.camera.result",
     "calibrate_arm_camera": "kinecal.calibration.camera.solve",
     "camera_identifiability": "kinecal.calibration.camera.identify",
     "closed_form_start": "kinecal.calibration.camera.start",

@@ -12,7 +12,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal._files import write_text_atomic
-from kinecal.calibration.camera.block import PixelBlock
 from kinecal.calibration.camera.identify import CameraIdentifiability
 from kinecal.calibration.uncertainty import Uncertainty
 from kinecal.diagnostics import Diagnostic
@@ -139,32 +138,6 @@ class ArmCameraResult:
     seconds: float = 0.0
     warnings: list[Diagnostic] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
-
-    @classmethod
-    def build(cls, model: SerialModel, block: PixelBlock, st: Any, names: list[str],
-              params: Array, nu: Array, nu_he: Array, unc: Uncertainty, ident:
-              CameraIdentifiability, loss: str, *, before: Array, after: Array,
-              r_after: Array, outliers: list[int], validation: tuple | None, iterations: int,
-              evaluations: int, history: list[float], success: bool,
-              seconds: float) -> ArmCameraResult:
-        """Assemble the result from the solver's pieces (see `calibrate_arm_camera`)."""
-        k = len(names)
-        std = np.zeros(model.n_params)
-        std[model.index(names)] = unc.std[:k]
-        X, Y, K, d = block.unpack(nu)
-        Xh, Yh, _, _ = block.unpack(nu_he)
-        res = np.split(-r_after, np.cumsum(block.counts)[:-1])
-        vb, va = validation if validation is not None else (None, None)
-        return cls(
-            model=model.with_params(params, name=f"{model.name}-calibrated"),
-            nominal_model=model, setup=block.setup, free=list(names), params=params,
-            std=std, X=X, board_pose=Y, X_handeye=Xh, board_handeye=Yh, K=K, dist=d,
-            nuisance_names=block.nuisance_names, nuisance_std=unc.std[k:],
-            identifiability=ident, uncertainty=unc, station_names=list(st.names),
-            before_px=before, after_px=after, outliers=outliers,
-            sigma_px=float(unc.sigma), loss=loss, val_before_px=vb,
-            val_after_px=va, residuals=res, iterations=iterations, evaluations=evaluations,
-            history=history, success=success, seconds=seconds)
 
     # ------------------------------------------------------------------ numbers
     @property

@@ -1,17 +1,17 @@
 """`calibrate_arm_camera`: the arm, X, the board pose (and the intrinsics) from corner pixels.
 
+The camera pixels are one residual block (`kinecal.calibration.camera.residual_block.
+CameraBlock`) of the stacked calibration of `kinecal.calibration.blocks`; this function is
+that calibration with the camera's own before/after figures and words around it:
+
 1. start: X and the board pose by a hand-eye closed form on the nominal flange poses and
-   the per-image board poses (`kinecal.calibration.camera.start`);
-2. hand-eye refinement with the arm at nominal (X, board, intrinsics on the pixels): the
-   "before" of the report, and what the arm's errors cost in pixels;
-3. identifiability of the arm beside the nuisance (`kinecal.calibration.camera.identify`):
-   the free set, and what the camera cannot see, in words;
-4. the bundle adjustment: the free arm parameters and the nuisance together, on every
-   corner, robust loss optional (`kinecal.calibration.camera.lm`), outlier stations by the
-   rule of the hand-eye image refinement (left out of a final pass with a robust loss,
-   reported with ``linear``, as poses are on the tracker path);
-5. the covariance on the identifiable subspace (`kinecal.calibration.uncertainty`), the
-   corner noise estimated from the residual.
+   the per-image board poses (`kinecal.calibration.camera.start`, the block's ``start``);
+2. hand-eye refinement with the arm at nominal (X, board, intrinsics on the pixels,
+   `kinecal.calibration.blocks.stack.fit_nuisance`): the "before" of the report;
+3. what the pixels identify, in words (`kinecal.calibration.camera.identify`);
+4. the stacked calibration (`kinecal.calibration.blocks.calibrate_blocks`): identifiable
+   free set, Levenberg-Marquardt on the arm and the nuisance, the corner noise estimated,
+   optional robust refit with outlier stations, covariance on the identifiable subspace.
 """
 
 from __future__ import annotations
@@ -24,17 +24,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal import diagnostics
+from kinecal.calibration.blocks.api import calibrate_blocks
+from kinecal.calibration.blocks.stack import fit_nuisance
 from kinecal.calibration.camera.block import PixelBlock
 from kinecal.calibration.camera.checks import check_camera_fit
 from kinecal.calibration.camera.identify import camera_identifiability
-from kinecal.calibration.camera.lm import LOSSES, robust_lm
+from kinecal.calibration.camera.residual_block import CameraBlock
 from kinecal.calibration.camera.result import ArmCameraResult, Stations
-from kinecal.calibration.camera.start import closed_form_start
-from kinecal.calibration.handeye.images import _outlier_stations
 from kinecal.calibration.serial.problem import candidate_names
-from kinecal.calibration.uncertainty import subspace_uncertainty
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
+from kinecal.optimize.lsq import LOSSES
 
 Array = NDArray[np.float64]
 
@@ -42,37 +42,6 @@ __all__ = ["calibrate_arm_camera"]
 
 #: rank threshold of the arm's analysis (that of calibrate's free="identifiable")
 RANK_TOL = 1e-4
-
-
-def _fit(block: PixelBlock, params0: Array, index: Array, z0: Array, keep: Array,
-         loss: str, f_scale: float):
-    """LM on ``z = [arm values at index, nuisance]`` over the corners of kept stations."""
-    k = index.size
-    mask = keep[block.sid]
-    m = int(mask.sum())
-
-    def fun(z: Array, jac: bool):
-        p = params0.copy()
-        p[index] = z[:k]
-        uv, Ja, Jn = block.predict(p, z[k:], index, jac)
-        r = (uv - block.uv)[mask].ravel()
-        if not jac:
-            return r, None
-        J = np.concatenate([Ja[mask], Jn[mask]], axis=2).reshape(2 * m, -1)
-        return r, J
-
-    return robust_lm(fun, z0, loss=loss, f_scale=f_scale)
-
-
-def _scale_of(r: Array) -> float:
-    """3 x the median corner error (px): the robust loss' scale."""
-    return 3.0 * max(float(np.median(np.linalg.norm(r.reshape(-1, 2), axis=1))), 1e-6)
-
-
-def _flag(block: PixelBlock, srms: Array, r: Array, keep: Array) -> Array:
-    sel = r.reshape(-1, 2)[keep[block.sid]].ravel()
-    sigma = max(1.4826 * float(np.median(np.abs(sel))), 1e-6)
-    return _outlier_stations(srms, block.counts, sigma, 0.999)
 
 
 def calibrate_arm_camera(
@@ -152,66 +121,70 @@ def _calibrate(model, st, K, dist, setup, free, refine_intrinsics, rational, los
     if len(st.q) < 3:
         raise InputError(f"{len(st.q)} usable stations: calibrating an arm from images needs "
                          "at least 3 (many more in practice: 20-40)")
-    if X0 is None or Y0 is None:
-        X0, Y0, _ = closed_form_start(model, st.q, st.target2cam, setup, method=method,
-                                      robust=loss != "linear")
     n_int = (12 if rational else 9) if refine_intrinsics else 0
-    block = PixelBlock(model, st.q, st.points, st.pixels, setup, K, dist, X0, Y0, n_int)
+    block = CameraBlock(st, K, dist, setup, n_int, method=method,
+                        robust_start=loss != "linear")
     p0 = model.nominal
-    n, nn = block.n_stations, block.n_nuisance
-    keep = np.ones(n, bool)
-    # 2. hand-eye only (arm nominal)
-    r0 = block.residuals(p0, np.zeros(nn))
-    scale = f_scale if f_scale is not None else _scale_of(r0)
-    he = _fit(block, p0, np.zeros(0, np.intp), np.zeros(nn), keep, loss, scale)
-    nu_he = he.x
-    r_he = block.residuals(p0, nu_he)
-    # 3. what the pixels identify
+    if X0 is not None and Y0 is not None:
+        block.set_references(model, X0, Y0)
+    nu_he, r_he = fit_nuisance(block, model, p0, block.start(model, p0))
     cands = candidate_names(model, free)
-    ident = camera_identifiability(block, p0, nu_he, cands, tol=rank_tol)
-    names = ident.report.identifiable if free == "identifiable" else cands
-    index = model.index(names)
-    if 2 * block.n_corners < index.size + nn:
-        raise InputError(f"{block.n_corners} corners give {2 * block.n_corners} equations for "
-                         f"{index.size + nn} unknowns")
-    # 4. the bundle adjustment
-    if f_scale is None:
-        scale = _scale_of(r_he)
-    z0 = np.concatenate([p0[index], nu_he])
-    sol = _fit(block, p0, index, z0, keep, loss, scale)
-    nit, nfev, history = he.nit + sol.nit, he.nfev + sol.nfev, list(sol.history)
-    params = p0.copy()
-    params[index] = sol.x[:index.size]
-    r = block.residuals(params, sol.x[index.size:])
-    srms = block.station_rms(r)
-    flagged = _flag(block, srms, r, keep)
-    if flagged.sum() > 0 and loss != "linear" and (~flagged).sum() >= 3:
-        keep = ~flagged
-        sol = _fit(block, p0, index, sol.x, keep, loss, scale)
-        nit, nfev = nit + sol.nit, nfev + sol.nfev
-        history += sol.history[1:]
-        params[index] = sol.x[:index.size]
-        r = block.residuals(params, sol.x[index.size:])
-        srms = block.station_rms(r)
-    nu = sol.x[index.size:]
-    # 5. covariance on the kept stations (unit weights)
-    _, J = sol.residual, sol.jacobian
-    rk = r.reshape(-1, 2)[keep[block.sid]].ravel()
-    colnorm = np.linalg.norm(J, axis=0)
-    unc = subspace_uncertainty(J.T @ J, float(rk @ rk), rk.size,
-                               ident.report.rank + nn if free != "identifiable"
-                               else index.size + nn,
-                               1.0 / np.where(colnorm > 0, colnorm, 1.0))
+    ident = camera_identifiability(block.pixels, p0, nu_he, cands, tol=rank_tol)
+    fit = calibrate_blocks(model, [block], free=free, loss=loss, f_scale=f_scale,
+                           rank_tol=rank_tol)
+    outliers = list(fit.outliers)
+    if loss != "linear" and outliers and len(st.q) - len(outliers) >= 3:
+        # robust: the outlier stations are left out of a final fit (a joint read a degree
+        # off moves its corners by pixels; down-weighted they still pull the arm)
+        fit = calibrate_blocks(model, [_without(block, model, outliers)], free=free,
+                               loss=loss, f_scale=f_scale, rank_tol=rank_tol)
+    unknowns = {u["name"]: u for u in fit.extra["kinds"][0]["unknowns"]}
+    X = np.array(unknowns["X"]["matrix"])
+    Y = np.array(unknowns["board"]["matrix"])
+    Kf, df = block.pixels.K, block.pixels.d8
+    nstd = np.radians(unknowns["X"]["std_rotation_deg"]).tolist() + \
+        unknowns["X"]["std_translation"] + \
+        np.radians(unknowns["board"]["std_rotation_deg"]).tolist() + \
+        unknowns["board"]["std_translation"]
+    if n_int:
+        Kf, df = np.array(unknowns["intrinsics"]["K"]), np.array(unknowns["intrinsics"]["dist"])
+        nstd += unknowns["intrinsics"]["std"]
+    final = PixelBlock(model, st.q, st.points, st.pixels, setup, Kf, df, X, Y)
+    r = final.residuals(fit.params, np.zeros(12))
+    he = block.pixels.unpack(nu_he)
     val = None
     if validate is not None and len(validate.q):
-        vb = PixelBlock(model, validate.q, validate.points, validate.pixels, setup, K, dist,
-                        X0, Y0, n_int)
-        val = (vb.station_rms(vb.residuals(p0, nu_he)), vb.station_rms(vb.residuals(params, nu)))
-    res = ArmCameraResult.build(
-        model, block, st, names, params, nu, nu_he, unc, ident, loss,
-        before=block.station_rms(r_he), after=srms, r_after=r,
-        outliers=[int(i) for i in np.flatnonzero(flagged)], validation=val,
-        iterations=nit, evaluations=nfev, history=history, success=sol.success,
+        vb = PixelBlock(model, validate.q, validate.points, validate.pixels, setup, he[2],
+                        he[3], he[0], he[1])
+        va = PixelBlock(model, validate.q, validate.points, validate.pixels, setup, Kf, df,
+                        X, Y)
+        val = (vb.station_rms(vb.residuals(p0, np.zeros(12))),
+               va.station_rms(va.residuals(fit.params, np.zeros(12))))
+    res = ArmCameraResult(
+        model=fit.model, nominal_model=model, setup=setup, free=list(fit.free),
+        params=fit.params, std=fit.std, X=X, board_pose=Y, X_handeye=he[0],
+        board_handeye=he[1], K=Kf, dist=df, nuisance_names=block.nuisance_names,
+        nuisance_std=np.array(nstd), identifiability=ident, uncertainty=fit.uncertainty,
+        station_names=list(st.names), before_px=block.observation_errors(r_he),
+        after_px=final.station_rms(r), outliers=outliers,
+        sigma_px=float(fit.extra["kinds"][0]["sigma"]), loss=loss,
+        val_before_px=None if val is None else val[0],
+        val_after_px=None if val is None else val[1],
+        residuals=np.split(-r, np.cumsum(final.counts)[:-1]), iterations=fit.iterations,
+        evaluations=fit.evaluations, history=list(fit.history), success=fit.success,
         seconds=time.perf_counter() - t0)
     check_camera_fit(res)
     return res
+
+
+def _without(block: CameraBlock, model: SerialModel, drop: Sequence[int]) -> CameraBlock:
+    """`block` without the stations `drop`, with the same references."""
+    st = block.stations
+    keep = [i for i in range(len(st.q)) if i not in set(drop)]
+    sub = Stations(st.q[keep], [st.points[i] for i in keep], [st.pixels[i] for i in keep],
+                   None if st.target2cam is None else st.target2cam[keep],
+                   [st.names[i] for i in keep])
+    out = CameraBlock(sub, block.K, block.dist, block.setup, block.n_int, block.source,
+                      block.sigma, block.method)
+    out.set_references(model, block.pixels.X0, block.pixels.Y0)
+    return out
