@@ -147,3 +147,25 @@ def test_a_wrong_station_is_an_outlier(kr6):
     keep = rob.inliers
     assert np.sqrt(np.mean(rob.after_px[keep] ** 2)) < 0.075 < \
         np.sqrt(np.mean(lin.after_px[keep] ** 2))
+
+
+def test_camera_block_mixes_with_tracker_points(kr6):
+    """One problem of two kinds: the tracker sees the base-side and flange-side parameters
+    the camera cannot, the camera adds its pixels; exact data recover the arm."""
+    from kinecal.calibration.blocks.api import calibrate_blocks
+    from kinecal.calibration.camera.residual_block import CameraBlock
+    from kinecal.calibration.serial.simulate import simulate
+
+    truth_err = random_errors(kr6, np.random.default_rng(6))
+    truth = kr6.nominal + truth_err
+    st, _, _ = _stations(kr6, "eye-in-hand", truth, n=12)
+    cam = calibrate_blocks(kr6, [CameraBlock(st, K, DIST, "eye-in-hand")])
+    tracker = simulate(kr6, 30, errors=truth_err, rng=1).data
+    mix = calibrate_blocks(kr6, [CameraBlock(st, K, DIST, "eye-in-hand"), tracker])
+    assert len(cam.free) == 17 and len(mix.free) > len(cam.free)
+    assert {"theta1", "d1", "tool.x", "tool.y", "tool.z"} <= set(mix.free) - set(cam.free)
+    q = HOME + np.radians(np.random.default_rng(9).uniform(-60, 60, (50, 6)))
+    err = np.linalg.norm(kr6.positions(q, mix.params) - kr6.positions(q, truth), axis=1)
+    assert err.max() < 1e-3  # mm, with the base frame: the tracker sees it
+    assert mix.extra["kinds"][0]["after"]["max"] < 1e-4  # px
+    assert [e["kind"] for e in mix.extra["kinds"]] == ["camera", "tracker"]
