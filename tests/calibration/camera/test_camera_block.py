@@ -169,3 +169,22 @@ def test_camera_block_mixes_with_tracker_points(kr6):
     assert err.max() < 1e-3  # mm, with the base frame: the tracker sees it
     assert mix.extra["kinds"][0]["after"]["max"] < 1e-4  # px
     assert [e["kind"] for e in mix.extra["kinds"]] == ["camera", "tracker"]
+
+
+def test_nuisance_standard_errors_are_those_of_the_stacked_normal_matrix(kr6):
+    """X's and the board's standard errors: ``s^2 (J^T J)^-1`` of the whole stack, in
+    radians and millimetres (angles were divided twice by their column scale before)."""
+    truth = kr6.nominal + random_errors(kr6, np.random.default_rng(8))
+    st, _, _ = _stations(kr6, "eye-in-hand", truth)
+    st.pixels = [p + np.random.default_rng(50 + k).normal(0, 0.05, p.shape)
+                 for k, p in enumerate(st.pixels)]
+    res = calibrate_arm_camera(kr6, st, K, DIST)
+    blk = PixelBlock(kr6, st.q, st.points, st.pixels, "eye-in-hand", K, DIST, res.X,
+                     res.board_pose)
+    _, Ja, Jn = blk.predict(res.params, np.zeros(12), kr6.index(res.free), jac=True)
+    J = np.concatenate([Ja, Jn], axis=2).reshape(2 * blk.n_corners, -1)
+    r = blk.residuals(res.params, np.zeros(12)).ravel()
+    cov = np.linalg.inv(J.T @ J) * (r @ r) / (r.size - J.shape[1])
+    expected = np.sqrt(np.diag(cov))[len(res.free):]
+    assert np.allclose(res.nuisance_std, expected, rtol=3e-3)  # increments about the start
+    assert 1e-5 < np.degrees(expected[:3]).max() < 1e-2  # deg: a plausible size
