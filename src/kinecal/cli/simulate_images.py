@@ -77,7 +77,7 @@ def simulate_images(args: dict[str, Any]) -> None:
         scene = render_arm_stations(
             m, board, np.asarray(cam["K"]), np.asarray(cam["dist"]), cam["size"], n,
             setup=args["setup"], errors=err, q_home=_home(args["home"], m), seed=args["seed"],
-            conditions=ImageConditions(blur=args["blur"], noise=args["noise"]))
+            conditions=ImageConditions(blur=args["blur"], noise=args["noise"]), supersample=2)
         write_images(scene, images)
         write_stations(scene, out)
         if args["truth_out"] is not None:
