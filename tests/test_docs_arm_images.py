@@ -58,7 +58,7 @@ def test_the_walkthrough_runs_as_written(tmp_path, monkeypatch):
     for code in _blocks(text, "python"):
         buf = io.StringIO()
         with contextlib.redirect_stdout(buf):
-            exec(compile(code, str(PAGE), "exec"), {})  # noqa: S102 - the page's own code
+            exec(compile(code, str(PAGE), "exec"), {})  # the page's own code
         if "aligned_tool_errors" in code:
             lines = buf.getvalue().splitlines()
             nominal, calibrated = (float(NUMBER.findall(ln)[0]) for ln in lines)
