@@ -79,7 +79,7 @@ def stack_uncertainty(problem: StackedProblem, x: Array, analysis: StackAnalysis
                    zip(sigma, problem.blocks, strict=True)))
     unc = subspace_uncertainty(S, float(r @ r), used - (problem.n - k), rank, D)
     As = A * Df[:, None] * Df[None, :]
-    cov = np.linalg.pinv(As, rcond=1e-12, hermitian=True) / Df[:, None] / Df[None, :]
+    cov = np.linalg.pinv(As, rcond=1e-12, hermitian=True) * Df[:, None] * Df[None, :]
     s2 = unc.sigma ** 2 if np.isfinite(unc.sigma) else np.nan
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None) * s2)
     return unc, [std[s] for s in problem.slices]
