@@ -28,6 +28,17 @@ _POSITION_ONLY = {"error_model": "--error-model", "harmonics": "--harmonics",
                   "sigma": "--sigma", "maxiter": "--maxiter", "target": "--target"}
 
 
+def _one(value: Any, option: str) -> str | None:
+    """The one file of an argument that may list several (``calibrate A.csv B.csv``)."""
+    if value is None or isinstance(value, str | Path):
+        return value
+    files = list(value)
+    if len(files) > 1:
+        raise InputError(f"--images takes one stations file, got {len(files)}: "
+                         f"{', '.join(files)}", option=option)
+    return files[0] if files else None
+
+
 def _match(folder: Path, path: Path, names: list[str], by_name: dict[str, Path]) -> None:
     for row, name in enumerate(names, start=1):
         if name not in by_name:
@@ -41,13 +52,14 @@ def calibrate_images(args: dict[str, Any]) -> None:
     work."""
     from kinecal.cli._serial_common import free_option
 
-    given = [opt for key, opt in _POSITION_ONLY.items() if args.get(key) is not None]
+    given = [opt for key, opt in _POSITION_ONLY.items() if args.get(key) not in (None, [])]
     if given:
         raise InputError("applies to measured positions, not to --images", option=given[0])
+    data, validate = _one(args["data"], "STATIONS"), _one(args["validate"], "--validate")
     _run(model=args["model"], base_link=args["base_link"], tip_link=args["tip_link"],
-         data=args["data"], images=args["images"], board=args["board"],
+         data=data, images=args["images"], board=args["board"],
          intrinsics=args["intrinsics"], setup=args["setup"], method=args["method"],
-         validate=args["validate"], free=free_option(args["free"]), loss=args["loss"],
+         validate=validate, free=free_option(args["free"]), loss=args["loss"],
          out=args["out"], model_out=args["model_out"], report=args["report"],
          json_out=args["json_out"], quiet=args["quiet"], strict=args["strict"])
 

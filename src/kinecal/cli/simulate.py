@@ -30,7 +30,25 @@ def simulate(
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     poses: int = typer.Option(..., "--poses", help="Number of random poses (a model with "
-                              "markers measures every marker at each: poses x markers rows)."),
+                              "markers measures every marker at each: poses x markers rows); "
+                              "gauge kinds: rows per pivot, pairs, touches per point or plane."),
+    kind: str = typer.Option("tracker", "--kind", help="tracker (x,y,z), ballbar "
+                             "(pivot,distance), pair (pair,distance), point or plane "
+                             "(docs/measurement-kinds.md)."),
+    pivot: list[str] | None = typer.Option(None, "--pivot", help="Ballbar pivot X,Y,Z "
+                                           "(repeatable; default 2 reachable pivots)."),
+    point: list[str] | None = typer.Option(None, "--point", help="Fixed point X,Y,Z "
+                                           "(repeatable; default 4 reachable points)."),
+    plane: list[str] | None = typer.Option(None, "--plane", help="Plane X,Y,Z,NX,NY,NZ: a "
+                                           "point and the normal (repeatable; default 2)."),
+    length: float | None = typer.Option(None, "--length", help="Ballbar or bar length "
+                                        "(length unit; default a quarter of the reach)."),
+    radius: float | None = typer.Option(None, "--radius", help="Planes: touches within "
+                                        "this distance of the plane's point (length unit)."),
+    groups: int | None = typer.Option(None, "--groups", min=1, help="Number of default "
+                                      "pivots, points or planes (default 2, 4, 2)."),
+    sigma_column: bool = typer.Option(False, "--sigma-column", help="Gauge kinds: write the "
+                                      "noise as each row's sigma column."),
     noise: float = typer.Option(0.0, "--noise", help="Gaussian noise sigma per coordinate."),
     errors: str = typer.Option("random", "--errors", help="zero, random or TRUTH.json."),
     seed: int = seed_option(),
@@ -57,8 +75,8 @@ def simulate(
     camera_out: Path | None = typer.Option(None, "--camera-out", help="With --images: "
                                            "write the camera (ROS YAML)."),
 ) -> None:
-    """Simulate measurements of a model with true errors and noise (or, with --images,
-    rendered board images of its stations)."""
+    """Simulate measurements of a model with true errors and noise (any measurement kind;
+    with --images, rendered board images of its stations)."""
     if images is not None:  # rendered stations of the arm: its own module
         from kinecal.cli.simulate_images import simulate_images
 
@@ -79,6 +97,35 @@ def simulate(
             err: object = errors
         else:
             err = read_truth(Path(errors), m) - m.nominal
+        if kind != "tracker":
+            from kinecal.cli.calibrate_kinds import simulate_kind_file
+            from kinecal.data import GAUGE_KINDS
+
+            if kind not in GAUGE_KINDS:
+                raise InputError(f"unknown kind {kind!r}; expected one of tracker, "
+                                 f"{', '.join(GAUGE_KINDS)}", option="--kind")
+
+            if orientation or angle_noise:
+                raise InputError(f"applies to --kind tracker only, not {kind}",
+                                 option="--orientation")
+            true_params = (m.nominal + err if not isinstance(err, str) else
+                           _true_params(m, err, seed))
+            n = simulate_kind_file(m, kind, poses=poses, noise=noise, true_params=true_params,
+                                   seed=seed, out=out, pivot=pivot, point=point, plane=plane,
+                                   length=length, radius=radius, groups=groups,
+                                   sigma_column=sigma_column)
+            if truth_out is not None:
+                write_truth(truth_out, m, true_params)
+            if not quiet:
+                typer.echo(f"wrote {n} {kind} rows to {out}"
+                           + (f", truth to {truth_out}" if truth_out else ""), err=True)
+            return
+        for option, value in (("--pivot", pivot), ("--point", point), ("--plane", plane),
+                              ("--length", length), ("--radius", radius),
+                              ("--groups", groups), ("--sigma-column", sigma_column or None)):
+            if value:
+                raise InputError("applies to the gauge kinds (--kind ballbar, pair, point, "
+                                 "plane) only", option=option)
         if angle_noise and not orientation:
             raise InputError("--angle-noise needs --orientation", option="--angle-noise")
         to_rad = np.pi / 180.0 if m.angle_unit == "deg" else 1.0
@@ -92,3 +139,14 @@ def simulate(
     if not quiet:
         typer.echo(f"wrote {poses} poses to {out}"
                    + (f", truth to {truth_out}" if truth_out else ""), err=True)
+
+
+def _true_params(m, errors: str, seed: int) -> np.ndarray:
+    """The true arm of ``--errors zero|random`` for a gauge kind, drawn from `seed` (to
+    measure one arm with several kinds, write ``--truth-out`` once and pass it as
+    ``--errors`` to the others)."""
+    from kinecal.calibration.serial.simulate import random_errors
+
+    if errors == "zero":
+        return m.nominal
+    return m.nominal + random_errors(m, np.random.default_rng(seed))

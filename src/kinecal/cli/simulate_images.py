@@ -37,9 +37,15 @@ def _home(text: str | None, model: Any) -> np.ndarray | None:
 def simulate_images(args: dict[str, Any]) -> None:
     """Render the stations and write images, STATIONS.csv, truth and camera files; `args`
     are ``simulate``'s arguments, all checked before any work."""
-    for key, opt in (("orientation", "--orientation"), ("angle_noise", "--angle-noise")):
+    for key, opt in (("orientation", "--orientation"), ("angle_noise", "--angle-noise"),
+                     ("pivot", "--pivot"), ("point", "--point"), ("plane", "--plane"),
+                     ("length", "--length"), ("radius", "--radius"), ("groups", "--groups"),
+                     ("sigma_column", "--sigma-column")):
         if args.get(key):
             raise InputError("applies to measured positions, not to --images", option=opt)
+    if args.get("kind", "tracker") != "tracker":
+        raise InputError("--images renders camera stations; it takes no other --kind",
+                         option="--kind")
     if args["board"] is None:
         raise InputError("--images needs the board: e.g. --board chessboard:9x6:25",
                          option="--board")

@@ -127,12 +127,14 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
     figs = "".join(image_tag(png, f"{kind} figure", captions[kind], f"fig-{kind}")
                    for kind, png in pngs.items())
     from kinecal.report.compensation import compensation_section
+    from kinecal.report.kinds import kinds_section
     from kinecal.report.residual_maps import error_model_section
 
     return [
         warnings_section(getattr(result, "warnings", None)),
         section("summary", "Model and data", summary),
         section("identifiability", "Identifiability", ident),
+        kinds_section(result),
         section("errors", "Position error before and after", errors),
         section("parameters", "Parameters", params),
         compensation_section(result),
