@@ -150,3 +150,15 @@ def test_position_options_are_refused_with_images(scene, tmp_path, capsys):
     s = _copy(scene, tmp_path)
     assert _calibrate(s, "--sigma", "0.1") == 2
     assert "--sigma" in capsys.readouterr().err and not (s / "r.json").exists()
+
+
+def test_validation_stations_are_reprojected_not_fitted(scene, tmp_path):
+    s = _copy(scene, tmp_path)
+    lines = (s / "stations.csv").read_text().splitlines()
+    (s / "stations.csv").write_text("\n".join(lines[:9]) + "\n")
+    (s / "val.csv").write_text("\n".join([lines[0], *lines[9:]]) + "\n")
+    assert _calibrate(s, "--validate", str(s / "val.csv")) == 0
+    res = json.loads((s / "r.json").read_text())
+    assert res["calibration"]["after"]["n"] == 8 and res["validation"]["after"]["n"] == 2
+    assert res["validation"]["images"] == ["station_008.png", "station_009.png"]
+    assert res["validation"]["after"]["rms_px"] < 0.5 * res["validation"]["before"]["rms_px"]

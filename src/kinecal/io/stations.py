@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from kinecal.errors import InputError
 from kinecal.io.csvtable import read_column, read_table
-from kinecal.io.measurements import _header, joint_columns, joint_names
+from kinecal.io.measurements import csv_header, joint_columns, joint_names
 from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = ["IMAGE_COLUMN", "read_stations"]
@@ -42,7 +42,7 @@ def read_stations(path: str | Path, model: SerialModel) -> tuple[list[str], NDAr
         columns, a non-numeric cell (file and 1-based data row named).
     """
     path = Path(path)
-    header = _header(path)
+    header = csv_header(path)
     if IMAGE_COLUMN not in header:
         raise InputError(f"missing column {IMAGE_COLUMN} (the image file of each row); "
                          f"expected image,q1..q{model.n_joints} (found "
