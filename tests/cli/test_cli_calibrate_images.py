@@ -55,6 +55,8 @@ def test_simulated_stations_calibrate_the_arm(scene, tmp_path, capsys):
         assert name in res["held"]
     nominal = load_model("kr6-craig")
     calibrated = load_model(str(cal))
+    assert "held at nominal, not seen by a camera: alpha1, a1, theta1, d1" in \
+        calibrated.description
     truth = read_truth(scene / "truth.json", nominal)
     q = np.radians(np.random.default_rng(0).uniform(-40, 40, (50, 6))) + np.radians(
         [0, 15, 15, 0, 60, 0])

@@ -160,8 +160,12 @@ def _calibrate(model, st, K, dist, setup, free, refine_intrinsics, rational, los
                         X, Y)
         val = (vb.station_rms(vb.residuals(p0, np.zeros(12))),
                va.station_rms(va.residuals(fit.params, np.zeros(12))))
+    calibrated = fit.model
+    calibrated.description = (
+        f"{model.name} calibrated from {len(st.q)} camera images ({setup}); held at nominal, "
+        "not seen by a camera: " + ", ".join(n for n in cands if n not in set(fit.free)))
     res = ArmCameraResult(
-        model=fit.model, nominal_model=model, setup=setup, free=list(fit.free),
+        model=calibrated, nominal_model=model, setup=setup, free=list(fit.free),
         params=fit.params, std=fit.std, X=X, board_pose=Y, X_handeye=he[0],
         board_handeye=he[1], K=Kf, dist=df, nuisance_names=block.nuisance_names,
         nuisance_std=np.array(nstd), identifiability=ident, uncertainty=fit.uncertainty,
