@@ -45,7 +45,7 @@ def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Seque
     sig, _ = initial_sigma(blocks)
     names = candidate_names(model, "all" if free == "identifiable" else free)
     problem = StackedProblem(model, blocks, names, sig)
-    ana = analyse_stack(problem, problem.pack(p0, nuis), tol)
+    ana = analyse_stack(problem, problem.pack(p0, nuis), tol, check=True)
     kinds = [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
               "rows": int(b.n_rows), "unknowns": int(b.n_nuisance)} for b in blocks]
     return ana, kinds

@@ -90,18 +90,25 @@ def default_geometry(model: SerialModel, kind: str, count: int,
     return out
 
 
-def _reach_targets(model: SerialModel, params: Array, targets: Array, want: int,
-                   gen: np.random.Generator) -> Array:
-    """Joint readings ``(want, n_joints)`` of the first `want` targets ``(M, 3)`` the arm
-    reaches from random seeds (InputError when fewer are reachable)."""
-    seeds = random_configurations(model, len(targets), gen)
-    ik = solve_ik(model, targets, seeds, params=params, restarts=2, rng=gen)
-    ok = np.flatnonzero(ik.status == "converged")
-    if ok.size < want:
-        raise InputError(f"only {ok.size} of {len(targets)} simulated targets are within "
-                         f"reach of the arm (wanted {want}): move the gauge closer or make "
-                         "it smaller")
-    return ik.q[ok[:want]]
+def _reach_targets(model: SerialModel, params: Array, targets: list[Array], want: int,
+                   gen: np.random.Generator) -> list[Array]:
+    """Joint readings ``(want, n_joints)`` per group of targets (each ``(M, 3)``): the first
+    `want` the arm reaches from random seeds (one batch for all groups; InputError when a
+    group has fewer reachable targets)."""
+    T = np.concatenate(targets)
+    seeds = random_configurations(model, len(T), gen)
+    ik = solve_ik(model, T, seeds, params=params, restarts=2, rng=gen)
+    ok = ik.status == "converged"
+    out, start = [], 0
+    for t in targets:
+        hit = np.flatnonzero(ok[start:start + len(t)])
+        if hit.size < want:
+            raise InputError(f"only {hit.size} of {len(t)} simulated targets of a gauge are "
+                             f"within reach of the arm (wanted {want}): move the gauge "
+                             "closer or make it smaller")
+        out.append(ik.q[start + hit[:want]])
+        start += len(t)
+    return out
 
 
 def _unit_vectors(gen: np.random.Generator, n: int) -> Array:
@@ -171,43 +178,39 @@ def simulate_kind(model: SerialModel, kind: str, n: int, *, true_params: Array |
 
 
 def _ballbar(model, p, n, noise, gen, geo):
-    qs, group, dist = [], [], []
-    for g, c in enumerate(geo["centres"]):
-        targets = c + geo["length"] * _unit_vectors(gen, OVERSAMPLE * n)
-        q = _reach_targets(model, p, targets, n, gen)
-        d = np.linalg.norm(model.positions(q, p) - c, axis=1)
-        qs.append(q)
-        group += [g] * n
-        dist.append(d + gen.normal(0.0, noise, n) if noise > 0 else d)
-    return np.concatenate(qs), np.array(group), np.concatenate(dist)
+    C = geo["centres"]
+    targets = [c + geo["length"] * _unit_vectors(gen, OVERSAMPLE * n) for c in C]
+    qs = _reach_targets(model, p, targets, n, gen)
+    q = np.concatenate(qs)
+    group = np.repeat(np.arange(len(C)), n)
+    d = np.linalg.norm(model.positions(q, p) - C[group], axis=1)
+    return q, group, (d + gen.normal(0.0, noise, len(d)) if noise > 0 else d)
 
 
 def _point(model, p, n, noise, gen, geo):
-    qs, group = [], []
-    for g, c in enumerate(geo["centres"]):
-        targets = c + (gen.normal(0.0, noise, (OVERSAMPLE * n, 3)) if noise > 0 else 0.0)
-        targets = np.broadcast_to(targets, (OVERSAMPLE * n, 3)).copy()
-        qs.append(_reach_targets(model, p, targets, n, gen))
-        group += [g] * n
-    return np.concatenate(qs), np.array(group), None
+    C = geo["centres"]
+    m = OVERSAMPLE * n
+    targets = [c + (gen.normal(0.0, noise, (m, 3)) if noise > 0 else np.zeros((m, 3)))
+               for c in C]
+    return (np.concatenate(_reach_targets(model, p, targets, n, gen)),
+            np.repeat(np.arange(len(C)), n), None)
 
 
 def _plane(model, p, n, noise, gen, geo):
-    qs, group = [], []
-    for g, row in enumerate(geo["planes"]):
+    targets = []
+    m = OVERSAMPLE * n
+    for row in geo["planes"]:
         c, nrm = row[:3], row[3:]
         t1 = np.cross(nrm, np.eye(3)[int(np.argmin(np.abs(nrm)))])
         t1 /= np.linalg.norm(t1)
         t2 = np.cross(nrm, t1)
-        m = OVERSAMPLE * n
         rad = geo["radius"] * np.sqrt(gen.uniform(size=m))
         ang = gen.uniform(0, 2 * np.pi, m)
         off = gen.normal(0.0, noise, m) if noise > 0 else np.zeros(m)
-        targets = (c + (rad * np.cos(ang))[:, None] * t1 + (rad * np.sin(ang))[:, None] * t2
-                   + off[:, None] * nrm)
-        qs.append(_reach_targets(model, p, targets, n, gen))
-        group += [g] * n
-    return np.concatenate(qs), np.array(group), None
+        targets.append(c + (rad * np.cos(ang))[:, None] * t1
+                       + (rad * np.sin(ang))[:, None] * t2 + off[:, None] * nrm)
+    return (np.concatenate(_reach_targets(model, p, targets, n, gen)),
+            np.repeat(np.arange(len(geo["planes"])), n), None)
 
 
 def _pair(model, p, n, noise, gen, geo):
