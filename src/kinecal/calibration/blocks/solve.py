@@ -92,11 +92,17 @@ def _estimate(problem: StackedProblem, res: OptimizeResult, known: list[bool]
     that set alone. Rounds that do not settle end with ``noise-estimate``.
     """
     rounds, first = 1, None
+    known = np.asarray(known, dtype=bool)
+    floor = _round_off(problem)
     while True:
-        f, red = variance_factors(problem, res.x, problem.block_residuals(res.x))
-        if all(known):
+        r = problem.block_residuals(res.x)
+        f, red = variance_factors(problem, res.x, r)
+        # a set fitted to round-off (noise-free data) has no noise to estimate
+        exact = np.array([b.unit == "length" and np.abs(ri).max(initial=0.0) <= floor
+                          for b, ri in zip(problem.blocks, r, strict=True)])
+        if all(known | exact):
             return res, f, red, rounds
-        step = np.sqrt(np.where(known | ~np.isfinite(f) | (f <= 0), 1.0, f))
+        step = np.sqrt(np.where(known | exact | ~np.isfinite(f) | (f <= 0), 1.0, f))
         new = [s * st for s, st in zip(problem.sigma, step, strict=True)]
         if first is None:
             first = [s.copy() for s in new]
@@ -161,14 +167,20 @@ def _grow(problem: StackedProblem, res: OptimizeResult, candidates: list[str],
     return bigger, _merge(res, res2)
 
 
+def _round_off(problem: StackedProblem) -> float:
+    """Errors below this size (length unit) are round-off: `ROUND_OFF` of the machine's."""
+    b = next((b for b in problem.blocks if len(b.q)), None)
+    P = problem.model.positions(b.q[:64], problem.base_params) if b is not None else \
+        np.zeros((1, 3))
+    return ROUND_OFF * max(float(np.abs(P).max()), 1.0)
+
+
 def observation_outliers(problem: StackedProblem, residuals: Sequence[Array]
                          ) -> list[tuple[int, int]]:
     """Observations far outside their block's spread (`chi_outliers` of the errors in
     units of the noise, per block); none in a block whose errors are all at round-off
     (below `ROUND_OFF` of the workspace's size)."""
-    P = problem.model.positions(problem.blocks[0].q[:64], problem.base_params) if \
-        problem.blocks and len(problem.blocks[0].q) else np.zeros((1, 3))
-    floor = ROUND_OFF * max(float(np.abs(P).max()), 1.0)
+    floor = _round_off(problem)
     out = []
     for i, (b, r, s) in enumerate(zip(problem.blocks, residuals, problem.sigma, strict=True)):
         e = b.observation_errors(r)
