@@ -65,10 +65,11 @@ class GaugeBlock(ResidualBlock):
     def _check_groups(self) -> None:
         for name, rows in zip(self.data.group_names, self.groups, strict=True):
             if 0 < rows.size < self.min_rows:
+                where = "" if rows.size == 1 else f" ({_rows_text(rows)})"
                 raise InputError(
                     f"{self.name}: {self.group_word} {name!r} has {rows.size} "
-                    f"{'row' if rows.size == 1 else 'rows'} ({_rows_text(rows)}): expected at "
-                    f"least {self.min_rows} ({self.min_reason})", file=self.source,
+                    f"{'row' if rows.size == 1 else 'rows'}{where}: expected at least "
+                    f"{self.min_rows} ({self.min_reason})", file=self.source,
                     row=int(rows[0]) + 1)
 
     @property
