@@ -130,3 +130,21 @@ def test_the_python_api_takes_several_sets_and_tracker_files_stay_on_the_fast_pa
     assert isinstance(mixed, KindsCalibrationResult)
     assert mixed.extra["not_seen"] == []  # the tracker sees the base
     assert [k["kind"] for k in mixed.extra["kinds"]] == ["tracker", "ballbar"]
+
+
+def test_select_poses_for_a_kind_beats_the_first_rows_of_the_same_candidates():
+    """D-optimal ballbar rows: a higher O1 than as many rows taken in order from the same
+    candidates, every pivot determined, the rank of the analysis."""
+    from kinecal.calibration.blocks.plan import select_kind_poses
+
+    m = kinecal.load_model("irb120")
+    plan, info = select_kind_poses(m, "ballbar", 10, candidates=40, rng=0)
+    cand = simulate_kind(m, "ballbar", 40, rng=0).data
+    first = np.r_[np.arange(10), 40 + np.arange(10)]
+    naive = dataclasses.replace(cand, q=cand.q[first], group=cand.group[first],
+                                distance=cand.distance[first])
+    a = analyse_kinds(m, [plan], "all", tol=1e-4)[0]
+    b = analyse_kinds(m, [naive], "all", tol=1e-4)[0]
+    assert len(plan) == 20 and np.bincount(plan.group).tolist() == [10, 10]
+    assert a.report.rank == info["rank"] == b.report.rank
+    assert a.report.observability["O1"] > 1.2 * b.report.observability["O1"]

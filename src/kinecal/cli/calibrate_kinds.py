@@ -30,7 +30,7 @@ from kinecal.cli._common import (
 from kinecal.errors import InputError
 
 __all__ = ["calibrate_files", "file_kind", "identifiability_files", "parse_sigma",
-           "simulate_kind_file"]
+           "select_kind_file", "simulate_kind_file"]
 
 
 def file_kind(spec: str, option: str = "DATA") -> str:
@@ -211,3 +211,38 @@ def simulate_kind_file(m, kind: str, *, poses: int, noise: float, true_params, s
         data = dataclasses.replace(data, sigma=np.full(len(data), float(noise)))
     write_gauge(out, data, m)
     return len(data)
+
+
+def select_kind_file(model: str, kind: str, *, count: int, candidates: int | None, seed: int,
+                     out: Path, gauge: list[str] | None, length: float | None, base_link,
+                     tip_link) -> None:
+    """``kinecal select-poses MODEL --kind K --count N --out PLAN.csv``: D-optimal rows of a
+    gauge kind (`kinecal.calibration.blocks.plan.select_kind_poses`)."""
+    from kinecal.calibration.blocks.plan import select_kind_poses
+    from kinecal.data import GAUGE_KINDS
+    from kinecal.io.kinds import write_gauge
+
+    if kind not in GAUGE_KINDS:
+        raise InputError(f"unknown kind {kind!r}; expected one of tracker, "
+                         f"{', '.join(GAUGE_KINDS)}", option="--kind")
+    check_paths({"MODEL": model}, {"--out": out})
+    check_finite(length, "--length", positive=True)
+    from kinecal._limits import check_count
+
+    candidates = 100 if candidates is None else candidates
+    check_count(candidates, "--candidates", bytes_per_item=4096, what="candidates")
+    geometry: dict[str, Any] = {"length": length}
+    if gauge:
+        if kind == "pair":
+            raise InputError("applies to ballbar, point and plane", option="--gauge")
+        size = 6 if kind == "plane" else 3
+        geometry["planes" if kind == "plane" else "centres"] = _vectors(gauge, size, "--gauge")
+    if length is not None and kind not in ("ballbar", "pair"):
+        raise InputError(f"applies to --kind ballbar or pair, not {kind}", option="--length")
+    m = load_model_arg(model, base_link, tip_link)
+    plan, info = select_kind_poses(m, kind, count, candidates=candidates, rng=seed, **geometry)
+    write_gauge(out, plan, m)
+    typer.echo(f"wrote {len(plan)} {kind} rows to {out}; O1 = {info['O1']:.4g}, O2 = "
+               f"{info['O2']:.4g} ({info['rank']} identifiable parameters"
+               + (f"; not seen: {', '.join(info['not_seen'])}" if info["not_seen"] else "")
+               + ")", err=True)
