@@ -138,13 +138,13 @@ def test_select_poses_for_a_kind_beats_the_first_rows_of_the_same_candidates():
     from kinecal.calibration.blocks.plan import select_kind_poses
 
     m = kinecal.load_model("irb120")
-    plan, info = select_kind_poses(m, "ballbar", 10, candidates=40, rng=0)
+    plan, info = select_kind_poses(m, "ballbar", 16, candidates=40, rng=0)
     cand = simulate_kind(m, "ballbar", 40, rng=0).data
-    first = np.r_[np.arange(10), 40 + np.arange(10)]
+    first = np.r_[np.arange(16), 40 + np.arange(16)]
     naive = dataclasses.replace(cand, q=cand.q[first], group=cand.group[first],
                                 distance=cand.distance[first])
     a = analyse_kinds(m, [plan], "all", tol=1e-4)[0]
     b = analyse_kinds(m, [naive], "all", tol=1e-4)[0]
-    assert len(plan) == 20 and np.bincount(plan.group).tolist() == [10, 10]
+    assert len(plan) == 32 and np.bincount(plan.group).min() >= 4
     assert a.report.rank == info["rank"] == b.report.rank
     assert a.report.observability["O1"] > 1.2 * b.report.observability["O1"]
