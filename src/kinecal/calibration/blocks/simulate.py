@@ -90,24 +90,33 @@ def default_geometry(model: SerialModel, kind: str, count: int,
     return out
 
 
-def _reach_targets(model: SerialModel, params: Array, targets: list[Array], want: int,
+def _reach_targets(model: SerialModel, params: Array, makers: list, want: int,
                    gen: np.random.Generator) -> list[Array]:
-    """Joint readings ``(want, n_joints)`` per group of targets (each ``(M, 3)``): the first
-    `want` the arm reaches from random seeds (one batch for all groups; InputError when a
-    group has fewer reachable targets)."""
-    T = np.concatenate(targets)
-    seeds = random_configurations(model, len(T), gen)
-    ik = solve_ik(model, T, seeds, params=params, restarts=2, rng=gen)
-    ok = ik.status == "converged"
-    out, start = [], 0
-    for t in targets:
-        hit = np.flatnonzero(ok[start:start + len(t)])
-        if hit.size < want:
-            raise InputError(f"only {hit.size} of {len(t)} simulated targets of a gauge are "
-                             f"within reach of the arm (wanted {want}): move the gauge "
-                             "closer or make it smaller")
-        out.append(ik.q[start + hit[:want]])
-        start += len(t)
+    """Joint readings ``(want, n_joints)`` per group: ``makers[g](m)`` draws ``m`` targets
+    ``(m, 3)`` of group ``g``; the first `want` the arm reaches from random seeds are kept
+    (one batch for all groups; groups short of reachable targets draw `OVERSAMPLE` times
+    more, twice, before an InputError)."""
+    out: list[Array | None] = [None] * len(makers)
+    m = OVERSAMPLE * want
+    for _ in range(3):
+        todo = [g for g, q in enumerate(out) if q is None]
+        if not todo:
+            break
+        targets = [makers[g](m) for g in todo]
+        T = np.concatenate(targets)
+        ik = solve_ik(model, T, random_configurations(model, len(T), gen), params=params,
+                      restarts=2, rng=gen)
+        ok = ik.status == "converged"
+        start = 0
+        for g, t in zip(todo, targets, strict=True):
+            hit = np.flatnonzero(ok[start:start + len(t)])
+            if hit.size >= want:
+                out[g] = ik.q[start + hit[:want]]
+            start += len(t)
+        m *= OVERSAMPLE
+    if any(q is None for q in out):
+        raise InputError(f"a simulated gauge has fewer than {want} targets within reach of "
+                         "the arm: move it closer or make it smaller")
     return out
 
 
@@ -179,9 +188,8 @@ def simulate_kind(model: SerialModel, kind: str, n: int, *, true_params: Array |
 
 def _ballbar(model, p, n, noise, gen, geo):
     C = geo["centres"]
-    targets = [c + geo["length"] * _unit_vectors(gen, OVERSAMPLE * n) for c in C]
-    qs = _reach_targets(model, p, targets, n, gen)
-    q = np.concatenate(qs)
+    makers = [lambda m, c=c: c + geo["length"] * _unit_vectors(gen, m) for c in C]
+    q = np.concatenate(_reach_targets(model, p, makers, n, gen))
     group = np.repeat(np.arange(len(C)), n)
     d = np.linalg.norm(model.positions(q, p) - C[group], axis=1)
     return q, group, (d + gen.normal(0.0, noise, len(d)) if noise > 0 else d)
@@ -189,27 +197,31 @@ def _ballbar(model, p, n, noise, gen, geo):
 
 def _point(model, p, n, noise, gen, geo):
     C = geo["centres"]
-    m = OVERSAMPLE * n
-    targets = [c + (gen.normal(0.0, noise, (m, 3)) if noise > 0 else np.zeros((m, 3)))
-               for c in C]
-    return (np.concatenate(_reach_targets(model, p, targets, n, gen)),
+    makers = [lambda m, c=c: c + (gen.normal(0.0, noise, (m, 3)) if noise > 0
+                                  else np.zeros((m, 3))) for c in C]
+    return (np.concatenate(_reach_targets(model, p, makers, n, gen)),
             np.repeat(np.arange(len(C)), n), None)
 
 
-def _plane(model, p, n, noise, gen, geo):
-    targets = []
-    m = OVERSAMPLE * n
-    for row in geo["planes"]:
-        c, nrm = row[:3], row[3:]
-        t1 = np.cross(nrm, np.eye(3)[int(np.argmin(np.abs(nrm)))])
-        t1 /= np.linalg.norm(t1)
-        t2 = np.cross(nrm, t1)
-        rad = geo["radius"] * np.sqrt(gen.uniform(size=m))
+def _plane_maker(row, radius, noise, gen):
+    c, nrm = row[:3], row[3:]
+    t1 = np.cross(nrm, np.eye(3)[int(np.argmin(np.abs(nrm)))])
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(nrm, t1)
+
+    def make(m):
+        rad = radius * np.sqrt(gen.uniform(size=m))
         ang = gen.uniform(0, 2 * np.pi, m)
         off = gen.normal(0.0, noise, m) if noise > 0 else np.zeros(m)
-        targets.append(c + (rad * np.cos(ang))[:, None] * t1
-                       + (rad * np.sin(ang))[:, None] * t2 + off[:, None] * nrm)
-    return (np.concatenate(_reach_targets(model, p, targets, n, gen)),
+        return (c + (rad * np.cos(ang))[:, None] * t1 + (rad * np.sin(ang))[:, None] * t2
+                + off[:, None] * nrm)
+
+    return make
+
+
+def _plane(model, p, n, noise, gen, geo):
+    makers = [_plane_maker(row, geo["radius"], noise, gen) for row in geo["planes"]]
+    return (np.concatenate(_reach_targets(model, p, makers, n, gen)),
             np.repeat(np.arange(len(geo["planes"])), n), None)
 
 
