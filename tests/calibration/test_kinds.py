@@ -148,3 +148,33 @@ def test_select_poses_for_a_kind_beats_the_first_rows_of_the_same_candidates():
     assert len(plan) == 32 and np.bincount(plan.group).min() >= 4
     assert a.report.rank == info["rank"] == b.report.rank
     assert a.report.observability["O1"] > 1.2 * b.report.observability["O1"]
+
+
+def test_an_outlier_touch_is_named_and_a_robust_loss_keeps_the_fit(arm):
+    """A socket touched 1 mm off (a tip that did not seat): the plain fit names it as
+    ``file:row`` (``outliers``) and is pulled; soft_l1 down-weights it and keeps the
+    held-out error of the clean data."""
+    m = arm[0]
+    bb, pt = _noisy(arm, "ballbar", 4), _noisy(arm, "point", 4)
+    clean = calibrate_blocks(m, [bb, pt], sigma=[0.002, 0.01])
+    P = m.positions(pt.q[5:6], arm[1])
+    ik = solve_ik(m, P + [[1.0, 0.0, 0.0]], pt.q[5:6], params=arm[1])
+    bad = dataclasses.replace(pt, q=np.r_[pt.q[:5], ik.q, pt.q[6:]])
+    plain = calibrate_blocks(m, [bb, bad])
+    assert "outliers" in {w.code for w in plain.warnings}
+    assert "simulated point of irb120:6" in plain.extra["outlier_observations"]
+    robust = calibrate_blocks(m, [bb, bad], sigma=[0.002, 0.01], loss="soft_l1")
+    assert robust.extra["outlier_observations"] == ["simulated point of irb120:6"]
+    e_clean, e_plain, e_robust = (_held_out(arm, r)[0] for r in (clean, plain, robust))
+    assert e_robust < 1.5 * e_clean < e_plain, (e_clean, e_plain, e_robust)
+
+
+def test_the_report_has_a_section_per_measurement_set(arm):
+    from kinecal.report.kinds import kinds_section
+
+    res = calibrate_blocks(arm[0], [_noisy(arm, "ballbar", 5), _noisy(arm, "plane", 5)],
+                           validate=[_noisy(arm, "point", 5)])
+    html = kinds_section(res)
+    assert "Measurement sets" in html and "pivot P2" in html and "plane F1" in html
+    assert "Validation sets" in html and "Not seen by this mix" in html
+    assert res.val_after.max() < 0.1 < res.val_before.max()  # the points, held out

@@ -30,7 +30,7 @@ from kinecal.cli._common import (
 from kinecal.errors import InputError
 
 __all__ = ["calibrate_files", "file_kind", "identifiability_files", "parse_sigma",
-           "select_kind_file", "simulate_kind_file"]
+           "select_kind_file", "simulate_gauge", "simulate_kind_file"]
 
 
 def file_kind(spec: str, option: str = "DATA") -> str:
@@ -178,6 +178,35 @@ def _vectors(values: list[str] | None, size: int, option: str) -> np.ndarray | N
             raise InputError(f"{v!r}: expected {size} comma-separated numbers", option=option)
         rows.append(row)
     return np.array(rows)
+
+
+def simulate_gauge(m, kind: str, errors, *, poses: int, noise: float, seed: int, out: Path,
+                   truth_out: Path | None, quiet: bool, gauge: dict[str, Any],
+                   orientation: bool) -> None:
+    """``kinecal simulate MODEL --kind K ...`` after the model and ``--errors`` are read:
+    `errors` is ``zero``, ``random`` (drawn from `seed`; to measure one arm with several
+    kinds, write ``--truth-out`` once and pass it as ``--errors`` to the others) or the
+    deviations of a truth file."""
+    from kinecal.calibration.serial.simulate import random_errors, write_truth
+    from kinecal.data import GAUGE_KINDS
+
+    if kind not in GAUGE_KINDS:
+        raise InputError(f"unknown kind {kind!r}; expected one of tracker, "
+                         f"{', '.join(GAUGE_KINDS)}", option="--kind")
+    if orientation:
+        raise InputError(f"applies to --kind tracker only, not {kind}", option="--orientation")
+    if isinstance(errors, str):
+        true_params = m.nominal + (0.0 if errors == "zero" else
+                                   random_errors(m, np.random.default_rng(seed)))
+    else:
+        true_params = m.nominal + errors
+    n = simulate_kind_file(m, kind, poses=poses, noise=noise, true_params=true_params,
+                           seed=seed, out=out, **gauge)
+    if truth_out is not None:
+        write_truth(truth_out, m, true_params)
+    if not quiet:
+        typer.echo(f"wrote {n} {kind} rows to {out}"
+                   + (f", truth to {truth_out}" if truth_out else ""), err=True)
 
 
 def simulate_kind_file(m, kind: str, *, poses: int, noise: float, true_params, seed: int,

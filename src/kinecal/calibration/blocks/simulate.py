@@ -164,6 +164,10 @@ def simulate_kind(model: SerialModel, kind: str, n: int, *, true_params: Array |
         raise InputError(f"noise: expected >= 0, got {noise}", option="--noise")
     gen = np.random.default_rng(rng)
     p = model.nominal if true_params is None else np.asarray(true_params, dtype=float)
+    from kinecal.calibration.diagnostics import sizes  # noise and errors within the machine
+
+    sizes.check_length_noise(noise, sizes.serial_size(model), "--noise", model.length_unit)
+    sizes.check_deviations(model, p - model.nominal)
     count = groups or {"ballbar": 2, "point": 4, "plane": 2, "pair": 1}[kind]
     geo = default_geometry(model, kind, count, gen)
     if centres is not None:
