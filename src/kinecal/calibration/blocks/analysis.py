@@ -34,8 +34,8 @@ from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.optimize.factor import qr_update
 
-__all__ = ["MOTIONS", "StackAnalysis", "analyse_stack", "report_for", "stack_scale",
-           "unseen_words"]
+__all__ = ["MOTIONS", "StackAnalysis", "analyse_stack", "blind_basis", "report_for",
+           "stack_scale", "unseen_words"]
 
 Array = NDArray[np.float64]
 
@@ -131,10 +131,11 @@ def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool) 
     return np.zeros((n, n)) if R is None else R
 
 
-def _blind_basis(problem: StackedProblem, params: Array, q: Array, P: Array, D: Array,
-                 ) -> tuple[Array, list[str]]:
-    """Orthonormal scaled arm directions ``(k, b)`` producing the mix's blind motions, and
-    the motions' names."""
+def blind_basis(problem: StackedProblem, params: Array, q: Array, P: Array, D: Array,
+                ) -> tuple[Array, list[str]]:
+    """Orthonormal arm directions ``(k, b)`` (columns scaled by `D`) producing the mix's
+    blind motions on the tool points `P` ``(N, 3)`` of the configurations `q`, and the
+    motions' names (`stack_scale` gives `D`, `q` and `P`)."""
     blind = None
     for b in problem.blocks:
         blind = set(b.blind_to) if blind is None else blind & set(b.blind_to)
@@ -189,7 +190,7 @@ def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = F
     R = _factor(problem, x, D, L, check)
     nn = problem.n - problem.k
     Raa = R[nn:, nn:]
-    Q, unseen = _blind_basis(problem, params, q, P, D)
+    Q, unseen = blind_basis(problem, params, q, P, D)
     B = Raa - (Raa @ Q) @ Q.T if Q.size else Raa
     n_rows = max(problem.m - nn, 1)
     report = analyse_factor(B / D, problem.free, n_rows, tol=tol, scale=D)
