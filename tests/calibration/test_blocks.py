@@ -66,8 +66,8 @@ def test_every_kind_jacobian_matches_central_differences(arm):
             dv = np.zeros(b.n_nuisance)
             dv[j] = h
             numn[:, j] = (b.evaluate(m, p, v + dv).r - b.evaluate(m, p, v - dv).r) / (2 * h)
-        np.testing.assert_allclose(rows.nuisance, numn, atol=2e-5 * max(1, np.abs(numn).max(initial=0)),
-                                   err_msg=b.kind)
+        big = max(1, np.abs(numn).max(initial=0))
+        np.testing.assert_allclose(rows.nuisance, numn, atol=2e-5 * big, err_msg=b.kind)
 
 
 def test_stacked_normal_equations_equal_the_dense_jacobian(arm):

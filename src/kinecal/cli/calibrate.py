@@ -257,11 +257,32 @@ def select_poses_cmd(
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     count: int = typer.Option(..., "--count", help="Number of poses to select."),
-    candidates: int = typer.Option(2000, "--candidates", help="Random candidate poses."),
+    candidates: int | None = typer.Option(
+        None, "--candidates", help="Random candidate poses (default 2000; gauge kinds: per "
+        "pivot, point or plane, default 100)."),
     seed: int = seed_option("Random seed for the candidates (an integer >= 0)."),
     out: Path = typer.Option(..., "--out", help="CSV of the selected q1..qn."),
+    kind: str = typer.Option("tracker", "--kind", help="tracker, or a gauge kind: ballbar, "
+                             "pair, point, plane (--count per pivot, point or plane; pairs "
+                             "in all; --candidates per gauge, default 100)."),
+    gauge: list[str] | None = typer.Option(
+        None, "--gauge", help="Gauge kinds: a pivot or point X,Y,Z, or a plane "
+        "X,Y,Z,NX,NY,NZ (repeatable; default reachable ones)."),
+    length: float | None = typer.Option(None, "--length", help="Ballbar or bar length."),
 ) -> None:
-    """Choose calibration poses maximising observability (O1, D-optimal)."""
+    """Choose calibration poses maximising observability (O1, D-optimal); for a gauge kind
+    the rows of its file (docs/measurement-kinds.md)."""
+    if kind != "tracker":
+        from kinecal.cli.calibrate_kinds import select_kind_file
+
+        return select_kind_file(model, kind, count=count, candidates=candidates, seed=seed,
+                                out=out, gauge=gauge, length=length, base_link=base_link,
+                                tip_link=tip_link)
+    for option, value in (("--gauge", gauge), ("--length", length)):
+        if value:
+            raise InputError("applies to the gauge kinds (--kind ballbar, pair, point, plane)",
+                             option=option)
+    candidates = 2000 if candidates is None else candidates
     from kinecal.calibration.serial.pose_selection import candidate_measurements, select_poses
     from kinecal.calibration.serial.problem import resolve_free
     from kinecal.calibration.serial.simulate import random_configurations

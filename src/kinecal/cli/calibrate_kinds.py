@@ -30,7 +30,7 @@ from kinecal.cli._common import (
 from kinecal.errors import InputError
 
 __all__ = ["calibrate_files", "file_kind", "identifiability_files", "parse_sigma",
-           "simulate_kind_file"]
+           "select_kind_file", "simulate_gauge", "simulate_kind_file"]
 
 
 def file_kind(spec: str, option: str = "DATA") -> str:
@@ -180,6 +180,35 @@ def _vectors(values: list[str] | None, size: int, option: str) -> np.ndarray | N
     return np.array(rows)
 
 
+def simulate_gauge(m, kind: str, errors, *, poses: int, noise: float, seed: int, out: Path,
+                   truth_out: Path | None, quiet: bool, gauge: dict[str, Any],
+                   orientation: bool) -> None:
+    """``kinecal simulate MODEL --kind K ...`` after the model and ``--errors`` are read:
+    `errors` is ``zero``, ``random`` (drawn from `seed`; to measure one arm with several
+    kinds, write ``--truth-out`` once and pass it as ``--errors`` to the others) or the
+    deviations of a truth file."""
+    from kinecal.calibration.serial.simulate import random_errors, write_truth
+    from kinecal.data import GAUGE_KINDS
+
+    if kind not in GAUGE_KINDS:
+        raise InputError(f"unknown kind {kind!r}; expected one of tracker, "
+                         f"{', '.join(GAUGE_KINDS)}", option="--kind")
+    if orientation:
+        raise InputError(f"applies to --kind tracker only, not {kind}", option="--orientation")
+    if isinstance(errors, str):
+        true_params = m.nominal + (0.0 if errors == "zero" else
+                                   random_errors(m, np.random.default_rng(seed)))
+    else:
+        true_params = m.nominal + errors
+    n = simulate_kind_file(m, kind, poses=poses, noise=noise, true_params=true_params,
+                           seed=seed, out=out, **gauge)
+    if truth_out is not None:
+        write_truth(truth_out, m, true_params)
+    if not quiet:
+        typer.echo(f"wrote {n} {kind} rows to {out}"
+                   + (f", truth to {truth_out}" if truth_out else ""), err=True)
+
+
 def simulate_kind_file(m, kind: str, *, poses: int, noise: float, true_params, seed: int,
                        out: Path, pivot: list[str] | None, point: list[str] | None,
                        plane: list[str] | None, length: float | None, radius: float | None,
@@ -211,3 +240,38 @@ def simulate_kind_file(m, kind: str, *, poses: int, noise: float, true_params, s
         data = dataclasses.replace(data, sigma=np.full(len(data), float(noise)))
     write_gauge(out, data, m)
     return len(data)
+
+
+def select_kind_file(model: str, kind: str, *, count: int, candidates: int | None, seed: int,
+                     out: Path, gauge: list[str] | None, length: float | None, base_link,
+                     tip_link) -> None:
+    """``kinecal select-poses MODEL --kind K --count N --out PLAN.csv``: D-optimal rows of a
+    gauge kind (`kinecal.calibration.blocks.plan.select_kind_poses`)."""
+    from kinecal.calibration.blocks.plan import select_kind_poses
+    from kinecal.data import GAUGE_KINDS
+    from kinecal.io.kinds import write_gauge
+
+    if kind not in GAUGE_KINDS:
+        raise InputError(f"unknown kind {kind!r}; expected one of tracker, "
+                         f"{', '.join(GAUGE_KINDS)}", option="--kind")
+    check_paths({"MODEL": model}, {"--out": out})
+    check_finite(length, "--length", positive=True)
+    from kinecal._limits import check_count
+
+    candidates = 100 if candidates is None else candidates
+    check_count(candidates, "--candidates", bytes_per_item=4096, what="candidates")
+    geometry: dict[str, Any] = {"length": length}
+    if gauge:
+        if kind == "pair":
+            raise InputError("applies to ballbar, point and plane", option="--gauge")
+        size = 6 if kind == "plane" else 3
+        geometry["planes" if kind == "plane" else "centres"] = _vectors(gauge, size, "--gauge")
+    if length is not None and kind not in ("ballbar", "pair"):
+        raise InputError(f"applies to --kind ballbar or pair, not {kind}", option="--length")
+    m = load_model_arg(model, base_link, tip_link)
+    plan, info = select_kind_poses(m, kind, count, candidates=candidates, rng=seed, **geometry)
+    write_gauge(out, plan, m)
+    typer.echo(f"wrote {len(plan)} {kind} rows to {out}; O1 = {info['O1']:.4g}, O2 = "
+               f"{info['O2']:.4g} ({info['rank']} identifiable parameters"
+               + (f"; not seen: {', '.join(info['not_seen'])}" if info["not_seen"] else "")
+               + ")", err=True)

@@ -97,35 +97,18 @@ def simulate(
             err: object = errors
         else:
             err = read_truth(Path(errors), m) - m.nominal
+        gauge = dict(pivot=pivot, point=point, plane=plane, length=length, radius=radius,
+                     groups=groups, sigma_column=sigma_column)
         if kind != "tracker":
-            from kinecal.cli.calibrate_kinds import simulate_kind_file
-            from kinecal.data import GAUGE_KINDS
+            from kinecal.cli.calibrate_kinds import simulate_gauge
 
-            if kind not in GAUGE_KINDS:
-                raise InputError(f"unknown kind {kind!r}; expected one of tracker, "
-                                 f"{', '.join(GAUGE_KINDS)}", option="--kind")
-
-            if orientation or angle_noise:
-                raise InputError(f"applies to --kind tracker only, not {kind}",
-                                 option="--orientation")
-            true_params = (m.nominal + err if not isinstance(err, str) else
-                           _true_params(m, err, seed))
-            n = simulate_kind_file(m, kind, poses=poses, noise=noise, true_params=true_params,
-                                   seed=seed, out=out, pivot=pivot, point=point, plane=plane,
-                                   length=length, radius=radius, groups=groups,
-                                   sigma_column=sigma_column)
-            if truth_out is not None:
-                write_truth(truth_out, m, true_params)
-            if not quiet:
-                typer.echo(f"wrote {n} {kind} rows to {out}"
-                           + (f", truth to {truth_out}" if truth_out else ""), err=True)
-            return
-        for option, value in (("--pivot", pivot), ("--point", point), ("--plane", plane),
-                              ("--length", length), ("--radius", radius),
-                              ("--groups", groups), ("--sigma-column", sigma_column or None)):
+            return simulate_gauge(m, kind, err, poses=poses, noise=noise, seed=seed, out=out,
+                                  truth_out=truth_out, quiet=quiet, gauge=gauge,
+                                  orientation=bool(orientation or angle_noise))
+        for option, value in gauge.items():
             if value:
                 raise InputError("applies to the gauge kinds (--kind ballbar, pair, point, "
-                                 "plane) only", option=option)
+                                 "plane) only", option="--" + option.replace("_", "-"))
         if angle_noise and not orientation:
             raise InputError("--angle-noise needs --orientation", option="--angle-noise")
         to_rad = np.pi / 180.0 if m.angle_unit == "deg" else 1.0
@@ -140,13 +123,3 @@ def simulate(
         typer.echo(f"wrote {poses} poses to {out}"
                    + (f", truth to {truth_out}" if truth_out else ""), err=True)
 
-
-def _true_params(m, errors: str, seed: int) -> np.ndarray:
-    """The true arm of ``--errors zero|random`` for a gauge kind, drawn from `seed` (to
-    measure one arm with several kinds, write ``--truth-out`` once and pass it as
-    ``--errors`` to the others)."""
-    from kinecal.calibration.serial.simulate import random_errors
-
-    if errors == "zero":
-        return m.nominal
-    return m.nominal + random_errors(m, np.random.default_rng(seed))

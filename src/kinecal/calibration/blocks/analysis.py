@@ -34,8 +34,8 @@ from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.optimize.factor import qr_update
 
-__all__ = ["MOTIONS", "StackAnalysis", "analyse_stack", "report_for", "stack_scale",
-           "unseen_words"]
+__all__ = ["MOTIONS", "StackAnalysis", "analyse_stack", "blind_basis", "report_for",
+           "stack_scale", "unseen_words"]
 
 Array = NDArray[np.float64]
 
@@ -110,14 +110,14 @@ def stack_scale(problem: StackedProblem, params: Array, names=None) -> tuple[Arr
     return D, L, q, P
 
 
-def _factor(problem: StackedProblem, x: Array, D: Array, L: float) -> Array:
-    """``R`` of the scaled, weighted ``[J_n | J_a]`` ``(n, n)``; checks each block's own
-    unknowns are determined."""
+def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool) -> Array:
+    """``R`` of the scaled, weighted ``[J_n | J_a]`` ``(n, n)``; with `check`, refuses a
+    block whose rows do not determine its own unknowns."""
     k, n = problem.k, problem.n
     nn = n - k
     R = None
     for b, (_, Ja, Jn, s) in zip(problem.blocks, problem._weighted_rows(x), strict=True):
-        if b.n_nuisance:
+        if b.n_nuisance and check:
             Js = Jn * b.nuisance_scale(L)
             sv = np.linalg.svd(Js, compute_uv=False)
             if sv.size < b.n_nuisance or sv[-1] <= NUISANCE_TOL * max(sv[0], 1e-300):
@@ -131,10 +131,11 @@ def _factor(problem: StackedProblem, x: Array, D: Array, L: float) -> Array:
     return np.zeros((n, n)) if R is None else R
 
 
-def _blind_basis(problem: StackedProblem, params: Array, q: Array, P: Array, D: Array,
-                 ) -> tuple[Array, list[str]]:
-    """Orthonormal scaled arm directions ``(k, b)`` producing the mix's blind motions, and
-    the motions' names."""
+def blind_basis(problem: StackedProblem, params: Array, q: Array, P: Array, D: Array,
+                ) -> tuple[Array, list[str]]:
+    """Orthonormal arm directions ``(k, b)`` (columns scaled by `D`) producing the mix's
+    blind motions on the tool points `P` ``(N, 3)`` of the configurations `q`, and the
+    motions' names (`stack_scale` gives `D`, `q` and `P`)."""
     blind = None
     for b in problem.blocks:
         blind = set(b.blind_to) if blind is None else blind & set(b.blind_to)
@@ -169,7 +170,8 @@ def _blind_basis(problem: StackedProblem, params: Array, q: Array, P: Array, D: 
     return U[:, :rank], [n for n, m in zip(names, made, strict=True) if m]
 
 
-def analyse_stack(problem: StackedProblem, x: Array, tol: float) -> StackAnalysis:
+def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = False
+                  ) -> StackAnalysis:
     """Identifiability of `problem`'s arm parameters at `x` (module docstring).
 
     Parameters
@@ -179,13 +181,16 @@ def analyse_stack(problem: StackedProblem, x: Array, tol: float) -> StackAnalysi
     x : ndarray, shape (n,)
     tol : float
         Relative rank threshold (`kinecal.calibration.identifiability.analyse_factor`).
+    check : bool
+        Refuse (`InputError`) a block whose rows do not determine its own unknowns (the
+        data's fault at the start values; at a solution, the fit's).
     """
     params = problem.params(x)
     D, L, q, P = stack_scale(problem, params)
-    R = _factor(problem, x, D, L)
+    R = _factor(problem, x, D, L, check)
     nn = problem.n - problem.k
     Raa = R[nn:, nn:]
-    Q, unseen = _blind_basis(problem, params, q, P, D)
+    Q, unseen = blind_basis(problem, params, q, P, D)
     B = Raa - (Raa @ Q) @ Q.T if Q.size else Raa
     n_rows = max(problem.m - nn, 1)
     report = analyse_factor(B / D, problem.free, n_rows, tol=tol, scale=D)

@@ -25,6 +25,10 @@ from kinecal.calibration.blocks.solve import fit_stack
 from kinecal.calibration.blocks.stack import StackedProblem, fit_nuisance
 from kinecal.calibration.blocks.uncertainty import stack_uncertainty
 from kinecal.calibration.blocks.weights import initial_sigma
+from kinecal.calibration.diagnostics.fit import (
+    check_parameter_tolerance,
+    check_unidentifiable_free,
+)
 from kinecal.calibration.serial.problem import candidate_names
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers
@@ -147,7 +151,7 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
     sig0, known = initial_sigma(blocks)
     cand = candidate_names(model, free)
     start = StackedProblem(model, blocks, cand, sig0)
-    ana0 = analyse_stack(start, start.pack(p0, nuis0), rank_tol)
+    ana0 = analyse_stack(start, start.pack(p0, nuis0), rank_tol, check=True)
     names = ana0.report.identifiable if free == "identifiable" else cand
     check_blocks(model, blocks, nuis0, before, ana0, names)
     fit = fit_stack(model, blocks, list(names), cand, p0, nuis0, sig0, known, tol=rank_tol,
@@ -158,6 +162,11 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
     ana = analyse_stack(final, final.pack(params, nuis), rank_tol)
     ana.report = report_for(ana, prob.free, rank_tol)
     unc, nuis_std = stack_uncertainty(prob, x, ana, fit.outliers if loss != "linear" else [])
+    unc.estimable &= ~np.isin(prob.free, ana.report.unidentifiable)
+    check_unidentifiable_free([n for n, e in zip(prob.free, unc.estimable, strict=True)
+                               if not e], free)
+    check_parameter_tolerance(model, params, np.where(unc.estimable, unc.std, np.inf),
+                              prob.free, ana.report.confounded_with)
     r1 = prob.block_residuals(x)
     after = [b.observation_errors(r) for b, r in zip(blocks, r1, strict=True)]
     flagged = check_fits(model, prob, x, r1, fit, loss)
@@ -184,7 +193,6 @@ def _result(model, prob, fit, ana, unc, params, before, after, entries, val_entr
     res = fit.result
     names = prob.free
     report = ana.report
-    unc.estimable &= ~np.isin(names, report.unidentifiable)
     std = np.zeros(model.n_params)
     std[prob.index] = unc.std
     offsets = np.cumsum([0, *[b.n_obs for b in blocks]])

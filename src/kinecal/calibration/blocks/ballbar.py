@@ -100,8 +100,10 @@ class BallbarBlock(GaugeBlock):
         return C[self.data.group]
 
     def evaluate(self, model: SerialModel, params: Array, nuisance: Array,
-                 columns: NDArray[np.intp] | None = None, jacobian: bool = False) -> BlockRows:
-        P, Jt = tool_points(model, self.q, params, self.marker, columns if jacobian else None)
+                 columns: NDArray[np.intp] | None = None, jacobian: bool = False,
+                 points: tuple[Array, Array | None] | None = None) -> BlockRows:
+        P, Jt = points if points is not None else tool_points(
+            model, self.q, params, self.marker, columns if jacobian else None)
         D = P - self._centres(nuisance)
         dist = np.sqrt(np.einsum("ij,ij->i", D, D))
         r = dist - np.asarray(self.data.distance)

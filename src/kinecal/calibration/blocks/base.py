@@ -26,7 +26,9 @@ What a block provides (each method's docstring has the shapes and units):
                           small rotations about it
 ``evaluate(...)``         residuals and the analytic Jacobian for the arm columns asked
                           for and for the nuisance (`BlockRows`); the arm part through
-                          `SerialModel`'s identification Jacobian (`tool_points`)
+                          `SerialModel`'s identification Jacobian (`tool_points`; a block
+                          that sets ``shares_tool_points`` gets them from the stack, one
+                          sweep for all such blocks)
 ``observation_errors(r)`` per-observation error sizes from the residual (before / after
                           statistics, outliers)
 ``check_data``, ``check_fit``  plausibility hooks (`kinecal.diagnostics.warn` with a stable
@@ -125,6 +127,10 @@ class ResidualBlock(ABC):
     obs_dof: ClassVar[int] = 1
     #: what the stated noise is the noise of (docs, messages)
     noise_of: ClassVar[str] = ""
+    #: the block's residuals depend on the arm only through its rows' tool points: the stack
+    #: then computes them for every such block in one forward-kinematics sweep and passes
+    #: them to `evaluate` as ``points``
+    shares_tool_points: ClassVar[bool] = False
     #: similarity motions of the whole arm (and the block's unknowns with it) that leave
     #: the residuals unchanged: any of ``translation``, ``rotation``, ``scale``
     #: (`kinecal.calibration.blocks.analysis`)
@@ -213,11 +219,14 @@ class ResidualBlock(ABC):
 
     @abstractmethod
     def evaluate(self, model: SerialModel, params: Array, nuisance: Array,
-                 columns: NDArray[np.intp] | None = None, jacobian: bool = False) -> BlockRows:
+                 columns: NDArray[np.intp] | None = None, jacobian: bool = False,
+                 points: tuple[Array, Array | None] | None = None) -> BlockRows:
         """Residuals at arm parameters `params` ``(n_params,)`` and `nuisance` ``(n_b,)``.
 
         With `jacobian`, also ``dr / d(arm)`` for the parameter indices `columns` and
-        ``dr / d(nuisance)``.
+        ``dr / d(nuisance)``. `points` (blocks with ``shares_tool_points``): the rows' tool
+        points ``(N, 3)`` and, with `jacobian`, their Jacobian ``(k, 3, N)`` for `columns`,
+        as `tool_points` gives them; None: the block computes them.
         """
 
     @abstractmethod

@@ -39,7 +39,7 @@ def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, 
     base_free = set(BASE_NAMES) <= set(model.calibratable)
     p0 = model.nominal
     for b, v, e in zip(blocks, nuisance, before, strict=True):
-        what = f"rows of {b.name}"
+        what = b.name
         check_joint_limits(model, b.q, what)
         warned = check_joint_units(model, b.q, what)
         if isinstance(b, TrackerBlock):

@@ -85,8 +85,10 @@ class PairBlock(GaugeBlock):
         return np.zeros(0)
 
     def evaluate(self, model: SerialModel, params: Array, nuisance: Array,
-                 columns: NDArray[np.intp] | None = None, jacobian: bool = False) -> BlockRows:
-        P, Jt = tool_points(model, self.q, params, self.marker, columns if jacobian else None)
+                 columns: NDArray[np.intp] | None = None, jacobian: bool = False,
+                 points: tuple[Array, Array | None] | None = None) -> BlockRows:
+        P, Jt = points if points is not None else tool_points(
+            model, self.q, params, self.marker, columns if jacobian else None)
         D = P[self.a] - P[self.b]
         dist = np.sqrt(np.einsum("ij,ij->i", D, D))
         r = dist - self.length

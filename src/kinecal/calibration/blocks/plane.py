@@ -109,8 +109,10 @@ class PlaneBlock(GaugeBlock):
         return m / np.linalg.norm(m, axis=1)[:, None], v[:, 2]
 
     def evaluate(self, model: SerialModel, params: Array, nuisance: Array,
-                 columns: NDArray[np.intp] | None = None, jacobian: bool = False) -> BlockRows:
-        P, Jt = tool_points(model, self.q, params, self.marker, columns if jacobian else None)
+                 columns: NDArray[np.intp] | None = None, jacobian: bool = False,
+                 points: tuple[Array, Array | None] | None = None) -> BlockRows:
+        P, Jt = points if points is not None else tool_points(
+            model, self.q, params, self.marker, columns if jacobian else None)
         live = self.live_groups
         pos = np.full(len(self.groups), -1, dtype=np.intp)
         pos[live] = np.arange(len(live))

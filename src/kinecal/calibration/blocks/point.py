@@ -57,8 +57,10 @@ class PointBlock(GaugeBlock):
         return np.concatenate(out) if out else np.zeros(0)
 
     def evaluate(self, model: SerialModel, params: Array, nuisance: Array,
-                 columns: NDArray[np.intp] | None = None, jacobian: bool = False) -> BlockRows:
-        P, Jt = tool_points(model, self.q, params, self.marker, columns if jacobian else None)
+                 columns: NDArray[np.intp] | None = None, jacobian: bool = False,
+                 points: tuple[Array, Array | None] | None = None) -> BlockRows:
+        P, Jt = points if points is not None else tool_points(
+            model, self.q, params, self.marker, columns if jacobian else None)
         C = np.zeros((len(self.groups), 3))
         C[self.live_groups] = np.asarray(nuisance, dtype=float).reshape(-1, 3)
         r = (P - C[self.data.group]).ravel()

@@ -90,18 +90,34 @@ def default_geometry(model: SerialModel, kind: str, count: int,
     return out
 
 
-def _reach_targets(model: SerialModel, params: Array, targets: Array, want: int,
-                   gen: np.random.Generator) -> Array:
-    """Joint readings ``(want, n_joints)`` of the first `want` targets ``(M, 3)`` the arm
-    reaches from random seeds (InputError when fewer are reachable)."""
-    seeds = random_configurations(model, len(targets), gen)
-    ik = solve_ik(model, targets, seeds, params=params, restarts=2, rng=gen)
-    ok = np.flatnonzero(ik.status == "converged")
-    if ok.size < want:
-        raise InputError(f"only {ok.size} of {len(targets)} simulated targets are within "
-                         f"reach of the arm (wanted {want}): move the gauge closer or make "
-                         "it smaller")
-    return ik.q[ok[:want]]
+def _reach_targets(model: SerialModel, params: Array, makers: list, want: int,
+                   gen: np.random.Generator) -> list[Array]:
+    """Joint readings ``(want, n_joints)`` per group: ``makers[g](m)`` draws ``m`` targets
+    ``(m, 3)`` of group ``g``; the first `want` the arm reaches from random seeds are kept
+    (one batch for all groups; groups short of reachable targets draw `OVERSAMPLE` times
+    more, twice, before an InputError)."""
+    out: list[Array | None] = [None] * len(makers)
+    m = OVERSAMPLE * want
+    for _ in range(3):
+        todo = [g for g, q in enumerate(out) if q is None]
+        if not todo:
+            break
+        targets = [makers[g](m) for g in todo]
+        T = np.concatenate(targets)
+        ik = solve_ik(model, T, random_configurations(model, len(T), gen), params=params,
+                      restarts=2, rng=gen)
+        ok = ik.status == "converged"
+        start = 0
+        for g, t in zip(todo, targets, strict=True):
+            hit = np.flatnonzero(ok[start:start + len(t)])
+            if hit.size >= want:
+                out[g] = ik.q[start + hit[:want]]
+            start += len(t)
+        m *= OVERSAMPLE
+    if any(q is None for q in out):
+        raise InputError(f"a simulated gauge has fewer than {want} targets within reach of "
+                         "the arm: move it closer or make it smaller")
+    return out
 
 
 def _unit_vectors(gen: np.random.Generator, n: int) -> Array:
@@ -148,6 +164,10 @@ def simulate_kind(model: SerialModel, kind: str, n: int, *, true_params: Array |
         raise InputError(f"noise: expected >= 0, got {noise}", option="--noise")
     gen = np.random.default_rng(rng)
     p = model.nominal if true_params is None else np.asarray(true_params, dtype=float)
+    from kinecal.calibration.diagnostics import sizes  # noise and errors within the machine
+
+    sizes.check_length_noise(noise, sizes.serial_size(model), "--noise", model.length_unit)
+    sizes.check_deviations(model, p - model.nominal)
     count = groups or {"ballbar": 2, "point": 4, "plane": 2, "pair": 1}[kind]
     geo = default_geometry(model, kind, count, gen)
     if centres is not None:
@@ -171,43 +191,42 @@ def simulate_kind(model: SerialModel, kind: str, n: int, *, true_params: Array |
 
 
 def _ballbar(model, p, n, noise, gen, geo):
-    qs, group, dist = [], [], []
-    for g, c in enumerate(geo["centres"]):
-        targets = c + geo["length"] * _unit_vectors(gen, OVERSAMPLE * n)
-        q = _reach_targets(model, p, targets, n, gen)
-        d = np.linalg.norm(model.positions(q, p) - c, axis=1)
-        qs.append(q)
-        group += [g] * n
-        dist.append(d + gen.normal(0.0, noise, n) if noise > 0 else d)
-    return np.concatenate(qs), np.array(group), np.concatenate(dist)
+    C = geo["centres"]
+    makers = [lambda m, c=c: c + geo["length"] * _unit_vectors(gen, m) for c in C]
+    q = np.concatenate(_reach_targets(model, p, makers, n, gen))
+    group = np.repeat(np.arange(len(C)), n)
+    d = np.linalg.norm(model.positions(q, p) - C[group], axis=1)
+    return q, group, (d + gen.normal(0.0, noise, len(d)) if noise > 0 else d)
 
 
 def _point(model, p, n, noise, gen, geo):
-    qs, group = [], []
-    for g, c in enumerate(geo["centres"]):
-        targets = c + (gen.normal(0.0, noise, (OVERSAMPLE * n, 3)) if noise > 0 else 0.0)
-        targets = np.broadcast_to(targets, (OVERSAMPLE * n, 3)).copy()
-        qs.append(_reach_targets(model, p, targets, n, gen))
-        group += [g] * n
-    return np.concatenate(qs), np.array(group), None
+    C = geo["centres"]
+    makers = [lambda m, c=c: c + (gen.normal(0.0, noise, (m, 3)) if noise > 0
+                                  else np.zeros((m, 3))) for c in C]
+    return (np.concatenate(_reach_targets(model, p, makers, n, gen)),
+            np.repeat(np.arange(len(C)), n), None)
+
+
+def _plane_maker(row, radius, noise, gen):
+    c, nrm = row[:3], row[3:]
+    t1 = np.cross(nrm, np.eye(3)[int(np.argmin(np.abs(nrm)))])
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(nrm, t1)
+
+    def make(m):
+        rad = radius * np.sqrt(gen.uniform(size=m))
+        ang = gen.uniform(0, 2 * np.pi, m)
+        off = gen.normal(0.0, noise, m) if noise > 0 else np.zeros(m)
+        return (c + (rad * np.cos(ang))[:, None] * t1 + (rad * np.sin(ang))[:, None] * t2
+                + off[:, None] * nrm)
+
+    return make
 
 
 def _plane(model, p, n, noise, gen, geo):
-    qs, group = [], []
-    for g, row in enumerate(geo["planes"]):
-        c, nrm = row[:3], row[3:]
-        t1 = np.cross(nrm, np.eye(3)[int(np.argmin(np.abs(nrm)))])
-        t1 /= np.linalg.norm(t1)
-        t2 = np.cross(nrm, t1)
-        m = OVERSAMPLE * n
-        rad = geo["radius"] * np.sqrt(gen.uniform(size=m))
-        ang = gen.uniform(0, 2 * np.pi, m)
-        off = gen.normal(0.0, noise, m) if noise > 0 else np.zeros(m)
-        targets = (c + (rad * np.cos(ang))[:, None] * t1 + (rad * np.sin(ang))[:, None] * t2
-                   + off[:, None] * nrm)
-        qs.append(_reach_targets(model, p, targets, n, gen))
-        group += [g] * n
-    return np.concatenate(qs), np.array(group), None
+    makers = [_plane_maker(row, geo["radius"], noise, gen) for row in geo["planes"]]
+    return (np.concatenate(_reach_targets(model, p, makers, n, gen)),
+            np.repeat(np.arange(len(geo["planes"])), n), None)
 
 
 def _pair(model, p, n, noise, gen, geo):

@@ -18,6 +18,7 @@ from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.blocks.weights import MAX_ROUNDS, SETTLED, variance_factors
 from kinecal.calibration.diagnostics._common import chi_outliers
+from kinecal.diagnostics import warn
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.optimize.lsq import levenberg_marquardt
 
@@ -30,6 +31,9 @@ GROWTH_LEVEL = 0.01
 #: a held parameter is freed only when well separated from the free set (as the serial
 #: path's growth: a second-order effect must not make the problem ill-conditioned)
 GROWTH_TOL = 1e-4
+#: largest change of a noise estimate per round, and over all rounds from the first
+STEP = 10.0
+SPAN = 1e3
 #: errors below this fraction of the machine's size are round-off, no outliers
 ROUND_OFF = 1e-9
 
@@ -65,6 +69,7 @@ class StackFit:
 
 
 def _lm(problem: StackedProblem, x: Array, **kw) -> OptimizeResult:
+    kw.setdefault("max_nfev", max(200, 10 * (problem.n + 1)))
     return levenberg_marquardt(problem.residuals, problem.jacobian, x, monitor=problem.monitor,
                                normal_equations=problem.normal_equations, **kw)
 
@@ -79,22 +84,43 @@ def _merge(first: OptimizeResult, then: OptimizeResult) -> OptimizeResult:
 
 def _estimate(problem: StackedProblem, res: OptimizeResult, known: list[bool]
               ) -> tuple[OptimizeResult, Array, Array, int]:
-    """Alternate fit and noise estimates (`kinecal.calibration.blocks.weights`)."""
-    rounds = 1
+    """Alternate fit and noise estimates (`kinecal.calibration.blocks.weights`).
+
+    Each round may change a noise by at most `STEP` and all rounds together by at most
+    `SPAN` from the first estimate: sets that contradict each other (a file of another
+    robot) otherwise drive one noise to zero and the arm to a degenerate fit that explains
+    that set alone. Rounds that do not settle end with ``noise-estimate``.
+    """
+    rounds, first = 1, None
+    known = np.asarray(known, dtype=bool)
+    floor = _round_off(problem)
     while True:
-        f, red = variance_factors(problem, res.x, problem.block_residuals(res.x))
-        if all(known) or rounds >= MAX_ROUNDS:
+        r = problem.block_residuals(res.x)
+        f, red = variance_factors(problem, res.x, r)
+        # a set fitted to round-off (noise-free data) has no noise to estimate
+        exact = np.array([b.unit == "length" and np.abs(ri).max(initial=0.0) <= floor
+                          for b, ri in zip(problem.blocks, r, strict=True)])
+        if all(known | exact):
             return res, f, red, rounds
-        change, new = 0.0, []
-        for s, k, fb in zip(problem.sigma, known, f, strict=True):
-            if k or not np.isfinite(fb) or fb <= 0:
-                new.append(s)
-                continue
-            new.append(s * np.sqrt(fb))
-            change = max(change, abs(np.sqrt(fb) - 1.0))
-        problem.set_sigma(new)
+        step = np.sqrt(np.where(known | exact | ~np.isfinite(f) | (f <= 0), 1.0, f))
+        new = [s * st for s, st in zip(problem.sigma, step, strict=True)]
+        if first is None:
+            first = [s.copy() for s in new]
+        else:
+            new = [np.clip(s, f0 / SPAN, f0 * SPAN) for s, f0 in zip(new, first, strict=True)]
+        change = max(float(np.max(np.abs(n / s - 1.0))) for n, s in
+                     zip(new, problem.sigma, strict=True))
+        problem.set_sigma([np.clip(n, s / STEP, s * STEP) for n, s in
+                           zip(new, problem.sigma, strict=True)])
         if change < SETTLED:
             return res, np.where(known, f, 1.0), red, rounds
+        if rounds >= MAX_ROUNDS:
+            warn("noise-estimate",
+                 f"the noise of the measurement sets did not settle in {rounds} rounds (last "
+                 f"change {change:.2g}): the sets contradict each other (a file of another "
+                 "robot or model, a wrong unit); check the files, or state each set's noise "
+                 "(--sigma FILE=SIGMA)")
+            return res, f, red, rounds
         res = _merge(res, _lm(problem, res.x))
         rounds += 1
 
@@ -141,14 +167,20 @@ def _grow(problem: StackedProblem, res: OptimizeResult, candidates: list[str],
     return bigger, _merge(res, res2)
 
 
+def _round_off(problem: StackedProblem) -> float:
+    """Errors below this size (length unit) are round-off: `ROUND_OFF` of the machine's."""
+    b = next((b for b in problem.blocks if len(b.q)), None)
+    P = problem.model.positions(b.q[:64], problem.base_params) if b is not None else \
+        np.zeros((1, 3))
+    return ROUND_OFF * max(float(np.abs(P).max()), 1.0)
+
+
 def observation_outliers(problem: StackedProblem, residuals: Sequence[Array]
                          ) -> list[tuple[int, int]]:
     """Observations far outside their block's spread (`chi_outliers` of the errors in
     units of the noise, per block); none in a block whose errors are all at round-off
     (below `ROUND_OFF` of the workspace's size)."""
-    P = problem.model.positions(problem.blocks[0].q[:64], problem.base_params) if \
-        problem.blocks and len(problem.blocks[0].q) else np.zeros((1, 3))
-    floor = ROUND_OFF * max(float(np.abs(P).max()), 1.0)
+    floor = _round_off(problem)
     out = []
     for i, (b, r, s) in enumerate(zip(problem.blocks, residuals, problem.sigma, strict=True)):
         e = b.observation_errors(r)

@@ -15,7 +15,7 @@ from itertools import pairwise
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.calibration.blocks.base import ResidualBlock
+from kinecal.calibration.blocks.base import ResidualBlock, tool_points
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.optimize.lsq import levenberg_marquardt
@@ -59,6 +59,17 @@ class StackedProblem:
         self.row_slices = [slice(int(a), int(b)) for a, b in pairwise(rows)]
         self.m = int(rows[-1])
         self.set_sigma(sigma)
+        # the blocks whose tool points one shared sweep computes
+        self._shared = [i for i, b in enumerate(self.blocks) if b.shares_tool_points]
+        if self._shared:
+            qs = [self.blocks[i].configurations() for i in self._shared]
+            self._q = np.concatenate([q for q, _ in qs])
+            self._marker = (np.concatenate([np.zeros(len(q), np.intp) if mk is None else mk
+                                            for q, mk in qs]) if model.marker_names else None)
+            ends = np.cumsum([0, *[len(q) for q, _ in qs]])
+            self._point_slices = dict(zip(self._shared, (slice(int(a), int(b))
+                                                           for a, b in pairwise(ends)),
+                                          strict=True))
 
     def set_sigma(self, sigma: Sequence[Array]) -> None:
         """Set the noise per observation of each block (the row weights ``1 / sigma``)."""
@@ -92,11 +103,21 @@ class StackedProblem:
         return x
 
     # ------------------------------------------------------------------ rows
+    def _points(self, p: Array, jacobian: bool) -> dict[int, tuple]:
+        """Tool points (and their Jacobian) of the sharing blocks, one sweep for all."""
+        if not self._shared:
+            return {}
+        P, Jt = tool_points(self.model, self._q, p, self._marker,
+                            self.index if jacobian else None)
+        return {i: (P[s], None if Jt is None else Jt[:, :, s])
+                for i, s in self._point_slices.items()}
+
     def block_residuals(self, x: Array) -> list[Array]:
         """Unweighted residuals of each block at `x` (block units)."""
         p = self.params(x)
-        return [b.evaluate(self.model, p, v).r for b, v in zip(self.blocks, self.nuisance(x),
-                                                                strict=True)]
+        pts = self._points(p, False)
+        return [b.evaluate(self.model, p, v, points=pts.get(i)).r
+                for i, (b, v) in enumerate(zip(self.blocks, self.nuisance(x), strict=True))]
 
     def residuals(self, x: Array) -> Array:
         """Weighted residual vector ``(m,)``."""
@@ -106,9 +127,10 @@ class StackedProblem:
 
     def _weighted_rows(self, x: Array):
         p = self.params(x)
-        for b, v, w, s in zip(self.blocks, self.nuisance(x), self.row_weight, self.slices,
-                              strict=True):
-            rows = b.evaluate(self.model, p, v, self.index, jacobian=True)
+        pts = self._points(p, True)
+        for i, (b, v, w, s) in enumerate(zip(self.blocks, self.nuisance(x), self.row_weight,
+                                             self.slices, strict=True)):
+            rows = b.evaluate(self.model, p, v, self.index, jacobian=True, points=pts.get(i))
             yield rows.r * w, rows.arm * w[:, None], rows.nuisance * w[:, None], s
 
     def jacobian(self, x: Array) -> Array:

@@ -66,7 +66,8 @@ class TrackerBlock(ResidualBlock):
         return np.zeros(0)
 
     def evaluate(self, model: SerialModel, params: Array, nuisance: Array,
-                 columns: NDArray[np.intp] | None = None, jacobian: bool = False) -> BlockRows:
+                 columns: NDArray[np.intp] | None = None, jacobian: bool = False,
+                 points=None) -> BlockRows:
         if self._pose_rows is None:
             self.start(model, params)
         cols = (np.zeros(0, dtype=np.intp) if columns is None else columns) if jacobian else None

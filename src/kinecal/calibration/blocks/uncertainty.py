@@ -10,7 +10,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
-from kinecal.calibration.blocks.analysis import StackAnalysis, stack_scale
+from kinecal.calibration.blocks.analysis import StackAnalysis, blind_basis, stack_scale
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.uncertainty import Uncertainty, subspace_uncertainty
 
@@ -70,10 +70,17 @@ def stack_uncertainty(problem: StackedProblem, x: Array, analysis: StackAnalysis
     finally:
         problem.set_sigma(saved)
     k = problem.k
-    D, L, _, _ = stack_scale(problem, problem.params(x))
+    params = problem.params(x)
+    D, L, q, P = stack_scale(problem, params)
     Dn = np.concatenate([b.nuisance_scale(L) for b in problem.blocks] or [np.zeros(0)])
     Df = np.r_[D, Dn]
     S = marginal_normal(A, k, Df)
+    # the blind motions the free parameters can make are exact null directions (at a noisy
+    # solution they show at the noise's level and would blur the fitted subspace)
+    Q, _ = blind_basis(problem, params, q, P, D)
+    if Q.size:
+        Pr = np.eye(k) - Q @ Q.T
+        S = (Pr @ (S * D[:, None] * D[None, :]) @ Pr) / D[:, None] / D[None, :]
     rank = k - int(np.isin(problem.free, analysis.report.unidentifiable).sum())
     used = int(sum(int(np.isfinite(s[b.obs_index]).sum()) for s, b in
                    zip(sigma, problem.blocks, strict=True)))

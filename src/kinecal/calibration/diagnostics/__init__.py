@@ -34,6 +34,7 @@ CODES: dict[str, str] = {
     "pivot-moved": "a ballbar's distances fit no single pivot to the noise",
     "point-spread": "a fixed point's touches disagree by more than the noise",
     "plane-not-flat": "a plane's touches are not flat to the noise",
+    "noise-estimate": "the noise of several measurement sets did not settle (they contradict)",
     "leg-range": "Stewart leg readings outside the geometry's leg range",
     "angle-units": "Stewart pose angles or hand-eye pose-file angles that look like radians",
     "handeye-conditioning": "hand-eye motions too close to one rotation axis for the noise",

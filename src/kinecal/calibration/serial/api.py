@@ -212,27 +212,15 @@ def calibrate(
     return res
 
 
-def _sets(data, sigma, what: str) -> tuple[list, list]:
-    """Data sets and their stated noise, aligned (a float noise applies to every set)."""
-    sets = [data] if isinstance(data, Measurements) or hasattr(data, "kind") else list(data)
-    if sigma is None or np.isscalar(sigma):
-        return sets, [sigma] * len(sets)
-    sigma = list(sigma)
-    if len(sigma) != len(sets):
-        raise InputError(f"sigma: expected one value (or None) per {what} set ({len(sets)}), "
-                         f"got {len(sigma)}", option="--sigma")
-    return sets, sigma
-
-
 def _several(model, data, method, *, free, validate, loss, f_scale, rank_tol,
              rotation_weight, sigma, **kw) -> CalibrationResult:
     """Several data sets or another kind than tracker points: tracker files alone are
     merged for the fast path (`kinecal.calibration.serial.merge`), anything else is one
     stacked problem (`kinecal.calibration.blocks.calibrate_blocks`)."""
-    from kinecal.calibration.serial.merge import merge_tracker_sets
+    from kinecal.calibration.serial.merge import data_sets, merge_tracker_sets
 
-    sets, sig = _sets(data, sigma, "data")
-    vsets = None if validate is None else _sets(validate, None, "validation")[0]
+    sets, sig = data_sets(data, sigma, "data")
+    vsets = None if validate is None else data_sets(validate, None, "validation")[0]
     one = merge_tracker_sets(sets, sig)
     vone = None if vsets is None else merge_tracker_sets(vsets, [None] * len(vsets))
     if one is not None and (vsets is None or vone is not None):

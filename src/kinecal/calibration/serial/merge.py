@@ -16,8 +16,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from kinecal.data import Measurements
+from kinecal.errors import InputError
 
-__all__ = ["merge_tracker_sets"]
+__all__ = ["data_sets", "merge_tracker_sets"]
 
 
 def merge_tracker_sets(sets: Sequence[object], sigma: Sequence[float | None]
@@ -57,3 +58,15 @@ def merge_tracker_sets(sets: Sequence[object], sigma: Sequence[float | None]
                           " + ".join(s.source for s in sets), rotations, marker,
                           sets[0].marker_names)
     return merged, ref
+
+
+def data_sets(data: object, sigma: object, what: str) -> tuple[list, list]:
+    """Data sets and their stated noise, aligned (a float noise applies to every set)."""
+    sets = [data] if isinstance(data, Measurements) or hasattr(data, "kind") else list(data)
+    if sigma is None or np.isscalar(sigma):
+        return sets, [sigma] * len(sets)
+    sigma = list(sigma)
+    if len(sigma) != len(sets):
+        raise InputError(f"sigma: expected one value (or None) per {what} set ({len(sets)}), "
+                         f"got {len(sigma)}", option="--sigma")
+    return sets, sigma
