@@ -140,8 +140,8 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes],
     figs = "".join(image_tag(png, f"{kind} figure", captions[kind], f"fig-{kind}")
                    for kind, png in pngs.items())
     from kinecal.report.compensation import compensation_section
-    from kinecal.report.kinds import kinds_section
     from kinecal.report.iso9283 import validation_iso9283_section
+    from kinecal.report.kinds import kinds_section
     from kinecal.report.residual_maps import error_model_section
 
     return [
