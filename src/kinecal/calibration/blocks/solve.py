@@ -98,8 +98,10 @@ def _estimate(problem: StackedProblem, res: OptimizeResult, known: list[bool]
         r = problem.block_residuals(res.x)
         f, red = variance_factors(problem, res.x, r)
         # a set fitted to round-off (noise-free data) has no noise to estimate
-        exact = np.array([b.unit == "length" and np.abs(ri).max(initial=0.0) <= floor
-                          for b, ri in zip(problem.blocks, r, strict=True)])
+        # (other units: the block's own `round_off`, e.g. a camera's pixels)
+        exact = np.array([np.abs(ri).max(initial=0.0) <= (
+            floor if b.unit == "length" else getattr(b, "round_off", 0.0))
+            for b, ri in zip(problem.blocks, r, strict=True)])
         if all(known | exact):
             return res, f, red, rounds
         step = np.sqrt(np.where(known | exact | ~np.isfinite(f) | (f <= 0), 1.0, f))

@@ -57,6 +57,8 @@ class CameraBlock(ResidualBlock):
     #: the board pose (eye-in-hand) or camera pose (eye-to-hand) takes up any rigid motion
     #: of the whole arm; the board's size fixes the scale
     blind_to = frozenset({"translation", "rotation"})
+    #: residuals (px) at or below this are round-off: noise-free data, no noise to estimate
+    round_off = 1e-7
 
     def __init__(self, stations: Stations, K: Array, dist: Array | None, setup: str,
                  n_int: int = 0, source: str = "images", sigma: float | None = None,
@@ -106,7 +108,10 @@ class CameraBlock(ResidualBlock):
                                  self.dist, X0, Y0, self.n_int)
 
     def evaluate(self, model: SerialModel, params: Array, nuisance: Array,
-                 columns: NDArray[np.intp] | None = None, jacobian: bool = False) -> BlockRows:
+                 columns: NDArray[np.intp] | None = None, jacobian: bool = False,
+                 points: tuple[Array, Array | None] | None = None) -> BlockRows:
+        """Pixel residuals (predicted minus detected, corner-major ``u, v``); `points` is
+        not used: the camera needs the end frame's pose, not a tool point."""
         if self.pixels is None:
             self.start(model, params)
         cols = None if columns is None else np.asarray(columns, np.intp)
