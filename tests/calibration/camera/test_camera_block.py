@@ -126,9 +126,10 @@ def test_a_wrong_board_size_is_named(kr6):
     truth = kr6.nominal + random_errors(kr6, np.random.default_rng(2), ["a2", "d4", "a3"],
                                         scale=0.2)
     st, _, _ = _stations(kr6, "eye-in-hand", truth, board=BOARD * 1.02)  # printed 2 % large
-    with diagnostics.expect("board-scale") as found:
+    with diagnostics.expect("board-scale", "parameter-tolerance") as found:
         res = calibrate_arm_camera(kr6, st, K, DIST)
-    assert "+2.00 % off nominal" in found[0].message or "-1.96 %" in found[0].message
+    assert [d.code for d in found] == ["parameter-tolerance", "board-scale"]  # a3, d4 ~8 mm
+    assert "-1.96 % off nominal" in found[1].message and "2.00 % too small" in found[1].message
     assert res.after_px.max() < 1e-6  # the pixels cannot tell: only the lengths can
 
 
@@ -138,11 +139,12 @@ def test_a_wrong_station_is_an_outlier(kr6):
     st.q[5, 1] += np.radians(1.0)  # a joint read 1 deg off
     st.pixels = [p + np.random.default_rng(k).normal(0, 0.05, p.shape)
                  for k, p in enumerate(st.pixels)]
-    with diagnostics.expect("outliers"):
+    with diagnostics.expect("outliers", "parameter-tolerance"):  # the linear fit is pulled
         lin = calibrate_arm_camera(kr6, st, K, DIST)
     assert lin.outliers == [5]
-    with diagnostics.expect("outliers") as found:
+    with diagnostics.expect("outliers", "parameter-tolerance") as found:
         rob = calibrate_arm_camera(kr6, st, K, DIST, loss="huber")
+    assert [d.code for d in found] == ["outliers"]  # the final fit is within tolerances
     assert rob.outliers == [5] and "left out" in found[0].message
     keep = rob.inliers
     assert np.sqrt(np.mean(rob.after_px[keep] ** 2)) < 0.075 < \

@@ -64,5 +64,5 @@ def check_camera_fit(res: Any) -> None:
         diagnostics.warn("board-scale",
                          f"the identified lengths are {100 * (s - 1):+.2f} % off nominal all "
                          "together: the images take their scale from the board, so the "
-                         f"--board square size is probably {100 * (s - 1):+.2f} % off "
-                         "(measure the printed squares)")
+                         f"--board square size is probably {100 * abs(1 / s - 1):.2f} % too "
+                         f"{'small' if s < 1 else 'large'} (measure the printed squares)")

@@ -31,6 +31,7 @@ from kinecal.calibration.camera.checks import check_camera_fit
 from kinecal.calibration.camera.identify import camera_identifiability
 from kinecal.calibration.camera.residual_block import CameraBlock
 from kinecal.calibration.camera.result import ArmCameraResult, Stations
+from kinecal.calibration.diagnostics import CODES
 from kinecal.calibration.serial.problem import candidate_names
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
@@ -130,14 +131,18 @@ def _calibrate(model, st, K, dist, setup, free, refine_intrinsics, rational, los
     nu_he, r_he = fit_nuisance(block, model, p0, block.start(model, p0))
     cands = candidate_names(model, free)
     ident = camera_identifiability(block.pixels, p0, nu_he, cands, tol=rank_tol)
-    fit = calibrate_blocks(model, [block], free=free, loss=loss, f_scale=f_scale,
-                           rank_tol=rank_tol)
+    with diagnostics.expect(*CODES) as first:  # issued below unless a final fit follows
+        fit = calibrate_blocks(model, [block], free=free, loss=loss, f_scale=f_scale,
+                               rank_tol=rank_tol)
     outliers = list(fit.outliers)
     if loss != "linear" and outliers and len(st.q) - len(outliers) >= 3:
         # robust: the outlier stations are left out of a final fit (a joint read a degree
         # off moves its corners by pixels; down-weighted they still pull the arm)
         fit = calibrate_blocks(model, [_without(block, model, outliers)], free=free,
                                loss=loss, f_scale=f_scale, rank_tol=rank_tol)
+    else:
+        for d in first:
+            diagnostics.warn(d.code, d.message)
     unknowns = {u["name"]: u for u in fit.extra["kinds"][0]["unknowns"]}
     X = np.array(unknowns["X"]["matrix"])
     Y = np.array(unknowns["board"]["matrix"])
