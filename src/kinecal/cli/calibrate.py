@@ -16,8 +16,13 @@ from kinecal.cli._common import (
     base_link_option,
     check_paths,
     echo_json,
+    instrument_option,
     load_model_arg,
+    note_option,
+    operator_option,
     quiet_option,
+    report_option,
+    report_record,
     resolve_data_path,
     seed_option,
     strict_option,
@@ -125,7 +130,7 @@ def calibrate(
     target: float | None = typer.Option(None, "--target", help="Stop at this mean error."),
     out: Path | None = typer.Option(None, "--out", help="Result JSON to write."),
     model_out: Path | None = typer.Option(None, "--model-out", help="Calibrated model YAML."),
-    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
+    report: Path | None = report_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
     quiet: bool = quiet_option(),
     strict: bool = strict_option(),
@@ -145,6 +150,9 @@ def calibrate(
         "unit): the residual is tested against it (chi-square) and the standard errors with "
         "it known are added. Several files: FILE=SIGMA (repeatable) or SIGMA,SIGMA,... in "
         "file order. See docs/diagnostics.md."),
+    instrument: str | None = instrument_option(),
+    operator: str | None = operator_option(),
+    note: str | None = note_option(),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given)."""
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
@@ -166,11 +174,13 @@ def calibrate(
             target=target, out=out, model_out=model_out, report=report, json_out=json_out,
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
-                           "--folds": folds})
+                           "--folds": folds}, record=(instrument, operator, note))
     data, validate = data[0], (validate[0] if validate else None)
     sigma = parse_sigma(sigma, [data])[0]
     check_paths({"MODEL": model, "DATA": data, "--validate": validate},
                 {"--out": out, "--model-out": model_out, "--report": report})
+    record = report_record(report, {"MODEL": model, "DATA": data, "--validate": validate},
+                           instrument, operator, note)
     if model_out is not None:
         from kinecal.io.models import check_model_file_name
 
@@ -215,7 +225,9 @@ def calibrate(
         if model_out is not None:
             res.save_model(model_out)
         if report is not None:
-            res.report(report)
+            from kinecal.report.html import calibration_report
+
+            calibration_report(res, report, provenance=record, validation=val)
     if json_out:
         echo_json(result)
     elif not quiet:
