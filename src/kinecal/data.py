@@ -1,7 +1,7 @@
 """In-memory measurement data: joint readings with measured tool-point positions
-(`Measurements`), or with what a gauge says about the tool point (`GaugeMeasurements`:
-ballbar and pair distances, fixed points, planes), and repeated measurements of
-commanded poses (`RepeatedPoses`, the ISO 9283 tests of `kinecal.metrology.iso9283`).
+(`Measurements`), with what a gauge says about the tool point (`GaugeMeasurements`:
+ballbar and pair distances, fixed points, planes), and repeated measurements of commanded
+poses (`RepeatedPoses`, the ISO 9283 tests of `kinecal.metrology.iso9283`).
 
 Readers and writers of the files live in `kinecal.io.measurements`; the type sits below
 both the file layer and the calibration layer, so that neither imports the other.

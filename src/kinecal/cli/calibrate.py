@@ -150,6 +150,9 @@ def calibrate(
         "unit): the residual is tested against it (chi-square) and the standard errors with "
         "it known are added. Several files: FILE=SIGMA (repeatable) or SIGMA,SIGMA,... in "
         "file order. See docs/diagnostics.md."),
+    instrument: str | None = instrument_option(),
+    operator: str | None = operator_option(),
+    note: str | None = note_option(),
     images: Path | None = typer.Option(None, "--images", help="Folder of board images: "
                                        "DATA is then STATIONS.csv (image,q1..qn). See "
                                        "docs/arm-from-images.md."),
@@ -159,9 +162,6 @@ def calibrate(
                                            "camera YAML (default: from the images)."),
     setup: str = typer.Option("eye-in-hand", "--setup", help="With --images: eye-in-hand "
                               "or eye-to-hand."),
-    instrument: str | None = instrument_option(),
-    operator: str | None = operator_option(),
-    note: str | None = note_option(),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
     or from board images with --images."""
@@ -191,7 +191,7 @@ def calibrate(
             target=target, out=out, model_out=model_out, report=report, json_out=json_out,
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
-                           "--folds": folds})
+                           "--folds": folds}, record=(instrument, operator, note))
     data, validate = data[0], (validate[0] if validate else None)
     sigma = parse_sigma(sigma, [data])[0]
     check_paths({"MODEL": model, "DATA": data, "--validate": validate},

@@ -22,6 +22,7 @@ from kinecal.cli._common import (
     check_paths,
     echo_json,
     load_model_arg,
+    report_record,
     resolve_data_path,
     warnings_scope,
     with_warnings,
@@ -86,8 +87,10 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                     method: str, free, seed: int, loss: str, maxiter, target,
                     out: Path | None, model_out: Path | None, report: Path | None,
                     json_out: bool, quiet: bool, strict: bool, rotation_weight,
-                    sigma: list[str] | None, extra_options: dict[str, Any]) -> None:
-    """``kinecal calibrate MODEL A.csv B.csv ...`` (several files or another kind)."""
+                    sigma: list[str] | None, extra_options: dict[str, Any],
+                    record: tuple = (None, None, None)) -> None:
+    """``kinecal calibrate MODEL A.csv B.csv ...`` (several files or another kind);
+    `record`: ``--instrument``, ``--operator``, ``--note`` of the report."""
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.method_options import check_method_options
     from kinecal.calibration.serial.api import calibrate
@@ -96,9 +99,10 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
     if given:
         raise InputError("applies to one tracker file (x,y,z columns) only, not to "
                          f"{len(files)} files or other kinds", option=given[0])
-    check_paths({"MODEL": model, **{f"DATA {f}": f for f in files},
-                 **{f"--validate {v}": v for v in validate}},
-                {"--out": out, "--model-out": model_out, "--report": report})
+    inputs = {"MODEL": model, **{f"DATA {f}": f for f in files},
+              **{f"--validate {v}": v for v in validate}}
+    check_paths(inputs, {"--out": out, "--model-out": model_out, "--report": report})
+    provenance = report_record(report, inputs, *record)
     if model_out is not None:
         from kinecal.io.models import check_model_file_name
 
@@ -126,7 +130,9 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
         if model_out is not None:
             res.save_model(model_out)
         if report is not None:
-            res.report(report)
+            from kinecal.report.html import calibration_report
+
+            calibration_report(res, report, provenance=provenance)
     if json_out:
         echo_json(result)
     elif not quiet:

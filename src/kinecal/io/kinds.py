@@ -45,10 +45,6 @@ KINDS: dict[str, tuple[str, ...]] = {
 }
 
 
-def _expected() -> str:
-    return "; ".join(f"{','.join(cols)} ({kind})" for kind, cols in KINDS.items())
-
-
 def kind_of_columns(header: list[str], path: Path | None = None) -> str:
     """The measurement kind of a CSV header (module docstring).
 
@@ -56,7 +52,8 @@ def kind_of_columns(header: list[str], path: Path | None = None) -> str:
     ------
     InputError
         Columns of two kinds, a ``pivot`` or ``pair`` column without ``distance`` (or the
-        other way round), or no kind's columns at all.
+        other way round). A header without any gauge column is a tracker file's (its
+        reader then names the missing ``x, y, z``).
     """
     if "x_t" in header and "joint_1" in header:
         return "tracker"
@@ -79,10 +76,8 @@ def kind_of_columns(header: list[str], path: Path | None = None) -> str:
     if "distance" in header:
         raise InputError("a distance column without pivot or pair ids: expected "
                          "pivot,distance (ballbar) or pair,distance (pair)", file=path)
-    if xyz:
-        return "tracker"
-    raise InputError(f"cannot tell the measurement kind from the columns "
-                     f"({', '.join(header) or 'none'}): expected {_expected()}", file=path)
+    # no gauge column: a tracker file, whose reader names what is missing (x, y, z)
+    return "tracker"
 
 
 def read_kind(path: str | Path, model: SerialModel) -> Measurements | GaugeMeasurements:
