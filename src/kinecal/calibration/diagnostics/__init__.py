@@ -30,6 +30,11 @@ CODES: dict[str, str] = {
     "lack-of-fit": "the residual is far above the repeatability of repeated poses",
     "residual-above-noise": "the residual is far above the instrument's stated noise (--sigma)",
     "outliers": "poses whose error is far outside the others' spread",
+    # measurement kinds: ballbar and pair distances, fixed points, planes
+    "pivot-moved": "a ballbar's distances fit no single pivot to the noise",
+    "point-spread": "a fixed point's touches disagree by more than the noise",
+    "plane-not-flat": "a plane's touches are not flat to the noise",
+    "noise-estimate": "the noise of several measurement sets did not settle (they contradict)",
     "leg-range": "Stewart leg readings outside the geometry's leg range",
     "angle-units": "Stewart pose angles or hand-eye pose-file angles that look like radians",
     "handeye-conditioning": "hand-eye motions too close to one rotation axis for the noise",
@@ -49,6 +54,9 @@ CODES: dict[str, str] = {
     "images-rejected": "more than half of the images rejected",
     "reprojection-rms": "the hand-eye solution reprojects the corners poorly",
     "many-outliers": "more than 30 % of the hand-eye stations flagged as outliers",
+    # arm calibration from images
+    "station-skipped": "stations whose board was not found or not trusted, left out",
+    "board-scale": "identified lengths uniformly off nominal: the --board size is wrong",
     # compensation
     "no-seed-joints": "targets without seed joints: inverse kinematics chose the configuration",
     "joints-outside-limits": "program or seed joints outside the model's joint limits",
