@@ -7,8 +7,10 @@ moving joints, see `chain_path`). Each joint on it becomes one chain entry
 (`kinecal.kinematics.serial.motions.urdf_motions`):
 
 * ``revolute``, ``continuous``, ``prismatic``: a moving joint ``{name, type, x, y, z,
-  roll, pitch, yaw, offset: 0, axis}`` whose origin components and offset are named
-  parameters ``<joint>.x .. <joint>.yaw, <joint>.offset``;
+  roll, pitch, yaw, offset: 0, axis}``; its calibratable parameters are the origin's
+  translation, the local rotation error composed after its ``rpy`` (which is held) and the
+  offset: ``<joint>.x, .y, .z, .wz, .wy, .wx, .offset``
+  (`kinecal.kinematics.serial.motions.origin_motions`: no gimbal lock at pitch = +-pi/2);
 * ``fixed``: a fixed frame ``{frame: <joint>, x .. yaw}`` (held at nominal unless the
   model file says ``calibrate: true``).
 

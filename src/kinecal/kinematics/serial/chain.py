@@ -3,11 +3,16 @@
 A chain is a list of entries (dicts), in order from the base to the flange:
 
 * a moving joint of the model's convention (``theta, d, a, alpha[, beta]`` for the D-H
-  family, ``name, x, y, z, roll, pitch, yaw, offset, axis`` for urdf), optionally
-  ``type: prismatic`` (urdf also ``continuous``);
-* a fixed frame ``{frame: NAME, x, y, z, rx, ry, rz}`` (urdf: ``roll, pitch, yaw``) with an
-  optional ``calibrate: true``; its parameters are ``NAME.x ... NAME.rz`` and are held at
-  nominal unless ``calibrate`` is true.
+  family, ``name, x, y, z, roll, pitch, yaw, wx, wy, wz, offset, axis`` for urdf),
+  optionally ``type: prismatic`` (urdf also ``continuous``);
+* a fixed frame ``{frame: NAME, x, y, z, rx, ry, rz, wx, wy, wz}`` (urdf: ``roll, pitch,
+  yaw`` for ``rx, ry, rz``) with an optional ``calibrate: true``; its parameters are
+  ``NAME.x ... NAME.wx`` and are held at nominal unless ``calibrate`` is true.
+
+Origins (urdf joints, fixed frames) hold their nominal roll-pitch-yaw and calibrate the
+local rotation error ``wx, wy, wz`` composed after it
+(`kinecal.kinematics.serial.motions.origin_motions`): identifiability never depends on the
+nominal angles.
 
 The base frame (``base.x ... base.rz``) comes first, the tool (``tool.x, tool.y, tool.z``
 and optionally ``tool.rx, tool.ry, tool.rz``) last; a model with several markers has
@@ -165,6 +170,7 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
             default = 0.0 if convention == "urdf" else None
             kind = entry.get("type", REVOLUTE)
             kinds.append(PRISMATIC if kind == PRISMATIC else REVOLUTE)
+        frozen.update(m.name for m in em if m.held)  # nominal rpy: the error is local
         for m in em:
             if m.name in values:
                 raise InputError(f"{where}: parameter {m.name!r} appears twice in the chain")
