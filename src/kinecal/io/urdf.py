@@ -37,14 +37,18 @@ import numpy as np
 from kinecal import diagnostics
 from kinecal._files import MAX_TEXT_BYTES, check_input_file
 from kinecal.errors import InputError
+from kinecal.kinematics.serial.chain import check_chain_size
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import xyz_rpy_from_transform
 
-__all__ = ["MOVING", "chain_path", "load_urdf", "read_urdf", "urdf_entries"]
+__all__ = ["MAX_URDF_JOINTS", "MOVING", "chain_path", "load_urdf", "read_urdf", "urdf_entries"]
 
 MOVING = ("revolute", "continuous", "prismatic")
 _UNSUPPORTED = ("floating", "planar")
 _RESERVED = ("base", "tool")
+#: most ``<joint`` tags a URDF file may hold (transmissions name joints too): ten times the
+#: largest real robot descriptions; counted on the bytes, before any parsing
+MAX_URDF_JOINTS = 10_000
 #: metaheuristics' search box of an imported URDF: 1 mm and 0.3 degrees
 URDF_TOLERANCES = {"length": 1e-3, "angle": np.deg2rad(0.3)}
 
@@ -88,6 +92,10 @@ def read_urdf(path: str | Path):
     if len(data) > MAX_TEXT_BYTES:
         raise InputError(f"more than {MAX_TEXT_BYTES / 1e6:.0f} MB: too large for a URDF",
                          file=path)
+    tags = data.count(b"<joint")  # before parsing: a 400 000-joint file took minutes
+    if tags > MAX_URDF_JOINTS:
+        raise InputError(f"{tags:,} <joint> tags: expected at most {MAX_URDF_JOINTS:,} in a "
+                         "robot description", file=path)
     try:  # a clean message with the line before yourdfpy's recovering parser sees it; one
         # feed of the whole text (ET.parse's 64 kB feeds made expat quadratic in a long
         # token: a 300 MB comment took many minutes)
@@ -230,7 +238,7 @@ def chain_path(urdf, base_link: str | None = None, tip_link: str | None = None,
                                  "between them", option="--tip-link")
             chain.append(by_child[cur])
             cur = by_child[cur].parent
-        return chain[::-1]
+        return _sized(chain[::-1], path)
     chain, cur = [], base
     while by_parent.get(cur):
         kids = by_parent[cur]
@@ -249,6 +257,16 @@ def chain_path(urdf, base_link: str | None = None, tip_link: str | None = None,
                 f"chain's end with --tip-link (one of {', '.join(tips)})", file=path)
         chain.append(nxt)
         cur = nxt.child
+    return _sized(chain, path)
+
+
+def _sized(chain: list, path: Path) -> list:
+    """`chain`, refused when longer than a model may be (`check_chain_size`)."""
+    try:
+        check_chain_size(len(chain), sum(j.type != "fixed" for j in chain),
+                         f"{chain[0].parent} -> {chain[-1].child}: " if chain else "")
+    except InputError as exc:
+        raise InputError(exc.message, file=path) from None
     return chain
 
 

@@ -43,7 +43,8 @@ from kinecal.kinematics.serial.motions import (
     pose_motions,
 )
 
-__all__ = ["BASE_NAMES", "TOOL_NAMES", "Chain", "build_chain", "chain_entries"]
+__all__ = ["BASE_NAMES", "MAX_ENTRIES", "MAX_JOINTS", "TOOL_NAMES", "Chain", "build_chain",
+           "chain_entries", "check_chain_size"]
 
 BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
 TOOL_NAMES = ("tool.x", "tool.y", "tool.z", "tool.rx", "tool.ry", "tool.rz")
@@ -51,6 +52,12 @@ _RESERVED = ("base", "tool")
 #: largest length (model's unit) a chain accepts: 1000 km in mm, beyond any machine in m;
 #: an origin of 1e300 let FK run but overflowed the Jacobian's squares (NaN everywhere)
 MAX_LENGTH = 1e9
+#: most moving joints, and chain entries (joints and fixed frames), of one model: far
+#: beyond any serial arm (six or seven joints; hyper-redundant snakes a few dozen) and what
+#: an identifiability analysis covers in seconds (100 joints: 4 s); a 1000-joint chain took
+#: minutes and a 3000-joint one ran out of memory
+MAX_JOINTS = 100
+MAX_ENTRIES = 400
 
 
 @dataclass(frozen=True)
@@ -135,6 +142,8 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
         raise InputError(
             f"unknown convention {convention!r}; expected one of {', '.join(CONVENTIONS)}")
     make = CONVENTIONS[convention]
+    check_chain_size(len(entries), sum(isinstance(e, Mapping) and "frame" not in e
+                                       for e in entries))
     motions: list[Motion] = pose_motions("base")
     owners: list = ["base"] * 6
     values: dict[str, float] = dict.fromkeys(BASE_NAMES, 0.0)
@@ -206,6 +215,16 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
         raise InputError(f"parameter {duplicate[0]!r} appears twice in the chain")
     return Chain(tuple(motions), tuple(owners), names, values, tuple(kinds), frozenset(frozen),
                  tuple(points) if markers is not None else ())
+
+
+def check_chain_size(entries: int, joints: int, where: str = "") -> None:
+    """Refuse a chain of more than `MAX_ENTRIES` entries or `MAX_JOINTS` moving joints
+    (`where`: what the chain is, for the message)."""
+    if joints > MAX_JOINTS or entries > MAX_ENTRIES:
+        raise InputError(f"{where}{joints} moving joints and {entries - joints} fixed frames "
+                         f"in one chain: expected at most {MAX_JOINTS} moving joints and "
+                         f"{MAX_ENTRIES} entries (no serial arm is that long; choose the "
+                         "chain's ends)")
 
 
 def _check_lengths(values: Mapping[str, float], lengths: Sequence[str]) -> None:
