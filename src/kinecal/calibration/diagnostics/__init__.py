@@ -47,6 +47,7 @@ CODES: dict[str, str] = {
     "many-outliers": "more than 30 % of the hand-eye stations flagged as outliers",
     # compensation
     "no-seed-joints": "targets without seed joints: inverse kinematics chose the configuration",
+    "target-units": "Cartesian targets outside the arm's reach that fit it in another unit",
     "joints-outside-limits": "program or seed joints outside the model's joint limits",
     "base-frame-far": "the calibrated base frame is far from the nominal one",
     "tool-point-far": "the calibrated tool point is far from the nominal one (a target?)",
