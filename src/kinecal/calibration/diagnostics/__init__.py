@@ -29,6 +29,7 @@ CODES: dict[str, str] = {
     "residual-offset": "the residual holds an offset a free base frame would take",
     "lack-of-fit": "the residual is far above the repeatability of repeated poses",
     "residual-above-noise": "the residual is far above the instrument's stated noise (--sigma)",
+    "residual-below-noise": "the residual is far below the instrument's stated noise (--sigma)",
     "outliers": "poses whose error is far outside the others' spread",
     "leg-range": "Stewart leg readings outside the geometry's leg range",
     "angle-units": "Stewart pose angles or hand-eye pose-file angles that look like radians",
