@@ -166,7 +166,9 @@ def main(argv: list[str] | None = None) -> int:
         code = 0
     except OSError as exc:
         if exc.errno in _DISK_ERRNOS:  # the disk, not kinecal nor the input: exit 1
-            where = f"{os.fsdecode(exc.filename)}: " if exc.filename else "output: "
+            # files are named by their writer (kinecal._files.atomic_open): an unnamed
+            # write is the standard output's (kinecal fk ... > /dev/full)
+            where = f"{os.fsdecode(exc.filename)}: " if exc.filename else "standard output: "
             sys.stderr.write(f"kinecal: error: {where}{exc.strerror or exc} (nothing was "
                              "replaced; free space and run again)\n")
             code = 1
