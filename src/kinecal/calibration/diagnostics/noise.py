@@ -44,8 +44,8 @@ from scipy.special import chdtr, chdtrc
 from kinecal.calibration.diagnostics._common import ALPHA
 from kinecal.diagnostics import warn
 
-__all__ = ["MAX_DEFICIT", "MIN_EXCESS", "check_stated_noise", "check_stated_sigma", "known_covariance",
-           "noise_entry", "noise_lines"]
+__all__ = ["MAX_DEFICIT", "MIN_EXCESS", "check_stated_noise", "check_stated_sigma",
+           "known_covariance", "noise_entry", "noise_lines"]
 
 Array = NDArray[np.float64]
 
