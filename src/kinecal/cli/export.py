@@ -135,6 +135,12 @@ def export(
     check_paths({"SOURCE": source, "--nominal": nominal}, {"--out": out})
     with warnings_scope(strict):
         model, params, urdf = model_and_params(source, nominal, base_link, tip_link)
+        if chain_only and (urdf is None or fmt != "urdf"):  # it would change nothing
+            raise InputError("applies to URDF output of a model read from a URDF (the "
+                             "chain alone instead of a copy of that URDF); "
+                             + (f"{model.name!r} is a {model.convention} model, not read "
+                                "from a URDF" if urdf is None else "the output is a model "
+                                "file (yaml)"), option="--chain-only")
         if fmt == "urdf" and model.joint_errors is not None:
             from kinecal.diagnostics import warn
 
