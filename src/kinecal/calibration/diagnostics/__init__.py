@@ -31,6 +31,7 @@ CODES: dict[str, str] = {
     "residual-above-noise": "the residual is far above the instrument's stated noise (--sigma)",
     "residual-below-noise": "the residual is far below the instrument's stated noise (--sigma)",
     "outliers": "poses whose error is far outside the others' spread",
+    "optimizer-stalled": "a metaheuristic stopped far above what a least-squares polish reaches",
     "leg-range": "Stewart leg readings outside the geometry's leg range",
     "angle-units": "Stewart pose angles or hand-eye pose-file angles that look like radians",
     "handeye-conditioning": "hand-eye motions too close to one rotation axis for the noise",

@@ -24,6 +24,7 @@ import numpy as np
 from kinecal import diagnostics
 from kinecal.calibration.diagnostics.fit import check_serial_fit
 from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stated_sigma
+from kinecal.calibration.diagnostics.polish import check_local_polish
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
@@ -295,6 +296,8 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
                                 maxiter=maxiter, target=target, options=options,
                                 progress=progress)
     x = np.asarray(res.x, dtype=float)
+    if method not in ("lm", "householder"):  # did the metaheuristic reach a minimum?
+        check_local_polish(problem, x, method, target)
     explicit = list(first_report.names) == list(names)
     normal = res.get("normal_matrix") if loss == "linear" else None
     # errors at the solution: from LM's last residual when it has one (no FK pass)
