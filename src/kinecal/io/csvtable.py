@@ -276,9 +276,18 @@ def read_column(path: str | Path, name: str) -> list[str] | None:
     return out
 
 
+def _quoted(cell: str) -> str:
+    """A text cell as CSV writes it: in double quotes (inner ones doubled) when it holds a
+    space, a comma or a quote (a URDF joint named ``joint 1``), else as it is."""
+    if any(c in cell for c in ' ,"'):
+        return '"' + cell.replace('"', '""') + '"'
+    return cell
+
+
 def write_table(path: str | Path, columns: dict[str, NDArray]) -> None:
     """Write equal-length columns as CSV with a header, atomically: numbers with full float
-    precision, text columns (names without commas or quotes) as they are.
+    precision, text (header names, text columns) quoted where it holds a space, a comma
+    or a quote.
 
     Each number is written in its shortest form that reads back to the same float (as
     ``repr``), formatted in bulk a block of rows at a time.
@@ -287,7 +296,7 @@ def write_table(path: str | Path, columns: dict[str, NDArray]) -> None:
     arrays = [np.asarray(columns[n]) for n in names]
     text = [a.dtype.kind in "USO" for a in arrays]
     with atomic_open(path, "w") as fh:
-        fh.write(",".join(names) + "\n")
+        fh.write(",".join(map(_quoted, names)) + "\n")
         if not any(text):
             data = np.column_stack([a.astype(float) for a in arrays])
             for s in range(0, data.shape[0], WRITE_ROWS):
@@ -295,7 +304,7 @@ def write_table(path: str | Path, columns: dict[str, NDArray]) -> None:
                 # the list's repr formats every float like repr() in C, in one call
                 fh.write(str(block)[2:-2].replace("], [", "\n").replace(", ", ",") + "\n")
             return
-        cells = [[str(v) for v in a] if t else [repr(float(v)) for v in a.astype(float)]
+        cells = [[_quoted(str(v)) for v in a] if t else [repr(float(v)) for v in a.astype(float)]
                  for a, t in zip(arrays, text, strict=True)]
         for row in zip(*cells, strict=True):
             fh.write(",".join(row) + "\n")

@@ -200,6 +200,37 @@ def _moving_below(link: str, by_parent: Mapping) -> bool:
     return False
 
 
+#: words of the link names users give as a chain's tip (tool0, flange, tcp, ee_link,
+#: end_effector_link, ...)
+TIP_WORDS = ("tool", "flange", "tcp", "ee", "end_effector", "endeffector", "tip", "eef")
+
+
+def _tip_like(link: str) -> bool:
+    words = link.lower().replace("-", "_").split("_")
+    low = link.lower()
+    return any(w in words or (len(w) > 3 and w in low) for w in TIP_WORDS)
+
+
+def _below(link: str, by_parent: Mapping) -> list[str]:
+    out, stack = [], [link]
+    while stack:
+        cur = stack.pop()
+        out.append(cur)
+        stack += [j.child for j in by_parent.get(cur, [])]
+    return out
+
+
+def _tip_candidates(link: str, kids: list, by_parent: Mapping, ends_here: bool) -> list[str]:
+    """The --tip-link candidates offered at a branching `link`: the links named like tips
+    (``end_effector_link``, ``tool0``, ``flange``: the link itself when only fixed frames
+    hang below it, as Kinova's sensor frames do), then every leaf below, fixed-only side
+    branches too (the tool link of a kinecal export sits beside a gripper's fingers)."""
+    below = [t for j in kids for t in _below(j.child, by_parent)]
+    named = [t for t in ([link] if ends_here else []) + below if _tip_like(t)]
+    leaves = [t for j in kids for t in _leaves(j.child, by_parent)]
+    return list(dict.fromkeys(sorted(named) + sorted(set(leaves) - set(named))))
+
+
 def _leaves(link: str, by_parent: Mapping) -> list[str]:
     out, stack = [], [link]
     while stack:
@@ -249,9 +280,7 @@ def chain_path(urdf, base_link: str | None = None, tip_link: str | None = None,
             nxt = kids[0]
         else:
             branches = moving or kids
-            # every leaf below, fixed-only side branches too (the tool link of a kinecal
-            # export sits beside a gripper's fingers)
-            tips = sorted({t for j in kids for t in _leaves(j.child, by_parent)})
+            tips = _tip_candidates(cur, kids, by_parent, ends_here=not moving)
             raise InputError(
                 f"link {cur!r} branches ({', '.join(j.name for j in branches)}): choose the "
                 f"chain's end with --tip-link (one of {', '.join(tips)})", file=path)

@@ -92,9 +92,13 @@ class Chain:
 
 
 def _check_name(name: object, what: str) -> str:
-    if not isinstance(name, str) or not name or any(c in name for c in ", \t\n\"'"):
-        raise InputError(f"{what} name {name!r}: expected a non-empty name without spaces, "
-                         "commas or quotes")
+    """A joint or frame name: any text a URDF attribute holds (spaces and quotes too: CSV
+    headers quote them), except commas (they separate the names of ``--free``), control
+    characters and spaces at either end (CSV readers strip them)."""
+    if not isinstance(name, str) or not name or name != name.strip() or "," in name \
+            or any(ord(c) < 32 or c == "\x7f" for c in name):
+        raise InputError(f"{what} name {name!r}: expected a non-empty name without commas, "
+                         "control characters or spaces at either end")
     if name in _RESERVED:
         raise InputError(f"{what} name {name!r} is reserved for the base and tool frames")
     return name
