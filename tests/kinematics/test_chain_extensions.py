@@ -260,7 +260,9 @@ def test_model_file_with_prismatic_joint_and_frames(tmp_path):
         (dict(joints=[{"frame": "f"}, {"frame": "f"}, dict(theta=0, d=0, a=0, alpha=0)]),
          "twice"),
         (dict(joints=[{"frame": "f"}]), "moving joint"),
-        (dict(joints=[{"frame": "a b"}, dict(theta=0, d=0, a=0, alpha=0)]), "spaces"),
+        (dict(joints=[{"frame": "a,b"}, dict(theta=0, d=0, a=0, alpha=0)]), "commas"),
+        (dict(joints=[{"frame": " a"}, dict(theta=0, d=0, a=0, alpha=0)]), "either end"),
+        (dict(joints=[{"frame": "a\nb"}, dict(theta=0, d=0, a=0, alpha=0)]), "control"),
         (dict(joints=[dict(theta=0, d=np.nan, a=0, alpha=0)]), "finite"),
     ],
 )
