@@ -24,10 +24,10 @@ import numpy as np
 from kinecal import diagnostics
 from kinecal.calibration.diagnostics.fit import check_serial_fit
 from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stated_sigma
-from kinecal.calibration.diagnostics.polish import check_local_polish
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
+from kinecal.calibration.serial.polish import check_local_polish
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
 from kinecal.calibration.serial.solve import solve_lm
