@@ -16,8 +16,13 @@ from kinecal.cli._common import (
     base_link_option,
     check_paths,
     echo_json,
+    instrument_option,
     load_model_arg,
+    note_option,
+    operator_option,
     quiet_option,
+    report_option,
+    report_record,
     resolve_data_path,
     seed_option,
     strict_option,
@@ -107,7 +112,7 @@ def calibrate(
     target: float | None = typer.Option(None, "--target", help="Stop at this mean error."),
     out: Path | None = typer.Option(None, "--out", help="Result JSON to write."),
     model_out: Path | None = typer.Option(None, "--model-out", help="Calibrated model YAML."),
-    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
+    report: Path | None = report_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
     quiet: bool = quiet_option(),
     strict: bool = strict_option(),
@@ -126,6 +131,9 @@ def calibrate(
         None, "--sigma", help="The instrument's stated 1-sigma noise per coordinate (length "
         "unit): the residual is tested against it (chi-square) and the standard errors with "
         "it known are added. See docs/diagnostics.md."),
+    instrument: str | None = instrument_option(),
+    operator: str | None = operator_option(),
+    note: str | None = note_option(),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given)."""
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
@@ -139,6 +147,8 @@ def calibrate(
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
     check_paths({"MODEL": model, "DATA": data, "--validate": validate},
                 {"--out": out, "--model-out": model_out, "--report": report})
+    record = report_record(report, {"MODEL": model, "DATA": data, "--validate": validate},
+                           instrument, operator, note)
     if model_out is not None:
         from kinecal.io.models import check_model_file_name
 
@@ -183,7 +193,9 @@ def calibrate(
         if model_out is not None:
             res.save_model(model_out)
         if report is not None:
-            res.report(report)
+            from kinecal.report.html import calibration_report
+
+            calibration_report(res, report, provenance=record, validation=val)
     if json_out:
         echo_json(result)
     elif not quiet:

@@ -55,11 +55,12 @@ def run_demo(out: Path, quiet: bool = False) -> tuple[object, list[Path], tuple,
     from kinecal.calibration.serial.api import calibrate
     from kinecal.io.measurements import read_measurements
     from kinecal.io.models import load_model
+    from kinecal.report.figures import CALIBRATION_KINDS
 
     check_paths({}, {}, folders={"--out": (out, [
         "result.json", f"{DEMO_MODEL}-calibrated.yaml", "report.html", "compensated.csv",
         "error-model.json", f"{DEMO_MODEL}-calibrated-auto.yaml", "report-error-model.html",
-        *(f"{kind}.png" for kind in ("errors", "validation", "histogram", "convergence"))])})
+        *(f"{kind}.png" for kind in CALIBRATION_KINDS)])})
     with progress("demo: calibrate ur5 on laser-tracker data", 4, quiet) as update:
         model = load_model(DEMO_MODEL)
         data = read_measurements(DEMO_DATA, model)

@@ -18,7 +18,12 @@ from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
     echo_json,
+    instrument_option,
+    note_option,
+    operator_option,
     quiet_option,
+    report_option,
+    report_record,
     resolve_data_path,
     seed_option,
     strict_option,
@@ -283,10 +288,13 @@ def calibrate(
     geometry_out: Path | None = typer.Option(
         None, "--geometry-out", help="Calibrated geometry YAML (load_geometry reads it)."
     ),
-    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
+    report: Path | None = report_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
+    instrument: str | None = instrument_option(),
+    operator: str | None = operator_option(),
+    note: str | None = note_option(),
 ) -> None:
     """Identify the 42 geometric parameters from measured poses and leg readings."""
     from kinecal.calibration.stewart.calibrate import StewartData, calibrate_stewart
@@ -294,6 +302,8 @@ def calibrate(
 
     check_paths({"GEOMETRY": geometry, "DATA": data, "--validate": validate},
                 {"--out": out, "--geometry-out": geometry_out, "--report": report})
+    record = report_record(report, {"GEOMETRY": geometry, "DATA": data, "--validate": validate},
+                           instrument, operator, note)
     with warnings_scope(strict) as found:
         geom = _geometry(geometry)
         unit = _geometry_unit(geometry)
@@ -316,7 +326,9 @@ def calibrate(
         if geometry_out is not None:
             save_geometry(res.geometry, geometry_out, unit)
         if report is not None:
-            res.report(report)
+            from kinecal.report.stewart import stewart_report
+
+            stewart_report(res, report, provenance=record)
     if json_out:
         echo_json(result)
     elif not quiet:
