@@ -35,12 +35,16 @@ CODES: dict[str, str] = {
     "leg-range": "Stewart leg readings outside the geometry's leg range",
     "angle-units": "Stewart pose angles or hand-eye pose-file angles that look like radians",
     "handeye-conditioning": "hand-eye motions too close to one rotation axis for the noise",
+    "handeye-one-axis": "robot rotations about one axis only (SCARA) and no height given: X's "
+                        "translation along it assumed",
+    "handeye-height-unused": "a SCARA height given for stations that turn about several axes",
     "handeye-inconsistent": "robot and target poses that fit no X (inverted, quaternion order, "
     "angle unit, --setup)",
     "absolute-errors": "simulate(errors=...) got absolute parameter values, not deviations",
     # hand-eye calibration from images
-    "board-symmetric": "a board that looks the same turned by 180 deg (frames can flip)",
-    "board-turned": "images of a symmetric board turned back by 180 deg to fit the robot poses",
+    "board-symmetric": "a board that looks the same turned (180 deg, or 90 deg for square "
+                       "circle grids): frames can flip",
+    "board-turned": "images of a symmetric board turned back to fit the robot poses",
     "intrinsics-size": "intrinsics made for another image size than the images'",
     "intrinsics-rms": "the camera calibration from the images leaves more than 1 px RMS",
     "pnp-rms": "the board poses fit the detected corners poorly (wrong intrinsics or board)",
