@@ -25,6 +25,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from kinecal._files import load_yaml, read_text
+from kinecal._limits import MAX_JOBS, check_count
 from kinecal.errors import InputError
 
 __all__ = ["Job", "JobsFile", "Study", "expand_study", "load_jobs", "parse_jobs"]
@@ -184,11 +185,16 @@ class Study(_Common):
 
     @field_validator("seeds")
     @classmethod
-    def _seeds(cls, value: list[int] | int) -> list[int]:
-        seeds = list(range(value)) if isinstance(value, int) else list(value)
-        if not seeds or min(seeds) < 0:
+    def _seeds(cls, value: list[int] | int) -> list[int] | int:
+        # a count stays a count: expand_study makes the seeds once the grid's size is checked
+        if (value < 1) if isinstance(value, int) else (not value or min(value) < 0):
             raise ValueError("expected a positive count or a list of seeds >= 0")
-        return seeds
+        return value
+
+    def size(self) -> int:
+        """Number of jobs of the grid."""
+        seeds = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
+        return len(self.methods) * len(self.noise) * len(self.poses) * seeds
 
     @field_validator("noise")
     @classmethod
@@ -280,6 +286,12 @@ def parse_jobs(doc: Any, base: str | Path = ".", source: str | Path | None = Non
                                  "validation": _resolve(j.validation, base, False)})
             for j in parsed.jobs]
     studies = parsed.study if isinstance(parsed.study, list) else [parsed.study]
+    total = len(jobs) + sum(s.size() for s in studies if s is not None)
+    try:  # before expanding: a billion seeds ran out of memory
+        check_count(total, "seeds" if parsed.study is not None else "jobs",
+                    bytes_per_item=JOB_BYTES, what="jobs", minimum=0, most=MAX_JOBS)
+    except InputError as exc:
+        raise InputError(f"{exc.option}: {exc.message}", file=source) from None
     for study in studies:
         if study is not None:
             study = study.model_copy(update={"model": _resolve(study.model, base, True)})
@@ -300,6 +312,8 @@ def parse_jobs(doc: Any, base: str | Path = ".", source: str | Path | None = Non
     return jobs
 
 
+#: memory of one job, parsed and checked (measured 4.3 kB), with a margin
+JOB_BYTES = 16384
 #: peak memory of a simulated job per pose (calibration and validation): measured 1.3 kB
 #: (irb120, lm), with a margin
 JOB_POSE_BYTES = 4096
@@ -308,7 +322,6 @@ JOB_POSE_BYTES = 4096
 def _check_job(job: Job, source: str | Path | None) -> None:
     """Options the job's method would ignore, and pose counts beyond the memory."""
     from kinecal._files import check_input_file
-    from kinecal._limits import check_count
     from kinecal.calibration.method_options import check_method_options
 
     for key in ("data", "validation"):

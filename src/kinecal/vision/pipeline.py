@@ -35,6 +35,7 @@ from kinecal.errors import InputError
 from kinecal.vision import require_cv2
 from kinecal.vision.boards import Board
 from kinecal.vision.detect import QualityLimits, detect, orientation_ambiguous
+from kinecal.vision.image_files import check_image_size
 from kinecal.vision.intrinsics import CameraIntrinsics, estimate_intrinsics
 from kinecal.vision.pnp import board_pose
 from kinecal.vision.results import ImageHandEyeResult, ImageRecord
@@ -45,8 +46,13 @@ __all__ = ["ImageHandEyeResult", "ImageRecord", "calibrate_handeye_images", "loa
 
 
 def load_gray(path: str | Path) -> NDArray[np.uint8] | None:
-    """8-bit grey image from a file (None when OpenCV cannot read it)."""
+    """8-bit grey image from a file (None when OpenCV cannot read it).
+
+    Raises `InputError` for an image too large to be a camera's, judged from its header
+    before decoding (`kinecal.vision.image_files.check_image_size`).
+    """
     cv2 = require_cv2()
+    check_image_size(path)
     img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     return None if img is None else np.asarray(img)
 
@@ -196,9 +202,14 @@ def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
     records: list[ImageRecord] = []
     sizes: list[tuple[int, int] | None] = []
     for name, im in zip(names, images, strict=True):
-        gray = load_gray(im) if isinstance(im, str | Path) else np.asarray(im)
+        try:
+            gray = load_gray(im) if isinstance(im, str | Path) else np.asarray(im)
+        except InputError as exc:  # too large to decode: rejected from its header
+            gray, reason = None, exc.message
+        else:
+            reason = "cannot read the image file"
         if gray is None or gray.size == 0:
-            records.append(ImageRecord(str(name), "rejected", "cannot read the image file"))
+            records.append(ImageRecord(str(name), "rejected", reason))
             sizes.append(None)
         else:
             h, w = gray.shape[:2]

@@ -29,7 +29,9 @@ CODES: dict[str, str] = {
     "residual-offset": "the residual holds an offset a free base frame would take",
     "lack-of-fit": "the residual is far above the repeatability of repeated poses",
     "residual-above-noise": "the residual is far above the instrument's stated noise (--sigma)",
+    "residual-below-noise": "the residual is far below the instrument's stated noise (--sigma)",
     "outliers": "poses whose error is far outside the others' spread",
+    "optimizer-stalled": "a metaheuristic stopped far above what a least-squares polish reaches",
     # measurement kinds: ballbar and pair distances, fixed points, planes
     "pivot-moved": "a ballbar's distances fit no single pivot to the noise",
     "point-spread": "a fixed point's touches disagree by more than the noise",
@@ -59,6 +61,7 @@ CODES: dict[str, str] = {
     "board-scale": "identified lengths uniformly off nominal: the --board size is wrong",
     # compensation
     "no-seed-joints": "targets without seed joints: inverse kinematics chose the configuration",
+    "target-units": "Cartesian targets outside the arm's reach that fit it in another unit",
     "joints-outside-limits": "program or seed joints outside the model's joint limits",
     "base-frame-far": "the calibrated base frame is far from the nominal one",
     "tool-point-far": "the calibrated tool point is far from the nominal one (a target?)",

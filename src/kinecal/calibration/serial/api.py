@@ -27,6 +27,7 @@ from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stat
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
+from kinecal.calibration.serial.polish import check_local_polish
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
 from kinecal.calibration.serial.solve import solve_lm
@@ -328,6 +329,8 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
                                 maxiter=maxiter, target=target, options=options,
                                 progress=progress)
     x = np.asarray(res.x, dtype=float)
+    if method not in ("lm", "householder"):  # did the metaheuristic reach a minimum?
+        check_local_polish(problem, x, method, target)
     explicit = list(first_report.names) == list(names)
     normal = res.get("normal_matrix") if loss == "linear" else None
     # errors at the solution: from LM's last residual when it has one (no FK pass)
