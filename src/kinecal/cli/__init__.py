@@ -69,6 +69,7 @@ _COMMAND_MODULES = [
     "kinecal.cli.bench",
     "kinecal.cli.export",
     "kinecal.cli.compensate",
+    "kinecal.cli.import_cmd",
     "kinecal.cli.iso9283",
 ]
 
@@ -94,6 +95,7 @@ _COMMANDS = {
     "bench": "kinecal.cli.bench",
     "export": "kinecal.cli.export",
     "compensate": "kinecal.cli.compensate",
+    "import": "kinecal.cli.import_cmd",
     "iso9283": "kinecal.cli.iso9283",
 }
 
