@@ -159,7 +159,7 @@ def stream(path: Path, out: Path, header: list[str], required: list[str],
         # the whole program's findings, before the file is committed (--strict)
         if span.rows:
             check_joint_units(nom, span.summary(),
-                              "seed joints" if targets else "program joints")
+                              "seed joints" if targets else "program joints", min_rows=1)
         findings.warn()
     return ProgramRows.concatenate(parts)
 

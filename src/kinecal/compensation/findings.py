@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal import diagnostics
+from kinecal.compensation.moves import JOINT_MOVE_GAIN
 
 __all__ = ["RowFindings", "outside_limits_message"]
 
@@ -82,8 +83,9 @@ class RowFindings:
                 text = (f"{count} of {n} targets are out of reach of the nominal model: check "
                         "the targets' frame and units")
             else:
-                text = (f"{count} of {n} rows are close to a singularity: their joint "
-                        "corrections are large and sensitive to the calibration; move such "
-                        "points away from it if you can")
+                text = (f"{count} of {n} rows are close to a singularity (condition number "
+                        f"above 1e3, or joints moving over {JOINT_MOVE_GAIN:.0f} times what the "
+                        "correction needs): their joint corrections are large and sensitive "
+                        "to the calibration; move such points away from it if you can")
             out.append((code, text))
         return out

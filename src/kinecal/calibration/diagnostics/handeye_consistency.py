@@ -248,8 +248,12 @@ def _signed_rotations(v: Array) -> Array:
     """Rotations ``(r, 3, 3)`` proportional to row-major 9-vectors ``(r, 9)`` (det > 0)."""
     R = v.reshape(-1, 3, 3)
     det = np.linalg.det(R)
-    R = R / (np.sign(det) * np.cbrt(np.abs(det)))[:, None, None]
-    return project_to_rotation(R)
+    # a rotation scaled to a unit 9-vector has |det| = 3^-1.5; a (near-)singular one (the
+    # null vector of a degenerate, e.g. one-axis, system) keeps its sign, scale 1
+    mag = np.cbrt(np.abs(det))
+    mag = np.where(np.isfinite(mag) & (mag > 1e-3), mag, 1.0)
+    R = R / (np.where(det < 0, -1.0, 1.0) * mag)[:, None, None]
+    return project_to_rotation(np.nan_to_num(R))
 
 
 def warn_inconsistent(inc: Inconsistency) -> None:

@@ -274,9 +274,12 @@ def daniilidis(A: Array, B: Array) -> Array:
     return finish(matrix_from_quaternion(q), t)
 
 
-def _length_per_radian(A: Array, B: Array, qa: Array, qb: Array) -> float:
+def _length_per_radian(A: Array, B: Array, qa: Array | None = None,
+                       qb: Array | None = None) -> float:
     """``rms|t| / rms(2 sin(theta/2))`` over the motions of A and B (see `daniilidis`),
-    the angles from their quaternions ``qa, qb`` ``(m, 4)``."""
+    the angles from their quaternions ``qa, qb`` ``(m, 4)`` (computed when not given)."""
+    if qa is None or qb is None:
+        qa, qb = motion_quaternions(A, B)
     t = np.concatenate([A[:, :3, 3], B[:, :3, 3]])
     theta = np.linalg.norm(axis_angle_from_quaternion(np.concatenate([qa, qb])), axis=-1)
     rot = float(np.sqrt(np.mean(4.0 * np.sin(0.5 * theta) ** 2)))
