@@ -157,6 +157,13 @@ def residuals_and_jacobian(G: Array, C: Array, X0: Array, Y0: Array, p: Array,
     X = _update(X0, p[:6])
     Y = _update(Y0, p[6:])
     rot, tr = camera_residuals(G, C, X, Y, Ginv)
+    return rot, tr, _jacobian(G, C, X, Y, rot, tr, p)
+
+
+def _jacobian(G: Array, C: Array, X: Array, Y: Array, rot: Array, tr: Array, p: Array
+              ) -> Array:
+    """`residual_jacobian` ``(n, 6, 12)`` at ``p`` from X, Y there and their
+    `camera_residuals`."""
     pred_t = C[:, :3, 3] - tr
     RX, RY = X[:3, :3], Y[:3, :3]
     RC = C[:, :3, :3]
@@ -170,7 +177,7 @@ def residuals_and_jacobian(G: Array, C: Array, X0: Array, Y0: Array, p: Array,
     J[:, 3:, 0:3] = -skew(pred_t) @ JX
     J[:, 3:, 3:6] = RX.T
     J[:, 3:, 9:12] = -RX.T @ np.swapaxes(G[:, :3, :3], 1, 2)
-    return rot, tr, J
+    return J
 
 
 def _scales(rot: Array, trans: Array, L: float) -> tuple[float, float]:
@@ -253,12 +260,20 @@ class _Passes:
         sw = np.sqrt(w)[:, None]
         scale = np.r_[[1.0 / sr] * 3, [1.0 / st] * 3]
 
+        last: list[tuple[Array, ...]] = []  # MINPACK asks the Jacobian where it last
+        # evaluated the residuals: their poses and residuals are reused there
+
         def fun(p: Array) -> Array:
-            rot, tr = camera_residuals(G, C, _update(X, p[:6]), _update(Y, p[6:]), Gi)
+            Xp, Yp = _update(X, p[:6]), _update(Y, p[6:])
+            rot, tr = camera_residuals(G, C, Xp, Yp, Gi)
+            last[:] = [(p.copy(), Xp, Yp, rot, tr)]
             return np.concatenate([sw * rot / sr, sw * tr / st], axis=1).ravel()
 
         def jac(p: Array) -> Array:
-            J = residuals_and_jacobian(G, C, X, Y, p, Gi)[2]  # (n, 6, 12)
+            if last and np.array_equal(last[0][0], p):
+                J = _jacobian(G, C, *last[0][1:], p)
+            else:
+                J = residuals_and_jacobian(G, C, X, Y, p, Gi)[2]  # (n, 6, 12)
             return (J * (scale[None, :, None] * sw[:, :, None])).reshape(-1, 12)
 
         sol = least_squares(fun, np.zeros(12), jac=jac, method="lm", x_scale="jac")
