@@ -100,6 +100,8 @@ _COMMANDS = {
 
 def _load_commands(args: list[str] | None = None) -> None:
     """Import the command modules: the one of ``args[0]`` if known, else all of them."""
+    if args and args[0] == "--version":  # printed by the app's callback: no command needed
+        return
     module = _COMMANDS.get(args[0]) if args else None
     for name in [module] if module is not None else _COMMAND_MODULES:
         importlib.import_module(name)

@@ -58,7 +58,8 @@ def _print_warnings(records) -> None:
 def batch(
     jobs_file: Path = typer.Argument(..., metavar="JOBS.yaml", help="Jobs file (YAML)."),
     out: Path = typer.Option(..., "--out", help="Output directory (results, summary.csv)."),
-    executor: str = typer.Option("local", "--executor", help="local (process pool) or dask."),
+    executor: str = typer.Option("local", "--executor", metavar="[local|dask]",
+                                 help="A local process pool or a Dask cluster."),
     scheduler: str | None = typer.Option(None, "--scheduler",
                                          help="Dask scheduler address (tcp://host:port)."),
     workers: int | None = typer.Option(None, "--workers",

@@ -12,9 +12,12 @@ from kinecal._limits import check_count, check_finite
 from kinecal.calibration.method_options import check_error_model_options, check_method_options
 from kinecal.cli._app import app
 from kinecal.cli._common import (
+    CALIBRATION_METHOD_CHOICES,
     MODEL_HELP,
     base_link_option,
     check_paths,
+    check_unit,
+    choices,
     echo_json,
     instrument_option,
     load_model_arg,
@@ -27,12 +30,16 @@ from kinecal.cli._common import (
     seed_option,
     strict_option,
     tip_link_option,
+    unit_option,
     warnings_scope,
     with_warnings,
     write_json,
 )
 from kinecal.cli._serial_common import POSE_BYTES, free_option
 from kinecal.errors import InputError
+
+#: --error-model values (and families joined by '+')
+ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto")
 
 
 @app.command()
@@ -43,15 +50,18 @@ def identifiability(
     data: str | None = typer.Option(None, "--data", help="Measurement CSV (poses to analyse)."),
     poses: int | None = typer.Option(None, "--poses", help="Random poses when no --data is "
                                      "given (default 50)."),
-    free: str = typer.Option("all", "--free", help="all, identifiable or comma-separated names."),
+    free: str = typer.Option("all", "--free", metavar=choices("all", "identifiable", "NAMES"),
+                             help="All parameters, the identifiable ones or comma-separated "
+                             "names."),
     seed: int | None = typer.Option(None, "--seed", min=0, help="Random seed for the poses "
                                     "(without --data; default 0)."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON."),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
     error_model: str | None = typer.Option(
-        None, "--error-model", help="Also analyse joint-error terms: compliance, harmonic, "
-        "scale, full or families joined by '+' (default: the model file's joint_errors)."),
+        None, "--error-model", metavar=choices(*ERROR_MODELS[:-1]), help="Also analyse "
+        "joint-error terms, or families joined by '+' (default: the model file's "
+        "joint_errors)."),
     harmonics: int | None = typer.Option(None, "--harmonics",
                                          help="Harmonic order (default 2)."),
 ) -> None:
@@ -101,28 +111,36 @@ def calibrate(
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     data: str = typer.Argument(..., help="Measurement CSV or NAME:PART."),
-    method: str = typer.Option("lm", "--method", help="lm, householder, a metaheuristic "
-                               "(ga, pso, afsa, sa-iafsa, gwo, igwo, dlh-gwo-de, de) or hybrid-*."),
+    method: str = typer.Option("lm", "--method", metavar=choices(*CALIBRATION_METHOD_CHOICES),
+                               help="Levenberg-Marquardt, Householder Gauss-Newton, a "
+                               "metaheuristic, or least squares then a metaheuristic "
+                               "(hybrid-ga, ...). See docs/optimizers.md."),
     validate: str | None = typer.Option(None, "--validate", help="Validation CSV or NAME:PART."),
     free: str = typer.Option("identifiable", "--free",
-                             help="identifiable, all or comma-separated names."),
+                             metavar=choices("identifiable", "all", "NAMES"),
+                             help="The identifiable parameters, all or comma-separated "
+                             "names."),
     seed: int = seed_option("Random seed (metaheuristics; an integer >= 0)."),
-    loss: str = typer.Option("linear", "--loss", help="linear, huber, soft_l1, cauchy, arctan."),
+    loss: str = typer.Option("linear", "--loss", metavar=choices(
+        "linear", "huber", "soft_l1", "cauchy", "arctan"), help="Loss of the residuals (robust "
+        "losses with lm only)."),
     maxiter: int | None = typer.Option(None, "--maxiter", help="Iteration budget."),
-    target: float | None = typer.Option(None, "--target", help="Stop at this mean error."),
+    target: float | None = typer.Option(None, "--target", help="Stop at this mean distance "
+                                        "error (model length unit; metaheuristics)."),
     out: Path | None = typer.Option(None, "--out", help="Result JSON to write."),
     model_out: Path | None = typer.Option(None, "--model-out", help="Calibrated model YAML."),
     report: Path | None = report_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
+    unit: str = unit_option(),
     quiet: bool = quiet_option(),
     strict: bool = strict_option(),
     rotation_weight: float | None = typer.Option(
         None, "--rotation-weight", help="With measured orientations: length units per rad of "
         "rotation error (default: the workspace's characteristic length)."),
     error_model: str | None = typer.Option(
-        None, "--error-model", help="geometric, compliance, harmonic, scale, full, auto "
-        "(chosen by cross-validation on the calibration poses) or families joined by '+' "
-        "(default: the model file's joint_errors, else geometric). See docs/error-models.md."),
+        None, "--error-model", metavar=choices(*ERROR_MODELS), help="auto: chosen by "
+        "cross-validation on the calibration poses; or families joined by '+' (default: the "
+        "model file's joint_errors, else geometric). See docs/error-models.md."),
     harmonics: int | None = typer.Option(
         None, "--harmonics", help="Harmonic order (default 2; auto tries 1..3)."),
     folds: int | None = typer.Option(None, "--folds", help="Cross-validation folds "
@@ -145,6 +163,7 @@ def calibrate(
     if method not in CALIBRATION_METHODS:
         raise InputError(f"unknown method {method!r}; expected one of "
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
+    shown = check_unit(unit)
     check_paths({"MODEL": model, "DATA": data, "--validate": validate},
                 {"--out": out, "--model-out": model_out, "--report": report})
     record = report_record(report, {"MODEL": model, "DATA": data, "--validate": validate},
@@ -199,7 +218,7 @@ def calibrate(
     if json_out:
         echo_json(result)
     elif not quiet:
-        typer.echo(res.summary())
+        typer.echo(res.summary(shown))
 
 
 @app.command("select-poses")

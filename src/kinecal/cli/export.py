@@ -11,6 +11,7 @@ from kinecal.cli._app import app
 from kinecal.cli._common import (
     base_link_option,
     check_paths,
+    choices,
     load_model_arg,
     strict_option,
     tip_link_option,
@@ -109,8 +110,8 @@ def export(
     source: str = typer.Argument(..., help="Model (bundled name, YAML, URDF) or calibration "
                                  "result JSON (kinecal calibrate --out)."),
     out: Path = typer.Option(..., "--out", help="File to write (.urdf, .yaml)."),
-    fmt: str | None = typer.Option(None, "--format", help="urdf or yaml (default: from the "
-                                   "--out suffix)."),
+    fmt: str | None = typer.Option(None, "--format", metavar=choices(*FORMATS),
+                                   help="Output format (default: from the --out suffix)."),
     nominal: str | None = typer.Option(None, "--nominal", help="With a RESULT.json: the model "
                                        "it was calibrated from (default: the bundled model "
                                        "the result names)."),

@@ -13,6 +13,7 @@ from kinecal.cli._common import (
     MODEL_HELP,
     base_link_option,
     check_paths,
+    choices,
     load_model_arg,
     quiet_option,
     seed_option,
@@ -31,8 +32,12 @@ def simulate(
     tip_link: str | None = tip_link_option(),
     poses: int = typer.Option(..., "--poses", help="Number of random poses (a model with "
                               "markers measures every marker at each: poses x markers rows)."),
-    noise: float = typer.Option(0.0, "--noise", help="Gaussian noise sigma per coordinate."),
-    errors: str = typer.Option("random", "--errors", help="zero, random or TRUTH.json."),
+    noise: float = typer.Option(0.0, "--noise", help="Gaussian noise sigma per coordinate "
+                                "(model length unit, e.g. mm)."),
+    errors: str = typer.Option("random", "--errors", metavar=choices("zero", "random",
+                                                                     "TRUTH.json"),
+                               help="True errors: none, random within the model's tolerances, "
+                               "or those of a truth file (simulate --truth-out)."),
     seed: int = seed_option(),
     out: Path = typer.Option(..., "--out", help="Measurement CSV to write."),
     truth_out: Path | None = typer.Option(None, "--truth-out", help="Truth JSON to write."),

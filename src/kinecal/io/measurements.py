@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from kinecal import diagnostics
 from kinecal.data import Measurements
 from kinecal.errors import InputError
-from kinecal.io.csvtable import read_column, read_table, write_table
+from kinecal.io.csvtable import check_separator, read_column, read_table, write_table
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
@@ -103,11 +103,13 @@ def joint_columns(header: list[str], model: SerialModel, path: Path | None = Non
 def _header(path: Path) -> list[str]:
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
-            return [h.strip() for h in next(csv.reader(fh), [])]
+            header = next(csv.reader(fh), [])
     except FileNotFoundError:
         raise InputError("file not found", file=path) from None
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"cannot read CSV: {exc}", file=path) from None
+    check_separator(header, path)
+    return [h.strip() for h in header]
 
 
 def _resolve(path: str | Path) -> Path:
