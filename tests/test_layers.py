@@ -60,7 +60,7 @@ LATE_ALLOWED: dict[str, set[str]] = {
     "experiments": {"cli"},
     "cli": {"batch", "calibration.diagnostics", "calibration.handeye", "calibration.serial",
             "calibration.stewart", "compensation", "datasets", "io", "kinematics.serial",
-            "kinematics.stewart", "report", "vision", "metrology"},
+            "kinematics.stewart", "report", "vision", "metrology", "kinecal"},
 }
 #: below no kind of machine: compensation is the apply step on top of calibration results
 NEVER = [("calibration", "compensation"), ("io", "calibration"), ("kinematics", "calibration"),

@@ -19,7 +19,7 @@ from kinecal.spatial import check_rotation
 __all__ = ["Measurements", "RepeatedPoses"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Measurements:
     """Joint readings with measured tool-point positions (and optionally orientations).
 
@@ -79,6 +79,12 @@ class Measurements:
         elif self.marker_names:
             raise InputError("marker_names without marker indices")
 
+    def __repr__(self) -> str:
+        what = "poses" + (" with orientations" if self.rotations is not None else "")
+        markers = f", markers {', '.join(self.marker_names)}" if self.marker_names else ""
+        src = f" from {self.source}" if self.source else ""
+        return f"<Measurements {len(self)} {what}, {np.shape(self.q)[1]} joints{markers}{src}>"
+
     def __len__(self) -> int:
         return int(np.shape(self.q)[0])
 
@@ -91,7 +97,7 @@ class Measurements:
                             f"{self.source}[subset]", R, m, self.marker_names)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class RepeatedPoses:
     """Measurements of P commanded poses, each measured once in each of n cycles.
 
@@ -147,6 +153,11 @@ class RepeatedPoses:
             raise InputError("pose labels repeat: expected one label per pose")
         if not (np.isfinite(m).all() and np.isfinite(self.commanded).all()):
             raise InputError("positions contain NaN or infinite values")
+
+    def __repr__(self) -> str:
+        src = f" from {self.source}" if self.source else ""
+        return (f"<RepeatedPoses {len(self.labels)} poses x {self.n_cycles} cycles "
+                f"({self.length_unit}){src}>")
 
     @property
     def n_cycles(self) -> int:

@@ -94,7 +94,7 @@ def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None
         raise InputError("file not found", file=spec, option="CALIBRATED")
     if path.suffix.lower() == ".json":
         from kinecal._files import read_json
-        from kinecal.cli._serial_common import (
+        from kinecal.io.results import (
             model_for_result,
             parameters_from_result,
             serial_result_parameters,

@@ -71,7 +71,7 @@ def model_and_params(source: str, nominal: str | None, base_link: str | None,
     result the nominal model is `nominal`, or the bundled model the result names.
     """
     from kinecal._files import read_json
-    from kinecal.cli._serial_common import (
+    from kinecal.io.results import (
         model_for_result,
         parameters_from_result,
         serial_result_parameters,

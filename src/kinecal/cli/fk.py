@@ -20,7 +20,6 @@ from kinecal.cli._common import (
     tip_link_option,
     warnings_scope,
 )
-from kinecal.cli._serial_common import model_for_result, parameters_from_result
 
 
 @app.command()
@@ -78,6 +77,7 @@ def fk(
     """Forward kinematics: tool-point positions (CSV on stdout)."""
     from kinecal.calibration.diagnostics.serial import check_joint_limits, check_joint_units
     from kinecal.io.measurements import read_joints, read_markers
+    from kinecal.io.results import model_for_result, parameters_from_result
     from kinecal.spatial import quaternion_from_matrix
 
     with warnings_scope(strict):

@@ -16,7 +16,7 @@ __all__ = ["CompensationResult"]
 Array = NDArray[np.float64]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class CompensationResult:
     """Outcome of `compensate`, one row per program line.
 
@@ -80,6 +80,16 @@ class CompensationResult:
 
     def __len__(self) -> int:
         return int(self.q.shape[0])
+
+    def __repr__(self) -> str:
+        ok = self.converged
+        text = (f"<CompensationResult {len(self)} {self.kind} ({self.outputs}): "
+                f"{int(ok.sum())} converged")
+        if ok.any():
+            u, f = (display_unit(self.length_unit, None, self.correction[ok])
+                    if self.length_unit else ("length unit", 1.0))
+            text += f", correction max {self.correction[ok].max() * f:.4g} {u}"
+        return text + ">"
 
     def summary(self, unit: str | None = None) -> str:
         """A few lines: rows, convergence, size of the corrections and of the residuals;

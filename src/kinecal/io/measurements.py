@@ -112,6 +112,18 @@ def _header(path: Path) -> list[str]:
     return [h.strip() for h in header]
 
 
+def _as_model(model: SerialModel | str | Path) -> SerialModel:
+    """`model`, or the model a bundled name or a model file path names."""
+    if isinstance(model, SerialModel):
+        return model
+    if isinstance(model, str | Path):
+        from kinecal.io.models import load_model
+
+        return load_model(model)
+    raise TypeError(f"model: expected a SerialModel, a bundled model name or a model file "
+                    f"path, got {type(model).__name__}")
+
+
 def _resolve(path: str | Path) -> Path:
     """A file path, or the file of a bundled ``NAME:PART``."""
     spec = str(path)
@@ -166,6 +178,7 @@ def read_joints(path: str | Path, model: SerialModel) -> NDArray[np.float64]:
     """Joint values ``(N, n_joints)`` (rad; prismatic: length unit) from a CSV with
     ``q1..qn`` or the model's joint names (model angle unit; other columns ignored) or a
     laser-tracker export (``joint_1..``, degrees)."""
+    model = _as_model(model)
     path = _resolve(path)
     header = _header(path)
     if "joint_1" in header and "x_t" in header:
@@ -180,11 +193,14 @@ def read_joints(path: str | Path, model: SerialModel) -> NDArray[np.float64]:
 def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
     """Read a measurement CSV for `model` (a path or a bundled ``NAME:PART``).
 
+    `model` may also be a bundled name or a model file path (loaded).
+
     Raises
     ------
     InputError
         Missing columns, wrong joint count, NaN or non-numeric cells (with the row).
     """
+    model = _as_model(model)
     path = _resolve(path)
     header = _header(path)
     n = model.n_joints

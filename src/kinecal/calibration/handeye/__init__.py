@@ -13,6 +13,7 @@ In both cases ``G_i X C_i = Y`` with ``C_i = target2cam`` and ``G_i = flange2bas
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -46,7 +47,7 @@ _META_OPTIONS = {"popsize", "maxiter", "rotation_box", "translation_box", "maxfe
                  "method_options"}
 
 
-@dataclass
+@dataclass(repr=False)
 class HandEyeResult:
     """Result of `calibrate_handeye`.
 
@@ -101,6 +102,14 @@ class HandEyeResult:
     def translation_rms(self) -> float:
         """Rms of the station translation residuals (length unit)."""
         return rms(self.translation)
+
+    def __repr__(self) -> str:
+        t = self.X[:3, 3]
+        return (f"<HandEyeResult {self.setup}, {self.method}+{self.refine}: "
+                f"{len(self.rotation_deg)} stations, X translation ({t[0]:.4g}, {t[1]:.4g}, "
+                f"{t[2]:.4g}), residual rms "
+                f"{self.rotation_rms_deg:.3g} deg / {self.translation_rms:.3g}, "
+                f"{len(self.outliers)} outliers>")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able dict with the keys of the ``kinecal handeye`` contract (DESIGN sec. 4)."""
@@ -223,6 +232,8 @@ def calibrate_handeye(
     InputError
         Bad shapes, non-rigid transforms, unknown names, fewer than 3 distinct stations or
         degenerate motions (fewer than two non-parallel rotation axes).
+    TypeError
+        A path or name where poses are expected.
 
     Notes
     -----
@@ -231,6 +242,12 @@ def calibrate_handeye(
     axes too close to parallel for the noise); their findings are in ``warnings`` and are
     issued as `kinecal.diagnostics.KinecalWarning` unless an outer collector takes them.
     """
+    for name, poses in (("flange2base", flange2base), ("target2cam", target2cam)):
+        if isinstance(poses, str | bytes | os.PathLike):
+            raise TypeError(f"{name}: expected an array (n, 4, 4) of poses, got the path or name "
+                            f"{os.fsdecode(poses)!r}; read a pairs file with "
+                            "kinecal.io.handeye.read_handeye_pairs(path) (or "
+                            "read_handeye_files(robot, target))")
     with diagnostics.collect(python_warnings=True) as found:
         res = _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, seed,
                                  robust, rotation_weight, options)

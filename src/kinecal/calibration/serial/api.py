@@ -27,6 +27,7 @@ from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stat
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
+from kinecal.calibration.serial.inputs import as_measurements, as_model
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
 from kinecal.calibration.serial.solve import solve_lm
@@ -140,17 +141,18 @@ def calibrate(
 
     Parameters
     ----------
-    model : SerialModel
-        Nominal model.
-    data : Measurements
-        Calibration poses (joint angles, measured tool positions).
+    model : SerialModel, str or Path
+        Nominal model (a bundled name or a model file / URDF path is loaded).
+    data : Measurements, str or Path
+        Calibration poses (joint angles, measured tool positions); a CSV path or a bundled
+        ``NAME:PART`` is read for `model`.
     method : str
         One of `CALIBRATION_METHODS` (see module docstring).
     free : {"identifiable", "all"} or sequence of str
         Free parameters: the identifiable subset of the model's calibratable parameters
         (default), all of them, or explicit names.
-    validate : Measurements, optional
-        Held-out poses for before/after validation statistics.
+    validate : Measurements, str or Path, optional
+        Held-out poses for before/after validation statistics (a path is read as `data`).
     rng : int or Generator, optional
         Randomness of the metaheuristics (an int is recorded as the result's seed).
     loss : str
@@ -191,7 +193,11 @@ def calibrate(
     ------
     InputError
         Bad arguments, or data that cannot give an answer (too few distinct poses).
+    TypeError
+        `model` or `data` of another type than those above.
     """
+    model = as_model(model)
+    data, validate = as_measurements(data, model), as_measurements(validate, model, "validate")
     with diagnostics.collect(python_warnings=True) as found:
         res = _calibrate(model, data, method, free=free, validate=validate, rng=rng, loss=loss,
                          f_scale=f_scale, maxiter=maxiter, target=target, options=options,

@@ -18,7 +18,7 @@ from kinecal.data import Measurements
 __all__ = ["ErrorModelResult", "error_model_text"]
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(repr=False)
 class ErrorModelResult(CalibrationResult):
     """A `CalibrationResult` with joint-error terms, which also keeps what the report's
     residual maps need (`kinecal.report.residual_maps`).

@@ -34,7 +34,7 @@ def _finite(obj: Any) -> Any:
     return obj
 
 
-@dataclass
+@dataclass(repr=False)
 class CalibrationResult:
     """Outcome of `kinecal.calibrate`.
 
@@ -356,6 +356,15 @@ class CalibrationResult:
 
     def __str__(self) -> str:
         return self.summary()
+
+    def __repr__(self) -> str:
+        shown = self.display_unit()
+        s = self.validation_stats or self.calibration_stats
+        where = "validation" if self.validation_stats is not None else "calibration"
+        return (f"<{type(self).__name__} {self.nominal_model.name} ({self.method}): "
+                f"{len(self.free)} free parameters, {where} mean "
+                f"{s['before']['mean'] * shown.factor:.4g} -> "
+                f"{s['after']['mean'] * shown.factor:.4g} {shown.name}>")
 
     # ------------------------------------------------------------------ figures
     def plot(self, kind: str = "errors", ax: Any = None) -> Any:

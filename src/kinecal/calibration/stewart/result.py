@@ -49,7 +49,7 @@ def pose_prediction_errors(
     return {"position": abs_stats(pos), "rotation_arcsec": abs_stats(rot / ARCSEC)}
 
 
-@dataclass
+@dataclass(repr=False)
 class StewartCalibrationResult:
     """Identified geometry and error statistics (JSON via `to_dict`).
 
@@ -142,6 +142,14 @@ class StewartCalibrationResult:
             "bounded": bool(self.bounded),
             "warnings": [d.to_dict() for d in self.warnings],
         }
+
+    def __repr__(self) -> str:
+        part = self.validation if self.validation is not None else self.calibration
+        u, f = display_unit(self.length_unit, None, [part["before"]["rms"]])
+        where = "validation" if self.validation is not None else "calibration"
+        return (f"<StewartCalibrationResult {self.nominal.name}: rank {self.rank}/"
+                f"{N_PARAMETERS}, {where} leg rms {part['before']['rms'] * f:.4g} -> "
+                f"{part['after']['rms'] * f:.4g} {u}>")
 
     def summary(self, unit: str | None = None) -> str:
         """Text table of the before/after leg-reading errors, the undetermined parameters
