@@ -47,7 +47,9 @@ def identifiability(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
-    data: str | None = typer.Option(None, "--data", help="Measurement CSV (poses to analyse)."),
+    data: str | None = typer.Option(None, "--data", help="CSV of the poses to analyse: "
+                                    "measurements, or joint values q1..qn alone (e.g. from "
+                                    "select-poses)."),
     poses: int | None = typer.Option(None, "--poses", help="Random poses when no --data is "
                                      "given (default 50)."),
     free: str = typer.Option("all", "--free", metavar=choices("all", "identifiable", "NAMES"),
@@ -69,7 +71,6 @@ def identifiability(
     from kinecal.calibration.diagnostics.serial import check_pose_set
     from kinecal.calibration.serial.problem import resolve_free
     from kinecal.calibration.serial.simulate import simulate as run
-    from kinecal.io.measurements import read_measurements
     from kinecal.kinematics.serial.markers import model_for_markers
 
     for option, value in (("--poses", poses), ("--seed", seed)):
@@ -78,7 +79,7 @@ def identifiability(
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
         if data is not None:
-            meas = read_measurements(resolve_data_path(data, "--data"), m)
+            meas = _poses_to_analyse(m, resolve_data_path(data, "--data"))
         else:
             poses = check_count(50 if poses is None else poses, "--poses",
                                 bytes_per_item=POSE_BYTES * (m.n_joints + 10))
@@ -103,6 +104,22 @@ def identifiability(
     typer.echo("identifiable: " + ", ".join(report.identifiable))
     typer.echo("observability: " + ", ".join(f"{k}={v:.4g}"
                                              for k, v in report.observability.items()))
+
+
+def _poses_to_analyse(model, path):
+    """The `Measurements` of ``identifiability --data``: a measurement file as it is, or a
+    joints-only file (``q1..qn``, what ``select-poses`` writes) measured by the nominal
+    model (only the poses matter to the analysis)."""
+    from kinecal.calibration.serial.simulate import simulate as run
+    from kinecal.io.measurements import read_joints, read_markers, read_measurements
+    from kinecal.io.poses import first_csv_row
+
+    header = set(first_csv_row(path))
+    if header & {"x", "y", "z", "x_t"}:
+        return read_measurements(path, model)
+    q = read_joints(path, model)
+    marker, _ = read_markers(path, model)
+    return run(model, len(q), errors="zero", q=q, marker=marker).data
 
 
 @app.command()
