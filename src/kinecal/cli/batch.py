@@ -141,6 +141,27 @@ def _run(jobs, jobs_file: Path, out: Path, executor: str, scheduler: str | None,
             raise typer.Exit(143 if isinstance(exc, Terminated) else 130) from None
 
 
+def _check_coverage(results: list[dict]) -> None:
+    """Warn (``coverage-not-estimable``) about the simulated jobs whose truth cannot check
+    their standard errors (``errors: random``): coverage.csv leaves them out."""
+    from kinecal.batch.tables import COVERAGE_ERRORS, coverage_estimable
+    from kinecal.cli._common import warnings_scope
+    from kinecal.diagnostics import warn
+
+    left = [r for r in results if r.get("truth") and not coverage_estimable(r)]
+    if not left:
+        return
+    what = ("coverage.csv is not written" if len(left) == len(results) else
+            f"coverage.csv leaves out those {len(left)} of {len(results)} jobs")
+    with warnings_scope():
+        warn("coverage-not-estimable",
+             f"{len(left)} simulated jobs use errors: "
+             f"{(left[0].get('job') or {}).get('errors', 'random')}: parameters held at nominal "
+             "are off too and their errors land in confounded partners, so the identified "
+             f"values cannot check the standard errors; {what} (a coverage study needs errors: "
+             f"{' or '.join(COVERAGE_ERRORS)})")
+
+
 def _print_results(records, out: Path, quiet: bool) -> None:
     """The job table (failed jobs only beyond `MAX_PRINTED_ROWS`), and for simulated
     studies ``study.csv`` and ``coverage.csv`` with their tables."""
@@ -161,8 +182,11 @@ def _print_results(records, out: Path, quiet: bool) -> None:
     if simulated:
         rows = study_table(simulated)
         write_table_csv(out / "study.csv", rows)
-        cov = coverage_table(load_results(out, simulated))
-        write_table_csv(out / "coverage.csv", cov)
+        results = load_results(out, simulated)
+        cov = coverage_table(results)
+        _check_coverage(results)
+        if cov:
+            write_table_csv(out / "coverage.csv", cov)
         if not quiet:
             typer.echo("\nmedian over seeds (errors in the model's length unit, seconds per "
                        "job):\n" + format_table(rows))
