@@ -70,6 +70,7 @@ _COMMAND_MODULES = [
     "kinecal.cli.export",
     "kinecal.cli.compensate",
     "kinecal.cli.iso9283",
+    "kinecal.cli.datasets",
 ]
 
 
@@ -95,6 +96,7 @@ _COMMANDS = {
     "export": "kinecal.cli.export",
     "compensate": "kinecal.cli.compensate",
     "iso9283": "kinecal.cli.iso9283",
+    "datasets": "kinecal.cli.datasets",
 }
 
 
