@@ -11,8 +11,9 @@ What the test reads (the conventions are also in docs/index.md, "Every page is r
   command must exit 0, or 2 when its output shows a ``kinecal: error:`` line (a command
   ending in ``echo $?`` shows its status itself);
 * a ```` ```python ```` block runs as a script with this checkout's Python;
-* a ```` ```text ```` block right after a sh or python block (prose between them, but no
-  heading and no other block) is that block's expected output;
+* a ```` ```text ```` block right after a sh or python block (nothing between them, or
+  prose whose last line ends with a colon: "... prints:"; no heading) is that block's
+  expected output;
 * any other block (``yaml``, ``json``, ``csv``, ``text`` elsewhere) is shown, not run. A
   block without a language is refused: every block says what it is.
 
@@ -88,6 +89,15 @@ class Block:
     line: int
     markers: list[tuple[str, str]] = field(default_factory=list)
     heading_before: bool = False  # a heading between this block and the previous one
+    prose_before: str = ""  # the text between the previous block and this one
+
+    def shows_output(self) -> bool:
+        """A text block that shows the previous block's output: right after it, or after
+        prose ending with a colon ("... prints:"), no heading between."""
+        prose = [ln for ln in self.prose_before.splitlines()
+                 if ln.strip() and not ln.lstrip().startswith("<!--")]
+        return self.lang == "text" and not self.heading_before and (
+            not prose or prose[-1].rstrip().endswith(":"))
 
     def marker(self, kind: str) -> str | None:
         return next((reason for k, reason in self.markers if k == kind), None)
@@ -117,10 +127,12 @@ def parse(path: Path) -> Page:
     pending: list[tuple[str, str]] = []
     page_markers: list[tuple[str, str]] = []
     heading = False
+    prose: list[str] = []
     i = 0
     while i < len(lines):
         m = FENCE.match(lines[i])
         if m is None:
+            prose.append(lines[i])
             if lines[i].startswith("#"):
                 heading = True
             if "<!--" in lines[i]:  # a marker, possibly over several lines
@@ -140,8 +152,9 @@ def parse(path: Path) -> Page:
         while i < len(lines) and not re.match(rf"^{re.escape(indent)}```\s*$", lines[i]):
             body.append(lines[i][len(indent):] if lines[i].startswith(indent) else lines[i])
             i += 1
-        blocks.append(Block(lang, "\n".join(body) + "\n", start, pending, heading))
-        pending, heading = [], False
+        blocks.append(Block(lang, "\n".join(body) + "\n", start, pending, heading,
+                            "\n".join(prose)))
+        pending, heading, prose = [], False, []
         i += 1
     return Page(path, blocks, page_markers)
 
@@ -310,8 +323,8 @@ def run_page(page: Page, folder: Path, env: dict[str, str]) -> PageRun:
             out.skipped.append(f"{where}: needs {', '.join(_missing_modules(needs))}: {needs}")
             continue
         nxt = blocks[k + 1] if k + 1 < len(blocks) else None
-        shown = (nxt.text.splitlines() if nxt is not None and nxt.lang == "text"
-                 and not nxt.heading_before and block.lang != "console" else None)
+        shown = (nxt.text.splitlines() if nxt is not None and nxt.shows_output()
+                 and block.lang != "console" else None)
         if block.lang == "console":
             for command, expected in console_steps(block.text):
                 out.commands += 1
@@ -336,7 +349,7 @@ def run_page(page: Page, folder: Path, env: dict[str, str]) -> PageRun:
             script.unlink()
         else:
             out.commands += sum(1 for ln in block.text.splitlines()
-                                if ln.strip() and not ln.startswith((" ", "#")))
+                                if re.match(r"\s*kinecal ", ln))
             code, text = _run(["bash", "-e", "-o", "pipefail", "-c", block.text], folder, env)
         if code != 0:
             out.failures.append(f"{where}: {block.lang} block exited {code}:\n{text}")
