@@ -268,7 +268,8 @@ def console_steps(text: str) -> list[tuple[str, list[str]]]:
 
 
 def environment(bin_dir: Path) -> dict[str, str]:
-    """This checkout's ``kinecal``, ``python`` and ``python3`` first on the PATH."""
+    """This checkout's ``kinecal``, ``python`` and ``python3`` first on the PATH; stdout
+    unbuffered, so that stdout and stderr interleave as on a terminal."""
     bin_dir.mkdir(parents=True, exist_ok=True)
     exe = bin_dir / "kinecal"
     exe.write_text(f'#!/bin/sh\nexec "{sys.executable}" -c '
@@ -280,7 +281,7 @@ def environment(bin_dir: Path) -> dict[str, str]:
             link.symlink_to(sys.executable)
     env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}",
                PYTHONPATH=str(ROOT / "src"), COLUMNS="100", MPLBACKEND="Agg",
-               PYTHONDONTWRITEBYTECODE="1")
+               PYTHONDONTWRITEBYTECODE="1", PYTHONUNBUFFERED="1")
     env.pop("KINECAL_DEBUG", None)
     return env
 
