@@ -10,7 +10,8 @@ What the test reads (the conventions are also in docs/index.md, "Every page is r
   prints (stdout and stderr together); each command runs through bash, and a ``kinecal``
   command must exit 0, or 2 when its output shows a ``kinecal: error:`` line (a command
   ending in ``echo $?`` shows its status itself);
-* a ```` ```python ```` block runs as a script with this checkout's Python;
+* a ```` ```python ```` block runs as a script with this checkout's Python (forked from the
+  server below, like the commands);
 * a ```` ```text ```` block right after a sh or python block (nothing between them, or
   prose whose last line ends with a colon: "... prints:"; no heading) is that block's
   expected output;
@@ -36,7 +37,10 @@ with the reason, and the test reports them:
   imports checked, not run (an API synopsis with names defined elsewhere).
 
 Pages are found by globbing docs/*.md, so a new page is covered the day it lands, and run
-two at a time (the machine's cores). The README's tutorial is run by
+two at a time (the machine's cores). The ``kinecal`` of the walkthroughs is the client of
+tests/docs_server.py, which forks every command from one process that has imported
+kinecal already (each command still in a process of its own); ``KINECAL_DOCS_PLAIN=1`` runs
+each in a fresh interpreter instead. The README's tutorial is run by
 tests/test_readme_tutorial.py; its other blocks are run here.
 """
 
@@ -47,6 +51,7 @@ import importlib.util
 import math
 import os
 import re
+import shutil
 import subprocess
 import sys
 import time
@@ -59,6 +64,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 README = ROOT / "README.md"
+#: the kinecal that forks each command from a process with kinecal imported
+SERVER = Path(__file__).with_name("docs_server.py")
 #: the README section tests/test_readme_tutorial.py runs
 README_TUTORIAL = "## A five-minute tutorial"
 
@@ -111,13 +118,15 @@ class Page:
 
     @property
     def name(self) -> str:
-        return self.path.relative_to(ROOT).as_posix()
+        return (self.path.relative_to(ROOT).as_posix() if ROOT in self.path.parents
+                else self.path.name)
 
 
-def parse(path: Path) -> Page:
-    """The fenced blocks of a page, each with the markers written since the block before."""
+def parse(path: Path, runnable: bool = True) -> Page:
+    """The fenced blocks of a page, each with the markers written since the block before
+    (`runnable`: without the README's tutorial, which tests/test_readme_tutorial.py runs)."""
     lines = path.read_text(encoding="utf-8").splitlines()
-    if path == README:  # its tutorial is run by tests/test_readme_tutorial.py
+    if path == README and runnable:
         start = next((i for i, ln in enumerate(lines) if ln.startswith(README_TUTORIAL)), None)
         if start is not None:
             end = next((i for i in range(start + 1, len(lines))
@@ -267,13 +276,24 @@ def console_steps(text: str) -> list[tuple[str, list[str]]]:
     return steps
 
 
-def environment(bin_dir: Path) -> dict[str, str]:
+def environment(bin_dir: Path, server: str | None = None) -> dict[str, str]:
     """This checkout's ``kinecal``, ``python`` and ``python3`` first on the PATH; stdout
-    unbuffered, so that stdout and stderr interleave as on a terminal."""
+    unbuffered, so that stdout and stderr interleave as on a terminal. With `server` (the
+    socket of tests/docs_server.py) ``kinecal`` is its client, else a fresh interpreter."""
     bin_dir.mkdir(parents=True, exist_ok=True)
     exe = bin_dir / "kinecal"
-    exe.write_text(f'#!/bin/sh\nexec "{sys.executable}" -c '
-                   f'"from kinecal.cli import main; main()" "$@"\n', encoding="utf-8")
+    if server is None:
+        exe.write_text(f'#!/bin/sh\nexec "{sys.executable}" -c '
+                       f'"from kinecal.cli import main; main()" "$@"\n', encoding="utf-8")
+    else:
+        spec = importlib.util.spec_from_file_location("docs_server", SERVER)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        exe.write_text(module.client_script(sys.executable, server), encoding="utf-8")
+        python = bin_dir / "docs-python"  # the python blocks (not a `python` of the page)
+        python.write_text(module.client_script(sys.executable, server, "python"),
+                          encoding="utf-8")
+        python.chmod(0o755)
     exe.chmod(0o755)
     for name in ("python", "python3"):
         link = bin_dir / name
@@ -346,7 +366,8 @@ def run_page(page: Page, folder: Path, env: dict[str, str]) -> PageRun:
                 continue
             script = folder / f".docs-block-{block.line}.py"
             script.write_text(block.text, encoding="utf-8")
-            code, text = _run([sys.executable, script.name], folder, env)
+            python = shutil.which("docs-python", path=env["PATH"]) or sys.executable
+            code, text = _run([python, script.name], folder, env)
             script.unlink()
         else:
             out.commands += sum(1 for ln in block.text.splitlines()
@@ -411,7 +432,12 @@ def walkthroughs(request, tmp_path_factory) -> dict[str, PageRun]:
     """Run the selected pages, `WORKERS` at a time; their outcomes by page name."""
     selected = [item.callspec.params["name"] for item in request.session.items
                 if getattr(item, "originalname", None) == "test_walkthrough_runs_as_written"]
-    env = environment(tmp_path_factory.mktemp("bin"))
+    bin_dir = tmp_path_factory.mktemp("bin")
+    env = environment(bin_dir)
+    server = None
+    if not os.environ.get("KINECAL_DOCS_PLAIN") and selected:
+        server = _start_server(bin_dir / "kinecal.sock", env)
+        env = environment(bin_dir, str(bin_dir / "kinecal.sock"))
     todo = []
     for name in selected:
         page = parse(ROOT / name)
@@ -427,8 +453,28 @@ def walkthroughs(request, tmp_path_factory) -> dict[str, PageRun]:
         folder = tmp_path_factory.mktemp(page.path.stem)
         return page.name, run_page(page, folder, env)
 
-    with ThreadPoolExecutor(WORKERS) as pool:
-        return dict(pool.map(one, todo))
+    try:
+        with ThreadPoolExecutor(WORKERS) as pool:
+            return dict(pool.map(one, todo))
+    finally:
+        if server is not None:
+            server.terminate()
+            server.wait(timeout=30)
+
+
+def _start_server(address: Path, env: dict[str, str]) -> subprocess.Popen:
+    """tests/docs_server.py serving `address` (its start-up: about a second)."""
+    log = address.with_suffix(".log")
+    with open(log, "wb") as fh:
+        proc = subprocess.Popen([sys.executable, str(SERVER), str(address)], env=env,
+                                stdin=subprocess.DEVNULL, stdout=fh, stderr=fh)
+    deadline = time.monotonic() + 120
+    while not address.exists():
+        if proc.poll() is not None or time.monotonic() > deadline:
+            proc.kill()
+            raise RuntimeError("docs server did not start:\n" + log.read_text())
+        time.sleep(0.05)
+    return proc
 
 
 @pytest.mark.parametrize("name", PAGE_NAMES)
@@ -451,7 +497,13 @@ def test_every_block_says_what_it_is_and_every_marker_why():
     prompt outside a console block, and every marker with a reason."""
     bad = []
     for path in pages():
-        page = parse(path)
+        page = parse(path, runnable=False)
+        inside = False
+        for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+            if FENCE.match(line):
+                inside = not inside
+            elif not inside and re.match(r"( {4}|\t)(\$ )?kinecal ", line):
+                bad.append(f"{page.name}:{n}: an indented command: fence it (```sh)")
         for b in page.blocks:
             where = f"{page.name}:{b.line}"
             if not b.lang:
@@ -494,3 +546,27 @@ def test_the_comparison_rules():
     assert page.name == "README.md"
     steps = console_steps("$ kinecal a \\\n    --b 1\nout\n$ echo $?\n2\n")
     assert steps == [("kinecal a \\\n    --b 1", ["out"]), ("echo $?", ["2"])]
+
+
+def test_a_page_that_goes_wrong_fails(tmp_path):
+    """The runner itself: a shown output that differs, a failing block, an unexpected
+    status and a skipped block are each reported (plain interpreters, cheap commands)."""
+    page = tmp_path / "page.md"
+    page.write_text(
+        "# t\n\n```sh\nprintf 'a,b\\n1,2\\n' > f.csv\necho made\n```\n\nprints:\n\n"
+        "```text\nmade\n```\n\n```console\n$ cat f.csv\na,b\n1,2\n$ kinecal --version\n"
+        "kinecal ...\n```\n\n<!-- docs-test: skip it would fail, on purpose -->\n"
+        "```sh\nfalse\n```\n\n```python\nprint(open('f.csv').read().split()[1])\n```\n"
+        "```text\n1,2\n```\n", encoding="utf-8")
+    env = environment(tmp_path / "bin")
+    run = run_page(parse(page), tmp_path, env)
+    assert run.failures == [] and run.skipped == [f"{parse(page).name}:23: it would fail, "
+                                                  "on purpose"], run
+    assert run.commands == 2
+    for old, new in (("made\n```", "maid\n```"), ("1,2\n$", "1,3\n$"),
+                     ("kinecal --version", "kinecal calibrate ur5 missing.csv"),
+                     ("[1])", "[7])")):
+        page.write_text(page.read_text(encoding="utf-8").replace(old, new, 1), "utf-8")
+        assert run_page(parse(page), tmp_path, env).failures, old
+        page.write_text(page.read_text(encoding="utf-8").replace(new, old, 1), "utf-8")
+

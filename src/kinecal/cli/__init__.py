@@ -173,6 +173,10 @@ def main(argv: list[str] | None = None) -> int:
         code = 130
     except BrokenPipeError:
         code = 0
+    except SystemExit as exc:  # typer ends a broken stdout pipe (`kinecal ... | head`) with 1
+        if type(sys.stdout).__name__ != "PacifyFlushWrapper":
+            raise
+        code = 0 if exc.code == 1 else exc.code
     except OSError as exc:
         if exc.errno in _DISK_ERRNOS:  # the disk, not kinecal nor the input: exit 1
             where = f"{os.fsdecode(exc.filename)}: " if exc.filename else "output: "
