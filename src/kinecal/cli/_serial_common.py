@@ -6,9 +6,13 @@ Reading a calibration result (``fk --params``, ``export``, ``compensate``) is
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import numpy as np
+
 from kinecal.errors import InputError
 
-__all__ = ["POSE_BYTES", "free_option"]
+__all__ = ["POSE_BYTES", "free_option", "parameters_from_result"]
 
 #: peak memory of simulate / identifiability per random pose and per joint (+10): measured
 #: 330 B (irb120, 6 joints) and 580 B with orientations, taken with a margin
@@ -24,3 +28,35 @@ def free_option(free: str) -> str | list[str]:
         raise InputError("expected all, identifiable or comma-separated parameter names",
                          option="--free")
     return names
+
+
+def parameters_from_result(model, path: Path) -> np.ndarray:
+    """`kinecal.io.results.parameters_from_result`, and the identified values checked to
+    describe the same arm (`_check_same_arm`): what ``fk --params``, ``export``,
+    ``compensate`` and ``iso9283 --params`` use."""
+    from kinecal.io.results import parameters_from_result as read
+
+    p = read(model, path)
+    _check_same_arm(model, p, path)
+    return p
+
+
+def _check_same_arm(model, p: np.ndarray, path: Path) -> None:
+    """Refuse identified values that make another arm of `model` (``identified: 1e12``):
+    the lengths a chain accepts, and tool poses within what a calibration changes
+    (`kinecal.compensation.same_arm.check_same_arm`, as compensate checks them)."""
+    import dataclasses
+
+    from kinecal.compensation.same_arm import check_same_arm
+
+    def flange(m):  # markers: the arm up to its flange (the markers' points are lengths)
+        return m if not m.marker_names else dataclasses.replace(
+            m, markers=None, tool=None, joint_limits=np.array(m.joint_limits),
+            tolerances=dict(m.tolerances or {}),
+            fixed=tuple(f for f in m.fixed if not f.startswith("tool.")))
+
+    try:
+        calibrated = model.with_params(p, name=f"{model.name}-calibrated")
+        check_same_arm(flange(model), flange(calibrated))
+    except InputError as exc:
+        raise InputError(exc.message, file=path) from None

@@ -94,11 +94,8 @@ def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None
         raise InputError("file not found", file=spec, option="CALIBRATED")
     if path.suffix.lower() == ".json":
         from kinecal._files import read_json
-        from kinecal.io.results import (
-            model_for_result,
-            parameters_from_result,
-            serial_result_parameters,
-        )
+        from kinecal.cli._serial_common import parameters_from_result
+        from kinecal.io.results import model_for_result, serial_result_parameters
 
         data = read_json(path)
         serial_result_parameters(data, path)
@@ -262,7 +259,7 @@ def compensate_cmd(
         q_file = np.column_stack([table[c] for c in joints]) if joints[0] in table else None
         if q_file is not None:  # radians left in a degree program, as fk and calibrate warn
             check_joint_units(nom, q_file * scale,
-                              "seed joints" if "x" in table else "program joints")
+                              "seed joints" if "x" in table else "program joints", min_rows=1)
         with progress(f"compensate {len(cells)} rows", len(cells), quiet or json_out) as bar:
             done = [0]
 

@@ -76,8 +76,9 @@ def fk(
 ) -> None:
     """Forward kinematics: tool-point positions (CSV on stdout)."""
     from kinecal.calibration.diagnostics.serial import check_joint_limits, check_joint_units
+    from kinecal.cli._serial_common import parameters_from_result
     from kinecal.io.measurements import read_joints, read_markers
-    from kinecal.io.results import model_for_result, parameters_from_result
+    from kinecal.io.results import model_for_result
     from kinecal.spatial import quaternion_from_matrix
 
     with warnings_scope(strict):
@@ -95,5 +96,6 @@ def fk(
     out = T[:, :3, 3]
     if pose:
         out = np.column_stack([out, quaternion_from_matrix(T[:, :3, :3])])
-    lines = [",".join(header)] + [",".join(f"{v:.10g}" for v in row) for row in out]
+    # shortest round-trip digits (repr): what the API computes, bit for bit, in any unit
+    lines = [",".join(header)] + [",".join(map(repr, row)) for row in out.tolist()]
     sys.stdout.write("\n".join(lines) + "\n")

@@ -38,18 +38,23 @@ def as_model(model: Any, what: str = "model") -> SerialModel:
 
 
 def as_measurements(data: Any, model: SerialModel, what: str = "data") -> Any:
-    """`data` itself (`Measurements`, or a list of data sets of several kinds), or the
-    measurements a CSV path or a bundled ``NAME:PART`` holds, read for `model`."""
-    if data is None or isinstance(data, Measurements | list | tuple):
+    """`data` itself (`Measurements`, a measurement set of another kind, or a list of
+    sets), or what a CSV path or a bundled ``NAME:PART`` holds, read for `model` (its kind
+    from its columns, `kinecal.io.kinds.read_kind`; paths in a list too)."""
+    if data is None or isinstance(data, Measurements) or hasattr(data, "kind"):
         return data
     if is_path(data):
-        from kinecal.io.measurements import read_measurements
-
-        return read_measurements(_path(data), model)
-    if hasattr(data, "q") and hasattr(data, "xyz"):
-        return data
+        return _read(data, model)
+    if isinstance(data, list | tuple):
+        return [_read(d, model) if is_path(d) else d for d in data]
     raise TypeError(f"{what}: expected Measurements (kinecal.read_measurements(path, model)), "
                     f"a measurement CSV path or a bundled NAME:PART, got {type(data).__name__}")
+
+
+def _read(spec: Any, model: SerialModel) -> Any:
+    from kinecal.io.kinds import read_kind
+
+    return read_kind(_path(spec), model)
 
 
 def as_calibrated(calibrated: Any, nominal: Any = None) -> Any:
