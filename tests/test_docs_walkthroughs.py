@@ -29,7 +29,8 @@ Markers (HTML comments, invisible on the rendered page) say what cannot run here
 with the reason, and the test reports them:
 
 * ``<!-- docs-test: skip REASON -->`` just before a block: the block is not run;
-* ``<!-- docs-test: skip-page REASON -->`` anywhere: the page is not run (a pytest skip);
+* ``<!-- docs-test: skip-page REASON -->`` anywhere: the page is not run (a pytest skip;
+  a page whose walkthrough another test runs names that test, which must name the page);
 * ``<!-- docs-test: requires MODULE[,MODULE...] REASON -->`` before a block, or
   ``requires-page`` anywhere: run only where those modules import, else skipped with the
   reason;
@@ -295,10 +296,10 @@ def environment(bin_dir: Path, server: str | None = None) -> dict[str, str]:
                           encoding="utf-8")
         python.chmod(0o755)
     exe.chmod(0o755)
-    for name in ("python", "python3"):
-        link = bin_dir / name
-        if not link.exists():
-            link.symlink_to(sys.executable)
+    for name in ("python", "python3"):  # a script, not a link: a link to a venv's python
+        script = bin_dir / name         # is not that venv's (no site-packages)
+        script.write_text(f'#!/bin/sh\nexec "{sys.executable}" "$@"\n', encoding="utf-8")
+        script.chmod(0o755)
     env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}",
                PYTHONPATH=str(ROOT / "src"), COLUMNS="100", MPLBACKEND="Agg",
                PYTHONDONTWRITEBYTECODE="1", PYTHONUNBUFFERED="1")
@@ -522,6 +523,9 @@ def test_every_block_says_what_it_is_and_every_marker_why():
                 bad.append(f"{page.name}: unknown marker {kind!r}")
             elif len(reason.split()) < 3:
                 bad.append(f"{page.name}: marker {kind} without a reason")
+            for test in re.findall(r"tests/[\w/]+\.py", reason):  # run by another test
+                if path.name not in (ROOT / test).read_text(encoding="utf-8"):
+                    bad.append(f"{page.name}: {test} does not run this page")
     assert bad == []
 
 

@@ -124,8 +124,7 @@ def test_help_choices_are_the_valid_values(capsys, monkeypatch):
     assert list(CALIBRATION_METHOD_CHOICES[:-1]) == plain
     assert CALIBRATION_METHOD_CHOICES[-1] == "hybrid-<metaheuristic>"
     assert tuple(HANDEYE_METHODS) == tuple(METHODS) and UNITS == DISPLAY_UNITS
-    assert "[urdf|yaml]" in _help("export", capsys, monkeypatch) and FORMATS == ("urdf",
-                                                                                 "yaml")
+    assert "[" + "|".join(FORMATS) + "]" in _help("export", capsys, monkeypatch)
     assert "[" + "|".join(PAPERS) + "]" in _help("reproduce", capsys, monkeypatch)
     assert "[" + "|".join(plain) in _help("calibrate", capsys, monkeypatch)
 
@@ -163,6 +162,7 @@ MISSING = [
 def test_one_wording_for_a_missing_file(argv, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "j.csv").write_text("q1,q2,q3,q4,q5,q6\n0,0,0,0,0,0\n")
+    (tmp_path / "x.csv").write_text("q1,q2,q3,q4,q5,q6,x,y,z\n0,0,0,0,0,0,1,2,3\n")
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert re.fullmatch(r"kinecal: error: nope\.\w+(, option [-\w]+)?: file not found"
