@@ -239,9 +239,10 @@ def test_coverage_only_where_it_means_something(tmp_path, capsys):
     jobs.write_text("study: {model: irb120, methods: [lm], seeds: 2, noise: [0.02], "
                     "poses: [20]}\n")  # errors: random, the default
     out = tmp_path / "out"
-    assert main(["batch", str(jobs), "--out", str(out), "--workers", "1", "--quiet"]) == 0
-    err = capsys.readouterr().err
-    assert "coverage.csv is not written" in err and "[coverage-not-estimable]" in err
+    assert main(["batch", str(jobs), "--out", str(out), "--workers", "1"]) == 0
+    cap = capsys.readouterr()
+    assert "(no coverage table: jobs with errors: random have errors on parameters" in cap.out
+    assert "warning" not in cap.err  # clean simulated jobs: no warning
     assert (out / "study.csv").exists() and not (out / "coverage.csv").exists()
 
 

@@ -141,25 +141,21 @@ def _run(jobs, jobs_file: Path, out: Path, executor: str, scheduler: str | None,
             raise typer.Exit(143 if isinstance(exc, Terminated) else 130) from None
 
 
-def _check_coverage(results: list[dict]) -> None:
-    """Warn (``coverage-not-estimable``) about the simulated jobs whose truth cannot check
-    their standard errors (``errors: random``): coverage.csv leaves them out."""
+def _coverage_note(results: list[dict]) -> str | None:
+    """Why coverage.csv leaves out simulated jobs (``errors: random``: parameters held at
+    nominal are off too, their errors land in confounded partners, so the identified
+    values cannot check the standard errors), or None when it leaves none out."""
     from kinecal.batch.tables import COVERAGE_ERRORS, coverage_estimable
-    from kinecal.cli._common import warnings_scope
-    from kinecal.diagnostics import warn
 
     left = [r for r in results if r.get("truth") and not coverage_estimable(r)]
     if not left:
-        return
-    what = ("coverage.csv is not written" if len(left) == len(results) else
-            f"coverage.csv leaves out those {len(left)} of {len(results)} jobs")
-    with warnings_scope():
-        warn("coverage-not-estimable",
-             f"{len(left)} simulated jobs use errors: "
-             f"{(left[0].get('job') or {}).get('errors', 'random')}: parameters held at nominal "
-             "are off too and their errors land in confounded partners, so the identified "
-             f"values cannot check the standard errors; {what} (a coverage study needs errors: "
-             f"{' or '.join(COVERAGE_ERRORS)})")
+        return None
+    what = ("no coverage table" if len(left) == len(results) else
+            f"the coverage table leaves out {len(left)} of {len(results)} jobs")
+    return (f"({what}: jobs with errors: {(left[0].get('job') or {}).get('errors', 'random')}"
+            " have errors on parameters the poses cannot identify, so their standard errors "
+            f"cannot be checked against the truth; a coverage study needs errors: "
+            f"{' or '.join(COVERAGE_ERRORS)}, docs/batch.md)")
 
 
 def _print_results(records, out: Path, quiet: bool) -> None:
@@ -184,7 +180,6 @@ def _print_results(records, out: Path, quiet: bool) -> None:
         write_table_csv(out / "study.csv", rows)
         results = load_results(out, simulated)
         cov = coverage_table(results)
-        _check_coverage(results)
         if cov:
             write_table_csv(out / "coverage.csv", cov)
         if not quiet:
@@ -193,3 +188,6 @@ def _print_results(records, out: Path, quiet: bool) -> None:
             if cov:
                 typer.echo("\ncoverage of the 95 % intervals (identified +- 1.96 std):\n"
                            + format_table(cov))
+            note = _coverage_note(results)
+            if note is not None:
+                typer.echo(note)

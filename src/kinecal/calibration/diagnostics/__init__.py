@@ -72,7 +72,4 @@ CODES: dict[str, str] = {
     "no-marker-column": "a model with several markers, a measurement file without marker column",
     "urdf-joint-limits": "a URDF revolute joint without usable limits",
     "joint-errors-not-exported": "joint-error terms left out of a URDF export (geometry only)",
-    # batch studies
-    "coverage-not-estimable": "a study's truths make the coverage of the standard errors "
-                              "meaningless (errors: random); no coverage.csv for those jobs",
 }
