@@ -101,7 +101,7 @@ def test_handeye_and_stewart_results(tmp_path, capsys):
 
 def test_a_result_of_another_kind_is_named(tmp_path):
     with pytest.raises(InputError, match="a hand-eye calibration result"):
-        from kinecal.io.results import parameters_from_result
+        from kinecal.io.result_values import parameters_from_result
 
         path = tmp_path / "x.json"
         path.write_text(json.dumps({"X": np.eye(4).tolist()}))

@@ -1,7 +1,7 @@
 """Helpers shared by the serial-arm command modules (``fk``, ``simulate``, ``calibrate``).
 
 Reading a calibration result (``fk --params``, ``export``, ``compensate``) is
-`kinecal.io.results`. No command is registered here: importing it loads no command module.
+`kinecal.io.result_values`. No command is registered here: importing it loads no command module.
 """
 
 from __future__ import annotations
@@ -31,10 +31,10 @@ def free_option(free: str) -> str | list[str]:
 
 
 def parameters_from_result(model, path: Path) -> np.ndarray:
-    """`kinecal.io.results.parameters_from_result`, and the identified values checked to
+    """`kinecal.io.result_values.parameters_from_result`, and the identified values checked to
     describe the same arm (`_check_same_arm`): what ``fk --params``, ``export``,
     ``compensate`` and ``iso9283 --params`` use."""
-    from kinecal.io.results import parameters_from_result as read
+    from kinecal.io.result_values import parameters_from_result as read
 
     p = read(model, path)
     _check_same_arm(model, p, path)

@@ -95,7 +95,7 @@ def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None
     if path.suffix.lower() == ".json":
         from kinecal._files import read_json
         from kinecal.cli._serial_common import parameters_from_result
-        from kinecal.io.results import model_for_result, serial_result_parameters
+        from kinecal.io.result_values import model_for_result, serial_result_parameters
 
         data = read_json(path)
         serial_result_parameters(data, path)

@@ -76,7 +76,7 @@ def model_and_params(source: str, nominal: str | None, base_link: str | None,
     """
     from kinecal._files import read_json
     from kinecal.cli._serial_common import parameters_from_result
-    from kinecal.io.results import model_for_result, serial_result_parameters
+    from kinecal.io.result_values import model_for_result, serial_result_parameters
 
     if not source.lower().endswith(".json"):
         if nominal is not None:

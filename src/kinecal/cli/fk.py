@@ -78,7 +78,7 @@ def fk(
     from kinecal.calibration.diagnostics.serial import check_joint_limits, check_joint_units
     from kinecal.cli._serial_common import parameters_from_result
     from kinecal.io.measurements import read_joints, read_markers
-    from kinecal.io.results import model_for_result
+    from kinecal.io.result_values import model_for_result
     from kinecal.spatial import quaternion_from_matrix
 
     with warnings_scope(strict):

@@ -123,7 +123,7 @@ def iso9283_cmd(
         before = None
         if params is not None:
             from kinecal.cli._serial_common import parameters_from_result
-            from kinecal.io.results import model_for_result
+            from kinecal.io.result_values import model_for_result
 
             m = model_for_result(m, params)
             before = iso9283(data, [])
