@@ -6,7 +6,7 @@ Every optimizer gets the same number of objective evaluations (``2000 n`` in ``n
 on the same problem instances: shifted (and for two functions rotated) standard test functions
 whose shift vector and rotation matrix are drawn from the run's seed, so that no setting is
 tuned to one instance. The table gives the median over seeds of the best cost found (every
-function's minimum is 0).
+function's minimum is 0); the ratios to the best peer count costs below 1e-8 as solved.
 
 - kinecal: ``pso`` (constriction PSO), ``de`` (JADE-style adaptive DE), ``ga`` (SBX GA) with
   their defaults, and the papers' variants ``pso-liu2008``, ``de-storn1997``, ``ga-hu2005``.
@@ -17,7 +17,9 @@ function's minimum is 0).
 - scipy ``differential_evolution`` with its defaults (``best1bin``, ``popsize = 15``,
   ``mutation = (0.5, 1)``, ``recombination = 0.7``, Latin hypercube start, immediate updating)
   except ``tol = atol = 0`` (no early stop, the whole budget is used) and ``polish = False``
-  (polishing would spend evaluations outside the budget).
+  (polishing would spend evaluations outside the budget); and the same with ``popsize = 5``
+  (``5 n`` individuals, as kinecal's ``de``: more generations within the budget), vectorized
+  (``updating="deferred"``, scipy's documented batch path).
 - mealpy ``GA.BaseGA`` with its defaults (100 individuals, ``pc = 0.95``, ``pm = 0.025``,
   tournament with ``k_way = 0.2``, uniform crossover, flip mutation).
 
@@ -59,6 +61,9 @@ except ImportError:  # optional peer
 
 Vectorized = Callable[[np.ndarray], np.ndarray]
 BUDGET_PER_DIM = 2000
+#: costs below this count as solved (the CEC convention: errors < 1e-8 are taken as 0), so two
+#: solved medians have the ratio 1 however many digits beyond it either reached
+SOLVED = 1e-8
 
 
 # -- problems: (P, n) -> (P,), minimum 0 at the shift --------------------------------------------
@@ -154,7 +159,7 @@ def run_kinecal(method: str, p: Problem, budget: int, seed: int) -> float:
     return float(res.fun)
 
 
-def pso_particles(n: int) -> int:
+def pso_particles() -> int:
     """Swarm size of kinecal's ``pso`` default, also given to pyswarms."""
     return int(get_method("pso").defaults["popsize"])
 
@@ -162,7 +167,7 @@ def pso_particles(n: int) -> int:
 def run_pyswarms(options: dict[str, float], p: Problem, budget: int, seed: int) -> float | None:
     if pyswarms is None:
         return None
-    P = pso_particles(p.n)
+    P = pso_particles()
     np.random.seed(seed)  # noqa: NPY002 (pyswarms only draws from the global state)
     opt = GlobalBestPSO(n_particles=P, dimensions=p.n, options=dict(options),
                         bounds=(np.full(p.n, -p.half), np.full(p.n, p.half)))
@@ -175,6 +180,14 @@ def run_scipy_de(p: Problem, budget: int, seed: int) -> float:
     res = differential_evolution(scalar(p.fun), [(-p.half, p.half)] * p.n,
                                  maxiter=budget // pop - 1, tol=0.0, atol=0.0, polish=False,
                                  rng=seed)
+    return float(res.fun)
+
+
+def run_scipy_de_small(p: Problem, budget: int, seed: int) -> float:
+    pop = 5 * p.n
+    res = differential_evolution(lambda XT: p.fun(XT.T), [(-p.half, p.half)] * p.n, popsize=5,
+                                 maxiter=budget // pop - 1, tol=0.0, atol=0.0, polish=False,
+                                 vectorized=True, updating="deferred", rng=seed)
     return float(res.fun)
 
 
@@ -202,6 +215,7 @@ RUNNERS: dict[str, Callable[[Problem, int, int], float | None]] = {
     "kinecal de": lambda p, b, s: run_kinecal("de", p, b, s),
     "kinecal de-storn1997": lambda p, b, s: run_kinecal("de-storn1997", p, b, s),
     "scipy differential_evolution (defaults)": run_scipy_de,
+    "scipy differential_evolution (popsize 5, vectorized)": run_scipy_de_small,
     "kinecal ga": lambda p, b, s: run_kinecal("ga", p, b, s),
     "kinecal ga-hu2005": lambda p, b, s: run_kinecal("ga-hu2005", p, b, s),
     "mealpy BaseGA (defaults)": run_mealpy_ga,
@@ -210,7 +224,8 @@ RUNNERS: dict[str, Callable[[Problem, int, int], float | None]] = {
 TARGETS = {
     "kinecal pso": ("pyswarms GlobalBestPSO (docs options)",
                     "pyswarms GlobalBestPSO (w 0.7298, c 1.49618)"),
-    "kinecal de": ("scipy differential_evolution (defaults)",),
+    "kinecal de": ("scipy differential_evolution (defaults)",
+                   "scipy differential_evolution (popsize 5, vectorized)"),
     "kinecal ga": ("mealpy BaseGA (defaults)",),
 }
 
@@ -257,7 +272,8 @@ def tables(out: dict, dims: list[int], functions: list[str], rows: list[str],
             cells = [fmt(med.get((row, n, f))) for f in functions]
             lines.append(f"| {row} | " + " | ".join(cells) + " |")
         lines += ["", f"Ratio of kinecal's default to the best peer median ({n}-D; <= 2 is the "
-                      "issue's target, < 1 is better than the peer):", "",
+                      "issue's target, < 1 is better than the peer; medians below "
+                      f"{SOLVED:g} count as {SOLVED:g}, i.e. solved):", "",
                   f"| kinecal | {' | '.join(functions)} |", "|---|" + "---:|" * len(functions)]
         for row, peers in TARGETS.items():
             if row not in rows:
@@ -269,8 +285,7 @@ def tables(out: dict, dims: list[int], functions: list[str], rows: list[str],
                 if mine is None or not ref:
                     cells.append("n/a")
                     continue
-                best = min(ref)
-                r = mine / best if best > 0 else (1.0 if mine == 0 else np.inf)
+                r = max(mine, SOLVED) / max(min(ref), SOLVED)
                 cells.append(f"{r:.2g}" if r >= 0.01 else f"{r:.1e}")
             lines.append(f"| {row.removeprefix('kinecal ')} | " + " | ".join(cells) + " |")
         lines.append("")

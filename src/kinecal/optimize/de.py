@@ -14,8 +14,8 @@ Per generation and target vector ``x_i``:
   (redrawn while ``<= 0``, cut at 1); after each generation
   ``mu_CR = (1 - c) mu_CR + c mean(S_CR)`` and ``mu_F = (1 - c) mu_F + c lehmer(S_F)`` over the
   ``F, CR`` of the trials that beat their parent (``lehmer = sum F^2 / sum F``);
-- the archive keeps the parents beaten by their trial, at most ``archive * NP`` of them
-  (random ones removed beyond that).
+- the archive keeps the parents beaten by their trial, at most ``archive * NP`` of them (once
+  it is full, each newcomer replaces a random member).
 
 ``de-storn1997`` (:class:`ClassicDE`): Storn, R., Price, K. (1997), "Differential Evolution - A
 Simple and Efficient Heuristic for Global Optimization over Continuous Spaces", J. Global Optim.
@@ -38,7 +38,14 @@ from typing import Any, ClassVar
 import numpy as np
 
 from kinecal.errors import InputError
-from kinecal.optimize._common import Optimizer, as_int, as_positive, as_probability, distinct_others
+from kinecal.optimize._common import (
+    Optimizer,
+    as_int,
+    as_positive,
+    as_probability,
+    clip_unit,
+    distinct_others,
+)
 
 __all__ = ["STRATEGIES", "AdaptiveDE", "ClassicDE", "lehmer_mean", "other_than"]
 
@@ -138,10 +145,10 @@ def other_than(
     -------
     numpy.ndarray of int, shape (m,)
     """
-    r = rng.integers(0, size, size=a.size)
+    r = (rng.random(a.size) * size).astype(np.intp)
     bad = (r == a) | (r == b)
-    while bad.any():
-        r[bad] = rng.integers(0, size, size=int(bad.sum()))
+    while k := np.count_nonzero(bad):
+        r[bad] = (rng.random(k) * size).astype(np.intp)
         bad = (r == a) | (r == b)
     return r
 
@@ -192,13 +199,13 @@ class AdaptiveDE(Optimizer):
         """Draw ``F`` (Cauchy, redrawn while ``<= 0``, cut at 1) and ``CR`` (normal, clipped),
         each of shape ``(P,)``."""
         rng = self.rng
-        CR = np.clip(self.mu_CR + 0.1 * rng.standard_normal(P), 0.0, 1.0)
+        CR = clip_unit(self.mu_CR + 0.1 * rng.standard_normal(P))
         F = self.mu_F + 0.1 * rng.standard_cauchy(P)
         low = F <= 0.0
-        while low.any():
-            F[low] = self.mu_F + 0.1 * rng.standard_cauchy(int(low.sum()))
+        while k := np.count_nonzero(low):
+            F[low] = self.mu_F + 0.1 * rng.standard_cauchy(k)
             low = F <= 0.0
-        return np.minimum(F, 1.0), CR
+        return np.minimum(F, 1.0, out=F), CR
 
     def adapt(self, F: np.ndarray, CR: np.ndarray) -> None:
         """Move ``mu_F`` and ``mu_CR`` toward the successful ``F`` and ``CR`` (if any)."""
@@ -209,38 +216,57 @@ class AdaptiveDE(Optimizer):
 
     def _steps(self) -> Generator[np.ndarray, np.ndarray, None]:
         rng, P, n = self.rng, self.popsize, self.n
-        X = self.initial_population(P)
-        f = yield X
+        cap = int(self.archive * P)
+        pool = np.empty((P + cap, n))  # the population, then the archive (na rows in use)
+        X = pool[:P]
+        X[:] = self.initial_population(P)
+        f = np.array((yield X.copy()), dtype=float)
         self.population, self.energies = X, f
         rows = np.arange(P)
         top = max(2, round(self.p * P))
-        cap = int(self.archive * P)
-        A = np.empty((0, n))
+        na = 0
         while True:
             F, CR = self.sample_parameters(P)
-            best = np.argsort(f, kind="stable")[:top]
-            pb = best[rng.integers(0, top, size=P)]
-            r1 = distinct_others(rng, P, 1)[:, 0]
-            XA = np.concatenate([X, A]) if A.shape[0] else X
-            r2 = other_than(rng, XA.shape[0], rows, r1)
-            Fc = F[:, None]
-            V = X + Fc * (X[pb] - X) + Fc * (X[r1] - XA[r2])
-            low, high = V < 0.0, V > 1.0
-            if low.any() or high.any():  # halfway between the parent and the bound
-                V = np.where(low, 0.5 * X, V)
-                V = np.where(high, 0.5 * (1.0 + X), V)
+            w = rng.random((3, P))  # floor(w k): uniform in 0 .. k - 1
+            pb = np.argsort(f, kind="stable")[(w[0] * top).astype(np.intp)]
+            r1 = rows + 1 + (w[1] * (P - 1)).astype(np.intp)  # uniform over the others
+            r1[r1 >= P] -= P
+            r2 = other_than(rng, P + na, rows, r1)
+            V = X[pb]  # v = x + F (x_pbest - x) + F (x_r1 - x~_r2)
+            V -= X
+            V += X[r1]
+            V -= pool[r2]
+            V *= F[:, None]
+            V += X
+            out = V < 0.0  # halfway between the parent and the bound
+            if np.count_nonzero(out):
+                V[out] = 0.5 * X[out]
+            out = V > 1.0
+            if np.count_nonzero(out):
+                V[out] = 0.5 * (1.0 + X[out])
             cross = rng.random((P, n)) < CR[:, None]
-            cross[rows, rng.integers(0, n, size=P)] = True
+            cross[rows, (w[2] * n).astype(np.intp)] = True
             U = np.where(cross, V, X)
             fu = yield U
             won = fu < f
-            if cap and won.any():
-                A = np.concatenate([A, X[won]])
-                if A.shape[0] > cap:
-                    A = A[rng.permutation(A.shape[0])[:cap]]
-            self.adapt(F[won], CR[won])
+            if np.count_nonzero(won):
+                if cap:
+                    na = self._archive(pool, P, na, X[won])
+                self.adapt(F[won], CR[won])
             keep = fu <= f
-            X = np.where(keep[:, None], U, X)
-            f = np.where(keep, fu, f)
-            self.population, self.energies = X, f
+            np.copyto(X, U, where=keep[:, None])
+            np.copyto(f, fu, where=keep)
             self.nit += 1
+
+    def _archive(self, pool: np.ndarray, P: int, na: int, beaten: np.ndarray) -> int:
+        """Add the beaten parents to the archive rows ``pool[P:]``; once full, each new one
+        replaces a random member. Returns the archive's new size."""
+        cap = pool.shape[0] - P
+        k = beaten.shape[0]
+        free = min(cap - na, k)
+        if free:
+            pool[P + na : P + na + free] = beaten[:free]
+            na += free
+        if k > free:
+            pool[P + self.rng.integers(0, cap, size=k - free)] = beaten[free:]
+        return na

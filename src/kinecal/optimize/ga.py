@@ -45,7 +45,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from kinecal.errors import InputError
-from kinecal.optimize._common import Optimizer, as_int, as_positive, as_probability
+from kinecal.optimize._common import Optimizer, as_int, as_positive, as_probability, clip_unit
 
 __all__ = [
     "SBXGA",
@@ -81,6 +81,9 @@ def tournament(rng: np.random.Generator, f: np.ndarray, m: int, k: int) -> np.nd
     return contestants[np.arange(m), winner]
 
 
+_BOUNDS = np.array([[0.0], [1.0]])
+
+
 def sbx(
     a: np.ndarray, b: np.ndarray, eta: float, pc: float, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -109,24 +112,33 @@ def sbx(
     c1, c2 : numpy.ndarray, shape (H, n)
     """
     H, n = a.shape
-    r = rng.random((4, H, n))
-    do = (r[0] < 0.5) & (rng.random((H, 1)) < pc) & (np.abs(a - b) > 1e-14)
-    y1, y2 = np.minimum(a, b), np.maximum(a, b)
-    d = np.where(do, y2 - y1, 1.0)
-    e = 1.0 / (eta + 1.0)
-    u = r[1]
-
-    def spread(beta: np.ndarray) -> np.ndarray:
-        alpha = 2.0 - beta ** -(eta + 1.0)
-        ua = u * alpha
-        return np.where(u <= 1.0 / alpha, ua, 1.0 / (2.0 - ua)) ** e
-
-    mid = y1 + y2
-    k1 = np.clip(0.5 * (mid - spread(1.0 + 2.0 * y1 / d) * d), 0.0, 1.0)
-    k2 = np.clip(0.5 * (mid + spread(1.0 + 2.0 * (1.0 - y2) / d) * d), 0.0, 1.0)
-    swap = r[2] < 0.5
-    c1 = np.where(do, np.where(swap, k2, k1), a)
-    c2 = np.where(do, np.where(swap, k1, k2), b)
+    do = rng.random((H, n)) < 0.5
+    do &= rng.random((H, 1)) < pc
+    do &= np.abs(a - b) > 1e-14
+    c1, c2 = a.copy(), b.copy()
+    if not np.count_nonzero(do):
+        return c1, c2
+    p, q = a[do], b[do]
+    r = rng.random((2, p.size))  # u, and the order of the two children
+    y = np.empty((2, p.size))  # both children at once: y1 = min, y2 = max of the parents
+    np.minimum(p, q, out=y[0])
+    np.maximum(p, q, out=y[1])
+    half = 0.5 * (y[1] - y[0])
+    beta = np.subtract(_BOUNDS, y)  # distance to the near bound: y1 - 0, 1 - y2
+    np.abs(beta, out=beta)
+    beta /= half  # 2 (distance) / (y2 - y1)
+    beta += 1.0
+    alpha = 2.0 - beta ** -(eta + 1.0)
+    ua = alpha
+    ua *= r[0]  # u alpha
+    bq = np.where(ua <= 1.0, ua, 1.0 / (2.0 - ua)) ** (1.0 / (eta + 1.0))  # u <= 1 / alpha
+    bq *= half
+    bq[0] *= -1.0
+    bq += 0.5 * (y[0] + y[1])  # children: mid -+ beta_q (y2 - y1) / 2
+    clip_unit(bq)
+    swap = r[1] < 0.5
+    c1[do] = np.where(swap, bq[1], bq[0])
+    c2[do] = np.where(swap, bq[0], bq[1])
     return c1, c2
 
 
@@ -151,19 +163,21 @@ def polynomial_mutation(
     rng : numpy.random.Generator
     """
     mask = rng.random(Y.shape) < pm
-    k = int(mask.sum())
+    k = np.count_nonzero(mask)
     if not k:
         return Y
     y = Y[mask]
     u = rng.random(k)
     e = eta + 1.0
-    lower = u < 0.5
-    dq = np.where(
-        lower,
-        (2.0 * u + (1.0 - 2.0 * u) * (1.0 - y) ** e) ** (1.0 / e) - 1.0,
-        1.0 - (2.0 * (1.0 - u) + 2.0 * (u - 0.5) * y**e) ** (1.0 / e),
-    )
-    Y[mask] = np.clip(y + dq, 0.0, 1.0)
+    # u >= 1/2 is the mirror image (u -> 1 - u, y -> 1 - y, delta_q -> -delta_q) of u < 1/2
+    upper = u >= 0.5
+    sign = np.where(upper, -1.0, 1.0)
+    u = np.where(upper, 1.0 - u, u)
+    z = np.where(upper, y, 1.0 - y)  # 1 - (the distance to the bound moved toward)
+    dq = (2.0 * u + (1.0 - 2.0 * u) * z**e) ** (1.0 / e)
+    dq -= 1.0
+    dq *= sign
+    Y[mask] = clip_unit(y + dq)
     return Y
 
 
