@@ -43,9 +43,9 @@ import numpy as np
 from scipy.optimize import least_squares
 
 import kinecal
-from kinecal.calibration.problem import CalibrationProblem, resolve_free
-from kinecal.calibration.serial import CALIBRATION_RANK_TOL
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.api import CALIBRATION_RANK_TOL
+from kinecal.calibration.serial.problem import CalibrationProblem, resolve_free
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.data import Measurements
 from kinecal.optimize.lsq import levenberg_marquardt
 

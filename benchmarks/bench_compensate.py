@@ -35,9 +35,13 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 
 from kinecal import compensate
-from kinecal.calibration.serial import calibrate
-from kinecal.calibration.simulate import random_configurations, random_errors, simulate
-from kinecal.calibration.stewart import calibrate_stewart, perturb_geometry, simulate_stewart
+from kinecal.calibration.serial.api import calibrate
+from kinecal.calibration.serial.simulate import random_configurations, random_errors, simulate
+from kinecal.calibration.stewart.calibrate import (
+    calibrate_stewart,
+    perturb_geometry,
+    simulate_stewart,
+)
 from kinecal.diagnostics import KinecalWarning
 from kinecal.io.geometry import load_geometry
 from kinecal.io.models import load_model

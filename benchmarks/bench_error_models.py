@@ -32,11 +32,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 
 import kinecal
-from kinecal.calibration.cross_validation import cross_validate, fold_of
-from kinecal.calibration.error_model import calibrate_error_model
-from kinecal.calibration.serial import calibrate
-from kinecal.calibration.simulate import random_configurations, simulate
-from kinecal.kinematics.joint_errors import joint_errors_for
+from kinecal.calibration.serial.api import calibrate
+from kinecal.calibration.serial.cross_validation import cross_validate, fold_of
+from kinecal.calibration.serial.error_model import calibrate_error_model
+from kinecal.calibration.serial.simulate import random_configurations, simulate
+from kinecal.kinematics.serial.joint_errors import joint_errors_for
 
 
 def ur5_data():

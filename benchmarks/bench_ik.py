@@ -5,7 +5,7 @@ values uniform in +-pi), each seeded from its own solution perturbed by N(0, 0.1
 joint (the nominal solution's neighbourhood). Every solver gets the same targets and seeds;
 success is judged the same way for all of them: kinecal's forward kinematics at the
 returned joints within 1e-9 mm and 1e-9 rad of the target (the default tolerance of
-`kinecal.kinematics.ik.solve_ik`), and, in a second pass, within 1e-6 mm / 1e-6 rad.
+`kinecal.kinematics.serial.ik.solve_ik`), and, in a second pass, within 1e-6 mm / 1e-6 rad.
 
 Peers, in the same process:
 
@@ -32,7 +32,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 
 import kinecal
-from kinecal.kinematics.ik import solve_ik
+from kinecal.kinematics.serial.ik import solve_ik
 from kinecal.spatial import pose_errors
 
 TOLERANCES = ((1e-9, 1e-9), (1e-6, 1e-6))  # (mm, rad)

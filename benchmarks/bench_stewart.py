@@ -23,7 +23,7 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.optimize import fsolve, least_squares  # noqa: E402
 
-from kinecal.kinematics.stewart import StewartPlatform  # noqa: E402
+from kinecal.kinematics.stewart.platform import StewartPlatform  # noqa: E402
 
 TABLE3_LEGS = np.array([0.750, 0.780, 0.800, 0.900, 0.870, 0.850])
 

@@ -16,7 +16,7 @@ from kinecal.batch import (
     run_job,
     study_table,
 )
-from kinecal.batch.runner import JobRecord
+from kinecal.batch.records import JobRecord
 from kinecal.batch.tables import Z95
 from kinecal.errors import InputError
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from kinecal.batch import parse_jobs, run_batch, run_job
-from kinecal.batch.runner import JobRecord
+from kinecal.batch.records import JobRecord
 from kinecal.cli import main
 from kinecal.cli.batch import MAX_PRINTED_ROWS, _print_warnings
 from kinecal.errors import InputError

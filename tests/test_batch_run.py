@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from kinecal.batch import load_results, local_executor, parse_jobs, run_batch, run_job
-from kinecal.batch.runner import SUMMARY_COLUMNS
-from kinecal.calibration.simulate import simulate
+from kinecal.batch.records import SUMMARY_COLUMNS
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.io.measurements import write_measurements
 from kinecal.io.models import load_model
 

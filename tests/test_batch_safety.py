@@ -17,7 +17,7 @@ import psutil
 import pytest
 
 from kinecal.batch import parse_jobs, run_batch
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.errors import InputError
 from kinecal.io.measurements import write_measurements
 from kinecal.io.models import load_model

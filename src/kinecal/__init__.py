@@ -6,37 +6,31 @@ command line starts quickly.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
-
+from kinecal._lazy import lazy_exports
 from kinecal.errors import InputError
 
 __version__ = "0.1.0"
 
 _LAZY = {
-    "SerialModel": "kinecal.kinematics.serial",
+    "SerialModel": "kinecal.kinematics.serial.model",
     "load_model": "kinecal.io.models",
     "save_model": "kinecal.io.models",
     "read_measurements": "kinecal.io.measurements",
     "Measurements": "kinecal.data",
-    "simulate": "kinecal.calibration.simulate",
-    "calibrate": "kinecal.calibration.serial",
-    "calibrate_error_model": "kinecal.calibration.error_model",
-    "JointErrors": "kinecal.kinematics.joint_errors",
-    "CalibrationResult": "kinecal.calibration.result",
-    "StewartPlatform": "kinecal.kinematics.stewart",
+    "simulate": "kinecal.calibration.serial.simulate",
+    "calibrate": "kinecal.calibration.serial.api",
+    "calibrate_error_model": "kinecal.calibration.serial.error_model",
+    "JointErrors": "kinecal.kinematics.serial.joint_errors",
+    "CalibrationResult": "kinecal.calibration.serial.result",
+    "StewartPlatform": "kinecal.kinematics.stewart.platform",
     "load_geometry": "kinecal.io.geometry",
     "calibrate_handeye": "kinecal.calibration.handeye",
-    "compensate": "kinecal.calibration.compensate",
+    "compensate": "kinecal.compensation.api",
 }
 
 __all__ = ["InputError", "__version__", *_LAZY]
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'kinecal' has no attribute {name!r}")
+__getattr__, _dir = lazy_exports(__name__, _LAZY)
 
 
 def __dir__() -> list[str]:

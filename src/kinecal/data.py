@@ -1,4 +1,6 @@
-"""In-memory measurement data: joint readings with measured tool-point positions.
+"""In-memory measurement data: joint readings with measured tool-point positions
+(`Measurements`), and repeated measurements of commanded poses (`RepeatedPoses`, the ISO
+9283 tests of `kinecal.metrology.iso9283`).
 
 Readers and writers of the files live in `kinecal.io.measurements`; the type sits below
 both the file layer and the calibration layer, so that neither imports the other.
@@ -14,7 +16,7 @@ from numpy.typing import NDArray
 from kinecal.errors import InputError
 from kinecal.spatial import check_rotation
 
-__all__ = ["Measurements"]
+__all__ = ["Measurements", "RepeatedPoses"]
 
 
 @dataclass(frozen=True)
@@ -87,3 +89,66 @@ class Measurements:
         m = None if self.marker is None else np.asarray(self.marker)[index]
         return Measurements(np.asarray(self.q)[index], np.asarray(self.xyz)[index], w,
                             f"{self.source}[subset]", R, m, self.marker_names)
+
+
+@dataclass(frozen=True)
+class RepeatedPoses:
+    """Measurements of P commanded poses, each measured once in each of n cycles.
+
+    Attributes
+    ----------
+    labels : tuple of str, length P
+        Pose names, in the order of the test.
+    cycles : ndarray of int, shape (n,)
+        Cycle numbers (increasing).
+    measured : ndarray, shape (P, n, 3)
+        Measured positions (length unit), ``measured[i, j]`` pose i in cycle j.
+    commanded : ndarray, shape (P, 3)
+        Commanded positions (length unit).
+    measured_rotations : ndarray, shape (P, n, 3, 3), optional
+        Measured orientations (rotation matrices), None for position-only instruments.
+    commanded_rotations : ndarray, shape (P, 3, 3), optional
+        Commanded orientations.
+    joints : ndarray, shape (P, n_joints), optional
+        Commanded joint values (rad; prismatic: length unit) when the commanded poses come
+        from a model's forward kinematics.
+    length_unit : str
+        Unit of the positions (a label).
+    source : str
+        Where the data came from.
+    """
+
+    labels: tuple[str, ...]
+    cycles: NDArray[np.int64]
+    measured: NDArray[np.float64]
+    commanded: NDArray[np.float64]
+    measured_rotations: NDArray[np.float64] | None = None
+    commanded_rotations: NDArray[np.float64] | None = None
+    joints: NDArray[np.float64] | None = None
+    length_unit: str = "mm"
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        m = np.asarray(self.measured, dtype=float)
+        p = len(self.labels)
+        if m.ndim != 3 or m.shape[0] != p or m.shape[2] != 3:
+            raise InputError(f"measured positions: expected shape ({p}, n, 3), got {m.shape}")
+        n = m.shape[1]
+        shapes = {"cycles": (np.shape(self.cycles), (n,)),
+                  "commanded positions": (np.shape(self.commanded), (p, 3))}
+        if self.measured_rotations is not None:
+            shapes["measured orientations"] = (np.shape(self.measured_rotations), (p, n, 3, 3))
+        if self.commanded_rotations is not None:
+            shapes["commanded orientations"] = (np.shape(self.commanded_rotations), (p, 3, 3))
+        for what, (got, want) in shapes.items():
+            if got != want:
+                raise InputError(f"{what}: expected shape {want}, got {got}")
+        if len(set(self.labels)) != p:
+            raise InputError("pose labels repeat: expected one label per pose")
+        if not (np.isfinite(m).all() and np.isfinite(self.commanded).all()):
+            raise InputError("positions contain NaN or infinite values")
+
+    @property
+    def n_cycles(self) -> int:
+        """Number of cycles n."""
+        return int(np.shape(self.measured)[1])

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import kinecal
-from kinecal.calibration.problem import CalibrationProblem, resolve_free
-from kinecal.calibration.serial import calibrate
-from kinecal.calibration.simulate import read_truth, simulate, write_truth
+from kinecal.calibration.serial.api import calibrate
+from kinecal.calibration.serial.problem import CalibrationProblem, resolve_free
+from kinecal.calibration.serial.simulate import read_truth, simulate, write_truth
 from kinecal.cli import main
 from kinecal.data import Measurements
 from kinecal.errors import InputError

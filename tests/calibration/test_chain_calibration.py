@@ -8,12 +8,12 @@ import numpy as np
 import pinocchio as pin
 
 from kinecal import calibrate, simulate
-from kinecal.calibration.simulate import random_configurations
+from kinecal.calibration.serial.simulate import random_configurations
 from kinecal.cli import main
 from kinecal.io.measurements import write_measurements
 from kinecal.io.models import load_model, save_model
 from kinecal.io.urdf_export import urdf_string
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 
 SIGMA = 0.01  # mm, per coordinate
 

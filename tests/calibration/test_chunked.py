@@ -6,11 +6,11 @@ import scipy.linalg
 import scipy.stats
 
 import kinecal
-import kinecal.calibration.rows as rows_mod
+import kinecal.calibration.serial.rows as rows_mod
 from kinecal.calibration.identifiability import analyse, analyse_factor, pivoted_qr_diagonal
-from kinecal.calibration.problem import CalibrationProblem, analyse_poses
-from kinecal.calibration.simulate import simulate
-from kinecal.calibration.solve import _significant
+from kinecal.calibration.serial.problem import CalibrationProblem, analyse_poses
+from kinecal.calibration.serial.simulate import simulate
+from kinecal.calibration.serial.solve import _significant
 from kinecal.data import Measurements
 from kinecal.optimize.factor import gram_root, qr_update
 

@@ -10,12 +10,12 @@ import pytest
 
 import kinecal
 from kinecal import diagnostics
-from kinecal.calibration.error_model import calibrate_error_model
-from kinecal.calibration.serial import calibrate
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.api import calibrate
+from kinecal.calibration.serial.error_model import calibrate_error_model
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.cli import main
 from kinecal.errors import InputError
-from kinecal.kinematics.joint_errors import joint_errors_for
+from kinecal.kinematics.serial.joint_errors import joint_errors_for
 
 NOISE = 0.01
 

@@ -15,8 +15,8 @@ from kinecal.calibration.diagnostics._common import (
     rigid_rms,
     similarity_fit,
 )
-from kinecal.calibration.serial import calibrate
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.api import calibrate
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.data import Measurements
 from kinecal.diagnostics import KinecalWarning
 from kinecal.errors import InputError

@@ -9,8 +9,8 @@ import pytest
 from kinecal import diagnostics
 from kinecal.calibration.handeye import calibrate_handeye
 from kinecal.calibration.handeye.errors import pose_error
-from kinecal.calibration.poses import random_poses, star_polygon_poses
-from kinecal.calibration.stewart import (
+from kinecal.calibration.handeye.poses import random_poses, star_polygon_poses
+from kinecal.calibration.stewart.calibrate import (
     StewartData,
     calibrate_stewart,
     perturb_geometry,

@@ -7,21 +7,21 @@ import numpy as np
 import pytest
 
 import kinecal
-from kinecal.calibration.cross_validation import (
+from kinecal.calibration.serial.api import calibrate
+from kinecal.calibration.serial.cross_validation import (
     CVScore,
     cross_validate,
     fold_of,
     one_standard_error,
 )
-from kinecal.calibration.error_model import calibrate_error_model, parse_error_model
-from kinecal.calibration.serial import calibrate
-from kinecal.calibration.simulate import random_configurations, simulate
+from kinecal.calibration.serial.error_model import calibrate_error_model, parse_error_model
+from kinecal.calibration.serial.simulate import random_configurations, simulate
 from kinecal.cli import main
 from kinecal.data import Measurements
 from kinecal.diagnostics import expect
 from kinecal.errors import InputError
 from kinecal.io.models import load_model, save_model
-from kinecal.kinematics.joint_errors import joint_errors_for
+from kinecal.kinematics.serial.joint_errors import joint_errors_for
 
 FAMILIES = ("compliance", "harmonic")
 
@@ -318,7 +318,7 @@ def test_urdf_export_warns_that_joint_errors_are_left_out(tmp_path, capsys):
 
 def test_mass_model_compliance_from_the_model_file_is_recovered(ur5, tmp_path):
     """A model file with link masses: one compliance per joint, fitted as the file says."""
-    from kinecal.kinematics.joint_errors import JointErrors, PointMass
+    from kinecal.kinematics.serial.joint_errors import JointErrors, PointMass
 
     spec = JointErrors(compliance=(2, 3, 4), harmonics=1, harmonic_joints=(2,),
                        masses=(PointMass(2, 8.4, (212.5, 0.0, 113.4)),

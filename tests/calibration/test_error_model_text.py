@@ -4,10 +4,10 @@ import dataclasses
 
 import numpy as np
 
-from kinecal.calibration.error_model import calibrate_error_model
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.error_model import calibrate_error_model
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.io.models import load_model
-from kinecal.kinematics.joint_errors import joint_errors_for
+from kinecal.kinematics.serial.joint_errors import joint_errors_for
 
 
 def test_auto_reports_coefficients_without_effect_as_no_effect():

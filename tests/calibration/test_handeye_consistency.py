@@ -9,7 +9,7 @@ import pytest
 
 from kinecal import diagnostics
 from kinecal.calibration.handeye import calibrate_handeye
-from kinecal.calibration.poses import random_poses
+from kinecal.calibration.handeye.poses import random_poses
 from kinecal.cli import main
 from kinecal.cli._common import resolve_data_path
 from kinecal.errors import InputError

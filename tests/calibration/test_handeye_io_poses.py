@@ -9,7 +9,7 @@ import pytest
 
 from kinecal import InputError
 from kinecal.calibration.handeye import calibrate_handeye
-from kinecal.calibration.poses import (
+from kinecal.calibration.handeye.poses import (
     flange_poses,
     random_poses,
     star_polygon_poses,

@@ -36,7 +36,7 @@ def test_pieces_deterministic_and_render(tmp_path):
 def test_noise_free_measurements_recover_truth():
     """The simulated set-up is consistent: without noise Tsai on the scheme is exact."""
     from kinecal.calibration.handeye import solve
-    from kinecal.calibration.poses import star_polygon_poses
+    from kinecal.calibration.handeye.poses import star_polygon_poses
     from kinecal.spatial import invert_transform
 
     cam = star_polygon_poses(380.0, 60.0, 19)

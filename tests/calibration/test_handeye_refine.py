@@ -8,9 +8,9 @@ import pytest
 from kinecal.calibration.handeye import calibrate_handeye
 from kinecal.calibration.handeye._motions import motion_pairs
 from kinecal.calibration.handeye.errors import pose_error
+from kinecal.calibration.handeye.poses import star_polygon_poses
 from kinecal.calibration.handeye.refine import camera_residuals
 from kinecal.calibration.handeye.refine_meta import axxb_fitness
-from kinecal.calibration.poses import star_polygon_poses
 from kinecal.spatial import (
     invert_transform,
     matrix_from_axis_angle,

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinecal.calibration.serial import calibrate
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.api import calibrate
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.errors import InputError
 from kinecal.io.models import load_model
 from kinecal.optimize.hybrid import hybrid_methods, hybrid_minimize

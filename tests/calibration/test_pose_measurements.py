@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import kinecal
-from kinecal.calibration.problem import CalibrationProblem
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.problem import CalibrationProblem
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.cli import main
 from kinecal.errors import InputError
 from kinecal.io.measurements import read_measurements, write_measurements

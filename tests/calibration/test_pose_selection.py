@@ -4,9 +4,9 @@ import numpy as np
 
 import kinecal
 from kinecal.calibration.identifiability import observability_indices
-from kinecal.calibration.pose_selection import _blocks, select_poses
-from kinecal.calibration.problem import resolve_free
-from kinecal.calibration.simulate import random_configurations, simulate
+from kinecal.calibration.serial.pose_selection import _blocks, select_poses
+from kinecal.calibration.serial.problem import resolve_free
+from kinecal.calibration.serial.simulate import random_configurations, simulate
 from kinecal.cli import main
 
 
@@ -50,7 +50,7 @@ def test_markers_every_marker_is_measured_and_observable(tmp_path, capsys):
     """A model with three markers: each candidate is one configuration measured at every
     marker (as simulate does), so every marker's tool point is identifiable and the
     selection maximises the information of all of them."""
-    from kinecal.calibration.pose_selection import candidate_measurements, marker_rows
+    from kinecal.calibration.serial.pose_selection import candidate_measurements, marker_rows
     from kinecal.io.models import save_model
 
     points = {"A": [0.0, 0.0, 31.0], "B": [52.0, -3.0, 20.0], "C": [-4.0, 61.0, 25.0]}

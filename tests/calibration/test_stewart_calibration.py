@@ -5,17 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinecal.calibration.stewart import calibrate_stewart
-from kinecal.calibration.stewart_data import (
+from kinecal.calibration.stewart.calibrate import calibrate_stewart
+from kinecal.calibration.stewart.data import (
     ARCSEC,
     StewartData,
     perturb_geometry,
     simulate_stewart,
 )
-from kinecal.calibration.stewart_identification import identifiability, identification_jacobian
-from kinecal.calibration.stewart_result import pose_prediction_errors
+from kinecal.calibration.stewart.identification import identifiability, identification_jacobian
+from kinecal.calibration.stewart.result import pose_prediction_errors
 from kinecal.errors import InputError
-from kinecal.kinematics.stewart import N_PARAMETERS, StewartPlatform
+from kinecal.kinematics.stewart.platform import N_PARAMETERS, StewartPlatform
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from kinecal.calibration.simulate import random_configurations, read_truth
+from kinecal.calibration.serial.simulate import random_configurations, read_truth
 from kinecal.cli import main
 from kinecal.io.geometry import load_geometry
 from kinecal.io.models import load_model
@@ -233,7 +233,7 @@ def test_stewart_ik_with_a_calibrated_geometry_is_the_cmms_compensation(tmp_path
         out = _read_text(capsys.readouterr().out)
         legs[name] = np.array([float(out[f"l{i}"][0]) for i in range(1, 7)])
     true = load_geometry(d / "true.yaml")
-    from kinecal.kinematics.stewart import degrees_to_radians
+    from kinecal.kinematics.stewart.platform import degrees_to_radians
 
     want = degrees_to_radians(np.array([[float(v) for v in pose.split(",")]]))
     reached = {k: true.forward(v[None], x0=want).poses[0] for k, v in legs.items()}
@@ -252,7 +252,7 @@ def test_urdf_arm_calibrated_exported_and_compensated(tmp_path, capsys):
     URDF, compensate a program with it against the nominal URDF (--base-link, --tip-link)."""
     from importlib import resources
 
-    from kinecal.calibration.simulate import read_truth
+    from kinecal.calibration.serial.simulate import read_truth
 
     irb140 = str(resources.files("rtbdata") / "xacro" / "abb_irb140_description" / "urdf"
                  / "irb140.urdf")

@@ -16,7 +16,7 @@ def test_demo_writes_everything_and_the_calibrated_model_round_trips(tmp_path, c
     assert main(["demo", "--out", str(out), "--quiet"]) == 0
     stdout = capsys.readouterr().out
     names = {"result.json", "ur5-calibrated.yaml", "report.html", "errors.png",
-             "validation.png", "histogram.png", "convergence.png", "compensated.csv",
+             "validation.png", "sorted.png", "histogram.png", "convergence.png", "compensated.csv",
              "error-model.json", "ur5-calibrated-auto.yaml", "report-error-model.html"}
     assert {p.name for p in out.iterdir()} == names
     for name in names:
@@ -51,7 +51,7 @@ def test_demo_writes_everything_and_the_calibrated_model_round_trips(tmp_path, c
     html = (out / "report-error-model.html").read_text(encoding="utf-8")
     assert 'id="error-model"' in html and 'id="fig-residual-maps"' in html
     html = (out / "report.html").read_text(encoding="utf-8")
-    assert html.count("data:image/png;base64,") == 4 and "ur5-laser-tracker:grid" in html
+    assert html.count("data:image/png;base64,") == 5 and "ur5-laser-tracker:grid" in html
     for png in ("errors.png", "convergence.png"):
         data = (out / png).read_bytes()
         assert struct.unpack(">II", data[16:24]) == (720, 320)

@@ -21,7 +21,7 @@ Y_TRUE = transform_from(matrix_from_rpy([0.0, 0.0, 0.5]), [550.0, 80.0, 10.0])
 
 
 def _write_pairs(tmp_path, kind="csv"):
-    from kinecal.calibration.poses import star_polygon_poses
+    from kinecal.calibration.handeye.poses import star_polygon_poses
 
     cam = star_polygon_poses(380.0, 80.0, 9)
     C = invert_transform(cam)

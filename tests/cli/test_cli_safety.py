@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.cli import main
 from kinecal.io.handeye import write_handeye_csv
 from kinecal.io.measurements import write_measurements

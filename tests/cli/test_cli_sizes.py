@@ -9,7 +9,7 @@ import pytest
 
 import kinecal
 from kinecal.calibration.diagnostics.sizes import serial_size, stewart_size
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.cli import main
 from kinecal.errors import InputError
 from kinecal.io.geometry import load_geometry

@@ -26,13 +26,12 @@ def test_help_imports_no_heavy_library():
 
 
 def test_stewart_solvers_do_not_import_the_platform_class():
-    """stewart.py calls stewart_fk, stewart_pso, stewart_poses and stewart_modes, never the
-    other way round."""
-    loaded = _modules_after("import kinecal.kinematics.stewart_modes\n"
-                            "import kinecal.kinematics.stewart_pso\n"
-                            "import kinecal.kinematics.stewart_poses")
-    assert "kinecal.kinematics.stewart_fk" in loaded
-    assert "kinecal.kinematics.stewart" not in loaded
+    """platform.py calls forward, pso, poses and modes, never the other way round."""
+    loaded = _modules_after("import kinecal.kinematics.stewart.modes\n"
+                            "import kinecal.kinematics.stewart.pso\n"
+                            "import kinecal.kinematics.stewart.poses")
+    assert "kinecal.kinematics.stewart.forward" in loaded
+    assert "kinecal.kinematics.stewart.platform" not in loaded
 
 
 def test_command_table_names_the_module_of_every_command():

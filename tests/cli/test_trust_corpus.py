@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 
 import kinecal
-from kinecal.calibration.simulate import simulate, write_truth
-from kinecal.calibration.stewart import perturb_geometry, simulate_stewart
+from kinecal.calibration.serial.simulate import simulate, write_truth
+from kinecal.calibration.stewart.calibrate import perturb_geometry, simulate_stewart
 from kinecal.cli import main
 from kinecal.data import Measurements
 from kinecal.io.csvtable import write_table
 from kinecal.io.geometry import load_geometry
 from kinecal.io.measurements import write_measurements
-from kinecal.kinematics.stewart import radians_to_degrees
+from kinecal.kinematics.stewart.platform import radians_to_degrees
 
 _WARNING = re.compile(r"^kinecal: warning: .+ \[([a-z-]+)\]$")
 

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 import kinecal
 from kinecal.batch.jobs import load_jobs
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.errors import InputError
 from kinecal.io.geometry import load_geometry
 from kinecal.io.handeye import read_handeye_pairs, write_handeye_csv, write_handeye_yaml

@@ -9,7 +9,7 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from kinecal.calibration.simulate import random_configurations, simulate
+from kinecal.calibration.serial.simulate import random_configurations, simulate
 from kinecal.cli import main
 from kinecal.errors import InputError
 from kinecal.io.measurements import (

@@ -12,7 +12,7 @@ import pytest
 
 from kinecal import InputError
 from kinecal.calibration.handeye import calibrate_handeye
-from kinecal.calibration.poses import star_polygon_poses
+from kinecal.calibration.handeye.poses import star_polygon_poses
 from kinecal.cli import main
 from kinecal.io.csvtable import write_table
 from kinecal.io.handeye import read_handeye_files, read_handeye_pairs, write_handeye_csv

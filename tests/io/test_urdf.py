@@ -12,14 +12,14 @@ import pytest
 import yourdfpy
 
 from kinecal import calibrate
-from kinecal.calibration.problem import resolve_free
-from kinecal.calibration.simulate import random_configurations, random_errors
+from kinecal.calibration.serial.problem import resolve_free
+from kinecal.calibration.serial.simulate import random_configurations, random_errors
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.io.models import bundled_models, load_model, save_model
 from kinecal.io.urdf import load_urdf
 from kinecal.io.urdf_export import save_urdf, urdf_joints, urdf_string
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 
 RTB = resources.files("rtbdata") / "xacro"
 REAL = {

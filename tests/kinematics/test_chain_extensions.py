@@ -4,12 +4,12 @@ against finite differences, joint units, model files."""
 import numpy as np
 import pytest
 
-from kinecal.calibration.simulate import random_configurations
+from kinecal.calibration.serial.simulate import random_configurations
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.io.measurements import read_joints, read_measurements, write_measurements
 from kinecal.io.models import load_model, save_model
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import (
     axis_angle_from_matrix,
     matrix_from_axis_angle,

@@ -1,14 +1,14 @@
-"""Chunked FK kernels (`kinecal.kinematics.compose`): chunked equals one pass, positions
+"""Chunked FK kernels (`kinecal.kinematics.serial.compose`): chunked equals one pass, positions
 (composed backwards) equal the frames' origins, an independent 4x4 product chain, the
 half-angle trigonometry's accuracy."""
 
 import numpy as np
 import pytest
 
-from kinecal.calibration.simulate import random_configurations
-from kinecal.kinematics import compose
-from kinecal.kinematics.serial import SerialModel
-from kinecal.kinematics.sweep import chunked_jacobian_t
+from kinecal.calibration.serial.simulate import random_configurations
+from kinecal.kinematics.serial import compose
+from kinecal.kinematics.serial.model import SerialModel
+from kinecal.kinematics.serial.sweep import chunked_jacobian_t
 from kinecal.spatial import rot_x, rot_z, transform_from, transform_from_xyz_rpy
 
 from .test_chain_extensions import MODELS

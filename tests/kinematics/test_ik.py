@@ -4,16 +4,16 @@ and joint-limited targets, singular configurations, restarts, determinism, bad i
 import numpy as np
 import pytest
 
-from kinecal.calibration.simulate import random_configurations
+from kinecal.calibration.serial.simulate import random_configurations
 from kinecal.errors import InputError
 from kinecal.io.models import load_model
-from kinecal.kinematics.ik import (
+from kinecal.kinematics.serial.ik import (
     STATUS,
     characteristic_length,
     default_tol_position,
     solve_ik,
 )
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import matrix_from_axis_angle, pose_errors
 
 ARMS = ["ur5", "irb120", "puma560", "kr6-craig", "hu2005-scanner"]

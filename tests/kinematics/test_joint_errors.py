@@ -7,8 +7,8 @@ import pytest
 
 import kinecal
 from kinecal.errors import InputError
-from kinecal.kinematics.joint_errors import JointErrors, PointMass, joint_errors_for
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.joint_errors import JointErrors, PointMass, joint_errors_for
+from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import axis_angle_from_matrix
 
 GRAVITY = (0.1, 0.2, -1.0)

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 from kinecal import diagnostics
-from kinecal.calibration.simulate import random_configurations, simulate
+from kinecal.calibration.serial.simulate import random_configurations, simulate
 from kinecal.errors import InputError
 from kinecal.io.measurements import read_markers, read_measurements, write_measurements
 from kinecal.io.models import load_model, save_model
-from kinecal.kinematics.markers import model_for_markers
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.markers import model_for_markers
+from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import axis_angle_from_matrix
 
 POINTS = {"A": [0.0, 0.0, 31.0], "B": [52.0, -3.0, 20.0], "C": [-4.0, 61.0, 25.0]}

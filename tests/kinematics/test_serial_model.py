@@ -6,7 +6,7 @@ from scipy.optimize import least_squares
 
 import kinecal
 from kinecal.errors import InputError
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import (
     axis_angle_from_matrix,
     rot_x,

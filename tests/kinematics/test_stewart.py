@@ -7,13 +7,13 @@ import pytest
 from scipy.optimize import least_squares
 
 from kinecal.errors import InputError
-from kinecal.kinematics.stewart import (
+from kinecal.kinematics.stewart.forward import expmap
+from kinecal.kinematics.stewart.platform import (
     StewartPlatform,
     degrees_to_radians,
     joint_angles_liu2008,
     radians_to_degrees,
 )
-from kinecal.kinematics.stewart_fk import expmap
 
 TABLE3_LEGS = np.array([0.750, 0.780, 0.800, 0.900, 0.870, 0.850])
 TABLE3_POSE_DEG = np.array([0.039860, 0.095930, 0.925235, -12.697325, 6.403095, 15.133206])

@@ -7,7 +7,7 @@ import pytest
 
 from kinecal.errors import InputError
 from kinecal.io.geometry import bundled_geometries, load_geometry, save_geometry
-from kinecal.kinematics.stewart import StewartPlatform, radians_to_degrees
+from kinecal.kinematics.stewart.platform import StewartPlatform, radians_to_degrees
 from kinecal.spatial import matrix_from_rpy
 
 TABLE3_LEGS = np.array([0.750, 0.780, 0.800, 0.900, 0.870, 0.850])

@@ -3,7 +3,7 @@
 import pytest
 
 import kinecal
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.data import Measurements
 
 

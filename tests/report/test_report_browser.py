@@ -25,7 +25,7 @@ FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-
          "--disable-background-networking", "--disable-component-update", "--disable-sync",
          "--hide-scrollbars", "--force-device-scale-factor=1", "--enable-logging=stderr",
          "--v=0"]
-WIDTH, HEIGHT = 1000, 5200
+WIDTH, HEIGHT = 1000, 7200
 
 
 def screenshot(page: Path, tmp_path: Path, name: str) -> tuple[np.ndarray, list[str]]:
@@ -52,15 +52,15 @@ def test_console_errors_are_detected(tmp_path):
     assert any("kinecal-control-error" in line for line in console)
 
 
-def test_report_figures_are_drawn_in_chromium(ur5_result, tmp_path):
-    page = calibration_report(ur5_result, tmp_path / "report.html")
-    shot, console = screenshot(page, tmp_path, "report")
+def figures_in_screenshot(page: Path, tmp_path: Path, name: str, count: int) -> None:
+    """Every embedded figure of `page` is drawn in Chromium's screenshot, in order."""
+    shot, console = screenshot(page, tmp_path, name)
     assert console == [], console
     assert shot.shape == (HEIGHT, WIDTH, 3)
     text = page.read_text(encoding="utf-8")
     figures = [cv2.imdecode(np.frombuffer(base64.b64decode(m), np.uint8), cv2.IMREAD_COLOR)
                for m in re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', text)]
-    assert len(figures) == 4
+    assert len(figures) == count
     gray = cv2.cvtColor(shot, cv2.COLOR_BGR2GRAY)
     tops = []
     for fig in figures:
@@ -78,3 +78,25 @@ def test_report_figures_are_drawn_in_chromium(ur5_result, tmp_path):
         tops.append(y)
     # one below the other, in document order
     assert np.all(np.diff(tops) >= FIG_HEIGHT)
+
+
+def test_report_figures_are_drawn_in_chromium(ur5_result, tmp_path):
+    from kinecal.report.provenance import collect
+
+    prov = collect({"DATA": Path(__file__)}, command=["kinecal", "calibrate"], operator="me")
+    page = calibration_report(ur5_result, tmp_path / "report.html", provenance=prov)
+    figures_in_screenshot(page, tmp_path, "report", 5)
+
+
+def test_iso9283_report_is_drawn_in_chromium(tmp_path):
+    from kinecal.data import RepeatedPoses
+    from kinecal.metrology.iso9283 import iso9283
+    from kinecal.report.iso9283 import iso9283_report
+
+    rng = np.random.default_rng(0)
+    cmd = rng.uniform(-500, 500, (5, 3))
+    meas = cmd[:, None] + 0.05 + rng.normal(0, 0.01, (5, 30, 3))
+    res = iso9283(RepeatedPoses(tuple(f"P{i}" for i in range(1, 6)), np.arange(1, 31), meas,
+                                cmd))
+    page = iso9283_report(res, tmp_path / "iso.html")
+    figures_in_screenshot(page, tmp_path, "iso", 1)

@@ -66,10 +66,10 @@ def test_calibration_report_sections_numbers_and_figures(ur5_result, tmp_path):
             assert fmt(group[when]["rms"]) in text
             assert fmt(group[when]["max"]) in text
     assert f"{res.improvement_percent:.2f} %" in text
-    # four embedded PNG figures of the announced size, each actually drawn
+    # five embedded PNG figures of the announced size, each actually drawn
     pngs = embedded_pngs(text)
-    assert len(pngs) == 4
-    assert text.count(f'width="{FIG_WIDTH}" height="{FIG_HEIGHT}"') == 4
+    assert len(pngs) == 5
+    assert text.count(f'width="{FIG_WIDTH}" height="{FIG_HEIGHT}"') == 5
     for data in pngs:
         assert png_size(data) == (FIG_WIDTH, FIG_HEIGHT)
         px = png_pixels(data)[..., :3]
@@ -91,7 +91,7 @@ def test_per_pose_figure_shows_the_after_errors_below_the_before_errors(ur5_resu
     assert min(bar.get_width() for bar in before) >= 0.3  # bars, not hairlines
 
 
-def test_per_pose_figure_of_many_poses_is_sorted_on_a_log_axis(ur5_result):
+def test_per_pose_figure_of_many_poses_keeps_pose_order_and_the_sorted_view_sorts(ur5_result):
     rng = np.random.default_rng(0)
     many = dataclasses.replace(ur5_result, errors_before=rng.uniform(1, 3, 1000),
                                errors_after=rng.uniform(0.01, 0.03, 1000))
@@ -99,8 +99,30 @@ def test_per_pose_figure_of_many_poses_is_sorted_on_a_log_axis(ur5_result):
     figures.plot_calibration(many, "errors", ax)
     assert ax.get_yscale() == "log"
     before, after = ax.get_lines()[:2]
-    np.testing.assert_allclose(before.get_ydata(), np.sort(many.errors_before)[::-1])
-    np.testing.assert_allclose(after.get_ydata(), np.sort(many.errors_after)[::-1])
+    # pose order: pose k (from 1) at x = k, its own error
+    np.testing.assert_array_equal(before.get_xdata(), np.arange(1, 1001))
+    np.testing.assert_allclose(before.get_ydata(), many.errors_before)
+    np.testing.assert_allclose(after.get_ydata(), many.errors_after)
+    _, ax = figures.new_figure()
+    figures.plot_calibration(many, "sorted", ax)
+    assert ax.get_yscale() == "log"
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    np.testing.assert_allclose(lines["calibration, before"].get_ydata(),
+                               np.sort(many.errors_before)[::-1])
+    np.testing.assert_allclose(lines["calibration, after"].get_ydata(),
+                               np.sort(many.errors_after)[::-1])
+    np.testing.assert_allclose(lines["validation, after"].get_ydata(),
+                               np.sort(many.val_after)[::-1])
+
+
+def test_per_pose_bars_go_logarithmic_when_the_after_errors_would_vanish(ur5_result):
+    _, ax = figures.new_figure()
+    figures.plot_calibration(ur5_result, "errors", ax)  # after ~ 1/300 of before
+    assert ax.get_yscale() == "log"
+    close = dataclasses.replace(ur5_result, errors_after=ur5_result.errors_before * 0.5)
+    _, ax = figures.new_figure()
+    figures.plot_calibration(close, "errors", ax)
+    assert ax.get_yscale() == "linear"
 
 
 def test_plot_for_notebooks_every_kind_and_bad_kinds(ur5_result):
@@ -119,7 +141,7 @@ def test_plot_for_notebooks_every_kind_and_bad_kinds(ur5_result):
     no_val = dataclasses.replace(ur5_result, val_before=None, val_after=None)
     with pytest.raises(InputError, match="no validation poses"):
         no_val.plot("validation")
-    assert len(figures.calibration_figures(no_val)) == 3
+    assert len(figures.calibration_figures(no_val)) == 4
 
 
 def test_user_strings_are_escaped(ur5_result, tmp_path):

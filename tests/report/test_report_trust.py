@@ -8,7 +8,7 @@ import re
 import numpy as np
 
 import kinecal
-from kinecal.calibration.simulate import simulate
+from kinecal.calibration.serial.simulate import simulate
 from kinecal.data import Measurements
 from kinecal.diagnostics import Diagnostic
 from kinecal.report.html import calibration_report, fmt, handeye_report

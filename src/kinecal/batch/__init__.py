@@ -15,7 +15,8 @@ from __future__ import annotations
 
 from kinecal.batch.executors import dask_executor, local_executor
 from kinecal.batch.jobs import Job, JobsFile, Study, expand_study, load_jobs, parse_jobs
-from kinecal.batch.runner import BatchResult, JobRecord, read_result, run_batch, write_summary
+from kinecal.batch.records import BatchResult, JobRecord, read_result, write_summary
+from kinecal.batch.runner import run_batch
 from kinecal.batch.tables import (
     coverage_table,
     format_table,

@@ -51,7 +51,7 @@ def local_executor(workers: int | None = None) -> ProcessPoolExecutor:
                          option="--workers")
     single_thread_blas()
     ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(["kinecal.batch.work", "kinecal.calibration.serial"])
+    ctx.set_forkserver_preload(["kinecal.batch.work", "kinecal.calibration.serial.api"])
     return ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, mp_context=ctx,
                                initializer=watch_parent, initargs=(os.getpid(),))
 

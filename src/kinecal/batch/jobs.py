@@ -39,7 +39,7 @@ ErrorsMode = Literal["random", "zero", "identifiable"]
 
 
 def _check_method(method: str) -> str:
-    from kinecal.calibration.serial import CALIBRATION_METHODS
+    from kinecal.calibration.serial.api import CALIBRATION_METHODS
 
     if method not in CALIBRATION_METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of "
@@ -99,7 +99,7 @@ class Job(_Common):
         Passed to `kinecal.calibrate`.
     error_model, harmonics, folds
         Non-geometric joint errors, as ``kinecal calibrate --error-model``, ``--harmonics``,
-        ``--folds`` (`kinecal.calibration.error_model.calibrate_error_model`).
+        ``--folds`` (`kinecal.calibration.serial.error_model.calibrate_error_model`).
     sigma : float, optional
         The instrument's stated noise per coordinate (``--sigma``): the residual is tested
         against it (`kinecal.calibration.diagnostics.noise`).
@@ -328,12 +328,12 @@ def _is_urdf(model: str) -> bool:
 def _check_error_model(job: Job) -> None:
     """The error-model keys as ``kinecal calibrate`` checks ``--error-model``, ``--harmonics``
     and ``--folds``: known families, options the choice uses, a least-squares method."""
-    from kinecal.calibration.error_model_spec import (
+    from kinecal.calibration.method_options import check_error_model_options
+    from kinecal.calibration.serial.error_model_spec import (
         LSQ_METHODS,
         MAX_HARMONICS,
         parse_error_model,
     )
-    from kinecal.calibration.method_options import check_error_model_options
 
     if job.error_model is not None:
         families = parse_error_model(job.error_model)

@@ -29,129 +29,29 @@ import collections
 import contextlib
 import json
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, CancelledError, Executor, wait
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from kinecal._files import atomic_open, write_text_atomic
+from kinecal._files import write_text_atomic
 from kinecal.batch.inputs import check_batch_paths, input_hash
 from kinecal.batch.jobs import Job
+from kinecal.batch.records import (
+    BatchResult,
+    JobRecord,
+    read_result,
+    warning_list,
+    write_summary,
+)
 from kinecal.batch.work import run_job
 
-__all__ = ["BatchResult", "JobRecord", "read_result", "run_batch", "write_summary"]
+__all__ = ["run_batch"]
 
 #: exception type names that mean "the worker died", not "the job failed"
 _WORKER_DEATH = ("KilledWorker", "BrokenProcessPool", "BrokenExecutor", "WorkerLost")
-
-
-@dataclass
-class JobRecord:
-    """One row of ``summary.csv``.
-
-    ``status`` is ``done`` (computed now), ``resumed`` (result found from an earlier
-    run), ``failed`` or ``not run`` (interrupted). Means are mean distance errors in the
-    model's length unit (NaN when unknown); ``seconds`` is the job's time in its worker;
-    ``warnings`` the job's plausibility warnings ``[{code, message}]`` (in the CSV: the
-    codes, joined by ``;``).
-    """
-
-    name: str
-    method: str
-    seed: int
-    noise: float | None
-    poses: int
-    calibration_mean: float = math.nan
-    validation_mean: float = math.nan
-    seconds: float = math.nan
-    status: str = "not run"
-    error: str = ""
-    attempts: int = 0
-    kind: str = ""
-    warnings: list[dict[str, str]] = field(default_factory=list)
-
-    @classmethod
-    def from_job(cls, job: Job) -> JobRecord:
-        """A record of `job` that has not run."""
-        return cls(name=job.name, method=job.method, seed=job.seed,
-                   noise=job.noise if job.simulated else None, poses=job.poses or 0)
-
-    def fill(self, result: dict[str, Any], seconds: float, status: str) -> None:
-        """Copy the numbers of a calibration JSON into the record."""
-        self.poses = int(result["calibration"]["n"])
-        self.calibration_mean = float(result["calibration"]["after"]["mean"])
-        val = result.get("validation")
-        self.validation_mean = float(val["after"]["mean"]) if val else math.nan
-        self.seconds = float(seconds)
-        self.status = status
-        self.warnings = _warning_list(result.get("warnings"))
-
-
-@dataclass
-class BatchResult:
-    """Outcome of `run_batch`: the records (jobs file order) and the output paths."""
-
-    records: list[JobRecord]
-    out_dir: Path
-    summary_path: Path
-
-    @property
-    def counts(self) -> dict[str, int]:
-        """Number of jobs per status."""
-        return dict(collections.Counter(r.status for r in self.records))
-
-    @property
-    def ok(self) -> bool:
-        """True when every job has a result."""
-        return all(r.status in ("done", "resumed") for r in self.records)
-
-
-def _warning_list(items: Any) -> list[dict[str, str]]:
-    """``[{code, message}]`` from a result's or an outcome's ``warnings`` (anything else
-    in an old or edited result file is ignored)."""
-    if not isinstance(items, list):
-        return []
-    return [{"code": str(w["code"]), "message": str(w.get("message", ""))} for w in items
-            if isinstance(w, dict) and "code" in w]
-
-
-SUMMARY_COLUMNS = ("name", "method", "seed", "noise", "poses", "calibration_mean",
-                   "validation_mean", "seconds", "status", "error", "warnings")
-
-
-def write_summary(path: str | Path, records: Iterable[JobRecord]) -> None:
-    """Write ``summary.csv`` atomically (columns `SUMMARY_COLUMNS`)."""
-    import csv
-
-    with atomic_open(path, "w") as fh:
-        writer = csv.writer(fh, lineterminator="\n")
-        writer.writerow(SUMMARY_COLUMNS)
-        for rec in records:
-            row = asdict(rec)
-            out = []
-            for col in SUMMARY_COLUMNS:
-                v = row[col]
-                if col == "warnings":
-                    out.append(";".join(dict.fromkeys(w["code"] for w in v)))
-                elif v is None or (isinstance(v, float) and math.isnan(v)):
-                    out.append("")
-                elif isinstance(v, float):
-                    out.append(f"{v:.6g}" if col == "seconds" else repr(v))
-                else:
-                    out.append(str(v))
-            writer.writerow(out)
-
-
-def read_result(path: str | Path) -> dict[str, Any] | None:
-    """The result JSON at `path`, or None when missing or unreadable (not finished)."""
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
-        return None
-    return data if isinstance(data, dict) else None
 
 
 def _json_default(obj: Any) -> Any:
@@ -216,25 +116,7 @@ def run_batch(
     out = Path(out_dir)
     check_batch_paths(jobs, out, inputs)
     out.mkdir(parents=True, exist_ok=True)
-    records = {job.name: JobRecord.from_job(job) for job in jobs}
-    digests: dict = {}
-    hashes = {job.name: input_hash(job, digests) for job in jobs}
-
-    def settle(rec: JobRecord) -> None:
-        if on_result is not None:
-            on_result(rec)
-
-    todo: collections.deque[Job] = collections.deque()
-    for job in jobs:
-        prev = read_result(out / f"{job.name}.json")
-        if (prev is not None and prev.get("job") == job.spec()
-                and (prev.get("batch") or {}).get("input_hash") == hashes[job.name]):
-            records[job.name].fill(prev, prev.get("batch", {}).get("seconds", math.nan),
-                                   "resumed")
-            settle(records[job.name])
-        else:
-            todo.append(job)
-
+    run = _Run(jobs, out, max_attempts, on_result)
     factory: Callable[[], Executor] | None
     if executor is None:
         factory = lambda: local_executor(workers)  # noqa: E731
@@ -244,12 +126,45 @@ def run_batch(
         factory, current = None, executor
     else:
         factory, current = executor, None
-    owned = factory is not None
-    inflight: dict[Any, Job] = {}
+    try:
+        run.drive(factory, current, window, job_function)
+    finally:
+        run.close()
+        summary = out / "summary.csv"
+        write_summary(summary, [run.records[job.name] for job in jobs])
+    return BatchResult([run.records[job.name] for job in jobs], out, summary)
 
-    def handle(fut: Any, job: Job) -> bool:
+
+class _Run:
+    """The state of one `run_batch`: records, jobs to do, jobs in flight, the executor."""
+
+    def __init__(self, jobs: Sequence[Job], out: Path, max_attempts: int,
+                 on_result: Callable[[JobRecord], Any] | None) -> None:
+        self.out, self.max_attempts, self.on_result = out, max_attempts, on_result
+        self.records = {job.name: JobRecord.from_job(job) for job in jobs}
+        digests: dict = {}
+        self.hashes = {job.name: input_hash(job, digests) for job in jobs}
+        self.inflight: dict[Any, Job] = {}
+        self.current: Executor | None = None
+        self.owned = False
+        self.todo: collections.deque[Job] = collections.deque()
+        for job in jobs:  # resume: a result of the same job and inputs is kept
+            prev = read_result(out / f"{job.name}.json")
+            if (prev is not None and prev.get("job") == job.spec()
+                    and (prev.get("batch") or {}).get("input_hash") == self.hashes[job.name]):
+                self.records[job.name].fill(
+                    prev, prev.get("batch", {}).get("seconds", math.nan), "resumed")
+                self.settle(self.records[job.name])
+            else:
+                self.todo.append(job)
+
+    def settle(self, rec: JobRecord) -> None:
+        if self.on_result is not None:
+            self.on_result(rec)
+
+    def handle(self, fut: Any, job: Job) -> bool:
         """Settle a finished future; True when its worker died."""
-        rec = records[job.name]
+        rec = self.records[job.name]
         rec.attempts += 1
         try:
             outcome = fut.result()
@@ -261,8 +176,8 @@ def run_batch(
         else:
             exc = None
         if exc is not None and _is_worker_death(exc):
-            if rec.attempts < max_attempts:
-                todo.appendleft(job)
+            if rec.attempts < self.max_attempts:
+                self.todo.appendleft(job)
                 return isinstance(exc, BrokenExecutor)
             rec.status, rec.kind = "failed", "internal"
             rec.error = f"worker died {rec.attempts} times ({type(exc).__name__})"
@@ -270,33 +185,40 @@ def run_batch(
             rec.status, rec.kind = "failed", "internal"
             rec.error = f"{type(exc).__name__}: {exc}"
         elif outcome["status"] == "done":
-            result = outcome["result"]
-            result["batch"] = {"seconds": outcome["seconds"], "attempts": rec.attempts,
-                               "input_hash": hashes[job.name]}
-            text = json.dumps(result, indent=2, default=_json_default, allow_nan=True)
-            try:
-                write_text_atomic(out / f"{job.name}.json", text + "\n")
-            except OSError as err:  # e.g. disk full: this job has no result, go on
-                rec.status, rec.kind = "failed", "internal"
-                rec.error = f"cannot write {job.name}.json: {err}"
-            else:
-                rec.fill(result, outcome["seconds"], "done")
+            self._write(job, rec, outcome)
         else:
             rec.status, rec.error, rec.kind = "failed", outcome["error"], outcome["kind"]
             rec.seconds = outcome["seconds"]
-            rec.warnings = _warning_list(outcome.get("warnings"))
-        settle(rec)
+            rec.warnings = warning_list(outcome.get("warnings"))
+        self.settle(rec)
         return isinstance(exc, BrokenExecutor)
 
-    try:
+    def _write(self, job: Job, rec: JobRecord, outcome: dict[str, Any]) -> None:
+        result = outcome["result"]
+        result["batch"] = {"seconds": outcome["seconds"], "attempts": rec.attempts,
+                           "input_hash": self.hashes[job.name]}
+        text = json.dumps(result, indent=2, default=_json_default, allow_nan=True)
+        try:
+            write_text_atomic(self.out / f"{job.name}.json", text + "\n")
+        except OSError as err:  # e.g. disk full: this job has no result, go on
+            rec.status, rec.kind = "failed", "internal"
+            rec.error = f"cannot write {job.name}.json: {err}"
+        else:
+            rec.fill(result, outcome["seconds"], "done")
+
+    def drive(self, factory: Callable[[], Executor] | None, current: Executor | None,
+              window: int | None, job_function: Callable[[Job], dict[str, Any]]) -> None:
+        """Submit, wait and settle until every job is settled."""
+        self.current, self.owned = current, factory is not None
+        todo, inflight = self.todo, self.inflight
         while todo or inflight:
-            if current is None:
-                current = factory()  # type: ignore[misc]
+            if self.current is None:
+                self.current = factory()  # type: ignore[misc]
             broken = False
             while todo and (window is None or len(inflight) < window):
                 job = todo.popleft()
                 try:
-                    inflight[current.submit(job_function, job)] = job
+                    inflight[self.current.submit(job_function, job)] = job
                 except BrokenExecutor:
                     todo.appendleft(job)
                     broken = True
@@ -304,33 +226,36 @@ def run_batch(
             if inflight and not broken:
                 done, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
                 for fut in done:
-                    broken |= handle(fut, inflight.pop(fut))
+                    broken |= self.handle(fut, inflight.pop(fut))
             if broken:
-                # a broken pool fails every job it holds: collect them, then replace it
-                done, _ = wait(list(inflight))
-                for fut in done:
-                    handle(fut, inflight.pop(fut))
-                if owned:
-                    _shutdown(current, wait=False)
-                    current = None
-                else:  # a given executor cannot be replaced
-                    for job in todo:
-                        rec = records[job.name]
-                        rec.status, rec.kind = "failed", "internal"
-                        rec.error = "the executor broke (a worker died)"
-                        settle(rec)
-                    todo.clear()
-    finally:
-        interrupted = bool(todo or inflight)
-        for fut in inflight:
+                self._replace_broken()
+
+    def _replace_broken(self) -> None:
+        """A broken pool fails every job it holds: collect them, then replace it (or, for
+        an executor given by the caller, which cannot be replaced, fail the rest)."""
+        done, _ = wait(list(self.inflight))
+        for fut in done:
+            self.handle(fut, self.inflight.pop(fut))
+        if self.owned:
+            _shutdown(self.current, wait=False)
+            self.current = None
+            return
+        for job in self.todo:
+            rec = self.records[job.name]
+            rec.status, rec.kind = "failed", "internal"
+            rec.error = "the executor broke (a worker died)"
+            self.settle(rec)
+        self.todo.clear()
+
+    def close(self) -> None:
+        """Cancel what is in flight; an interrupted pool of ours has its workers killed."""
+        interrupted = bool(self.todo or self.inflight)
+        for fut in self.inflight:
             fut.cancel()
-        if owned and current is not None:
+        if self.owned and self.current is not None:
             if interrupted:
-                _kill_workers(current)
-            _shutdown(current, wait=not interrupted)
-        summary = out / "summary.csv"
-        write_summary(summary, [records[job.name] for job in jobs])
-    return BatchResult([records[job.name] for job in jobs], out, summary)
+                _kill_workers(self.current)
+            _shutdown(self.current, wait=not interrupted)
 
 
 def _cpu_count() -> int:

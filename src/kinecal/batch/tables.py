@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from kinecal._files import atomic_open
-from kinecal.batch.runner import JobRecord, read_result
+from kinecal.batch.records import JobRecord, read_result
 
 __all__ = ["Z95", "coverage_table", "format_table", "load_results", "parameter_coverage",
            "study_table", "write_table_csv"]

@@ -55,9 +55,9 @@ def simulate_job(job: Job, model: Any) -> tuple[Any, Any, np.ndarray, list[str] 
         calibration then identifies exactly these, so that each free parameter has a
         well-defined truth. None otherwise.
     """
-    from kinecal.calibration.problem import resolve_free
-    from kinecal.calibration.serial import CALIBRATION_RANK_TOL
-    from kinecal.calibration.simulate import random_configurations, random_errors, simulate
+    from kinecal.calibration.serial.api import CALIBRATION_RANK_TOL
+    from kinecal.calibration.serial.problem import resolve_free
+    from kinecal.calibration.serial.simulate import random_configurations, random_errors, simulate
     from kinecal.data import Measurements
 
     gen, gen_val = job_seeds(job.seed)
@@ -91,13 +91,13 @@ def _truth_table(model: Any, true_params: np.ndarray) -> dict[str, float]:
 def _calibrate_job(job: Job, model: Any, data: Any, val: Any, free: Any) -> Any:
     """The job's calibration, as ``kinecal calibrate`` runs it: `kinecal.calibrate`, or the
     joint-error calibration when the job (or the model file) asks for an error model."""
-    from kinecal.calibration.serial import calibrate
+    from kinecal.calibration.serial.api import calibrate
 
     kw = dict(free=free, validate=val, rng=job.seed, loss=job.loss, maxiter=job.maxiter,
               target=job.target, options=job.options, sigma=job.sigma)
     if job.error_model is None and model.joint_errors is None and job.harmonics is None:
         return calibrate(model, data, job.method, **kw)
-    from kinecal.calibration.error_model import calibrate_error_model
+    from kinecal.calibration.serial.error_model import calibrate_error_model
 
     return calibrate_error_model(model, data, job.error_model or "model", method=job.method,
                                  harmonics=job.harmonics,

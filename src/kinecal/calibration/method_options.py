@@ -86,7 +86,7 @@ def check_error_model_options(error_model: str | None, *, harmonics: int | None 
     ``...+harmonic``) or the largest order ``auto`` tries; ``--folds`` the cross-validation
     of ``auto``. Without ``--error-model`` the model file's own terms are used as they are.
     """
-    from kinecal.calibration.error_model_spec import parse_error_model
+    from kinecal.calibration.serial.error_model_spec import parse_error_model
 
     if folds is not None and error_model != "auto":
         raise InputError("cross-validation folds apply to --error-model auto only",

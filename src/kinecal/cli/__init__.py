@@ -69,6 +69,8 @@ _COMMAND_MODULES = [
     "kinecal.cli.bench",
     "kinecal.cli.export",
     "kinecal.cli.compensate",
+    "kinecal.cli.import_cmd",
+    "kinecal.cli.iso9283",
 ]
 
 
@@ -93,6 +95,8 @@ _COMMANDS = {
     "bench": "kinecal.cli.bench",
     "export": "kinecal.cli.export",
     "compensate": "kinecal.cli.compensate",
+    "import": "kinecal.cli.import_cmd",
+    "iso9283": "kinecal.cli.iso9283",
 }
 
 
@@ -132,6 +136,9 @@ def _internal_error(exc: BaseException) -> int:
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return (and exit with) the status code."""
     args = sys.argv[1:] if argv is None else list(argv)
+    from kinecal.cli import _common
+
+    _common.COMMAND_LINE = ["kinecal", *args]  # for the record of a report
     _load_commands(args)
     try:
         code = _run(args)

@@ -19,9 +19,14 @@ __all__ = [
     "base_link_option",
     "check_paths",
     "echo_json",
+    "instrument_option",
     "load_model_arg",
+    "note_option",
+    "operator_option",
     "progress",
     "quiet_option",
+    "report_option",
+    "report_record",
     "resolve_data_path",
     "seed_option",
     "strict_option",
@@ -235,6 +240,77 @@ def load_model_arg(model: str, base_link: str | None = None, tip_link: str | Non
     from kinecal.io.models import load_model
 
     return load_model(model, base_link=base_link, tip_link=tip_link)
+
+
+#: the command line of the running command (set by `kinecal.cli.main`), for report records
+COMMAND_LINE: list[str] | None = None
+
+
+def instrument_option() -> Any:
+    """The ``--instrument`` option of commands that write a report (its record)."""
+    import typer
+
+    return typer.Option(None, "--instrument", help="Measuring instrument (make, model, serial "
+                        "number), recorded in the --report.")
+
+
+def operator_option() -> Any:
+    """The ``--operator`` option of commands that write a report (its record)."""
+    import typer
+
+    return typer.Option(None, "--operator", help="Who measured and calibrated, recorded in "
+                        "the --report.")
+
+
+def note_option() -> Any:
+    """The ``--note`` option of commands that write a report (its record)."""
+    import typer
+
+    return typer.Option(None, "--note", help="Free text recorded in the --report (site, "
+                        "temperature, job number...).")
+
+
+def report_option() -> Any:
+    """The ``--report`` option: an HTML report, or PDF when the name ends in ``.pdf``."""
+    import typer
+
+    return typer.Option(None, "--report", help="Report to write: HTML, or PDF for a .pdf "
+                        "name (needs the pdf extra). See docs/report.md.")
+
+
+def report_record(report: str | Path | None, inputs: dict[str, str | Path | None],
+                  instrument: str | None = None, operator: str | None = None,
+                  note: str | None = None, suffixes: dict[str, Sequence[str]] | None = None
+                  ) -> Any:
+    """The record (`kinecal.report.provenance.Provenance`) of a command's ``--report``.
+
+    Called after `check_paths`, before any work: refuses a ``.pdf`` report when the PDF
+    renderer is missing and the record options without ``--report``, then hashes every
+    input (`inputs`: argument name -> path, bundled name or ``NAME:PART``; a folder: its
+    files with `suffixes`). None when no report is asked for.
+    """
+    if report is None:
+        for opt, value in (("--instrument", instrument), ("--operator", operator),
+                           ("--note", note)):
+            if value is not None:
+                raise InputError("applies to --report only (it is recorded in the report)",
+                                 option=opt)
+        return None
+    from kinecal.io.bundled import input_file
+    from kinecal.report.document import check_report_path
+    from kinecal.report.provenance import collect
+
+    check_report_path(report)
+    files: dict[str, str | Path | None] = {}
+    for name, spec in inputs.items():
+        if spec is None:
+            continue
+        if Path(spec).exists():
+            files[name] = spec
+        elif (path := input_file(spec)) is not None:
+            files[f"{name} ({spec}, bundled)"] = path
+    return collect(files, command=COMMAND_LINE, instrument=instrument, operator=operator,
+                   note=note, suffixes=suffixes)
 
 
 def strict_option() -> Any:

@@ -53,7 +53,7 @@ def result_markers(params: dict) -> list[str]:
 def model_for_result(model, path: Path):
     """`model`, given one tool point per marker when the result has several markers."""
     from kinecal._files import read_json
-    from kinecal.kinematics.markers import model_for_markers
+    from kinecal.kinematics.serial.markers import model_for_markers
 
     data = read_json(path)
     params = serial_result_parameters(data, path)

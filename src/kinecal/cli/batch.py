@@ -66,22 +66,26 @@ def batch(
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
 ) -> None:
     """Run many calibrations (a fleet or a study); resumable, one JSON per job."""
-    import contextlib
-
-    from kinecal.batch import (
-        coverage_table,
-        dask_executor,
-        format_table,
-        load_jobs,
-        load_results,
-        run_batch,
-        study_table,
-    )
+    from kinecal.batch import load_jobs
     from kinecal.batch.inputs import check_batch_paths
-    from kinecal.batch.tables import write_table_csv
-    from kinecal.cli._common import progress
-    from kinecal.cli._signals import Terminated
 
+    _check_options(executor, scheduler, workers, jobs_file)
+    jobs = load_jobs(jobs_file)
+    check_batch_paths(jobs, out, [jobs_file])
+    result = _run(jobs, jobs_file, out, executor, scheduler, workers, quiet)
+    records = result.records
+    _print_results(records, out, quiet)
+    _print_warnings(records)
+    counts = ", ".join(f"{n} {s}" for s, n in sorted(result.counts.items()))
+    typer.echo(f"{len(records)} jobs: {counts}; summary in {result.summary_path}", err=True)
+    failed = [r for r in records if r.status != "done" and r.status != "resumed"]
+    if failed:
+        # exit 2 when every failure is a user mistake (bad file, bad option), 1 otherwise
+        raise typer.Exit(2 if all(r.kind == "input" for r in failed) else 1)
+
+
+def _check_options(executor: str, scheduler: str | None, workers: int | None,
+                   jobs_file: Path) -> None:
     if executor not in ("local", "dask"):
         raise InputError(f"expected local or dask, got {executor!r}", option="--executor")
     if scheduler is not None and executor != "dask":
@@ -102,8 +106,17 @@ def batch(
     if jobs_file.is_dir():
         raise InputError(f"{jobs_file} is a directory, expected a jobs file (YAML)",
                          option="JOBS.yaml")
-    jobs = load_jobs(jobs_file)
-    check_batch_paths(jobs, out, [jobs_file])
+
+
+def _run(jobs, jobs_file: Path, out: Path, executor: str, scheduler: str | None,
+         workers: int | None, quiet: bool):
+    """`run_batch` with a progress bar; an interrupt says how to resume."""
+    import contextlib
+
+    from kinecal.batch import dask_executor, run_batch
+    from kinecal.cli._common import progress
+    from kinecal.cli._signals import Terminated
+
     with contextlib.ExitStack() as stack:
         ex = None
         if executor == "dask":
@@ -116,8 +129,8 @@ def batch(
             update(1)
 
         try:
-            result = run_batch(jobs, out, executor=ex, workers=workers, on_result=on_result,
-                               inputs=[jobs_file])
+            return run_batch(jobs, out, executor=ex, workers=workers, on_result=on_result,
+                             inputs=[jobs_file])
         except (KeyboardInterrupt, Terminated) as exc:
             finished = sum(s in ("done", "resumed") for s in settled)
             # `kinecal.cli.main` adds "kinecal: interrupted" (130) or "... terminated" (143)
@@ -125,7 +138,14 @@ def batch(
                        f"{out / 'summary.csv'}); run the same command again to resume",
                        err=True)
             raise typer.Exit(143 if isinstance(exc, Terminated) else 130) from None
-    records = result.records
+
+
+def _print_results(records, out: Path, quiet: bool) -> None:
+    """The job table (failed jobs only beyond `MAX_PRINTED_ROWS`), and for simulated
+    studies ``study.csv`` and ``coverage.csv`` with their tables."""
+    from kinecal.batch import coverage_table, format_table, load_results, study_table
+    from kinecal.batch.tables import write_table_csv
+
     if not quiet:
         if len(records) <= MAX_PRINTED_ROWS:
             typer.echo(f"{'job':32s} {'method':12s} {'cal. mean':>10s} {'val. mean':>10s} "
@@ -148,10 +168,3 @@ def batch(
             if cov:
                 typer.echo("\ncoverage of the 95 % intervals (identified +- 1.96 std):\n"
                            + format_table(cov))
-    _print_warnings(records)
-    counts = ", ".join(f"{n} {s}" for s, n in sorted(result.counts.items()))
-    typer.echo(f"{len(records)} jobs: {counts}; summary in {result.summary_path}", err=True)
-    failed = [r for r in records if r.status != "done" and r.status != "resumed"]
-    if failed:
-        # exit 2 when every failure is a user mistake (bad file, bad option), 1 otherwise
-        raise typer.Exit(2 if all(r.kind == "input" for r in failed) else 1)

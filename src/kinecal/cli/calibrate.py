@@ -16,8 +16,13 @@ from kinecal.cli._common import (
     base_link_option,
     check_paths,
     echo_json,
+    instrument_option,
     load_model_arg,
+    note_option,
+    operator_option,
     quiet_option,
+    report_option,
+    report_record,
     resolve_data_path,
     seed_option,
     strict_option,
@@ -52,10 +57,10 @@ def identifiability(
 ) -> None:
     """Rank, identifiable and unidentifiable parameters, condition number, O1-O5."""
     from kinecal.calibration.diagnostics.serial import check_pose_set
-    from kinecal.calibration.problem import resolve_free
-    from kinecal.calibration.simulate import simulate as run
+    from kinecal.calibration.serial.problem import resolve_free
+    from kinecal.calibration.serial.simulate import simulate as run
     from kinecal.io.measurements import read_measurements
-    from kinecal.kinematics.markers import model_for_markers
+    from kinecal.kinematics.serial.markers import model_for_markers
 
     for option, value in (("--poses", poses), ("--seed", seed)):
         if data is not None and value is not None:
@@ -70,7 +75,7 @@ def identifiability(
             meas = run(m, poses, errors="zero", rng=seed or 0).data
         m = model_for_markers(m, meas.marker_names)  # one tool point per marker measured
         if error_model is not None or harmonics is not None or m.joint_errors is not None:
-            from kinecal.calibration.joint_identifiability import identifiability_with_terms
+            from kinecal.calibration.serial.joint_identifiability import identifiability_with_terms
 
             # the geometry first, then the joint-error coefficients beyond it
             m, report = identifiability_with_terms(m, meas, free_option(free), error_model,
@@ -107,7 +112,7 @@ def calibrate(
     target: float | None = typer.Option(None, "--target", help="Stop at this mean error."),
     out: Path | None = typer.Option(None, "--out", help="Result JSON to write."),
     model_out: Path | None = typer.Option(None, "--model-out", help="Calibrated model YAML."),
-    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
+    report: Path | None = report_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
     quiet: bool = quiet_option(),
     strict: bool = strict_option(),
@@ -126,11 +131,14 @@ def calibrate(
         None, "--sigma", help="The instrument's stated 1-sigma noise per coordinate (length "
         "unit): the residual is tested against it (chi-square) and the standard errors with "
         "it known are added. See docs/diagnostics.md."),
+    instrument: str | None = instrument_option(),
+    operator: str | None = operator_option(),
+    note: str | None = note_option(),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given)."""
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
-    from kinecal.calibration.serial import CALIBRATION_METHODS
-    from kinecal.calibration.serial import calibrate as run
+    from kinecal.calibration.serial.api import CALIBRATION_METHODS
+    from kinecal.calibration.serial.api import calibrate as run
     from kinecal.cli._common import progress
     from kinecal.io.measurements import read_measurements
 
@@ -139,6 +147,8 @@ def calibrate(
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
     check_paths({"MODEL": model, "DATA": data, "--validate": validate},
                 {"--out": out, "--model-out": model_out, "--report": report})
+    record = report_record(report, {"MODEL": model, "DATA": data, "--validate": validate},
+                           instrument, operator, note)
     if model_out is not None:
         from kinecal.io.models import check_model_file_name
 
@@ -171,7 +181,7 @@ def calibrate(
             if error_model is None and m.joint_errors is None and harmonics is None:
                 res = run(m, meas, method, **kw)
             else:
-                from kinecal.calibration.error_model import calibrate_error_model
+                from kinecal.calibration.serial.error_model import calibrate_error_model
 
                 res = calibrate_error_model(m, meas, error_model or "model", method=method,
                                             harmonics=harmonics, **kw,
@@ -183,7 +193,9 @@ def calibrate(
         if model_out is not None:
             res.save_model(model_out)
         if report is not None:
-            res.report(report)
+            from kinecal.report.html import calibration_report
+
+            calibration_report(res, report, provenance=record, validation=val)
     if json_out:
         echo_json(result)
     elif not quiet:
@@ -201,9 +213,9 @@ def select_poses_cmd(
     out: Path = typer.Option(..., "--out", help="CSV of the selected q1..qn."),
 ) -> None:
     """Choose calibration poses maximising observability (O1, D-optimal)."""
-    from kinecal.calibration.pose_selection import candidate_measurements, select_poses
-    from kinecal.calibration.problem import resolve_free
-    from kinecal.calibration.simulate import random_configurations
+    from kinecal.calibration.serial.pose_selection import candidate_measurements, select_poses
+    from kinecal.calibration.serial.problem import resolve_free
+    from kinecal.calibration.serial.simulate import random_configurations
     from kinecal.io.csvtable import write_table
 
     check_paths({"MODEL": model}, {"--out": out})

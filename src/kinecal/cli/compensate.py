@@ -52,8 +52,8 @@ def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None
     `tool` ``"nominal"`` the calibrated model carries the nominal model's tool (markers of
     a calibration with several targets replaced by it).
     """
-    from kinecal.calibration.compensate_inputs import with_nominal_tool
-    from kinecal.calibration.same_arm import check_same_arm
+    from kinecal.compensation.inputs import with_nominal_tool
+    from kinecal.compensation.same_arm import check_same_arm
     from kinecal.io.models import bundled_models
     from kinecal.io.models import load_model as _load_model
 
@@ -234,8 +234,8 @@ def compensate_cmd(
     quiet: bool = quiet_option(),
 ) -> None:
     """Rewrite a joint program or Cartesian targets for the calibrated arm."""
-    from kinecal.calibration.compensate import compensate
     from kinecal.calibration.diagnostics.serial import check_joint_units
+    from kinecal.compensation.api import compensate
     from kinecal.io.measurements import joint_columns
 
     check_paths({"CALIBRATED": calibrated, "PROGRAM": program, "--nominal": nominal},
@@ -323,7 +323,7 @@ def demo_compensation(result, out: Path, label: str) -> tuple[object, Path, str]
     Writes ``compensated.csv`` (``pose, q1..qn`` and the compensation columns) into `out`
     and returns the `CompensationResult`, its path and a short text for the terminal.
     """
-    from kinecal.calibration.compensate import compensate
+    from kinecal.compensation.api import compensate
 
     nom = result.nominal_model
     q = result.q_validation if result.q_validation is not None else result.q_calibration

@@ -26,7 +26,7 @@ DEMO_VALIDATION = "ur5-laser-tracker:random"
 
 def error_model_step(model, data, val, out: Path) -> tuple[object, list[Path]]:
     """The demo's second step: ``--error-model auto`` on the same poses; its files."""
-    from kinecal.calibration.error_model import calibrate_error_model
+    from kinecal.calibration.serial.error_model import calibrate_error_model
     from kinecal.report.html import calibration_report
 
     res = calibrate_error_model(model, data, "auto", validate=val, rng=0)
@@ -52,14 +52,15 @@ def run_demo(out: Path, quiet: bool = False) -> tuple[object, list[Path], tuple,
     error_model : ErrorModelResult
         The ``--error-model auto`` calibration of the same poses.
     """
-    from kinecal.calibration.serial import calibrate
+    from kinecal.calibration.serial.api import calibrate
     from kinecal.io.measurements import read_measurements
     from kinecal.io.models import load_model
+    from kinecal.report.figures import CALIBRATION_KINDS
 
     check_paths({}, {}, folders={"--out": (out, [
         "result.json", f"{DEMO_MODEL}-calibrated.yaml", "report.html", "compensated.csv",
         "error-model.json", f"{DEMO_MODEL}-calibrated-auto.yaml", "report-error-model.html",
-        *(f"{kind}.png" for kind in ("errors", "validation", "histogram", "convergence"))])})
+        *(f"{kind}.png" for kind in CALIBRATION_KINDS)])})
     with progress("demo: calibrate ur5 on laser-tracker data", 4, quiet) as update:
         model = load_model(DEMO_MODEL)
         data = read_measurements(DEMO_DATA, model)
@@ -110,7 +111,7 @@ def demo(
     typer.echo(f"kinecal demo: UR5 calibrated on {DEMO_DATA} (1000 poses), validated on "
                f"{DEMO_VALIDATION} (20 held-out poses)\n")
     typer.echo(res.summary())
-    from kinecal.calibration.error_model import error_model_text
+    from kinecal.calibration.serial.error_model import error_model_text
 
     typer.echo("\nbeyond geometry (--error-model auto): joint compliance, harmonic transmission "
                "errors and encoder scale, chosen on the calibration poses only"

@@ -1,4 +1,6 @@
-"""``kinecal export``: a model or a calibration result as URDF or as a kinecal model file."""
+"""``kinecal export``: a model or a calibration result as URDF, as a kinecal model file or as
+ur_description's ``default_kinematics.yaml``; a hand-eye result as a ROS static transform
+(``ros-tf``) or as the camera mount of a robot's URDF (``--camera``)."""
 
 from __future__ import annotations
 
@@ -18,20 +20,22 @@ from kinecal.cli._common import (
 )
 from kinecal.errors import InputError
 
-FORMATS = ("urdf", "yaml")
-_SUFFIX = {".urdf": "urdf", ".yaml": "yaml", ".yml": "yaml"}
+FORMATS = ("urdf", "yaml", "ur-kinematics", "ros-tf")
+_SUFFIX = {".urdf": "urdf", ".yaml": "yaml", ".yml": "yaml", ".launch.py": "ros-tf"}
 #: relative tolerance when checking a result's nominal values against --nominal
 _NOMINAL_RTOL = 1e-9
 
 
 def _format(fmt: str | None, out: Path) -> str:
     if fmt is None:
-        fmt = _SUFFIX.get(out.suffix.lower())
+        name = out.name.lower()
+        fmt = next((f for suffix, f in _SUFFIX.items() if name.endswith(suffix)), None)
         if fmt is None:
-            raise InputError(f"cannot tell the format from {out.name!r}: give --format urdf "
-                             "or --format yaml", option="--format")
+            raise InputError(f"cannot tell the format from {out.name!r}: give --format "
+                             f"{' | '.join(FORMATS)}", option="--format")
     if fmt not in FORMATS:
-        raise InputError(f"unknown format {fmt!r}; expected urdf or yaml", option="--format")
+        raise InputError(f"unknown format {fmt!r}; expected one of {', '.join(FORMATS)}",
+                         option="--format")
     if fmt == "yaml" and out.name.lower().endswith((".urdf", ".xacro")):
         raise InputError(f"a model file (yaml) named {out.name!r} would be read back as a "
                          "URDF: name it .yaml, or give --format urdf", option="--format")
@@ -104,13 +108,26 @@ def _urdf_path(spec: str) -> Path | None:
     return Path(spec) if is_urdf_path(spec) else None
 
 
+def _handeye_json(source: str) -> bool:
+    """True when SOURCE is a hand-eye result JSON (X and setup), not a calibration result."""
+    if not source.lower().endswith(".json") or not Path(source).is_file():
+        return False
+    from kinecal._files import read_json
+
+    data = read_json(Path(source))
+    return isinstance(data, dict) and "X" in data and "setup" in data
+
+
 @app.command("export")
 def export(
-    source: str = typer.Argument(..., help="Model (bundled name, YAML, URDF) or calibration "
-                                 "result JSON (kinecal calibrate --out)."),
-    out: Path = typer.Option(..., "--out", help="File to write (.urdf, .yaml)."),
-    fmt: str | None = typer.Option(None, "--format", help="urdf or yaml (default: from the "
-                                   "--out suffix)."),
+    source: str = typer.Argument(..., help="Model (bundled name, YAML, URDF), calibration "
+                                 "result JSON (kinecal calibrate --out) or, for ros-tf, a "
+                                 "hand-eye result JSON (kinecal handeye --out)."),
+    out: Path = typer.Option(..., "--out", help="File to write (.urdf, .yaml, .launch.py)."),
+    fmt: str | None = typer.Option(None, "--format", help="urdf, yaml, ur-kinematics "
+                                   "(ur_description's default_kinematics.yaml) or ros-tf "
+                                   "(a hand-eye result as a ROS 2 launch file; default: "
+                                   "from the --out suffix)."),
     nominal: str | None = typer.Option(None, "--nominal", help="With a RESULT.json: the model "
                                        "it was calibrated from (default: the bundled model "
                                        "the result names)."),
@@ -119,41 +136,137 @@ def export(
     chain_only: bool = typer.Option(False, "--chain-only", help="For a model read from a "
                                     "URDF: write only the chain, not a copy of that URDF "
                                     "(meshes, other branches) with the chain's values."),
+    camera: Path | None = typer.Option(None, "--camera", help="urdf: add the camera of this "
+                                       "hand-eye result JSON as a fixed joint."),
+    unit: str | None = typer.Option(None, "--unit", help="ros-tf, --camera: length unit of "
+                                    "the hand-eye result, mm or m (default: the result's)."),
+    parent_frame: str | None = typer.Option(None, "--parent-frame", help="ros-tf, --camera: "
+                                            "the frame the camera is fixed to (default: "
+                                            "tool0 / base_link for ros-tf; the chain's "
+                                            "flange / base link for --camera)."),
+    child_frame: str | None = typer.Option(None, "--child-frame", help="ros-tf, --camera: "
+                                           "the camera's (optical) frame (default "
+                                           "camera_optical_frame)."),
+    robot: str | None = typer.Option(None, "--robot", help="ur-kinematics: the UR type whose "
+                                     "link frames the export keeps (default: the type within "
+                                     "5 mm of the model)."),
     strict: bool = strict_option(),
 ) -> None:
-    """Write a model, or a calibrated one, as URDF (metres, radians) or as a model file.
+    """Write a model, or a calibrated one, as URDF (metres, radians), as a model file or as
+    ur_description's kinematics file; a hand-eye result as a ROS static transform.
 
     A model read from a URDF is written into a copy of that URDF: its chain's joint origins
     take the calibrated values, a tool link (and the measurement frame) are added, and
     everything else (meshes, inertias, other branches) is kept.
     """
-    from kinecal.io.models import save_model
-    from kinecal.io.urdf_export import save_urdf
-    from kinecal.io.urdf_patch import save_patched_urdf
-
     fmt = _format(fmt, out)
-    check_paths({"SOURCE": source, "--nominal": nominal}, {"--out": out})
+    check_paths({"SOURCE": source, "--nominal": nominal, "--camera": camera}, {"--out": out})
+    if fmt == "ros-tf":
+        _export_ros_tf(source, out, unit, parent_frame, child_frame)
+        return
+    if _handeye_json(source):
+        raise InputError(f"{source} is a hand-eye calibration result, not an arm's (kinecal "
+                         "calibrate --out): export it with --format ros-tf, or as the camera of "
+                         f"a robot's URDF with kinecal export MODEL --camera {source} --format "
+                         "urdf", option="SOURCE")
+    if camera is not None and fmt != "urdf":
+        raise InputError("--camera adds a camera mount to a URDF: give --format urdf",
+                         option="--camera")
+    if chain_only and fmt != "urdf":
+        raise InputError("--chain-only applies to --format urdf", option="--chain-only")
+    if robot is not None and fmt != "ur-kinematics":
+        raise InputError("--robot applies to --format ur-kinematics", option="--robot")
     with warnings_scope(strict):
         model, params, urdf = model_and_params(source, nominal, base_link, tip_link)
-        if fmt == "urdf" and model.joint_errors is not None:
+        if fmt in ("urdf", "ur-kinematics") and model.joint_errors is not None:
             from kinecal.diagnostics import warn
 
             warn("joint-errors-not-exported",
                  f"the model's {len(model.parameter_names) - model._n_geometric} joint-error "
-                 "coefficients (compliance, harmonics, scale) have no URDF equivalent: the "
-                 "URDF carries the geometry only; use the model file (--format yaml) for fk, "
+                 f"coefficients (compliance, harmonics, scale) have no {fmt} equivalent: the "
+                 "file carries the geometry only; use the model file (--format yaml) for fk, "
                  "ik and compensate")
     what = f"model {model.name}" if params is None else f"{source} (calibrated {model.name})"
+    if fmt == "ur-kinematics":
+        _export_ur(model, params, out, what, robot)
+        return
     if fmt == "urdf":
-        comment = f"written by kinecal export from {what}; lengths in metres, angles in radians"
-        if urdf is not None and not chain_only:
-            save_patched_urdf(urdf, model, out, params, comment=comment + f", into {urdf.name}")
-        else:
-            save_urdf(model, out, params, comment=comment)
-        unit = "metres, radians"
+        _export_urdf(model, params, urdf, out, what, chain_only,
+                     (camera, unit, parent_frame, child_frame))
+        unit_text = "metres, radians"
     else:
+        from kinecal.io.models import save_model
+
         target = model if params is None else model.with_params(
             params, name=f"{model.name}-calibrated")
         save_model(target, out)
-        unit = f"{model.length_unit}, {model.angle_unit}"
-    typer.echo(f"wrote {out} ({fmt}, {model.n_joints} joints, {unit}) from {what}", err=True)
+        unit_text = f"{model.length_unit}, {model.angle_unit}"
+    typer.echo(f"wrote {out} ({fmt}, {model.n_joints} joints, {unit_text}) from {what}",
+               err=True)
+
+
+def _export_urdf(model, params, urdf: Path | None, out: Path, what: str, chain_only: bool,
+                 cam: tuple) -> None:
+    """Write the URDF of `model` (into a copy of its URDF `urdf`), with the camera mount of
+    a hand-eye result when ``cam[0]`` names one."""
+    from kinecal._files import write_text_atomic
+    from kinecal.io.urdf_export import urdf_string
+    from kinecal.io.urdf_patch import patched_urdf
+
+    comment = f"written by kinecal export from {what}; lengths in metres, angles in radians"
+    if urdf is not None and not chain_only:
+        text = patched_urdf(urdf, model, params, comment=comment + f", into {urdf.name}")
+    else:
+        text = urdf_string(model, params, comment=comment)
+    camera, unit, parent, child = cam
+    if camera is not None:
+        from kinecal.io.ros.static_tf import metres_per_unit, read_handeye_result
+        from kinecal.io.urdf_camera import add_camera_mount, chain_links
+
+        X, setup, length_unit = read_handeye_result(camera)
+        scale = metres_per_unit(length_unit, unit, camera)
+        base, flange = chain_links(model, params)
+        parent = parent or (flange if setup == "eye-in-hand" else base)
+        X_m = X.copy()
+        X_m[:3, 3] *= scale
+        text = add_camera_mount(text, parent, child or "camera_optical_frame", X_m)
+        typer.echo(f"camera mount ({setup}, {camera}): link "
+                   f"{child or 'camera_optical_frame'} fixed to {parent}", err=True)
+    else:
+        for opt, v in (("--unit", unit), ("--parent-frame", parent), ("--child-frame", child)):
+            if v is not None:
+                raise InputError(f"{opt} applies to --format ros-tf and to --camera",
+                                 option=opt)
+    write_text_atomic(out, text)
+
+
+def _export_ur(model, params, out: Path, what: str, robot: str | None) -> None:
+    """Write ur_description's default_kinematics.yaml of a UR-type model."""
+    from kinecal.io.ur.kinematics import save_ur_kinematics, ur_kinematics
+
+    _, ref = ur_kinematics(model, params, robot)
+    comment = (f"written by kinecal export from {what}: ur_description kinematics (metres, "
+               "radians);\nchain from base_link_inertia (UR's base frame, D-H frame 0) to "
+               "wrist_3 = tool0 (D-H frame 6); the model's base and tool are not part of it\n"
+               + (f"link frames kept next to the nominal {ref}'s" if ref else
+                  "no UR type within 5 mm: plain regrouping of the D-H table"))
+    save_ur_kinematics(out, model, params, ref, comment)
+    typer.echo(f"wrote {out} (ur-kinematics, {model.name}, metres, radians; reference "
+               f"{ref or 'none'}) from {what}; load it with ur_robot_driver's "
+               "kinematics_params_file (ROS 2) or kinematics_config (ROS 1)", err=True)
+
+
+def _export_ros_tf(source: str, out: Path, unit: str | None, parent: str | None,
+                   child: str | None) -> None:
+    """Write a hand-eye result as a ROS 2 launch file; print the frames and command."""
+    from kinecal._files import write_text_atomic
+    from kinecal.io.ros.static_tf import metres_per_unit, read_handeye_result, static_transform
+
+    path = Path(source)
+    X, setup, length_unit = read_handeye_result(path)
+    tf = static_transform(X, setup, metres_per_unit(length_unit, unit, path), parent, child)
+    write_text_atomic(out, tf.launch_file(comment=f"written by kinecal export from {source} "
+                                          f"({setup}); lengths in metres"))
+    typer.echo(tf.words())
+    typer.echo(tf.command())
+    typer.echo(f"wrote {out} (ros-tf launch file, {setup}): ros2 launch {out}", err=True)

@@ -13,7 +13,12 @@ from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
     echo_json,
+    instrument_option,
+    note_option,
+    operator_option,
     quiet_option,
+    report_option,
+    report_record,
     seed_option,
     strict_option,
     warnings_scope,
@@ -127,15 +132,20 @@ def handeye(
                                     "'input unit')."),
     json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),
     out: Path | None = typer.Option(None, "--out", help="Write the result JSON here."),
-    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
+    report: Path | None = report_option(),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
+    instrument: str | None = instrument_option(),
+    operator: str | None = operator_option(),
+    note: str | None = note_option(),
 ) -> None:
     """Hand-eye calibration from (flange2base, target2cam) pose pairs."""
     from kinecal.calibration.handeye import calibrate_handeye
 
     check_paths({"PAIRS": pairs, "--robot-poses": robot_poses, "--target-poses": target_poses},
                 {"--out": out, "--report": report})
+    record = report_record(report, {"PAIRS": pairs, "--robot-poses": robot_poses,
+                                    "--target-poses": target_poses}, instrument, operator, note)
     _check_pairs_mode(method, refine, pairs_mode)
     with warnings_scope(strict) as found:
         F, C, source, default_setup = read_pairs(pairs, robot_poses, target_poses,
@@ -155,7 +165,7 @@ def handeye(
     if report is not None:
         from kinecal.report.html import handeye_report
 
-        handeye_report(result, report)
+        handeye_report(result, report, provenance=record)
     if json_out:
         echo_json(result)
         return
@@ -200,7 +210,7 @@ def handeye_poses(
 ) -> None:
     """Plan hand-eye camera poses: the star-polygon scheme of Li, Xiao, Lai and Hu (2024), or
     random."""
-    from kinecal.calibration.poses import random_poses, star_polygon_poses
+    from kinecal.calibration.handeye.poses import random_poses, star_polygon_poses
     from kinecal.io.csvtable import write_table
     from kinecal.io.handeye import pose_columns
     from kinecal.spatial import invert_transform, pq_from_transform

@@ -12,8 +12,13 @@ from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
     echo_json,
+    instrument_option,
+    note_option,
+    operator_option,
     progress,
     quiet_option,
+    report_option,
+    report_record,
     strict_option,
     warnings_scope,
     with_warnings,
@@ -77,14 +82,20 @@ def handeye_images(
                                            "robot pose errors of this std (deg, length)."),
     json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),
     out: Path | None = typer.Option(None, "--out", help="Write the result JSON here."),
-    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
+    report: Path | None = report_option(),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
+    instrument: str | None = instrument_option(),
+    operator: str | None = operator_option(),
+    note: str | None = note_option(),
 ) -> None:
     """Hand-eye calibration from images of a calibration board and the robot poses."""
     check_paths({"IMAGES_DIR": images_dir, "ROBOT_POSES": robot_poses,
                  "--intrinsics": intrinsics}, {"--out": out, "--report": report},
                 reads={"IMAGES_DIR": IMAGE_SUFFIXES})
+    record = report_record(report, {"IMAGES_DIR": images_dir, "ROBOT_POSES": robot_poses,
+                                    "--intrinsics": intrinsics}, instrument, operator, note,
+                           suffixes={"IMAGES_DIR": IMAGE_SUFFIXES})
     from kinecal.calibration.handeye import METHODS, SETUPS
     from kinecal.io.handeye import read_robot_poses
 
@@ -128,7 +139,7 @@ def handeye_images(
             from kinecal.report.handeye_images import handeye_images_report
 
             handeye_images_report(res, report, images=[by_name[n] for n in names],
-                                  result_dict=result)
+                                  result_dict=result, provenance=record)
     if json_out:
         echo_json(result)
         return

@@ -7,7 +7,18 @@ from pathlib import Path
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import check_paths, echo_json, quiet_requested, seed_option, write_json
+from kinecal.cli._common import (
+    check_paths,
+    echo_json,
+    instrument_option,
+    note_option,
+    operator_option,
+    quiet_requested,
+    report_option,
+    report_record,
+    seed_option,
+    write_json,
+)
 from kinecal.experiments import PAPERS, experiment_module
 
 
@@ -19,18 +30,22 @@ def reproduce(
     out: Path | None = typer.Option(None, "--out", help="Directory for result.json and figures."),
     seed: int = seed_option(),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bars."),
-    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
+    report: Path | None = report_option(),
+    instrument: str | None = instrument_option(),
+    operator: str | None = operator_option(),
+    note: str | None = note_option(),
 ) -> None:
     """Reproduce a paper's table (hu2005, li2024, zhao-yang, liu2008)."""
     module = experiment_module(paper)
     check_paths({}, {"--report": report}, folders={"--out": (out, ["result.json"])})
+    record = report_record(report, {}, instrument, operator, note)
     result = module.run(quick=quick, seed=seed, out_dir=out, quiet=quiet_requested(quiet))
     if out is not None:
         write_json(out / "result.json", result)
     if report is not None:
         from kinecal.report.html import reproduce_report
 
-        reproduce_report(result, report)
+        reproduce_report(result, report, provenance=record)
     if json_out:
         echo_json(result)
     else:

@@ -45,8 +45,8 @@ def simulate(
 ) -> None:
     """Simulate measurements of a model with true errors and noise."""
     from kinecal.calibration.diagnostics.sizes import check_angle_noise
-    from kinecal.calibration.simulate import read_truth, write_truth
-    from kinecal.calibration.simulate import simulate as run
+    from kinecal.calibration.serial.simulate import read_truth, write_truth
+    from kinecal.calibration.serial.simulate import simulate as run
     from kinecal.io.measurements import write_measurements
 
     check_paths({"MODEL": model, "--errors": None if errors in ("zero", "random") else errors},

@@ -18,7 +18,12 @@ from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
     echo_json,
+    instrument_option,
+    note_option,
+    operator_option,
     quiet_option,
+    report_option,
+    report_record,
     resolve_data_path,
     seed_option,
     strict_option,
@@ -58,7 +63,7 @@ def _read(path: str, columns: tuple[str, ...], option: str) -> np.ndarray:
 
 
 def _poses_rad(deg: np.ndarray) -> np.ndarray:
-    from kinecal.kinematics.stewart import degrees_to_radians
+    from kinecal.kinematics.stewart.platform import degrees_to_radians
 
     return degrees_to_radians(deg)
 
@@ -116,7 +121,7 @@ def fk(
     geom = _geometry(geometry)
     path = str(resolve_data_path(legs, "LEGS"))
     L = geom.check_legs(_read(legs, LEG_COLUMNS, "LEGS"), file=path)
-    from kinecal.kinematics.stewart import radians_to_degrees
+    from kinecal.kinematics.stewart.platform import radians_to_degrees
 
     if all_modes:
         _fk_all(geom, L, path, seed, json_out)
@@ -146,7 +151,7 @@ def fk(
 
 
 def _fk_all(geom, L: np.ndarray, path: str, seed: int, json_out: bool) -> None:
-    from kinecal.kinematics.stewart import radians_to_degrees
+    from kinecal.kinematics.stewart.platform import radians_to_degrees
 
     out = []
     for i in range(L.shape[0]):  # one multi-start batch per reading
@@ -212,10 +217,10 @@ def simulate(
         check_length_noise,
         stewart_size,
     )
-    from kinecal.calibration.stewart import ARCSEC, perturb_geometry, simulate_stewart
+    from kinecal.calibration.stewart.calibrate import ARCSEC, perturb_geometry, simulate_stewart
     from kinecal.io.csvtable import write_table
     from kinecal.io.geometry import load_geometry, save_geometry
-    from kinecal.kinematics.stewart import radians_to_degrees
+    from kinecal.kinematics.stewart.platform import radians_to_degrees
 
     try:
         float(errors)
@@ -283,17 +288,22 @@ def calibrate(
     geometry_out: Path | None = typer.Option(
         None, "--geometry-out", help="Calibrated geometry YAML (load_geometry reads it)."
     ),
-    report: Path | None = typer.Option(None, "--report", help="HTML report to write."),
+    report: Path | None = report_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
+    instrument: str | None = instrument_option(),
+    operator: str | None = operator_option(),
+    note: str | None = note_option(),
 ) -> None:
     """Identify the 42 geometric parameters from measured poses and leg readings."""
-    from kinecal.calibration.stewart import StewartData, calibrate_stewart
+    from kinecal.calibration.stewart.calibrate import StewartData, calibrate_stewart
     from kinecal.io.geometry import save_geometry
 
     check_paths({"GEOMETRY": geometry, "DATA": data, "--validate": validate},
                 {"--out": out, "--geometry-out": geometry_out, "--report": report})
+    record = report_record(report, {"GEOMETRY": geometry, "DATA": data, "--validate": validate},
+                           instrument, operator, note)
     with warnings_scope(strict) as found:
         geom = _geometry(geometry)
         unit = _geometry_unit(geometry)
@@ -316,7 +326,9 @@ def calibrate(
         if geometry_out is not None:
             save_geometry(res.geometry, geometry_out, unit)
         if report is not None:
-            res.report(report)
+            from kinecal.report.stewart import stewart_report
+
+            stewart_report(res, report, provenance=record)
     if json_out:
         echo_json(result)
     elif not quiet:

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.calibration.result import CalibrationResult
-from kinecal.calibration.stats import error_stats
+from kinecal.calibration.serial.result import CalibrationResult
+from kinecal.metrology.stats import error_stats
 
 __all__ = [
     "checkpoints",

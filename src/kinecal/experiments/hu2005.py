@@ -44,10 +44,10 @@ from typing import Any
 import numpy as np
 
 from kinecal import diagnostics
-from kinecal.calibration.problem import CalibrationProblem
-from kinecal.calibration.result import CalibrationResult
-from kinecal.calibration.serial import calibrate
-from kinecal.calibration.simulate import read_truth, simulate
+from kinecal.calibration.serial.api import calibrate
+from kinecal.calibration.serial.problem import CalibrationProblem
+from kinecal.calibration.serial.result import CalibrationResult
+from kinecal.calibration.serial.simulate import read_truth, simulate
 from kinecal.experiments._serial_common import (
     checkpoints,
     format_table,

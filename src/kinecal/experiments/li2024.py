@@ -28,8 +28,8 @@ import numpy as np
 
 from kinecal.calibration.handeye import calibrate_handeye, solve
 from kinecal.calibration.handeye.errors import pose_error
+from kinecal.calibration.handeye.poses import random_poses, star_polygon_poses
 from kinecal.calibration.handeye.refine_meta import metaheuristic
-from kinecal.calibration.poses import random_poses, star_polygon_poses
 from kinecal.spatial import (
     invert_transform,
     matrix_from_axis_angle,

@@ -15,7 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from kinecal.kinematics.stewart import StewartPlatform, degrees_to_radians, radians_to_degrees
+from kinecal.kinematics.stewart.platform import (
+    StewartPlatform,
+    degrees_to_radians,
+    radians_to_degrees,
+)
 
 __all__ = ["PAPER", "render", "run"]
 
@@ -60,9 +64,9 @@ def _pso_study(geom: StewartPlatform, legs: np.ndarray, exact: np.ndarray, seeds
 
 
 def _calibration_study(geom: StewartPlatform, seed: int, n_val: int) -> dict:
-    from kinecal.calibration.stewart import calibrate_stewart
-    from kinecal.calibration.stewart_data import perturb_geometry, simulate_stewart
-    from kinecal.calibration.stewart_result import pose_prediction_errors
+    from kinecal.calibration.stewart.calibrate import calibrate_stewart
+    from kinecal.calibration.stewart.data import perturb_geometry, simulate_stewart
+    from kinecal.calibration.stewart.result import pose_prediction_errors
 
     rng = np.random.default_rng(seed)
     true = perturb_geometry(geom, 1e-3, rng)

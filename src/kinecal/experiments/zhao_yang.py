@@ -37,9 +37,9 @@ import numpy as np
 
 from kinecal import diagnostics
 from kinecal.calibration.identifiability import analyse
-from kinecal.calibration.problem import resolve_free
-from kinecal.calibration.serial import calibrate
-from kinecal.calibration.simulate import random_errors, simulate
+from kinecal.calibration.serial.api import calibrate
+from kinecal.calibration.serial.problem import resolve_free
+from kinecal.calibration.serial.simulate import random_errors, simulate
 from kinecal.experiments._serial_common import (
     format_table,
     progress_bar,

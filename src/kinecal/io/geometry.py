@@ -35,7 +35,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, mo
 from kinecal._files import read_yaml_mapping, write_text_atomic
 from kinecal.errors import InputError
 from kinecal.io.bundled import bundled_names, resolve_machine_file
-from kinecal.kinematics.stewart import StewartPlatform
+from kinecal.kinematics.stewart.platform import StewartPlatform
 
 __all__ = [
     "GeometrySpec",

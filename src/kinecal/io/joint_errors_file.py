@@ -15,7 +15,7 @@
       values: {dq2.sin1: 0.0012, dq2.compliance.link3: 1.5e-07}   # coefficient values
       reference: {d1: 89.159, a2: -425.0}    # geometry the gravity forces are computed on
 
-Coefficients are named as in `kinecal.kinematics.joint_errors`. Angle-valued coefficients
+Coefficients are named as in `kinecal.kinematics.serial.joint_errors`. Angle-valued coefficients
 (harmonics, compliance of revolute joints) and the angles in ``reference`` are in the
 file's ``angle_unit``; compliance is an angle per (mass x length unit) of gravity load;
 scale coefficients are dimensionless. Absent values are 0. ``reference`` is written by
@@ -31,9 +31,9 @@ from typing import Annotated, Literal
 from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError, field_validator
 
 from kinecal.errors import InputError
-from kinecal.kinematics.joint_errors import JointErrors, PointMass
-from kinecal.kinematics.motions import PRISMATIC
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.joint_errors import JointErrors, PointMass
+from kinecal.kinematics.serial.model import SerialModel
+from kinecal.kinematics.serial.motions import PRISMATIC
 
 __all__ = ["JointErrorsSpec", "joint_errors_from_file", "joint_errors_to_file"]
 

@@ -8,7 +8,7 @@ x_dif, y_dif, z_dif``; degrees, mm) is read as well: measured = target + dif.
 
 An optional ``marker`` column says which marker (tool point) each row measured: a name of
 the model's ``markers`` or its number 1..M in the model's order. A model without markers
-takes the names the file uses (`kinecal.kinematics.markers.model_for_markers` then gives
+takes the names the file uses (`kinecal.kinematics.serial.markers.model_for_markers` then gives
 it one tool point per name).
 
 The joint columns may instead carry the model's joint names (a URDF model's joint names,
@@ -28,7 +28,7 @@ from kinecal import diagnostics
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.io.csvtable import read_column, read_table, write_table
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
 # Measurements (kinecal.data) is re-exported here

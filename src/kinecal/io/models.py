@@ -42,7 +42,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 from kinecal._files import read_yaml_mapping, write_text_atomic
 from kinecal.errors import InputError
 from kinecal.io.bundled import bundled_names, resolve_machine_file
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = ["ModelFile", "bundled_models", "check_model_file_name", "is_urdf_path", "load_model",
            "model_path", "read_yaml", "save_model"]

@@ -4,7 +4,7 @@ The file is parsed by yourdfpy (the maintained URDF parser of the Python robotic
 ``pip install kinecal[urdf]``); meshes are never loaded. The chain runs from `base_link`
 (default: the root link) to `tip_link` (default: the end of the one branch that carries
 moving joints, see `chain_path`). Each joint on it becomes one chain entry
-(`kinecal.kinematics.motions.urdf_motions`):
+(`kinecal.kinematics.serial.motions.urdf_motions`):
 
 * ``revolute``, ``continuous``, ``prismatic``: a moving joint ``{name, type, x, y, z,
   roll, pitch, yaw, offset: 0, axis}`` whose origin components and offset are named
@@ -35,7 +35,7 @@ import numpy as np
 from kinecal import diagnostics
 from kinecal._files import MAX_TEXT_BYTES, check_input_file
 from kinecal.errors import InputError
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import xyz_rpy_from_transform
 
 __all__ = ["MOVING", "chain_path", "load_urdf", "read_urdf", "urdf_entries"]

@@ -35,9 +35,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
-from kinecal.kinematics.markers import marker_parameter_names
-from kinecal.kinematics.motions import PRISMATIC, ROTATION, Motion
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.markers import marker_parameter_names
+from kinecal.kinematics.serial.model import SerialModel
+from kinecal.kinematics.serial.motions import PRISMATIC, ROTATION, Motion
 from kinecal.spatial import matrix_from_axis_angle, rot_x, rot_y, rot_z, xyz_rpy_from_transform
 
 __all__ = ["URDFJoint", "save_urdf", "urdf_joints", "urdf_origin", "urdf_string"]

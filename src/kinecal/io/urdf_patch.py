@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike
 from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
 from kinecal.io.urdf_export import URDFJoint, urdf_joints, urdf_origin
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import invert_transform
 
 __all__ = ["patched_urdf", "save_patched_urdf"]

@@ -1,7 +1,7 @@
 """Report section: what the calibration changes in a robot program (compensation).
 
 The calibration's held-out validation poses (else up to `MAX_ROWS` calibration poses) are
-treated as a joint program and compensated with `kinecal.calibration.compensate`: the
+treated as a joint program and compensated with `kinecal.compensation.api`: the
 section shows how far each pose's command moves (joint and Cartesian corrections), whether
 the calibrated arm reaches every nominal pose, and the command that does the same for any
 program.
@@ -31,7 +31,7 @@ def compensation_section(result: Any) -> str:
     result : CalibrationResult
         A serial-arm calibration with its joint values (validation or calibration poses).
     """
-    from kinecal.calibration.compensate import compensate
+    from kinecal.compensation.api import compensate
     from kinecal.report.markup import section, table
 
     nom = result.nominal_model

@@ -38,7 +38,7 @@ def confounded_rows(result: Any) -> list[tuple[str, str]]:
 
 def axis_section(result: Any, table) -> str:
     """Per-axis (x, y, z) position errors before and after, from ``extra["axis_errors"]``
-    (`kinecal.calibration.stats.axis_stats`); empty when the result has none."""
+    (`kinecal.metrology.stats.axis_stats`); empty when the result has none."""
     axes = (result.extra or {}).get("axis_errors")
     if not axes:
         return ""

@@ -38,7 +38,7 @@ __all__ = [
 FIGSIZE = (7.2, 3.2)
 DPI = 100
 #: kinds of `plot_calibration`
-CALIBRATION_KINDS = ("errors", "validation", "histogram", "convergence")
+CALIBRATION_KINDS = ("errors", "validation", "sorted", "histogram", "convergence")
 
 _BEFORE = "#b0b0b0"
 _AFTER = "#1f77b4"
@@ -63,47 +63,75 @@ def figure_png(fig: Any) -> bytes:
     return buf.getvalue()
 
 
-#: up to this many poses the per-pose figure draws bars; beyond, sorted error curves
+#: up to this many poses the per-pose figure draws bars; beyond, points
 BAR_POSES = 100
 
 
 def _per_pose(ax: Any, before: NDArray, after: NDArray, unit: str, title: str) -> None:
-    """Per-pose distance errors before (grey) and after (blue).
+    """Per-pose distance errors before (grey) and after (blue), in pose order.
 
-    Up to `BAR_POSES` poses: a pair of bars per pose (pose numbers from 1, integer ticks).
-    Beyond: each set of errors sorted in decreasing order against the share of poses, on a
-    logarithmic axis, so that a thousand poses read as two curves and the after errors,
-    often a hundred times smaller, are not flattened against the before ones.
+    Up to `BAR_POSES` poses: a pair of bars per pose (pose numbers from 1, integer ticks),
+    on a logarithmic axis when every after error is below a tenth of the largest error (the
+    after bars would not show on a linear one). Beyond: one point per pose and set, still
+    in pose order (a pose is found by its number), on a logarithmic axis, so that the after
+    errors, often a hundred times smaller, are not
+    flattened against the before ones. `_sorted` draws the same errors sorted.
     """
-    from matplotlib.ticker import MaxNLocator, PercentFormatter
+    from matplotlib.ticker import MaxNLocator
 
     before = np.asarray(before, dtype=float)
     after = np.asarray(after, dtype=float)
     n = before.size
+    idx = np.arange(1, n + 1)
     if n <= BAR_POSES:
-        idx = np.arange(1, n + 1)
         ax.bar(idx - 0.2, before, width=0.4, color=_BEFORE, label="before")
         ax.bar(idx + 0.2, after, width=0.4, color=_AFTER, label="after")
         ax.set_xlim(0.4, n + 0.6)
-        top = float(np.concatenate([before, after]).max(initial=0.0))
-        ax.set_ylim(0.0, 1.25 * top if top > 0 else 1.0)  # room for the legend
-        ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
-        ax.set_xlabel("pose")
-        ax.set_ylabel(f"position error [{unit}]")
+        both = np.concatenate([before, after])
+        top = float(both.max(initial=0.0))
+        if top > 0 and (both > 0).all() and after.max(initial=0.0) < 0.1 * top:
+            # the after bars would be invisible on a linear axis: a logarithmic one
+            ax.set_yscale("log")
+            ax.set_ylim(float(both.min()) / 2.0, top * 4.0)  # room for the legend
+            ax.grid(True, which="major", axis="y", alpha=0.3)
+        else:
+            ax.set_ylim(0.0, 1.25 * top if top > 0 else 1.0)  # room for the legend
     else:
-        share = (np.arange(n) + 0.5) / n
         floor = max(float(np.concatenate([before, after]).max(initial=0.0)) * 1e-12, 1e-300)
         for values, color, label in ((before, _BEFORE, "before"), (after, _AFTER, "after")):
-            ax.plot(share, np.maximum(np.sort(values)[::-1], floor), color=color, linewidth=2,
-                    label=label)
+            ax.plot(idx, np.maximum(values, floor), linestyle="none", marker=".",
+                    markersize=3, color=color, label=label)
         ax.set_yscale("log")
-        ax.set_xlim(0.0, 1.0)
-        ax.xaxis.set_major_formatter(PercentFormatter(1.0))
-        ax.set_xlabel("share of poses, sorted by error")
-        ax.set_ylabel(f"position error [{unit}]")
-        ax.grid(True, which="both", alpha=0.3)
+        ax.set_xlim(0.0, n + 1.0)
+        ax.grid(True, which="major", axis="y", alpha=0.3)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
+    ax.set_xlabel("pose (file order)")
+    ax.set_ylabel(f"position error [{unit}]")
     ax.set_title(title)
-    ax.legend(loc="upper right", ncol=2)
+    ax.legend(loc="upper right", ncol=2, markerscale=3)
+
+
+def _sorted(ax: Any, groups: dict[str, tuple[NDArray, NDArray]], unit: str) -> None:
+    """Each set of errors sorted in decreasing order against the share of poses, on a
+    logarithmic axis: before (grey) and after (blue), calibration solid, validation dashed."""
+    from matplotlib.ticker import PercentFormatter
+
+    every = np.concatenate([np.asarray(v, float) for pair in groups.values() for v in pair])
+    floor = max(float(every.max(initial=0.0)) * 1e-12, 1e-300)
+    for (label, pair), style in zip(groups.items(), ("-", "--"), strict=False):
+        for values, color, when in ((pair[0], _BEFORE, "before"), (pair[1], _AFTER, "after")):
+            v = np.asarray(values, dtype=float)
+            share = (np.arange(v.size) + 0.5) / max(v.size, 1)
+            ax.plot(share, np.maximum(np.sort(v)[::-1], floor), color=color, linewidth=2,
+                    linestyle=style, label=f"{label}, {when}")
+    ax.set_yscale("log")
+    ax.set_xlim(0.0, 1.0)
+    ax.xaxis.set_major_formatter(PercentFormatter(1.0))
+    ax.set_xlabel("share of poses, sorted by error")
+    ax.set_ylabel(f"position error [{unit}]")
+    ax.set_title("Sorted errors")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(loc="upper right", ncol=2, fontsize="small")
 
 
 def _histogram(ax: Any, before: NDArray, after: NDArray, unit: str) -> None:
@@ -147,9 +175,10 @@ def plot_calibration(result: Any, kind: str = "errors", ax: Any = None) -> Any:
     ----------
     result : CalibrationResult
         The calibration outcome.
-    kind : {"errors", "validation", "histogram", "convergence"}
-        ``errors``: per-pose distance errors on the calibration poses before and after;
-        ``validation``: the same on the validation poses; ``histogram``: distribution of
+    kind : {"errors", "validation", "sorted", "histogram", "convergence"}
+        ``errors``: per-pose distance errors on the calibration poses before and after, in
+        pose order; ``validation``: the same on the validation poses; ``sorted``: the
+        errors of both sets sorted by size; ``histogram``: distribution of
         the calibration errors before and after; ``convergence``: mean distance error
         (model length unit) per iteration.
     ax : matplotlib Axes, optional
@@ -175,6 +204,11 @@ def plot_calibration(result: Any, kind: str = "errors", ax: Any = None) -> Any:
     elif kind == "validation":
         _per_pose(ax, result.val_before, result.val_after, unit,
                   f"Validation poses ({result.val_before.size})")
+    elif kind == "sorted":
+        groups = {"calibration": (result.errors_before, result.errors_after)}
+        if result.val_before is not None:
+            groups["validation"] = (result.val_before, result.val_after)
+        _sorted(ax, groups, unit)
     elif kind == "histogram":
         _histogram(ax, result.errors_before, result.errors_after, unit)
     else:

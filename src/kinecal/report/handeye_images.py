@@ -17,9 +17,11 @@ from typing import Any
 
 import numpy as np
 
-from kinecal._files import write_text_atomic
+from kinecal.report.document import write_report
 from kinecal.report.figures import figure_png, new_figure
 from kinecal.report.markup import image_tag, page, section, table
+from kinecal.report.provenance import Provenance, collect, provenance_section
+from kinecal.report.summary import COVERAGE_K
 
 __all__ = ["handeye_images_report", "plot_image_errors", "thumbnail_jpeg"]
 
@@ -86,8 +88,10 @@ def _matrix_table(T: Any) -> str:
 
 def handeye_images_report(result: Any, path: str | Path,
                           images: Sequence[Any] | None = None,
-                          result_dict: dict[str, Any] | None = None) -> Path:
-    """Write the HTML report of an `ImageHandEyeResult`; returns `path`.
+                          result_dict: dict[str, Any] | None = None,
+                          provenance: Provenance | None = None) -> Path:
+    """Write the report of an `ImageHandEyeResult` (HTML, or PDF for ``.pdf``) with its
+    record (`provenance`: date and version when omitted); returns `path`.
 
     Parameters
     ----------
@@ -118,7 +122,10 @@ def handeye_images_report(result: Any, path: str | Path,
     xsec = (_matrix_table(result.X)
             + "<p>Standard deviation (1 sigma, from the reprojection residuals): rotation "
             + html.escape(", ".join(f"{v:.4g}" for v in xr)) + " deg about X's x, y, z axes; "
-            "translation " + html.escape(", ".join(f"{v:.4g}" for v in xt)) + " mm.</p>")
+            "translation " + html.escape(", ".join(f"{v:.4g}" for v in xt)) + " mm. Expanded "
+            "(k = 2): rotation " + html.escape(", ".join(f"{COVERAGE_K * v:.4g}" for v in xr))
+            + " deg; translation "
+            + html.escape(", ".join(f"{COVERAGE_K * v:.4g}" for v in xt)) + " mm.</p>")
     ysec = (_matrix_table(result.target)
             + "<p>Standard deviation: rotation " + html.escape(", ".join(f"{v:.4g}" for v in yr))
             + " deg; translation " + html.escape(", ".join(f"{v:.4g}" for v in yt)) + " mm.</p>")
@@ -140,7 +147,9 @@ def handeye_images_report(result: Any, path: str | Path,
         classes.append("fixed" if r.status != "used" else "")
     itab = table(["image", "status", "corners", "RMS [px]", "max [px]", "tilt [deg]",
                   "edge width [px]", "reason"], rows, left=2, row_classes=classes)
+    provenance = collect() if provenance is None else provenance
     sections = [
+        provenance_section(provenance),
         section("summary", "Set-up and solution", summary),
         section("transform", f"X ({frame})", xsec),
         section("target", f"Board pose ({tframe})", ysec),
@@ -157,11 +166,9 @@ def handeye_images_report(result: Any, path: str | Path,
         sections.append(section("thumbnails", "Detections", _thumbnails(result, images)))
     doc = page("Hand-eye calibration from images",
                f"{result.setup}, {len(result.used)} of {len(result.records)} images used",
-               sections)
+               sections, provenance.created)
     doc = doc.replace("</head>", _THUMB_CSS + "</head>", 1)
-    path = Path(path)
-    write_text_atomic(path, doc)
-    return path
+    return write_report(path, doc)
 
 
 def _thumbnails(result: Any, images: Sequence[Any]) -> str:

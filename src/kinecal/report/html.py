@@ -14,10 +14,10 @@ import math
 from pathlib import Path
 from typing import Any
 
-from kinecal._files import write_text_atomic
-from kinecal.calibration.stats import stat_rows
 from kinecal.errors import InputError
+from kinecal.metrology.stats import stat_rows
 from kinecal.report.details import axis_section, confounded_rows, correlation_section
+from kinecal.report.document import write_report
 from kinecal.report.figures import (
     calibration_figures,
     figure_png,
@@ -34,6 +34,8 @@ from kinecal.report.markup import (
     section,
     table,
 )
+from kinecal.report.provenance import Provenance, collect, provenance_section
+from kinecal.report.summary import COVERAGE_K, calibration_summary, expanded_note
 from kinecal.report.warnings import warnings_section
 
 __all__ = [
@@ -50,7 +52,9 @@ __all__ = [
 ]
 
 # --------------------------------------------------------------------- calibration
-def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
+def _calibration_sections(result: Any, pngs: dict[str, bytes],
+                          provenance: Provenance | None = None,
+                          validation: Any = None) -> list[str]:
     nom = result.nominal_model
     unit = nom.length_unit
     angle = "deg" if nom.angle_unit == "deg" else "rad"
@@ -83,13 +87,18 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
     ptab = result.parameter_table()
     names = list(ptab)
     is_angle = dict(zip(nom.parameter_names, nom.is_angle(), strict=True))
+    def u(e: dict, k: float) -> Any:
+        if not e["free"]:
+            return None
+        return k * e["std"] if math.isfinite(e["std"]) else "not identifiable"
+
     prow = [(n, angle if is_angle[n] else unit, e["nominal"], e["identified"],
-             e["identified"] - e["nominal"],
-             (e["std"] if math.isfinite(e["std"]) else "not identifiable") if e["free"] else None,
+             e["identified"] - e["nominal"], u(e, 1.0), u(e, COVERAGE_K),
              "free" if e["free"] else "fixed") for n, e in ptab.items()]
-    params = table(["parameter", "unit", "nominal", "identified", "delta", "std. error",
-                    "status"], prow, left=2,
+    params = table(["parameter", "unit", "nominal", "identified", "delta",
+                    "std. error u (1 sigma)", "U (k = 2)", "status"], prow, left=2,
                    row_classes=["" if ptab[n]["free"] else "fixed" for n in names])
+    params += expanded_note()
     rows = [(f"{label}, {when}", st["n"], st["mean"], st["rms"], st["std"], st.get("p95"),
              st["max"]) for label, when, st in stat_rows(result.position_groups())]
     errors = (table(["poses", "n", f"mean [{unit}]", f"rms [{unit}]", f"std [{unit}]",
@@ -107,33 +116,41 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
                            rot_rows))
     pred = result.predicted_error_summary()
     if pred["calibration_mean"] is not None:
-        parts = [f"{pred['calibration_mean']:.3g} {unit} on the calibration poses"]
-        if pred["validation_mean"] is not None:
-            parts.append(f"{pred['validation_mean']:.3g} {unit} on the validation poses")
-        errors += ("<p>Uncertainty the calibration leaves in the model (1 sigma RMS position "
-                   "error from the parameter covariance, first order): "
-                   f"{html.escape(', '.join(parts))}.</p>")
+        parts = [(k, pred[f"{k}_mean"]) for k in ("calibration", "validation")
+                 if pred[f"{k}_mean"] is not None]
+        text = ", ".join(f"u = {v:.3g} {unit}, U = {COVERAGE_K * v:.3g} {unit} on the {k} poses"
+                         for k, v in parts)
+        errors += ("<p>Uncertainty the calibration leaves in the model (RMS position error "
+                   "from the parameter covariance, first order; u: 1 sigma, U: expanded, "
+                   f"k = 2): {html.escape(text)}.</p>")
     if "noise" in getattr(result, "extra", {}):  # --sigma: the test, known-noise uncertainty
         from kinecal.calibration.diagnostics.noise import noise_lines
 
         errors += "".join(f"<p>{html.escape(line)}.</p>" for line in noise_lines(result))
     captions = {
-        "errors": "Per-pose position error on the calibration poses, before (grey) and "
-                  "after (blue) calibration.",
-        "validation": "Per-pose position error on the held-out validation poses.",
+        "errors": "Per-pose position error on the calibration poses in file order (pose 1 "
+                  "is the first data row), before (grey) and after (blue) calibration.",
+        "validation": "Per-pose position error on the held-out validation poses, in file "
+                      "order.",
+        "sorted": "The same errors sorted by size (calibration solid, validation dashed), "
+                  "before (grey) and after (blue).",
         "histogram": "Distribution of the calibration errors (log-spaced bins).",
         "convergence": "Mean position error after each solver iteration.",
     }
     figs = "".join(image_tag(png, f"{kind} figure", captions[kind], f"fig-{kind}")
                    for kind, png in pngs.items())
     from kinecal.report.compensation import compensation_section
+    from kinecal.report.iso9283 import validation_iso9283_section
     from kinecal.report.residual_maps import error_model_section
 
     return [
+        calibration_summary(result),
         warnings_section(getattr(result, "warnings", None)),
+        provenance_section(provenance),
         section("summary", "Model and data", summary),
-        section("identifiability", "Identifiability", ident),
         section("errors", "Position error before and after", errors),
+        validation_iso9283_section(result, validation),
+        section("identifiability", "Identifiability", ident),
         section("parameters", "Parameters", params),
         compensation_section(result),
         section("figures", "Figures", figs),
@@ -144,31 +161,40 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes]) -> list[str]:
 
 
 def calibration_report(result: Any, path: str | Path,
-                       pngs: dict[str, bytes] | None = None) -> Path:
-    """Write the HTML report of a `CalibrationResult`; returns `path`.
+                       pngs: dict[str, bytes] | None = None,
+                       provenance: Provenance | None = None, validation: Any = None) -> Path:
+    """Write the report of a `CalibrationResult` (HTML, or PDF for a ``.pdf`` path);
+    returns `path`.
 
-    Sections: model and data, identifiability (rank, unidentifiable parameters and what
-    they are confounded with, condition number, O1-O5), before/after statistics on the
-    calibration and validation poses, parameter table (nominal, identified, delta,
-    standard error), and the figures of `kinecal.report.figures.plot_calibration`
-    (`pngs`, computed when omitted).
+    Sections: the summary (validation error before -> after, improvement, uncertainty,
+    warnings), the warnings, the record (`provenance`: date, version, command line, input
+    files with their SHA-256, operator, instrument, note; date and version only when
+    omitted), model and data, before/after statistics on the calibration and validation
+    poses, ISO 9283 figures when the validation `Measurements` (`validation`) repeat poses
+    (`kinecal.report.iso9283.repeated_validation`), identifiability (rank,
+    unidentifiable parameters and what they are confounded with, condition number, O1-O5),
+    parameter table (nominal, identified, delta, standard error u and expanded U with
+    k = 2), and the figures of `kinecal.report.figures.plot_calibration` (`pngs`, computed
+    when omitted).
     """
     path = Path(path)
     if path.is_dir():  # before the figures: fail fast on a user mistake
         raise InputError("is a directory; expected a file path to write", file=path)
     pngs = calibration_figures(result) if pngs is None else pngs
+    provenance = collect() if provenance is None else provenance
     nom = result.nominal_model
     doc = page(f"Calibration of {nom.name}",
                f"method {result.method}, {int(result.errors_before.size)} calibration poses",
-               _calibration_sections(result, pngs))
-    path = Path(path)
-    write_text_atomic(path, doc)
-    return path
+               _calibration_sections(result, pngs, provenance, validation),
+               provenance.created)
+    return write_report(path, doc)
 
 
 # ----------------------------------------------------------------------- hand-eye
-def handeye_report(result: dict[str, Any], path: str | Path) -> Path:
-    """Write the HTML report of a hand-eye result dict (``kinecal handeye --json``).
+def handeye_report(result: dict[str, Any], path: str | Path,
+                   provenance: Provenance | None = None) -> Path:
+    """Write the report of a hand-eye result dict (``kinecal handeye --json``), HTML or
+    PDF (``.pdf``), with its record (`provenance`, date and version when omitted).
 
     Sections: setup and solver (length unit, first-order uncertainty of X), the transform X,
     the target pose, residual statistics, per-station residual table and figure (outliers
@@ -190,6 +216,9 @@ def handeye_report(result: dict[str, Any], path: str | Path) -> Path:
         ("X uncertainty, rotation [deg] (1 sigma, worst axis)", xu.get("rotation_deg")),
         (f"X uncertainty, translation [{u}] (1 sigma, worst direction)",
          xu.get("translation")),
+        ("X uncertainty, rotation [deg] (expanded, k = 2)", _twice(xu.get("rotation_deg"))),
+        (f"X uncertainty, translation [{u}] (expanded, k = 2)",
+         _twice(xu.get("translation"))),
         ("outlier stations (0-based)", ", ".join(str(i) for i in sorted(outliers)) or "none"),
     ])
 
@@ -205,17 +234,21 @@ def handeye_report(result: dict[str, Any], path: str | Path) -> Path:
     fig = image_tag(figure_png(plot_handeye_stations(result)), "per-station residuals",
                     "Rotation and translation residual of every station (red: outliers).",
                     "fig-stations")
+    provenance = collect() if provenance is None else provenance
     doc = page("Hand-eye calibration", f"{setup}, method {result.get('method', '-')}", [
         warnings_section(result.get("warnings")),
+        provenance_section(provenance),
         section("summary", "Setup and solver", summary),
         section("transform", f"X ({frame})", xtab),
         section("target", f"Target pose ({tframe})", ttab),
         section("figures", "Per-station residuals", fig),
         section("stations", "Stations", stab),
-    ])
-    path = Path(path)
-    write_text_atomic(path, doc)
-    return path
+    ], provenance.created)
+    return write_report(path, doc)
+
+
+def _twice(value: Any) -> Any:
+    return COVERAGE_K * float(value) if isinstance(value, int | float) else None
 
 
 # ---------------------------------------------------------------------- reproduce
@@ -250,7 +283,8 @@ def _flat(obj: Any, prefix: str = "") -> list[tuple[str, Any]]:
     return out
 
 
-def reproduce_report(result: dict[str, Any], path: str | Path) -> Path:
+def reproduce_report(result: dict[str, Any], path: str | Path,
+                     provenance: Provenance | None = None) -> Path:
     """Write the HTML report of a paper reproduction (``experiments.<paper>.run()``).
 
     Sections: the rows table (the paper's values beside kinecal's), the experiment's own
@@ -264,7 +298,8 @@ def reproduce_report(result: dict[str, Any], path: str | Path) -> Path:
         cols += [c for c in r if c not in cols]
     rtab = (table(cols, [[r.get(c) for c in cols] for r in rows], digits=10) if rows
             else "<p>no rows</p>")
-    sections = [section("rows", "Table", rtab)]
+    provenance = collect() if provenance is None else provenance
+    sections = [provenance_section(provenance), section("rows", "Table", rtab)]
     try:
         from kinecal.experiments import experiment_module
 
@@ -280,7 +315,6 @@ def reproduce_report(result: dict[str, Any], path: str | Path) -> Path:
         png = figure_png(plot_histories(hist))
         sections.append(section("figures", "Convergence",
                                 image_tag(png, "convergence", ", ".join(hist), "fig-history")))
-    doc = page(f"Reproduction of {paper}", str(result.get("source", "")), sections)
-    path = Path(path)
-    write_text_atomic(path, doc)
-    return path
+    doc = page(f"Reproduction of {paper}", str(result.get("source", "")), sections,
+               provenance.created)
+    return write_report(path, doc)

@@ -28,6 +28,17 @@ figure{margin:1em 0}figcaption{font-size:.9em;color:#555}
 img.fig{display:block;border:1px solid #eee}
 p.meta{color:#555;margin-top:0}code,pre{background:#f6f6f6;padding:.1em .3em}
 pre{padding:.6em;overflow-x:auto}
+section.summary{background:#eef5fb;border-left:4px solid #1f77b4;padding:.2em 1em;margin:1em 0}
+section.summary h2{border:none;margin-top:.4em}section.summary p{margin:.35em 0}
+table.files td:nth-child(3){font-family:ui-monospace,monospace;font-size:.85em;word-break:break-all}
+@page{size:A4;margin:14mm 12mm 16mm;
+@bottom-left{content:string(meta);font:7.5pt system-ui,sans-serif;color:#555}
+@bottom-right{content:"page " counter(page) " of " counter(pages);font:7.5pt system-ui,
+sans-serif;color:#555}}
+@media print{body{margin:0;max-width:none;padding:0;font-size:9pt}
+img.fig{width:100%;height:auto}figure,tr{break-inside:avoid}h2{break-after:avoid}
+p.meta{string-set:meta content()}table{font-size:.9em}
+#correlation table{font-size:.62em}#correlation th,#correlation td{padding:.15em .2em}}
 """
 
 #: pixel size of every embedded figure
@@ -88,15 +99,21 @@ def section(ident: str, title: str, body: str) -> str:
             f"{body}</section>")
 
 
-def page(title: str, subtitle: str, sections: Sequence[str]) -> str:
-    """The complete document: escaped title, inline CSS, the given sections."""
+def page(title: str, subtitle: str, sections: Sequence[str], created: str | None = None
+         ) -> str:
+    """The complete document: escaped title, inline CSS, the given sections.
+
+    The line under the title names kinecal's version and, when given, the report's date
+    (`created`, ISO 8601); printed (PDF), it is the footer of every page.
+    """
     from kinecal import __version__
 
+    when = f" &middot; {html.escape(created)}" if created else ""
     return (
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
         f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"
         f"<h1>{html.escape(title)}</h1><p class=\"meta\">{html.escape(subtitle)} "
-        f"&middot; kinecal {html.escape(__version__)}</p>"
+        f"&middot; kinecal {html.escape(__version__)}{when}</p>"
         + "".join(sections) + "</body></html>\n"
     )
 

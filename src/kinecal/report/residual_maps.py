@@ -14,7 +14,7 @@ angle:
 Reach is the tool point's distance from the robot base's vertical axis (perpendicular to
 gravity), computed with the calibrated geometry. `ResidualMaps.from_result` needs the
 geometric calibration and the measured positions, which the result of
-`kinecal.calibration.error_model.calibrate_error_model` (an `ErrorModelResult`) keeps.
+`kinecal.calibration.serial.error_model.calibrate_error_model` (an `ErrorModelResult`) keeps.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.kinematics.chain import BASE_NAMES
+from kinecal.kinematics.serial.chain import BASE_NAMES
 
 __all__ = ["ResidualMaps", "error_model_section", "plot_residual_maps"]
 

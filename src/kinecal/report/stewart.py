@@ -8,18 +8,22 @@ import math
 from pathlib import Path
 from typing import Any
 
-from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
+from kinecal.report.document import write_report
 from kinecal.report.figures import _per_pose, figure_png, new_figure
 from kinecal.report.markup import image_tag, kv, page, section, table
+from kinecal.report.provenance import Provenance, collect, provenance_section
+from kinecal.report.summary import COVERAGE_K, expanded_note
 from kinecal.report.warnings import warnings_section
 
 __all__ = ["stewart_report"]
 
 
-def stewart_report(result: Any, path: str | Path) -> Path:
-    """Write the report of a `StewartCalibrationResult` to `path` (atomic); returns it."""
-    from kinecal.kinematics.stewart import PARAMETER_NAMES
+def stewart_report(result: Any, path: str | Path, provenance: Provenance | None = None) -> Path:
+    """Write the report of a `StewartCalibrationResult` to `path` (atomic; PDF for a
+    ``.pdf`` path) with its record (`provenance`: date and version when omitted); returns
+    it."""
+    from kinecal.kinematics.stewart.platform import PARAMETER_NAMES
 
     path = Path(path)
     if path.is_dir():
@@ -52,11 +56,15 @@ def stewart_report(result: Any, path: str | Path) -> Path:
     prow = []
     for n, a, b, s in zip(PARAMETER_NAMES, result.nominal.parameters,
                           result.geometry.parameters, result.std, strict=True):
+        ok = math.isfinite(s)
         prow.append((n, u, float(a), float(b), float(b - a),
-                     float(s) if math.isfinite(s) else "not identifiable"))
-    params = table(["parameter", "unit", "nominal", "identified", "delta", "std. error"], prow,
-                   left=2, digits=6)
-    sections = [warnings_section(result.warnings),
+                     float(s) if ok else "not identifiable",
+                     COVERAGE_K * float(s) if ok else "not identifiable"))
+    params = table(["parameter", "unit", "nominal", "identified", "delta",
+                    "std. error u (1 sigma)", "U (k = 2)"], prow, left=2, digits=6)
+    params += expanded_note()
+    provenance = collect() if provenance is None else provenance
+    sections = [warnings_section(result.warnings), provenance_section(provenance),
                 section("summary", "Geometry and data", summary),
                 section("errors", "Leg residuals before and after", legs),
                 section("parameters", "Parameters", params)]
@@ -69,6 +77,5 @@ def stewart_report(result: Any, path: str | Path) -> Path:
             "Per-pose leg residual (norm over the six legs) before (grey) and after (blue).",
             "fig-errors")))
     doc = page(f"Calibration of {name}", f"{cal['n']} calibration poses, lengths in {u}",
-               sections)
-    write_text_atomic(path, doc)
-    return path
+               sections, provenance.created)
+    return write_report(path, doc)

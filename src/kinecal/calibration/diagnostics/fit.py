@@ -20,8 +20,8 @@ from kinecal.calibration.diagnostics._common import (
 )
 from kinecal.calibration.diagnostics.sizes import serial_size
 from kinecal.diagnostics import warn
-from kinecal.kinematics.chain import BASE_NAMES
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.chain import BASE_NAMES
+from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = [
     "PRACTICAL_RSS_DROP",
@@ -132,7 +132,7 @@ def check_residual_offset(problem, x: Array) -> None:
     squares significantly (extra-sum-of-squares F-test at level `ALPHA`) and by at least
     `PRACTICAL_RSS_DROP`, the measurement frame is probably not the model's base frame.
     """
-    from kinecal.calibration.problem import column_scale
+    from kinecal.calibration.serial.problem import column_scale
 
     model = problem.model
     cand = [n for n in BASE_NAMES if n not in problem.free]

@@ -29,8 +29,8 @@ from kinecal.calibration.identifiability import IdentifiabilityReport
 from kinecal.data import Measurements
 from kinecal.diagnostics import warn
 from kinecal.errors import InputError
-from kinecal.kinematics.chain import BASE_NAMES
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.chain import BASE_NAMES
+from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = [
     "MIN_EQUATION_RATIO",
@@ -111,8 +111,8 @@ _CACHE: dict[tuple, Reference] = {}
 
 def _reference(model: SerialModel, names: tuple[str, ...], rotations: bool,
                tol: float) -> Reference:
-    from kinecal.calibration.problem import analyse_poses
-    from kinecal.calibration.simulate import random_configurations
+    from kinecal.calibration.serial.problem import analyse_poses
+    from kinecal.calibration.serial.simulate import random_configurations
 
     n = max(REFERENCE_POSES, 4 * model.n_params)
     q = random_configurations(model, n, np.random.default_rng(0))
@@ -229,7 +229,7 @@ def check_rank(model: SerialModel, data: Measurements, names: Sequence[str],
     """
     if report.rank >= ref.report.rank:
         return []
-    from kinecal.calibration.problem import analyse_poses
+    from kinecal.calibration.serial.problem import analyse_poses
 
     loose = analyse_poses(model, data, list(names), tol=tol * 1e-2)
     lost = [n for n in ref.report.identifiable if n not in loose.identifiable]

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.diagnostics import warn
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = ["check_absolute_errors"]
 

@@ -18,7 +18,7 @@ positions of 1e300 m and exited 0. The bound used here is the machine's own size
   box of the metaheuristics) beyond the same bounds.
 
 Both are refused (`InputError`, exit 2) before any work. ``L`` is the sum of the arm's
-link and tool lengths (`kinecal.kinematics.ik.characteristic_length`, an upper bound of
+link and tool lengths (`kinecal.kinematics.serial.ik.characteristic_length`, an upper bound of
 its reach), and for a Stewart platform its longest leg or the largest distance of a joint
 or of the probe tip from the centre (`stewart_size`). The bound is generous on purpose:
 it refuses nonsense, not a poor instrument.
@@ -43,7 +43,7 @@ MAX_ANGLE_NOISE = 1.0
 def serial_size(model) -> float:
     """The size ``L`` of a serial arm: the sum of its absolute link and tool lengths
     (an upper bound of its reach; at least 1 length unit)."""
-    from kinecal.kinematics.ik import characteristic_length
+    from kinecal.kinematics.serial.ik import characteristic_length
 
     return characteristic_length(model)
 

@@ -24,9 +24,9 @@ from kinecal.calibration.diagnostics._common import (
 )
 from kinecal.calibration.diagnostics.serial import check_pose_count
 from kinecal.calibration.diagnostics.units import EXPLAINS_BETTER, REACH_FRACTION
-from kinecal.calibration.stewart_identification import identification_jacobian
+from kinecal.calibration.stewart.identification import identification_jacobian
 from kinecal.diagnostics import warn
-from kinecal.kinematics.stewart import N_PARAMETERS
+from kinecal.kinematics.stewart.platform import N_PARAMETERS
 
 __all__ = [
     "POSE_RESOLUTION",

@@ -20,7 +20,7 @@ from kinecal.calibration.diagnostics._common import (
 )
 from kinecal.data import Measurements
 from kinecal.diagnostics import warn
-from kinecal.kinematics.serial import SerialModel
+from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = [
     "EXPLAINS_BETTER",

@@ -1,0 +1,354 @@
+"""`calibrate`: identify a serial arm's geometry from measured tool positions.
+
+Methods
+-------
+``lm`` (default)
+    Levenberg-Marquardt with the analytic Jacobian on the identifiable parameters.
+``householder``
+    Paper 000's modified least squares (Householder Gauss-Newton, sec. 4.1).
+any metaheuristic of `kinecal.optimize` (``ga``, ``pso``, ``afsa``, ``sa-iafsa``, ``gwo``, ...)
+    Searches the model's tolerance box around nominal, cost = mean distance error (paper 000).
+``hybrid-<metaheuristic>``
+    Paper 000's hybrid: least squares, then the metaheuristic in a box shrunk to 1/3.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from kinecal import diagnostics
+from kinecal.calibration.diagnostics.fit import check_serial_fit
+from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stated_sigma
+from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
+from kinecal.calibration.identifiability import analyse_factor
+from kinecal.calibration.method_options import check_method_options
+from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
+from kinecal.calibration.serial.result import CalibrationResult
+from kinecal.calibration.serial.solve import solve_lm
+from kinecal.calibration.serial.summaries import result_extra, validation_errors
+from kinecal.calibration.uncertainty import Uncertainty, subspace_uncertainty
+from kinecal.data import Measurements
+from kinecal.errors import InputError
+from kinecal.kinematics.serial.markers import model_for_markers, remap_markers
+from kinecal.kinematics.serial.model import SerialModel
+from kinecal.metrology.stats import axis_stats
+from kinecal.optimize import METHODS, minimize
+from kinecal.optimize.factor import gram_root
+from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
+from kinecal.optimize.lsq import LOSSES, householder_gauss_newton, levenberg_marquardt
+
+__all__ = ["CALIBRATION_METHODS", "calibrate"]
+
+CALIBRATION_METHODS: tuple[str, ...] = ("lm", "householder", *METHODS, *hybrid_methods())
+
+#: robust-loss outlier rule: distance error above median + OUTLIER_K * 1.4826 * MAD
+OUTLIER_K = 5.0
+#: default rank threshold of calibrate's free="identifiable": a direction whose pivot is
+#: below 1e-4 of the largest (a condition number beyond ~1e4 on unit-norm columns) is
+#: identifiable in exact arithmetic but not from real data; freeing it only slows the
+#: solver down (UR5 laser-tracker data: 741 vs 9 evaluations for the same validation error)
+CALIBRATION_RANK_TOL = 1e-4
+
+
+def _outliers(d: np.ndarray) -> list[int]:
+    med = np.median(d)
+    mad = 1.4826 * np.median(np.abs(d - med))
+    if mad <= 0:
+        return []
+    return [int(i) for i in np.flatnonzero(d > med + OUTLIER_K * mad)]
+
+
+def _uncertainty(problem: CalibrationProblem, x: np.ndarray, outliers: list[int],
+                 unique_rows: np.ndarray | None, normal: np.ndarray | None, rss: float,
+                 rank: int, positions: np.ndarray | None = None) -> Uncertainty:
+    """Covariance of the free parameters at `x` on their identifiable subspace.
+
+    The rows entering it: every pose but the robust loss' outliers, and of exact copies of a
+    row only the first (a copied row adds no information; counting it would shrink the
+    standard errors by the square root of the number of copies). `normal` and `rss`:
+    ``J^T W J`` and the weighted RSS at `x` when the solver already has them for all poses
+    (LM); otherwise one chunked pass over the kept poses. `positions`: the model's tool
+    points at `x` when known.
+    """
+    k = problem.n_free
+    n = len(problem.data)
+    keep = None
+    if outliers or unique_rows is not None:
+        keep = np.arange(n) if unique_rows is None else np.asarray(unique_rows)
+        keep = np.setdiff1d(keep, outliers)
+    if normal is None or keep is not None:
+        G = problem.gram(x, keep=keep)
+        normal, rss = G[:k, :k], G[k, k]
+    n_rows = problem.rows * (n if keep is None else len(keep))
+    P = problem.errors(x) + problem.xyz if positions is None else positions
+    scale = column_scale(problem.model, problem.data, problem.free, positions=P)
+    return subspace_uncertainty(normal, rss, n_rows, rank, scale)
+
+
+def _solution_report(problem: CalibrationProblem, x: np.ndarray, report, normal, tol: float):
+    """The identifiability report of an explicit free set, redone at the solution `x`.
+
+    Identifiability is local (large angle errors can separate parameters that are
+    confounded at nominal); the uncertainty and the words "not identifiable" must describe
+    the fit actually made.
+    """
+    k = problem.n_free
+    if normal is None:
+        normal = problem.gram(x)[:k, :k]
+    P = problem.errors(x) + problem.xyz
+    sub = analyse_factor(gram_root(normal), problem.free, problem.rows * len(problem.data),
+                         tol=tol, scale=column_scale(problem.model, problem.data, problem.free,
+                                                     positions=P))
+    return dataclasses.replace(
+        report, rank=sub.rank, identifiable=sub.identifiable, unidentifiable=sub.unidentifiable,
+        confounded_with=sub.confounded_with, condition_number=sub.condition_number,
+        singular_values=sub.singular_values, observability=sub.observability)
+
+
+def _with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
+    """`data` with its marker indices into `model`'s markers (matched by name)."""
+    if data.marker is None or data.marker_names == model.marker_names:
+        return data
+    marker = remap_markers(data.marker, data.marker_names, model.marker_names)
+    return dataclasses.replace(data, marker=marker, marker_names=model.marker_names)
+
+
+def calibrate(
+    model: SerialModel,
+    data: Measurements,
+    method: str = "lm",
+    *,
+    free: str | Sequence[str] = "identifiable",
+    validate: Measurements | None = None,
+    rng: int | np.random.Generator | None = None,
+    loss: str = "linear",
+    f_scale: float | None = None,
+    maxiter: int | None = None,
+    target: float | None = None,
+    options: dict[str, Any] | None = None,
+    progress: Callable[[int, float], Any] | None = None,
+    rank_tol: float = CALIBRATION_RANK_TOL,
+    rotation_weight: float | None = None,
+    sigma: float | None = None,
+) -> CalibrationResult:
+    """Identify the geometric parameters of `model` from `data`.
+
+    Parameters
+    ----------
+    model : SerialModel
+        Nominal model.
+    data : Measurements
+        Calibration poses (joint angles, measured tool positions).
+    method : str
+        One of `CALIBRATION_METHODS` (see module docstring).
+    free : {"identifiable", "all"} or sequence of str
+        Free parameters: the identifiable subset of the model's calibratable parameters
+        (default), all of them, or explicit names.
+    validate : Measurements, optional
+        Held-out poses for before/after validation statistics.
+    rng : int or Generator, optional
+        Randomness of the metaheuristics (an int is recorded as the result's seed).
+    loss : str
+        ``linear`` or a robust loss (``huber``, ``soft_l1``, ``cauchy``, ``arctan``) for
+        ``lm``; with a robust loss, outlier poses are flagged.
+    f_scale : float, optional
+        Robust loss scale (length unit); default 3x the median distance error after a
+        first plain fit.
+    maxiter : int, optional
+        Iteration budget of ``householder`` and the metaheuristics (default: paper settings).
+    target : float, optional
+        Metaheuristics stop when the mean distance error is ``<= target`` (paper 000's eps).
+    options : dict, optional
+        Method options (metaheuristic options; for hybrids also ``shrink``,
+        ``least_squares`` and ``ls_maxiter``).
+    progress : callable, optional
+        ``progress(iteration, best_mean_error)`` after each iteration of iterative methods.
+    rank_tol : float
+        Relative pivot threshold of the identifiability analysis behind
+        ``free="identifiable"`` (see `CALIBRATION_RANK_TOL`).
+    rotation_weight : float, optional
+        With measured orientations (``data.rotations``): length units per radian of rotation
+        error (default: the workspace's characteristic length; see `CalibrationProblem`).
+    sigma : float, optional
+        The instrument's stated 1-sigma noise per coordinate (length unit, a row of weight
+        1): the residual is tested against it (``residual-above-noise``) and the standard
+        errors with the noise known are added as ``extra["noise"]``
+        (`kinecal.calibration.diagnostics.noise`).
+
+    Returns
+    -------
+    CalibrationResult
+        With ``warnings``: the plausibility diagnostics of this calibration
+        (`kinecal.calibration.diagnostics`), also issued as `kinecal.diagnostics.KinecalWarning`
+        unless an outer collector (the command line) takes them.
+
+    Raises
+    ------
+    InputError
+        Bad arguments, or data that cannot give an answer (too few distinct poses).
+    """
+    with diagnostics.collect(python_warnings=True) as found:
+        res = _calibrate(model, data, method, free=free, validate=validate, rng=rng, loss=loss,
+                         f_scale=f_scale, maxiter=maxiter, target=target, options=options,
+                         progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight,
+                         sigma=sigma)
+    res.warnings = list(found)
+    return res
+
+
+def _check_arguments(method: str, loss: str, f_scale, maxiter, target, options, model,
+                     sigma, data: Measurements) -> None:
+    """Every argument checked before any work: a typo must not cost a calibration."""
+    if method not in CALIBRATION_METHODS:
+        raise InputError(f"unknown method {method!r}; expected one of "
+                         f"{', '.join(CALIBRATION_METHODS)}", option="--method")
+    if loss not in LOSSES:
+        raise InputError(f"loss: expected one of {', '.join(LOSSES)}, got {loss!r}",
+                         option="--loss")
+    check_method_options(method, loss=loss, f_scale=f_scale, maxiter=maxiter, target=target,
+                         options=options)
+    check_stated_sigma(model, sigma)
+    if len(data) < 1:
+        raise InputError("no calibration poses")
+
+
+def _setup(model, data, method, free, validate, rank_tol, rotation_weight):
+    """The problem, its free names, the identifiability reports and the data checks.
+
+    Returns ``(problem, lm_result or None, names, report, info, first_report)``; for ``lm``
+    the analysis, fit and growth run in few passes (`kinecal.calibration.serial.solve`).
+    """
+    found: list[SerialDataInfo] = []
+
+    def check(names: list[str], report) -> None:  # the data checks, before the fit
+        found.append(check_serial_data(model, data, names, report, validate=validate,
+                                       rank_tol=rank_tol))
+        found.append(report)
+
+    res = None
+    if method == "lm":
+        sol = solve_lm(model, data, free, rank_tol=rank_tol, rotation_weight=rotation_weight,
+                       check=check)
+        problem, res, names, report = sol.problem, sol.result, sol.names, sol.report
+    else:
+        names, report = resolve_free(model, data, free, tol=rank_tol)
+        check(names, report)
+        problem = CalibrationProblem(model, data, names, rotation_weight)
+    info, first_report = found
+    return problem, res, names, report, info, first_report
+
+
+def _run_method(problem: CalibrationProblem, res, method, *, loss, f_scale, rng, maxiter,
+                target, options, progress):
+    """Run `method` on `problem` (``lm``: `res` is the plain fit, refitted with a robust
+    `loss`). Returns ``(OptimizeResult, outlier pose indices)``."""
+    monitor = problem.mean_distance_from_residuals
+    outliers: list[int] = []
+    options = dict(options or {})
+
+    def callback(intermediate):
+        if progress is not None:
+            progress(int(intermediate.nit), float(intermediate.fun))
+        return False
+
+    if method == "lm":
+        if loss != "linear":
+            d = problem.distances(res.x)
+            scale = f_scale if f_scale is not None else 3.0 * max(float(np.median(d)), 1e-12)
+            res = levenberg_marquardt(problem.residuals, problem.jacobian, res.x, loss=loss,
+                                      f_scale=scale, monitor=monitor)
+            outliers = _outliers(problem.distances(res.x))
+    elif method == "householder":
+        res = householder_gauss_newton(problem.residuals, problem.jacobian, problem.x0,
+                                       maxiter=maxiter or 100, monitor=monitor,
+                                       callback=callback)
+    elif method.startswith(HYBRID_PREFIX):
+        hopts = {k: options.pop(k) for k in ("shrink", "least_squares", "ls_maxiter", "seed_ls")
+                 if k in options}
+        res = hybrid_minimize(problem.population_cost, problem.residuals, problem.jacobian,
+                              problem.x0, problem.half_width, method[len(HYBRID_PREFIX):],
+                              rng=rng, maxiter=maxiter, target=target, callback=callback,
+                              options=options or None, monitor=monitor, **hopts)
+    else:
+        res = minimize(problem.population_cost, problem.bounds(), method, rng=rng,
+                       maxiter=maxiter, target=target, callback=callback,
+                       options=options or None)
+    return res, outliers
+
+
+def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxiter, target,
+               options, progress, rank_tol, rotation_weight, sigma) -> CalibrationResult:
+    _check_arguments(method, loss, f_scale, maxiter, target, options, model, sigma, data)
+    model = model_for_markers(model, data.marker_names)  # one tool point per marker seen
+    data = _with_model_markers(data, model)
+    validate = None if validate is None else _with_model_markers(validate, model)
+    seed = int(rng) if isinstance(rng, int | np.integer) else None
+    t0 = time.perf_counter()
+    problem, res, names, report, info, first_report = _setup(
+        model, data, method, free, validate, rank_tol, rotation_weight)
+    res, outliers = _run_method(problem, res, method, loss=loss, f_scale=f_scale, rng=rng,
+                                maxiter=maxiter, target=target, options=options,
+                                progress=progress)
+    x = np.asarray(res.x, dtype=float)
+    explicit = list(first_report.names) == list(names)
+    normal = res.get("normal_matrix") if loss == "linear" else None
+    # errors at the solution: from LM's last residual when it has one (no FK pass)
+    e_after = (problem.errors_from_residuals(res.residual) if normal is not None
+               else problem.errors(x))
+    if explicit:  # what the poses identify at the identified values, not at nominal
+        report = _solution_report(problem, x, report, normal, rank_tol)
+    unc = _uncertainty(problem, x, outliers, info.unique_rows, normal, 2.0 * float(res.fun),
+                       report.rank if explicit else len(names), e_after + problem.xyz)
+    unc.estimable &= ~np.isin(names, report.unidentifiable)  # the report has the last word
+    params = problem.full(x)
+    std = np.zeros(model.n_params)
+    std[problem.index] = unc.std
+    flagged = check_serial_fit(
+        problem, x, unc.std, unc.estimable, free_choice=free,
+        least_squares=method in ("lm", "householder"), robust=loss != "linear",
+        groups=info.groups if info.n_distinct < len(data) else None,
+        rank=int(unc.estimable.size - unc.null.shape[1]),
+        confounded_with=first_report.confounded_with, normal=normal,
+        residual=res.residual if normal is not None else None)
+    outliers = outliers or flagged
+    e_before = problem.errors(problem.x0)
+    axes = {"calibration": {"before": axis_stats(e_before), "after": axis_stats(e_after)}}
+    val_before, val_after = validation_errors(model, validate, params, axes)
+    noise = None if sigma is None else check_stated_noise(
+        problem, x, unc, sigma, unique_rows=info.unique_rows, normal=normal,
+        excluded=outliers if loss != "linear" else (), method=method)
+    return CalibrationResult(
+        model=model.with_params(params, name=f"{model.name}-calibrated"),
+        nominal_model=model,
+        method=method,
+        free=names,
+        params=params,
+        std=std,
+        covariance=unc.covariance,
+        identifiability=report,
+        errors_before=np.linalg.norm(e_before, axis=1),
+        errors_after=np.linalg.norm(e_after, axis=1),
+        val_before=val_before,
+        val_after=val_after,
+        seed=seed,
+        iterations=int(res.nit),
+        evaluations=int(res.nfev),
+        seconds=time.perf_counter() - t0,
+        history=list(res.history),
+        outliers=outliers,
+        message=str(res.message),
+        success=bool(res.success),
+        sigma=unc.sigma,
+        extra=result_extra(res, names, model, data, validate, params, axes, noise, info, loss),
+        q_calibration=np.asarray(data.q),
+        q_validation=None if validate is None else np.asarray(validate.q),
+        marker_calibration=data.marker,
+        marker_validation=None if validate is None else validate.marker,
+        uncertainty=unc,
+        lost=list(info.lost),
+    )

@@ -1,0 +1,65 @@
+"""Before/after statistics of a serial calibration and its result's extras.
+
+Kept apart from `kinecal.calibration.serial.api` (the entry point) so that it stays a short
+read: the distance, per-axis and orientation error statistics on calibration and validation
+poses, and the method- and data-dependent entries of ``CalibrationResult.extra``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from kinecal.data import Measurements
+from kinecal.kinematics.serial.model import SerialModel
+from kinecal.metrology.stats import axis_stats, error_stats
+from kinecal.spatial import rotation_angle
+
+__all__ = ["result_extra", "validation_errors"]
+
+
+def _rotation_stats(model: SerialModel, data: Measurements, params: np.ndarray) -> dict:
+    """Before/after statistics of the geodesic orientation errors (degrees)."""
+    R_meas = np.swapaxes(np.asarray(data.rotations), 1, 2)
+    out = {}
+    for when, p in (("before", None), ("after", params)):
+        err = np.degrees(rotation_angle(model.fk(data.q, p, data.marker)[:, :3, :3] @ R_meas))
+        out[when] = error_stats(err)
+    return out
+
+def validation_errors(model: SerialModel, validate: Measurements | None, params: np.ndarray,
+                axes: dict) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Validation distance errors before/after (None without validation poses); their
+    per-axis statistics go into `axes`."""
+    if validate is None:
+        return None, None
+    vq, vm = validate.q, validate.marker
+    ev0 = model.positions(vq, None, vm) - validate.xyz
+    ev1 = model.positions(vq, params, vm) - validate.xyz
+    axes["validation"] = {"before": axis_stats(ev0), "after": axis_stats(ev1)}
+    return np.linalg.norm(ev0, axis=1), np.linalg.norm(ev1, axis=1)
+
+def result_extra(res, names, model, data, validate, params, axes, noise, info, loss) -> dict:
+    """The result's ``extra``: what only some methods and data produce."""
+    extra: dict[str, Any] = {}
+    rotation = {}
+    if data.rotations is not None:
+        rotation["calibration"] = _rotation_stats(model, data, params)
+    if validate is not None and validate.rotations is not None:
+        rotation["validation"] = _rotation_stats(model, validate, params)
+    if "singular" in res:  # Householder: directions where J^T J was singular
+        extra["singular_parameters"] = [names[i] for i in res.singular]
+    if rotation:  # measured orientations: rotation errors in degrees
+        extra["rotation_deg"] = rotation
+    extra["axis_errors"] = axes  # per-axis position errors (x, y, z), model - measured
+    if noise is not None:  # the stated noise: chi-square test, known-noise standard errors
+        extra["noise"] = noise
+    if info.unique_rows is not None:  # exact copies of rows: counted once in the covariance
+        extra["independent_poses"] = len(info.unique_rows)
+    if loss != "linear":
+        extra["loss"] = loss
+    if "ls_history" in res:  # hybrid: the least-squares stage before the metaheuristic
+        extra["least_squares_history"] = [float(h) for h in res.ls_history]
+        extra["least_squares_iterations"] = int(res.ls_iterations)
+    return extra

@@ -1,0 +1,267 @@
+"""`import_bag`: the rows of a bag where the robot dwells.
+
+Two passes over the bag, each streamed: the joint topic first (`kinecal.io.ros.dwell`
+finds the dwells), then the measurement topics, each message added to the dwell its time
+falls in (`kinecal.io.ros.accumulate`); images are chosen and written as they stream by
+(`kinecal.io.ros.images`). Times are the messages' ``header.stamp`` (the bag's receive
+time where a publisher left it zero). A dwell becomes a row when every requested stream
+covers it; otherwise it is dropped with its reason.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.errors import InputError
+from kinecal.io.ros import messages as msgs
+from kinecal.io.ros.accumulate import StreamAverage, TfTree
+from kinecal.io.ros.bag import Bag
+from kinecal.io.ros.dwell import Dwell, DwellFinder
+from kinecal.io.ros.joints import JointMapper
+from kinecal.kinematics.serial.model import SerialModel
+
+__all__ = ["BagImport", "ImportOptions", "import_bag"]
+
+Array = NDArray[np.float64]
+_PER_M = {"m": 1.0, "mm": 1000.0}
+_CHUNK = 4096
+_TF_TOPICS = ("/tf", "/tf_static")
+
+
+@dataclass
+class ImportOptions:
+    """What to read from a bag (the options of ``kinecal import``).
+
+    Attributes
+    ----------
+    joints : str
+        JointState topic.
+    points, poses : str, optional
+        PointStamped topic; PoseStamped or TransformStamped topic.
+    tf : (str, str), optional
+        Parent and child frame looked up in ``/tf`` and ``/tf_static``.
+    images, camera_info : str, optional
+        Image or CompressedImage topic and its CameraInfo topic.
+    dwell : float
+        Minimum dwell (s).
+    still : float
+        Joint speed tolerance (rad/s; length unit/s for prismatic joints).
+    joint_names : sequence of str, optional
+        The bag's name of each model joint.
+    """
+
+    joints: str
+    points: str | None = None
+    poses: str | None = None
+    tf: tuple[str, str] | None = None
+    images: str | None = None
+    camera_info: str | None = None
+    dwell: float = 0.3
+    still: float = 0.002
+    joint_names: Sequence[str] | None = None
+
+
+@dataclass
+class BagImport:
+    """The rows of a bag (`import_bag`).
+
+    Attributes
+    ----------
+    dwells, short : list of Dwell
+        Every dwell, and the shorter stops (times in s from the first joint sample).
+    kept : list of int
+        Indices of the dwells that became rows, in order.
+    dropped : list of (int, str)
+        Dwell index and reason of each dropped dwell.
+    q : ndarray, shape (K, n_joints)
+        Joints of the rows (rad; prismatic: model length unit).
+    xyz : ndarray, shape (K, 3), optional
+        Averaged points (model length unit).
+    poses : ndarray, shape (K, 4, 4), optional
+        Averaged poses or tf lookups (model length unit).
+    images : list of str
+        Image file names of the rows (with ``--images``).
+    camera : dict, optional
+        The first CameraInfo (`kinecal.io.ros.messages.camera_info`).
+    """
+
+    dwells: list[Dwell]
+    short: list[Dwell]
+    kept: list[int] = field(default_factory=list)
+    dropped: list[tuple[int, str]] = field(default_factory=list)
+    q: Array | None = None
+    xyz: Array | None = None
+    poses: Array | None = None
+    images: list[str] = field(default_factory=list)
+    camera: dict | None = None
+    samples: int = 0
+    joints_how: str = ""
+    skipped: int = 0
+
+
+def _time(bag_ns: int, stamp: int, t0: int) -> float:
+    return ((stamp if stamp > 0 else bag_ns) - t0) * 1e-9
+
+
+def _check_topics(bag: Bag, opts: ImportOptions) -> dict[str, str]:
+    kinds = {opts.joints: bag.check_topic(opts.joints, "--joints")}
+    for opt, topic in (("--points", opts.points), ("--poses", opts.poses),
+                       ("--images", opts.images), ("--camera-info", opts.camera_info)):
+        if topic is not None:
+            kinds[topic] = bag.check_topic(topic, opt)
+    if opts.tf is not None:
+        found = [t for t in _TF_TOPICS if t in bag.topics]
+        if not found:
+            raise InputError(f"the bag has no /tf or /tf_static topic (topics: "
+                             f"{', '.join(sorted(bag.topics))})", option="--tf")
+        for t in found:
+            kinds[t] = bag.check_topic(t, "--tf")
+    return kinds
+
+
+def _find_dwells(bag: Bag, model: SerialModel, opts: ImportOptions) -> tuple[DwellFinder,
+                                                                              int, str]:
+    """First pass: the joint stream through a `DwellFinder`; also the time origin."""
+    mapper = JointMapper(model.n_joints, opts.joint_names, opts.joints)
+    finder = DwellFinder(model.n_joints, opts.dwell, opts.still)
+    scale = np.where(model.is_prismatic(), _PER_M[model.length_unit], 1.0)
+    t0, ts, qs = None, [], []
+    for _topic, kind, bag_ns, raw in bag.stream([opts.joints]):
+        msg = bag.decode(raw, kind)
+        names, pos = msgs.joint_state(msg)
+        idx = mapper.index(names) if len(pos) == len(names) else None
+        if idx is None:
+            mapper.unmatched += 1
+            continue
+        stamp = msgs.stamp_ns(msg)
+        t0 = (stamp if stamp > 0 else bag_ns) if t0 is None else t0
+        ts.append(_time(bag_ns, stamp, t0))
+        qs.append(pos[idx])
+        if len(ts) == _CHUNK:
+            finder.feed(np.array(ts), np.array(qs) * scale)
+            ts, qs = [], []
+    if t0 is None:
+        if mapper.seen is None:
+            raise InputError(f"topic {opts.joints} has no message", option="--joints")
+        raise mapper.fail()
+    if ts:
+        finder.feed(np.array(ts), np.array(qs) * scale)
+    finder.finish()
+    return finder, t0, mapper.how
+
+
+def _second_pass(bag: Bag, kinds: dict, opts: ImportOptions, starts: Array, ends: Array,
+                 t0: int, on_image: Callable | None) -> tuple[dict, TfTree | None]:
+    """Stream the measurement topics into per-dwell averages (and images)."""
+    acc: dict[str, StreamAverage] = {}
+    if opts.points:
+        acc[opts.points] = StreamAverage(starts, ends, 3)
+    if opts.poses:
+        acc[opts.poses] = StreamAverage(starts, ends, 7)
+    tree = TfTree(starts, ends) if opts.tf else None
+    topics = [t for t in kinds if t != opts.joints]
+
+    def dwell_of(t: float) -> int | None:
+        k = int(np.searchsorted(starts, t, side="right")) - 1
+        return k if k >= 0 and t <= ends[k] else None
+
+    for topic, kind, bag_ns, raw in bag.stream(topics):
+        if topic == opts.images or topic == opts.camera_info:
+            on_image(topic, kind, bag_ns, raw, dwell_of)
+            continue
+        msg = bag.decode(raw, kind)
+        if tree is not None and topic in _TF_TOPICS:
+            for parent, child, stamp, pq in msgs.tf_transforms(msg):
+                t = _time(bag_ns, stamp, t0)
+                tree.add(parent, child, dwell_of(t), t, pq, topic == "/tf_static")
+            continue
+        t = _time(bag_ns, msgs.stamp_ns(msg), t0)
+        k = dwell_of(t)
+        if k is not None:
+            acc[topic].add(k, t, msgs.point(msg) if topic == opts.points else msgs.pose(msg))
+    return acc, tree
+
+
+def import_bag(path: str | Path, model: SerialModel, opts: ImportOptions,
+               images: Callable | None = None) -> BagImport:
+    """The dwell rows of a bag (module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        The bag.
+    model : SerialModel
+        Gives the joint count, order (names), units.
+    opts : ImportOptions
+    images : ImageWriter, optional
+        With ``opts.images``: writes the image of each dwell and ``camera.yaml``
+        (`kinecal.io.ros.images.ImageWriter`).
+
+    Raises
+    ------
+    InputError
+        A missing topic or one of another type, joint names matching no model joint, a
+        truncated or corrupt bag, no dwell at all.
+    """
+    with Bag(path) as bag:
+        kinds = _check_topics(bag, opts)
+        finder, t0, how = _find_dwells(bag, model, opts)
+        dwells = finder.dwells
+        out = BagImport(dwells, finder.short, samples=finder.samples, joints_how=how or "",
+                        skipped=finder.skipped)
+        if not dwells:
+            raise InputError(f"no dwell in {finder.samples} joint samples: the joints were "
+                             f"never still (speed below {opts.still:g}/s) for {opts.dwell:g} s; "
+                             "see --dwell and --still", file=path)
+        starts = np.array([d.start for d in dwells])
+        ends = np.array([d.end for d in dwells])
+        acc, tree = ({}, None)
+        if images is not None:
+            images.begin(bag, starts, ends, t0)
+        if len(kinds) > 1:
+            acc, tree = _second_pass(bag, kinds, opts, starts, ends, t0, images)
+        if images is not None:
+            images.finish()
+    _rows(out, model, opts, acc, tree, images)
+    return out
+
+
+def _rows(out: BagImport, model: SerialModel, opts: ImportOptions, acc: dict,
+          tree: TfTree | None, images) -> None:
+    """Keep the dwells every stream covers; fill `out`'s arrays."""
+    per_m = _PER_M[model.length_unit]
+    path = tree.path(*opts.tf) if tree is not None else None
+    xyz, poses = [], []
+    for k in range(len(out.dwells)):
+        why, pose = None, None
+        for topic, a in acc.items():
+            why = why or a.problem(k, topic)
+        if why is None and path is not None:
+            pose, why = tree.lookup(path, k)
+        if why is None and images is not None:
+            why = images.problem(k)
+        if why is not None:
+            out.dropped.append((k, why))
+            continue
+        out.kept.append(k)
+        if opts.points:
+            xyz.append(acc[opts.points].mean(k) * per_m)
+        if opts.poses:
+            from kinecal.spatial import transform_from_pq
+
+            pose = transform_from_pq(acc[opts.poses].mean(k))
+        if pose is not None:
+            pose = pose.copy()
+            pose[:3, 3] *= per_m
+            poses.append(pose)
+    out.q = np.array([out.dwells[k].q for k in out.kept]).reshape(-1, model.n_joints)
+    out.xyz = np.array(xyz).reshape(-1, 3) if opts.points else None
+    out.poses = np.array(poses).reshape(-1, 4, 4) if (opts.poses or opts.tf) else None
+    if images is not None:
+        out.images = [images.name(k) for k in out.kept]
+        out.camera = images.camera

@@ -1,0 +1,101 @@
+"""Files of a bag import: a measurement CSV, or a folder for hand-eye from images.
+
+`write_rows`: ``q1..qn`` (the model's angle unit) and ``x, y, z`` (its length unit), with
+``qw, qx, qy, qz`` for poses: kinecal's measurement format. `write_folder`: one image per
+kept dwell, ``camera.yaml``, ``stations.csv`` (``image, q1..qn``), ``robot_poses.csv``
+(``image`` and the flange pose ``flange_x .. flange_qz`` that ``kinecal handeye-images``
+reads: from ``--tf`` / ``--poses`` when given, else the model's flange, D-H frame n in the
+robot base, without the model file's base and tool) and ``measurements.csv`` with
+``--points`` / ``--poses`` / ``--tf``. The folder is built beside its destination and
+moved into place when complete: nothing half-written.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from kinecal.errors import InputError
+from kinecal.io.csvtable import write_table
+from kinecal.io.ros.images import ImageWriter
+from kinecal.io.ros.importer import BagImport, ImportOptions, import_bag
+from kinecal.kinematics.serial.model import SerialModel
+from kinecal.spatial import pq_from_transform
+
+__all__ = ["flange_poses", "write_folder", "write_rows"]
+
+_QUAT = ("qw", "qx", "qy", "qz")
+
+
+def _check_kept(res: BagImport, path) -> None:
+    if not res.kept:
+        reasons = "; ".join(f"dwell {k + 1}: {why}" for k, why in res.dropped[:3])
+        raise InputError(f"none of the {len(res.dwells)} dwells could be kept ({reasons}"
+                         f"{'; ...' if len(res.dropped) > 3 else ''}): nothing written",
+                         file=path)
+
+
+def _columns(res: BagImport, model: SerialModel) -> dict:
+    q = res.q / model.joint_scale()
+    cols = {f"q{i + 1}": q[:, i] for i in range(model.n_joints)}
+    if res.xyz is not None:
+        cols.update({c: res.xyz[:, k] for k, c in enumerate("xyz")})
+    elif res.poses is not None:
+        pq = pq_from_transform(res.poses)
+        cols.update({c: pq[:, k] for k, c in enumerate(("x", "y", "z", *_QUAT))})
+    return cols
+
+
+def write_rows(path: str | Path, res: BagImport, model: SerialModel) -> None:
+    """Write the kept rows as a measurement CSV (module docstring)."""
+    _check_kept(res, path)
+    write_table(path, _columns(res, model))
+
+
+def flange_poses(res: BagImport, model: SerialModel) -> np.ndarray:
+    """``(K, 4, 4)`` flange poses of the rows: the imported poses, else the model's flange
+    (base and tool of the model file left out)."""
+    if res.poses is not None:
+        return res.poses
+    p = model.nominal
+    for k, name in enumerate(model.parameter_names):
+        if name.startswith(("base.", "tool.")):
+            p[k] = 0.0
+    return model.fk(res.q, p)
+
+
+def write_folder(bag: str | Path, model: SerialModel, opts: ImportOptions,
+                 out: str | Path) -> BagImport:
+    """Import `bag` with images into the folder `out` (new or empty; module docstring)."""
+    out = Path(out)
+    tmp = out.parent / f".{out.name}.kinecal-import-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    try:
+        writer = ImageWriter(tmp, opts.images, opts.camera_info)
+        res = import_bag(bag, model, opts, writer)
+        _check_kept(res, bag)
+        names = np.array(res.images, dtype=str)
+        cols = _columns(res, model)
+        write_table(tmp / "stations.csv",
+                    {"image": names, **{k: v for k, v in cols.items() if k.startswith("q")}})
+        pq = pq_from_transform(flange_poses(res, model))
+        write_table(tmp / "robot_poses.csv",
+                    {"image": names, **{f"flange_{c}": pq[:, k] for k, c in
+                                        enumerate(("x", "y", "z", *_QUAT))}})
+        if res.xyz is not None or res.poses is not None:
+            write_table(tmp / "measurements.csv", cols)
+        kept = set(res.images)
+        for f in tmp.iterdir():  # images of dropped dwells
+            if f.name.startswith("dwell_") and f.name not in kept:
+                f.unlink()
+        if out.exists():
+            out.rmdir()
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return res

@@ -1,0 +1,228 @@
+"""A serial chain's entries turned into its elementary motions and named parameters.
+
+A chain is a list of entries (dicts), in order from the base to the flange:
+
+* a moving joint of the model's convention (``theta, d, a, alpha[, beta]`` for the D-H
+  family, ``name, x, y, z, roll, pitch, yaw, offset, axis`` for urdf), optionally
+  ``type: prismatic`` (urdf also ``continuous``);
+* a fixed frame ``{frame: NAME, x, y, z, rx, ry, rz}`` (urdf: ``roll, pitch, yaw``) with an
+  optional ``calibrate: true``; its parameters are ``NAME.x ... NAME.rz`` and are held at
+  nominal unless ``calibrate`` is true.
+
+The base frame (``base.x ... base.rz``) comes first, the tool (``tool.x, tool.y, tool.z``
+and optionally ``tool.rx, tool.ry, tool.rz``) last; a model with several markers has
+instead one tool point per marker, ``tool.NAME.x, tool.NAME.y, tool.NAME.z``
+(`kinecal.kinematics.serial.markers`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from kinecal.errors import InputError
+from kinecal.kinematics.serial.markers import check_markers, marker_parameter_names
+from kinecal.kinematics.serial.motions import (
+    CONTINUOUS,
+    CONVENTIONS,
+    FRAME_KEYS,
+    PRISMATIC,
+    REVOLUTE,
+    RXYZ,
+    TRANSLATION,
+    Motion,
+    frame_motions,
+    pose_motions,
+)
+
+__all__ = ["BASE_NAMES", "TOOL_NAMES", "Chain", "build_chain", "chain_entries"]
+
+BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
+TOOL_NAMES = ("tool.x", "tool.y", "tool.z", "tool.rx", "tool.ry", "tool.rz")
+_RESERVED = ("base", "tool")
+#: largest length (model's unit) a chain accepts: 1000 km in mm, beyond any machine in m;
+#: an origin of 1e300 let FK run but overflowed the Jacobian's squares (NaN everywhere)
+MAX_LENGTH = 1e9
+
+
+@dataclass(frozen=True)
+class Chain:
+    """Motions and parameters of a serial chain (see `build_chain`).
+
+    Attributes
+    ----------
+    motions : tuple of Motion
+        Every elementary motion, base first, tool last.
+    owners : tuple
+        Per motion: the index of its chain entry, or ``"base"`` / ``"tool"``.
+    names : tuple of str
+        The parameter vector: chain parameters in motion order, then base, then tool.
+    values : dict
+        Nominal value of every parameter (length unit, rad).
+    kinds : tuple of str
+        ``"revolute"`` or ``"prismatic"`` per moving joint.
+    frozen : frozenset of str
+        Parameters of fixed frames that are not calibrated by default.
+    markers : tuple of str
+        Marker names (several tool points), empty for a single tool point.
+    """
+
+    motions: tuple[Motion, ...]
+    owners: tuple
+    names: tuple[str, ...]
+    values: dict
+    kinds: tuple[str, ...]
+    frozen: frozenset
+    markers: tuple[str, ...] = ()
+
+
+def _check_name(name: object, what: str) -> str:
+    if not isinstance(name, str) or not name or any(c in name for c in ", \t\n\"'"):
+        raise InputError(f"{what} name {name!r}: expected a non-empty name without spaces, "
+                         "commas or quotes")
+    if name in _RESERVED:
+        raise InputError(f"{what} name {name!r} is reserved for the base and tool frames")
+    return name
+
+
+def _value(entry: Mapping, key: str, where: str, default: float | None) -> float:
+    if key not in entry:
+        if default is None:
+            raise InputError(f"{where}: missing {key!r}")
+        return default
+    try:
+        v = float(entry[key])
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: {key}: expected a number, got {entry[key]!r}") from None
+    if not np.isfinite(v):
+        raise InputError(f"{where}: {key}: expected a finite number, got {v}")
+    return v
+
+
+def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | None,
+                tool: ArrayLike | None, markers: Mapping | None = None) -> Chain:
+    """Motions, parameter names and nominal values of a chain.
+
+    Parameters
+    ----------
+    convention : {"dh", "craig", "hayati", "urdf"}
+        The moving joints' convention.
+    entries : sequence of dict
+        Joints and fixed frames, base to flange (module docstring); lengths in the model's
+        unit, angles in rad.
+    base : array_like, shape (6,), or None
+        Base frame x, y, z, rx, ry, rz (None: zeros).
+    tool : array_like, shape (3,) or (6,), or None
+        Tool point or frame (None: the flange origin).
+    markers : mapping of str to (3,), optional
+        Several tool points, one per marker (instead of `tool`); the tool translations'
+        values are then per pose (`kinecal.kinematics.serial.markers`).
+
+    Raises
+    ------
+    InputError
+        Unknown convention, missing or non-finite values, bad names, duplicate parameters.
+    """
+    if convention not in CONVENTIONS:
+        raise InputError(
+            f"unknown convention {convention!r}; expected one of {', '.join(CONVENTIONS)}")
+    make = CONVENTIONS[convention]
+    motions: list[Motion] = pose_motions("base")
+    owners: list = ["base"] * 6
+    values: dict[str, float] = dict.fromkeys(BASE_NAMES, 0.0)
+    if base is not None:
+        b = np.asarray(base, dtype=float)
+        if b.shape != (6,):
+            raise InputError(f"base: expected 6 values (x, y, z, rx, ry, rz), got {b.size}")
+        values.update(zip(BASE_NAMES, b.tolist(), strict=True))
+    kinds: list[str] = []
+    frozen: set[str] = set()
+    chain_names: list[str] = []
+    for e, entry in enumerate(entries):
+        if not isinstance(entry, Mapping):
+            raise InputError(f"joints[{e}]: expected a mapping, got {type(entry).__name__}")
+        if "frame" in entry:
+            name = _check_name(entry["frame"], "frame")
+            where = f"frame {name}"
+            em = frame_motions(name, FRAME_KEYS[convention])
+            default: float | None = 0.0
+            if not entry.get("calibrate", False):
+                frozen.update(m.name for m in em)
+        else:
+            i = len(kinds) + 1
+            if convention == "urdf":
+                _check_name(entry.get("name"), "joint")
+            try:
+                em = make(i, entry)
+            except InputError as exc:
+                msg = exc.message
+                raise InputError(msg if msg.startswith("joint") else f"joint {i}: {msg}"
+                                 ) from None
+            where = f"joint {entry.get('name', i)}"
+            default = 0.0 if convention == "urdf" else None
+            kind = entry.get("type", REVOLUTE)
+            kinds.append(PRISMATIC if kind == PRISMATIC else REVOLUTE)
+        for m in em:
+            if m.name in values:
+                raise InputError(f"{where}: parameter {m.name!r} appears twice in the chain")
+            values[m.name] = _value(entry, m.key, where, default)
+            chain_names.append(m.name)
+        motions += em
+        owners += [e] * len(em)
+    if not kinds:
+        raise InputError("a model needs at least one moving joint")
+    if markers is not None:
+        if tool is not None:
+            raise InputError("give either tool (one tool point) or markers (several), not both")
+        points = check_markers(markers)
+        tm = pose_motions(f"tool.{next(iter(points))}", RXYZ)[:3]
+        tool_names = [n for name in points for n in marker_parameter_names(name)]
+        values.update(zip(tool_names, np.concatenate(list(points.values())).tolist(),
+                          strict=True))
+    else:
+        t = np.zeros(3) if tool is None else np.asarray(tool, dtype=float)
+        if t.shape not in ((3,), (6,)):
+            raise InputError(f"tool: expected 3 (point) or 6 (frame) values, got {t.size}")
+        tm = pose_motions("tool", RXYZ)
+        tm = tm[:3] + (tm[3:] if t.size == 6 else [])
+        tool_names = list(TOOL_NAMES[: t.size])
+        values.update(zip(TOOL_NAMES, t.tolist(), strict=False))
+    motions += tm
+    owners += ["tool"] * len(tm)
+    names = (*chain_names, *BASE_NAMES, *tool_names)
+    _check_lengths(values, [m.name for m in motions if m.kind == TRANSLATION]
+                   + [n for n in tool_names if n not in TOOL_NAMES[3:]])
+    duplicate = sorted(set(chain_names) & set(tool_names))
+    if duplicate:
+        raise InputError(f"parameter {duplicate[0]!r} appears twice in the chain")
+    return Chain(tuple(motions), tuple(owners), names, values, tuple(kinds), frozenset(frozen),
+                 tuple(points) if markers is not None else ())
+
+
+def _check_lengths(values: Mapping[str, float], lengths: Sequence[str]) -> None:
+    """Every length finite and within `MAX_LENGTH` (a unit or exponent typo otherwise
+    overflows the identification Jacobian far from the file that caused it)."""
+    for name in lengths:
+        v = values[name]
+        if not np.isfinite(v) or abs(v) > MAX_LENGTH:
+            raise InputError(f"{name} = {v:g} length units: expected a finite length of at "
+                             f"most {MAX_LENGTH:g} in size (no machine is that large; check "
+                             "the number and the length unit)")
+
+
+def chain_entries(chain: Chain, entries: Sequence[Mapping], values: Mapping[str, float]
+                  ) -> list[dict]:
+    """Copies of `entries` whose parameter keys hold `values` (by parameter name)."""
+    out = [dict(entry) for entry in entries]
+    for m, owner in zip(chain.motions, chain.owners, strict=True):
+        if isinstance(owner, int):
+            out[owner][m.key] = float(values[m.name])
+    return out
+
+
+def is_continuous(entry: Mapping) -> bool:
+    """True for a URDF ``continuous`` joint (a revolute joint without limits)."""
+    return entry.get("type") == CONTINUOUS
