@@ -26,7 +26,7 @@ inertia weight:
 
 Defaults are the paper's Table 1: 80 particles, ``w_max = 0.5``, ``w_min = 0.1``,
 ``c1 = c2 = 1.8``, ``vmax = 1``, ``k_max = 500``. ``kinecal reproduce liu2008`` and
-:func:`kinecal.kinematics.stewart_pso.forward_pso` use this variant.
+:func:`kinecal.kinematics.stewart.pso.forward_pso` use this variant.
 
 Scaling: kinecal searches the unit hypercube, so ``vmax`` is a fraction of each variable's range
 (``vmax = 1``: one full range per iteration). The paper's ``vmax = 1`` is in its own units (m and
