@@ -35,6 +35,7 @@ __all__ = [
     "atomic_open",
     "check_input_file",
     "load_yaml",
+    "probe_writable",
     "read_json",
     "read_text",
     "read_yaml_mapping",
@@ -132,6 +133,43 @@ def _path_error(exc: OSError, path: Path) -> Exception:
     return exc
 
 
+def _named(exc: OSError, path: Path) -> OSError:
+    """A disk error (no space, quota, I/O) of a write that names the file written."""
+    if exc.errno in _DISK_ERRNOS and exc.filename is None:
+        return OSError(exc.errno, exc.strerror or str(exc), str(path))
+    return exc
+
+
+def probe_writable(path: str | Path) -> None:
+    """Create and remove a temporary file beside `path`, as `atomic_open` will: the one
+    sure test that the folder takes a new file (``/proc``, a read-only mount, a full
+    inode table refuse it whatever the permission bits say). Devices and FIFOs, written in
+    place, and missing folders are left to the writer.
+
+    Raises
+    ------
+    InputError
+        The folder refuses the file (with the reason).
+    """
+    path = Path(path)
+    target = Path(os.path.realpath(path)) if path.is_symlink() else path
+    try:
+        if target.exists() and not target.is_file():
+            return
+    except OSError:
+        return
+    if not target.parent.is_dir():
+        return
+    prefix = f".{target.name[:_NAME_KEEP]}.kinecal-{_host_tag()}-{os.getpid()}."
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=".tmp", dir=target.parent)
+    except OSError as exc:
+        raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(tmp)
+
+
 @contextlib.contextmanager
 def atomic_open(path: str | Path, mode: str = "w", encoding: str | None = "utf-8") -> Iterator[IO]:
     """Open a temporary file next to `path`; rename it over `path` only on success.
@@ -157,8 +195,11 @@ def atomic_open(path: str | Path, mode: str = "w", encoding: str | None = "utf-8
             fh = open(target, mode, encoding=None if binary else encoding)
         except OSError as exc:
             raise _path_error(exc, path) from None
-        with fh:
-            yield fh
+        try:
+            with fh:
+                yield fh
+        except OSError as exc:  # /dev/full: name the file written
+            raise _named(exc, path) from None
         return
     if st is not None and not os.access(target, os.W_OK):
         raise InputError("is read-only; refusing to replace it (change its permissions or "
@@ -181,9 +222,7 @@ def atomic_open(path: str | Path, mode: str = "w", encoding: str | None = "utf-8
                 fh.flush()
                 os.fsync(fh.fileno())
         except OSError as exc:
-            if exc.errno in _DISK_ERRNOS and exc.filename is None:  # name the file written
-                raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
-            raise
+            raise _named(exc, path) from None
         try:
             os.replace(tmp, target)
         except OSError as exc:

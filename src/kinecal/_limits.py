@@ -18,7 +18,11 @@ from pathlib import Path
 
 from kinecal.errors import InputError
 
-__all__ = ["available_memory", "check_count", "check_finite"]
+__all__ = ["MAX_JOBS", "available_memory", "check_count", "check_finite"]
+
+#: most jobs one batch run may hold (a study grid expanded): reading and checking a jobs
+#: file takes about 1 ms per job, and a billion seeds ran out of memory before any started
+MAX_JOBS = 100_000
 
 
 def _read_int(path: str) -> int | None:
@@ -74,8 +78,8 @@ def _gb(n: float) -> str:
 
 
 def check_count(n: int, option: str, *, bytes_per_item: float, what: str = "poses",
-                minimum: int = 1) -> int:
-    """Refuse a count below `minimum` or one whose memory cannot be had.
+                minimum: int = 1, most: int | None = None) -> int:
+    """Refuse a count below `minimum`, above `most`, or one whose memory cannot be had.
 
     Parameters
     ----------
@@ -89,6 +93,9 @@ def check_count(n: int, option: str, *, bytes_per_item: float, what: str = "pose
         What is counted, for the message.
     minimum : int
         Smallest count accepted.
+    most : int, optional
+        Largest count accepted whatever the memory (work that would take hours even where
+        it fits, such as `MAX_JOBS` batch jobs).
 
     Returns
     -------
@@ -98,10 +105,12 @@ def check_count(n: int, option: str, *, bytes_per_item: float, what: str = "pose
     Raises
     ------
     InputError
-        ``n < minimum``, or ``n * bytes_per_item`` above `available_memory`.
+        ``n < minimum``, ``n > most``, or ``n * bytes_per_item`` above `available_memory`.
     """
     if n < minimum:
         raise InputError(f"expected at least {minimum} {what}, got {n}", option=option)
+    if most is not None and n > most:
+        raise InputError(f"{n:,} {what}: expected at most {most:,}", option=option)
     need, have = n * float(bytes_per_item), available_memory()
     if need > have:
         most = max(int(have // bytes_per_item), minimum)

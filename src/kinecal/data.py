@@ -1,6 +1,7 @@
 """In-memory measurement data: joint readings with measured tool-point positions
-(`Measurements`), and repeated measurements of commanded poses (`RepeatedPoses`, the ISO
-9283 tests of `kinecal.metrology.iso9283`).
+(`Measurements`), with what a gauge says about the tool point (`GaugeMeasurements`:
+ballbar and pair distances, fixed points, planes), and repeated measurements of commanded
+poses (`RepeatedPoses`, the ISO 9283 tests of `kinecal.metrology.iso9283`).
 
 Readers and writers of the files live in `kinecal.io.measurements`; the type sits below
 both the file layer and the calibration layer, so that neither imports the other.
@@ -16,7 +17,8 @@ from numpy.typing import NDArray
 from kinecal.errors import InputError
 from kinecal.spatial import check_rotation
 
-__all__ = ["Measurements", "RepeatedPoses"]
+__all__ = ["DISTANCE_KINDS", "GAUGE_KINDS", "GaugeMeasurements", "Measurements",
+           "RepeatedPoses"]
 
 
 @dataclass(frozen=True)
@@ -89,6 +91,91 @@ class Measurements:
         m = None if self.marker is None else np.asarray(self.marker)[index]
         return Measurements(np.asarray(self.q)[index], np.asarray(self.xyz)[index], w,
                             f"{self.source}[subset]", R, m, self.marker_names)
+
+
+#: measurement kinds of `GaugeMeasurements` -> the CSV column naming each row's group
+GAUGE_KINDS: dict[str, str] = {"ballbar": "pivot", "pair": "pair", "point": "point",
+                               "plane": "plane"}
+#: the kinds whose rows carry a measured (or known) distance
+DISTANCE_KINDS = ("ballbar", "pair")
+
+
+@dataclass(frozen=True)
+class GaugeMeasurements:
+    """Joint readings measured against a gauge: distances, fixed points, planes.
+
+    One file of one kind (``docs/measurement-kinds.md``); rows sharing a group id belong
+    to one unknown object (a pivot, a bar, a socket, a plane) that the calibration solves
+    for with the arm.
+
+    Attributes
+    ----------
+    kind : {"ballbar", "pair", "point", "plane"}
+        ``ballbar``: the distance from an unknown fixed pivot (one per group) to the tool
+        point; ``pair``: the two rows of a group are two tool points `distance` apart;
+        ``point``: the tool point is on one unknown fixed point per group; ``plane``: on
+        one unknown plane per group.
+    q : ndarray, shape (N, n_joints)
+        Joint readings (rad; prismatic joints in the length unit).
+    group : ndarray of int, shape (N,)
+        Group of each row: an index into `group_names`.
+    group_names : tuple of str
+        The group ids as the file writes them (pivot, pair, point or plane ids).
+    distance : ndarray, shape (N,) or None
+        ``ballbar`` and ``pair``: the distance of each row (model length unit).
+    sigma : ndarray, shape (N,) or None
+        Stated 1-sigma noise per row (model length unit; see `kinecal.calibration.blocks`
+        for what it is the noise of in each kind), or None.
+    source : str
+        Where the data came from (file path or description).
+    marker : ndarray of int, shape (N,) or None
+        Which marker (tool point) each row used, as in `Measurements`.
+    marker_names : tuple of str
+    """
+
+    kind: str
+    q: NDArray[np.float64]
+    group: NDArray[np.intp]
+    group_names: tuple[str, ...]
+    distance: NDArray[np.float64] | None = None
+    sigma: NDArray[np.float64] | None = None
+    source: str = ""
+    marker: NDArray[np.intp] | None = None
+    marker_names: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.kind not in GAUGE_KINDS:
+            raise InputError(f"kind: expected one of {', '.join(GAUGE_KINDS)}, got "
+                             f"{self.kind!r}")
+        q = np.asarray(self.q, dtype=float)
+        n = q.shape[0] if q.ndim == 2 else -1
+        if n < 0 or not np.isfinite(q).all():
+            raise InputError(f"{self.kind} measurements: expected finite q (N, n), got "
+                             f"{q.shape}")
+        g = np.asarray(self.group)
+        if g.shape != (n,) or not np.issubdtype(g.dtype, np.integer) or (
+                n and (g.min() < 0 or g.max() >= len(self.group_names))):
+            raise InputError(f"group: expected {n} indices into {len(self.group_names)} "
+                             "group names")
+        needs = self.kind in DISTANCE_KINDS
+        if needs != (self.distance is not None):
+            raise InputError(f"{self.kind} measurements: distances "
+                             + ("missing" if needs else "given to a kind without them"))
+        for name in ("distance", "sigma"):
+            v = getattr(self, name)
+            if v is not None:
+                v = np.asarray(v, dtype=float)
+                if v.shape != (n,) or not np.isfinite(v).all() or not (v > 0).all():
+                    raise InputError(f"{name}: expected {n} positive finite values")
+        if self.marker is not None:
+            m = np.asarray(self.marker)
+            if m.shape != (n,) or (m.size and (m.min() < 0 or m.max() >= len(self.marker_names))):
+                raise InputError(f"marker: expected {n} indices into {list(self.marker_names)}")
+        elif self.marker_names:
+            raise InputError("marker_names without marker indices")
+
+    def __len__(self) -> int:
+        return int(np.shape(self.q)[0])
 
 
 @dataclass(frozen=True)

@@ -92,12 +92,18 @@ def test_residual_far_above_the_noise_is_warned(irb, case):
     assert "ABOVE" in res.summary()
 
 
-def test_pessimistic_noise_is_below_without_warning(irb):
+def test_pessimistic_noise_is_below_and_warned_beyond_twice(irb):
     m, sim = irb
-    res, found = run(m, sim.data, sigma=4 * NOISE)
+    res, found = run(m, sim.data, sigma=1.5 * NOISE)  # below, but within a factor 2
     assert found == []
     assert res.extra["noise"]["verdict"] == "below"
     assert "looks pessimistic" in res.summary()
+    for factor in (4, 1000):  # --sigma 10 where the residual is 0.01 mm (issue 28)
+        res, found = run(m, sim.data, sigma=factor * NOISE)
+        assert found == ["residual-below-noise"]
+        assert res.extra["noise"]["verdict"] == "below"
+        msg = res.warnings[0].message
+        assert f"against {factor * NOISE:.3g} mm" in msg and "pessimistic" in msg
 
 
 def test_orientation_rows_use_the_position_share_of_the_hat_matrix():

@@ -9,7 +9,7 @@ import pytest
 
 import kinecal.io.csvtable as csvtable
 from kinecal.errors import InputError
-from kinecal.io.csvtable import read_table, write_table
+from kinecal.io.csvtable import MAX_CELL, read_table, write_table
 
 
 def reference_read(path, required, optional=(), min_rows=1):
@@ -42,6 +42,10 @@ def reference_read(path, required, optional=(), min_rows=1):
             if not np.isfinite(value):
                 raise InputError(f"column {wanted[k]}: {cell!r}, expected a finite number",
                                  file=path, row=r)
+            if abs(value) > MAX_CELL:
+                raise InputError(f"column {wanted[k]}: {cell!r}, expected a number of at most "
+                                 f"{MAX_CELL:g} in size (no length, angle or weight is that "
+                                 "large; check the exponent)", file=path, row=r)
             data[r - 1, k] = value
     if data.shape[0] < min_rows:
         raise InputError(f"{data.shape[0]} data rows, expected at least {min_rows}", file=path)
@@ -63,6 +67,7 @@ MUTATIONS = {
     "nan": lambda lines: _set(lines, 12, 2, "NaN"),
     "inf": lambda lines: _set(lines, 99, 1, "-inf"),
     "overflow": lambda lines: _set(lines, 64, 0, "1e999"),
+    "huge": lambda lines: _set(lines, 70, 1, "1e308"),  # finite, beyond any length
     "too many fields": lambda lines: lines[:50] + [lines[50] + ",7"] + lines[51:],
     "too few fields": lambda lines: lines[:70] + ["1,2"] + lines[71:],
     "blank lines": lambda lines: lines[:5] + ["", "   ", " , , , "] + lines[5:],
@@ -148,10 +153,13 @@ def test_writer_round_trips_every_float(tmp_path):
     cols = {"v": np.resize(v, 5000), "r": rng.normal(0, 1e3, 5000)}
     path = tmp_path / "w.csv"
     write_table(path, cols)
-    back = read_table(path, ["v", "r"])
+    back = read_table(path, ["v", "r"], max_abs=np.inf)
     for k in cols:
         np.testing.assert_array_equal(back[k], cols[k])
         assert np.array_equal(np.signbit(back[k]), np.signbit(cols[k]))
+    with pytest.raises(InputError, match=r"row 6: column v: '1.7976931348623157e\+308', "
+                       "expected a number of at most 1e\\+12"):
+        read_table(path, ["v", "r"])  # the default refuses what no calibration file holds
     first = path.read_text().splitlines()[1]
     assert first == ",".join([repr(0.1), repr(float(cols["r"][0]))])
     write_table(path, {"only": np.arange(3.0)})

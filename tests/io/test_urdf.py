@@ -233,7 +233,7 @@ def test_prismatic_continuous_general_axes_against_yourdfpy_and_pinocchio(tmp_pa
 @pytest.mark.parametrize(
     ("extra", "kwargs", "match"),
     [
-        ("", {}, "branches .*--tip-link .*cam, tcp"),
+        ("", {}, "branches .*--tip-link .*tcp, cam"),
         ('<link name="f"/><joint name="finger" type="prismatic"><parent link="wrist"/>'
          '<child link="f"/><limit lower="0" upper="1" effort="1" velocity="1"/>'
          '<mimic joint="tilt"/></joint>', {"tip_link": "f"}, "mimics joint tilt"),

@@ -158,8 +158,17 @@ def test_urdf_joint_is_origin_then_axis_motion():
     pri = SerialModel("p", "urdf", [{**joint, "type": "prismatic"}],
                       joint_limits=[[0, 1]]).fk([[q]])[0]
     np.testing.assert_allclose(pri, origin @ transform_from(np.eye(3), u * (q + off)), atol=1e-12)
-    names = SerialModel("r", "urdf", [joint]).parameter_names
-    assert names[:7] == ("j.x", "j.y", "j.z", "j.yaw", "j.pitch", "j.roll", "j.offset")
+    model = SerialModel("r", "urdf", [joint])
+    assert model.parameter_names[:10] == ("j.x", "j.y", "j.z", "j.yaw", "j.pitch", "j.roll",
+                                          "j.wz", "j.wy", "j.wx", "j.offset")
+    # the nominal roll-pitch-yaw is held; its error is the local rotation wx, wy, wz
+    assert {"j.roll", "j.pitch", "j.yaw"} <= model.fixed_names
+    assert {"j.wx", "j.wy", "j.wz", "j.x", "j.offset"} <= set(model.calibratable)
+    w = rng.uniform(-0.3, 0.3, 3)
+    moved = SerialModel("w", "urdf", [{**joint, "wx": w[0], "wy": w[1], "wz": w[2]}])
+    np.testing.assert_allclose(
+        moved.fk([[q]])[0], origin @ transform_from_xyz_rpy(np.r_[0, 0, 0, w])
+        @ transform_from(matrix_from_axis_angle(u * (q + off)), [0, 0, 0]), atol=1e-12)
 
 
 def test_fixed_frames_compose_and_are_fixed_by_default():
@@ -179,7 +188,9 @@ def test_fixed_frames_compose_and_are_fixed_by_default():
     assert set(names) <= set(both.parameter_names)
     assert not set(names) & set(both.calibratable)
     freed = SerialModel("m", "dh", [j1, {**mount, "calibrate": True}, j2])
-    assert set(names) <= set(freed.calibratable)
+    local = [f"mount.{k}" for k in ("x", "y", "z", "wx", "wy", "wz")]
+    assert set(local) <= set(freed.calibratable)  # its rotation error is local
+    assert {"mount.rx", "mount.ry", "mount.rz"} <= freed.fixed_names
     zero = SerialModel("m", "dh", [j1, {"frame": "mount"}, j2])
     assert set(names) <= set(zero.parameter_names)  # zero-valued parameters are kept
 
@@ -249,7 +260,9 @@ def test_model_file_with_prismatic_joint_and_frames(tmp_path):
         (dict(joints=[{"frame": "f"}, {"frame": "f"}, dict(theta=0, d=0, a=0, alpha=0)]),
          "twice"),
         (dict(joints=[{"frame": "f"}]), "moving joint"),
-        (dict(joints=[{"frame": "a b"}, dict(theta=0, d=0, a=0, alpha=0)]), "spaces"),
+        (dict(joints=[{"frame": "a,b"}, dict(theta=0, d=0, a=0, alpha=0)]), "commas"),
+        (dict(joints=[{"frame": " a"}, dict(theta=0, d=0, a=0, alpha=0)]), "either end"),
+        (dict(joints=[{"frame": "a\nb"}, dict(theta=0, d=0, a=0, alpha=0)]), "control"),
         (dict(joints=[dict(theta=0, d=np.nan, a=0, alpha=0)]), "finite"),
     ],
 )

@@ -9,13 +9,15 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import sys
 from collections.abc import Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 
 from kinecal._files import pid_alive
 from kinecal.errors import InputError
 
-__all__ = ["BLAS_THREAD_VARS", "dask_executor", "local_executor", "single_thread_blas"]
+__all__ = ["BLAS_THREAD_VARS", "TRACKER_FILTER", "dask_executor", "local_executor",
+           "quiet_resource_tracker", "single_thread_blas"]
 
 #: kinecal's matrices are small: one BLAS thread per worker process is 10-50x faster than
 #: several threads competing for the same cores
@@ -35,6 +37,24 @@ def single_thread_blas() -> None:
         os.environ.setdefault(var, "1")
 
 
+#: the warning filter that `quiet_resource_tracker` passes to multiprocessing's helpers
+TRACKER_FILTER = "ignore:resource_tracker:UserWarning"
+
+
+def quiet_resource_tracker() -> None:
+    """Keep multiprocessing's resource tracker quiet when this process is killed.
+
+    The tracker (a helper process started with the pool) removes the pool's semaphores
+    when the coordinator dies without doing so itself (SIGKILL), which is its job, and
+    warns "There appear to be N leaked semaphore objects" on the terminal the coordinator
+    left. Helper processes are started with this interpreter's ``-W`` options
+    (``sys.warnoptions``), so the filter added here reaches the tracker (and the fork
+    server) started from now on; this process's own warning filters are unchanged.
+    """
+    if TRACKER_FILTER not in sys.warnoptions:
+        sys.warnoptions.append(TRACKER_FILTER)
+
+
 def local_executor(workers: int | None = None) -> ProcessPoolExecutor:
     """A process pool of `workers` processes (default: the number of CPUs).
 
@@ -50,6 +70,7 @@ def local_executor(workers: int | None = None) -> ProcessPoolExecutor:
         raise InputError(f"expected a positive number of workers, got {workers}",
                          option="--workers")
     single_thread_blas()
+    quiet_resource_tracker()
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(["kinecal.batch.work", "kinecal.calibration.serial.api"])
     return ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, mp_context=ctx,

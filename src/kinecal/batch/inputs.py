@@ -33,8 +33,10 @@ def job_inputs(job: Any) -> dict[str, Path]:
     out = {}
     for key in ("model", "data", "validation"):
         spec = getattr(job, key, None)
-        if spec is not None and (path := input_file(spec)) is not None:
-            out[key] = path
+        specs = spec if isinstance(spec, list) else [spec]
+        for i, one in enumerate(specs):  # several data files: data, data 2, ...
+            if one is not None and (path := input_file(one)) is not None:
+                out[key if i == 0 else f"{key} {i + 1}"] = path
     return out
 
 

@@ -25,6 +25,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from kinecal._files import load_yaml, read_text
+from kinecal._limits import MAX_JOBS, check_count
 from kinecal.errors import InputError
 
 __all__ = ["Job", "JobsFile", "Study", "expand_study", "load_jobs", "parse_jobs"]
@@ -47,6 +48,19 @@ def _check_method(method: str) -> str:
     return method
 
 
+def _positive_sigma(value: Any) -> Any:
+    """``sigma``: a positive number, or a list of them (None for a file whose noise is
+    estimated), one per data file."""
+    values = value if isinstance(value, list) else [value]
+    for v in values:
+        if v is not None and not (isinstance(v, int | float) and not isinstance(v, bool)
+                                  and math.isfinite(v) and v > 0):
+            raise ValueError(f"expected a positive finite number, got {v!r}")
+    if isinstance(value, list) and not value:
+        raise ValueError("expected one value per data file")
+    return value
+
+
 class _Common(BaseModel):
     """Settings shared by jobs and studies (see `Job`)."""
 
@@ -63,9 +77,13 @@ class _Common(BaseModel):
     error_model: str | None = Field(None, min_length=1)
     harmonics: int | None = Field(None, ge=1)
     folds: int | None = Field(None, ge=2)
-    sigma: float | None = Field(None, gt=0, allow_inf_nan=False)
+    sigma: float | list[float | None] | None = None
+
+    _sigma = field_validator("sigma")(_positive_sigma)
     base_link: str | None = Field(None, min_length=1)
     tip_link: str | None = Field(None, min_length=1)
+
+
 
 
 class Job(_Common):
@@ -77,10 +95,12 @@ class Job(_Common):
         Unique job name; the result is ``DIR/<name>.json`` (letters, digits, ``_.+-``).
     model : str
         Bundled model name or model YAML path.
-    data : str, optional
-        Measurement CSV (path or bundled ``NAME:PART``). Without it the job is simulated.
-    validation : str, optional
-        Validation CSV (key ``validate`` in the file), only with ``data``.
+    data : str or list of str, optional
+        Measurement CSV (path or bundled ``NAME:PART``), or several files of any
+        measurement kinds calibrated as one problem (docs/measurement-kinds.md). Without
+        it the job is simulated.
+    validation : str or list of str, optional
+        Validation CSV(s) of any kind (key ``validate`` in the file), only with ``data``.
     poses : int, optional
         Number of simulated calibration poses (instead of ``data``).
     validation_poses : int
@@ -100,16 +120,17 @@ class Job(_Common):
     error_model, harmonics, folds
         Non-geometric joint errors, as ``kinecal calibrate --error-model``, ``--harmonics``,
         ``--folds`` (`kinecal.calibration.serial.error_model.calibrate_error_model`).
-    sigma : float, optional
+    sigma : float or list, optional
         The instrument's stated noise per coordinate (``--sigma``): the residual is tested
-        against it (`kinecal.calibration.diagnostics.noise`).
+        against it (`kinecal.calibration.diagnostics.noise`); with several data files one
+        value per file (null: estimated).
     base_link, tip_link : str, optional
         URDF models: the chain's first and last link (``--base-link``, ``--tip-link``).
     """
 
     name: str = Field(pattern=_NAME, max_length=200)
-    data: str | None = None
-    validation: str | None = Field(None, alias="validate")
+    data: str | list[str] | None = None
+    validation: str | list[str] | None = Field(None, alias="validate")
     poses: int | None = Field(None, ge=1)
     noise: float = Field(0.0, ge=0, allow_inf_nan=False)
     seed: int = Field(0, ge=0)
@@ -164,11 +185,16 @@ class Study(_Common):
 
     @field_validator("seeds")
     @classmethod
-    def _seeds(cls, value: list[int] | int) -> list[int]:
-        seeds = list(range(value)) if isinstance(value, int) else list(value)
-        if not seeds or min(seeds) < 0:
+    def _seeds(cls, value: list[int] | int) -> list[int] | int:
+        # a count stays a count: expand_study makes the seeds once the grid's size is checked
+        if (value < 1) if isinstance(value, int) else (not value or min(value) < 0):
             raise ValueError("expected a positive count or a list of seeds >= 0")
-        return seeds
+        return value
+
+    def size(self) -> int:
+        """Number of jobs of the grid."""
+        seeds = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
+        return len(self.methods) * len(self.noise) * len(self.poses) * seeds
 
     @field_validator("noise")
     @classmethod
@@ -208,10 +234,12 @@ def expand_study(study: Study) -> list[Job]:
     return jobs
 
 
-def _resolve(spec: str | None, base: Path, bundled: bool) -> str | None:
+def _resolve(spec: str | list[str] | None, base: Path, bundled: bool) -> Any:
     """Make a relative path absolute against `base`; keep bundled names as they are."""
     if spec is None:
         return None
+    if isinstance(spec, list):
+        return [_resolve(s, base, bundled) for s in spec]
     path = Path(spec).expanduser()
     if path.is_absolute():
         return str(path)
@@ -258,6 +286,12 @@ def parse_jobs(doc: Any, base: str | Path = ".", source: str | Path | None = Non
                                  "validation": _resolve(j.validation, base, False)})
             for j in parsed.jobs]
     studies = parsed.study if isinstance(parsed.study, list) else [parsed.study]
+    total = len(jobs) + sum(s.size() for s in studies if s is not None)
+    try:  # before expanding: a billion seeds ran out of memory
+        check_count(total, "seeds" if parsed.study is not None else "jobs",
+                    bytes_per_item=JOB_BYTES, what="jobs", minimum=0, most=MAX_JOBS)
+    except InputError as exc:
+        raise InputError(f"{exc.option}: {exc.message}", file=source) from None
     for study in studies:
         if study is not None:
             study = study.model_copy(update={"model": _resolve(study.model, base, True)})
@@ -278,6 +312,8 @@ def parse_jobs(doc: Any, base: str | Path = ".", source: str | Path | None = Non
     return jobs
 
 
+#: memory of one job, parsed and checked (measured 4.3 kB), with a margin
+JOB_BYTES = 16384
 #: peak memory of a simulated job per pose (calibration and validation): measured 1.3 kB
 #: (irb120, lm), with a margin
 JOB_POSE_BYTES = 4096
@@ -286,15 +322,19 @@ JOB_POSE_BYTES = 4096
 def _check_job(job: Job, source: str | Path | None) -> None:
     """Options the job's method would ignore, and pose counts beyond the memory."""
     from kinecal._files import check_input_file
-    from kinecal._limits import check_count
     from kinecal.calibration.method_options import check_method_options
 
     for key in ("data", "validation"):
-        if getattr(job, key) is not None:
+        value = getattr(job, key)
+        for spec in [] if value is None else value if isinstance(value, list) else [value]:
             try:
-                check_input_file(getattr(job, key), "a CSV file")
+                check_input_file(spec, "a CSV file")
             except InputError as exc:
                 raise InputError(f"job {job.name}: {exc.one_line()}", file=source) from None
+    files = job.data if isinstance(job.data, list) else [job.data]
+    if isinstance(job.sigma, list) and len(job.sigma) != len(files):
+        raise InputError(f"job {job.name}: sigma: {len(job.sigma)} values for "
+                         f"{len(files)} data files", file=source)
     try:
         check_method_options(job.method, loss=job.loss, maxiter=job.maxiter,
                              target=job.target, options=job.options,
@@ -380,7 +420,8 @@ def _check_models(jobs: list[Job], source: str | Path | None) -> None:
                 continue
             size = serial_size(model)
             check_length_noise(job.noise, size, "noise", model.length_unit)
-            check_length_noise(job.sigma, size, "sigma", model.length_unit, "stated noise")
+            for sigma in job.sigma if isinstance(job.sigma, list) else [job.sigma]:
+                check_length_noise(sigma, size, "sigma", model.length_unit, "stated noise")
         except InputError as exc:
             text = (f"{_key(exc.option)}: {' '.join(exc.message.split())}"
                     if exc.option is not None else f"model: {exc.one_line()}")

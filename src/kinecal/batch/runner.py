@@ -9,7 +9,8 @@ Guarantees
   of every file the job reads (resume); a job whose specification, model or measurement
   files changed is recomputed.
 - Before any job runs, a batch whose result files would overwrite one of its inputs (or
-  the jobs file) is refused (`kinecal.batch.inputs.check_batch_paths`).
+  the jobs file) is refused (`kinecal.batch.inputs.check_batch_paths`), and so is a second
+  batch into a folder another one is writing into (`kinecal.batch.lock.folder_lock`).
 - A failed job (bad file, solver error) is recorded with its error in ``summary.csv``;
   the others go on. A rerun tries it again.
 - A job whose worker process died (``os._exit``, SIGKILL, out of memory) is resubmitted:
@@ -39,6 +40,7 @@ import numpy as np
 from kinecal._files import write_text_atomic
 from kinecal.batch.inputs import check_batch_paths, input_hash
 from kinecal.batch.jobs import Job
+from kinecal.batch.lock import folder_lock
 from kinecal.batch.records import (
     BatchResult,
     JobRecord,
@@ -110,12 +112,27 @@ def run_batch(
     Returns
     -------
     BatchResult
-    """
-    from kinecal.batch.executors import local_executor
 
+    Raises
+    ------
+    InputError
+        Outputs that would overwrite inputs, or another batch running into `out_dir`
+        (`kinecal.batch.lock.folder_lock`).
+    """
     out = Path(out_dir)
     check_batch_paths(jobs, out, inputs)
     out.mkdir(parents=True, exist_ok=True)
+    with folder_lock(out):  # a second batch into `out` is refused, not run twice
+        return _run_locked(jobs, out, executor, workers, max_attempts, window, on_result,
+                           job_function)
+
+
+def _run_locked(jobs: Sequence[Job], out: Path, executor, workers: int | None,
+                max_attempts: int, window: int | None, on_result, job_function
+                ) -> BatchResult:
+    """`run_batch` once the output folder is checked, made and locked."""
+    from kinecal.batch.executors import local_executor
+
     run = _Run(jobs, out, max_attempts, on_result)
     factory: Callable[[], Executor] | None
     if executor is None:

@@ -95,6 +95,11 @@ def _calibrate_job(job: Job, model: Any, data: Any, val: Any, free: Any) -> Any:
 
     kw = dict(free=free, validate=val, rng=job.seed, loss=job.loss, maxiter=job.maxiter,
               target=job.target, options=job.options, sigma=job.sigma)
+    if isinstance(data, list):  # several files: one problem (kinecal.calibration.blocks)
+        if job.error_model is not None or job.harmonics is not None:
+            raise InputError("error_model applies to one tracker file only, not to a list "
+                             "of data files")
+        return calibrate(model, data, job.method, **kw)
     if job.error_model is None and model.joint_errors is None and job.harmonics is None:
         return calibrate(model, data, job.method, **kw)
     from kinecal.calibration.serial.error_model import calibrate_error_model
@@ -102,6 +107,11 @@ def _calibrate_job(job: Job, model: Any, data: Any, val: Any, free: Any) -> Any:
     return calibrate_error_model(model, data, job.error_model or "model", method=job.method,
                                  harmonics=job.harmonics,
                                  **kw, **({} if job.folds is None else {"folds": job.folds}))
+
+
+def _listed(spec: Any) -> list:
+    """A job's file or files as a list (none: empty)."""
+    return [] if spec is None else spec if isinstance(spec, list) else [spec]
 
 
 def run_job(job: Job) -> dict[str, Any]:
@@ -141,6 +151,11 @@ def run_job(job: Job) -> dict[str, Any]:
             if job.simulated:
                 data, val, truth, names = simulate_job(job, model)
                 free = free if names is None else names
+            elif isinstance(job.data, list) or isinstance(job.validation, list):
+                from kinecal.io.kinds import read_kind  # several files of any kinds
+
+                data = [read_kind(f, model) for f in _listed(job.data)]
+                val = [read_kind(f, model) for f in _listed(job.validation)] or None
             else:
                 data = read_measurements(job.data, model)
                 val = (None if job.validation is None

@@ -17,6 +17,7 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import contextlib  # noqa: E402
 import errno  # noqa: E402
 import importlib  # noqa: E402
 import sys  # noqa: E402
@@ -125,6 +126,15 @@ _PATH_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENAMETOOLONG, errn
 _DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO}
 
 
+def _drop_stdout() -> None:
+    """Point the standard output at the null device once writing it failed: the data left
+    in its buffer would fail again at exit ("Exception ignored", status 120)."""
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+
+
 def _internal_error(exc: BaseException) -> int:
     if os.environ.get("KINECAL_DEBUG"):
         raise exc
@@ -142,6 +152,7 @@ def main(argv: list[str] | None = None) -> int:
     _load_commands(args)
     try:
         code = _run(args)
+        sys.stdout.flush()  # a full disk or a closed pipe on stdout shows here, not at exit
         if code == 130:  # typer turns Ctrl-C into Exit(130), returned without a word
             sys.stderr.write("kinecal: interrupted\n")
         elif code == 143:
@@ -170,10 +181,15 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write("kinecal: interrupted\n")
         code = 130
     except BrokenPipeError:
+        _drop_stdout()
         code = 0
     except OSError as exc:
         if exc.errno in _DISK_ERRNOS:  # the disk, not kinecal nor the input: exit 1
-            where = f"{os.fsdecode(exc.filename)}: " if exc.filename else "output: "
+            # files are named by their writer (kinecal._files.atomic_open): an unnamed
+            # write is the standard output's (kinecal fk ... > /dev/full)
+            where = f"{os.fsdecode(exc.filename)}: " if exc.filename else "standard output: "
+            if not exc.filename:
+                _drop_stdout()
             sys.stderr.write(f"kinecal: error: {where}{exc.strerror or exc} (nothing was "
                              "replaced; free space and run again)\n")
             code = 1

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from kinecal._files import check_input_file, write_text_atomic
+from kinecal._files import check_input_file, probe_writable, write_text_atomic
 from kinecal.errors import InputError
 
 __all__ = [
@@ -180,6 +180,11 @@ def check_paths(
                 raise InputError(f"{path} is also {what}: two outputs cannot share a path",
                                  option=opt)
         seen.append((opt, path))
+    for opt, path in seen:  # last, after the cheap checks: a file is created and removed
+        try:
+            probe_writable(path)
+        except InputError as exc:
+            raise InputError(f"{path}: {exc.message}", option=opt) from None
 
 
 def _check_in_folders(opt: str, path: Path, in_dirs: dict[str, Path],

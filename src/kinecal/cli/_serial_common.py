@@ -109,14 +109,39 @@ def parameters_from_result(model, path: Path) -> np.ndarray:
         # one without some of this model's is of another chain (a URDF read with other
         # --base-link / --tip-link), whose base frame means something else here
         geometric = model.parameter_names[: getattr(model, "_n_geometric", model.n_params)]
-        missing = [n for n in geometric if n not in params]
+        # an origin's local rotation error (wx, wy, wz) is zero in a result written before
+        # origins had one: its roll, pitch and yaw carry the same geometry
+        missing = [n for n in geometric if n not in params and not (
+            n.rsplit(".", 1)[-1] in ("wx", "wy", "wz") and p[model.index([n])[0]] == 0)]
         if missing:
             raise InputError(
                 f"the result has no values for {len(missing)} parameters of model "
                 f"{model.name!r} ({', '.join(missing[:4])}{', ...' if len(missing) > 4 else ''})"
                 ": it calibrated another chain; give the --base-link / --tip-link (or model) "
                 "it was calibrated with", file=path)
+    _check_same_arm(model, p, path)
     return p
+
+
+def _check_same_arm(model, p: np.ndarray, path: Path) -> None:
+    """Refuse identified values that make another arm of `model` (``identified: 1e12``):
+    the lengths a chain accepts, and tool poses within what a calibration changes
+    (`kinecal.compensation.same_arm.check_same_arm`, as compensate checks them)."""
+    import dataclasses
+
+    from kinecal.compensation.same_arm import check_same_arm
+
+    def flange(m):  # markers: the arm up to its flange (the markers' points are lengths)
+        return m if not m.marker_names else dataclasses.replace(
+            m, markers=None, tool=None, joint_limits=np.array(m.joint_limits),
+            tolerances=dict(m.tolerances or {}),
+            fixed=tuple(f for f in m.fixed if not f.startswith("tool.")))
+
+    try:
+        calibrated = model.with_params(p, name=f"{model.name}-calibrated")
+        check_same_arm(flange(model), flange(calibrated))
+    except InputError as exc:
+        raise InputError(exc.message, file=path) from None
 
 
 def _with_result_joint_errors(model, data: dict, path: Path):

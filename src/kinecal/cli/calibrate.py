@@ -32,6 +32,12 @@ from kinecal.cli._common import (
     write_json,
 )
 from kinecal.cli._serial_common import POSE_BYTES, free_option
+from kinecal.cli.calibrate_kinds import (
+    calibrate_files,
+    file_kind,
+    identifiability_files,
+    parse_sigma,
+)
 from kinecal.errors import InputError
 
 
@@ -40,7 +46,9 @@ def identifiability(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
-    data: str | None = typer.Option(None, "--data", help="Measurement CSV (poses to analyse)."),
+    data: list[str] | None = typer.Option(
+        None, "--data", help="Measurement CSV of any kind (poses to analyse); repeat it for "
+        "a mix of kinds (docs/measurement-kinds.md)."),
     poses: int | None = typer.Option(None, "--poses", help="Random poses when no --data is "
                                      "given (default 50)."),
     free: str = typer.Option("all", "--free", help="all, identifiable or comma-separated names."),
@@ -63,8 +71,15 @@ def identifiability(
     from kinecal.kinematics.serial.markers import model_for_markers
 
     for option, value in (("--poses", poses), ("--seed", seed)):
-        if data is not None and value is not None:
+        if data and value is not None:
             raise InputError("applies to random poses only, not with --data", option=option)
+    if data and (len(data) > 1 or file_kind(data[0], "--data") != "tracker"):
+        if error_model is not None or harmonics is not None:
+            raise InputError("applies to one tracker file only", option="--error-model")
+        return identifiability_files(model, data, base_link=base_link, tip_link=tip_link,
+                                     free=free_option(free), json_out=json_out, quiet=quiet,
+                                     strict=strict)
+    data = data[0] if data else None
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
         if data is not None:
@@ -100,10 +115,13 @@ def calibrate(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
-    data: str = typer.Argument(..., help="Measurement CSV or NAME:PART."),
+    data: list[str] = typer.Argument(..., help="Measurement CSV(s) or NAME:PART; several "
+                                     "files of any kinds make one problem "
+                                     "(docs/measurement-kinds.md)."),
     method: str = typer.Option("lm", "--method", help="lm, householder, a metaheuristic "
                                "(ga, pso, afsa, sa-iafsa, gwo, igwo, dlh-gwo-de, de) or hybrid-*."),
-    validate: str | None = typer.Option(None, "--validate", help="Validation CSV or NAME:PART."),
+    validate: list[str] | None = typer.Option(
+        None, "--validate", help="Validation CSV or NAME:PART (any kind; repeatable)."),
     free: str = typer.Option("identifiable", "--free",
                              help="identifiable, all or comma-separated names."),
     seed: int = seed_option("Random seed (metaheuristics; an integer >= 0)."),
@@ -127,15 +145,33 @@ def calibrate(
         None, "--harmonics", help="Harmonic order (default 2; auto tries 1..3)."),
     folds: int | None = typer.Option(None, "--folds", help="Cross-validation folds "
                                      "(--error-model auto; default 10)."),
-    sigma: float | None = typer.Option(
+    sigma: list[str] | None = typer.Option(
         None, "--sigma", help="The instrument's stated 1-sigma noise per coordinate (length "
         "unit): the residual is tested against it (chi-square) and the standard errors with "
-        "it known are added. See docs/diagnostics.md."),
+        "it known are added. Several files: FILE=SIGMA (repeatable) or SIGMA,SIGMA,... in "
+        "file order. See docs/diagnostics.md."),
     instrument: str | None = instrument_option(),
     operator: str | None = operator_option(),
     note: str | None = note_option(),
+    images: Path | None = typer.Option(None, "--images", help="Folder of board images: "
+                                       "DATA is then STATIONS.csv (image,q1..qn). See "
+                                       "docs/arm-from-images.md."),
+    board: str | None = typer.Option(None, "--board", help="With --images: the board, "
+                                     "e.g. chessboard:9x6:25."),
+    intrinsics: Path | None = typer.Option(None, "--intrinsics", help="With --images: "
+                                           "camera YAML (default: from the images)."),
+    setup: str = typer.Option("eye-in-hand", "--setup", help="With --images: eye-in-hand "
+                              "or eye-to-hand."),
 ) -> None:
-    """Calibrate a serial arm from measured tool positions (and orientations if given)."""
+    """Calibrate a serial arm from measured tool positions (and orientations if given),
+    or from board images with --images."""
+    if images is not None:  # the arm from camera images: its own module
+        from kinecal.cli.calibrate_images import calibrate_images
+
+        return calibrate_images(dict(locals()))
+    for option, value in (("--board", board), ("--intrinsics", intrinsics)):
+        if value is not None:
+            raise InputError("applies to --images only", option=option)
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.serial.api import CALIBRATION_METHODS
     from kinecal.calibration.serial.api import calibrate as run
@@ -145,6 +181,19 @@ def calibrate(
     if method not in CALIBRATION_METHODS:
         raise InputError(f"unknown method {method!r}; expected one of "
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
+    validate = validate or []
+    if len(data) > 1 or len(validate) > 1 or any(
+            file_kind(f, o) != "tracker" for f, o in [(data[0], "DATA")]
+            + [(v, "--validate") for v in validate]):
+        return calibrate_files(
+            model, data, base_link=base_link, tip_link=tip_link, validate=validate,
+            method=method, free=free_option(free), seed=seed, loss=loss, maxiter=maxiter,
+            target=target, out=out, model_out=model_out, report=report, json_out=json_out,
+            quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
+            extra_options={"--error-model": error_model, "--harmonics": harmonics,
+                           "--folds": folds}, record=(instrument, operator, note))
+    data, validate = data[0], (validate[0] if validate else None)
+    sigma = parse_sigma(sigma, [data])[0]
     check_paths({"MODEL": model, "DATA": data, "--validate": validate},
                 {"--out": out, "--model-out": model_out, "--report": report})
     record = report_record(report, {"MODEL": model, "DATA": data, "--validate": validate},
@@ -208,11 +257,32 @@ def select_poses_cmd(
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     count: int = typer.Option(..., "--count", help="Number of poses to select."),
-    candidates: int = typer.Option(2000, "--candidates", help="Random candidate poses."),
+    candidates: int | None = typer.Option(
+        None, "--candidates", help="Random candidate poses (default 2000; gauge kinds: per "
+        "pivot, point or plane, default 100)."),
     seed: int = seed_option("Random seed for the candidates (an integer >= 0)."),
     out: Path = typer.Option(..., "--out", help="CSV of the selected q1..qn."),
+    kind: str = typer.Option("tracker", "--kind", help="tracker, or a gauge kind: ballbar, "
+                             "pair, point, plane (--count per pivot, point or plane; pairs "
+                             "in all; --candidates per gauge, default 100)."),
+    gauge: list[str] | None = typer.Option(
+        None, "--gauge", help="Gauge kinds: a pivot or point X,Y,Z, or a plane "
+        "X,Y,Z,NX,NY,NZ (repeatable; default reachable ones)."),
+    length: float | None = typer.Option(None, "--length", help="Ballbar or bar length."),
 ) -> None:
-    """Choose calibration poses maximising observability (O1, D-optimal)."""
+    """Choose calibration poses maximising observability (O1, D-optimal); for a gauge kind
+    the rows of its file (docs/measurement-kinds.md)."""
+    if kind != "tracker":
+        from kinecal.cli.calibrate_kinds import select_kind_file
+
+        return select_kind_file(model, kind, count=count, candidates=candidates, seed=seed,
+                                out=out, gauge=gauge, length=length, base_link=base_link,
+                                tip_link=tip_link)
+    for option, value in (("--gauge", gauge), ("--length", length)):
+        if value:
+            raise InputError("applies to the gauge kinds (--kind ballbar, pair, point, plane)",
+                             option=option)
+    candidates = 2000 if candidates is None else candidates
     from kinecal.calibration.serial.pose_selection import candidate_measurements, select_poses
     from kinecal.calibration.serial.problem import resolve_free
     from kinecal.calibration.serial.simulate import random_configurations

@@ -254,7 +254,7 @@ def compensate_cmd(
         q_file = np.column_stack([table[c] for c in joints]) if joints[0] in table else None
         if q_file is not None:  # radians left in a degree program, as fk and calibrate warn
             check_joint_units(nom, q_file * scale,
-                              "seed joints" if "x" in table else "program joints")
+                              "seed joints" if "x" in table else "program joints", min_rows=1)
         with progress(f"compensate {len(cells)} rows", len(cells), quiet or json_out) as bar:
             done = [0]
 

@@ -178,6 +178,11 @@ def export(
         raise InputError("--robot applies to --format ur-kinematics", option="--robot")
     with warnings_scope(strict):
         model, params, urdf = model_and_params(source, nominal, base_link, tip_link)
+        if chain_only and urdf is None:  # it would change nothing
+            raise InputError("applies to a model read from a URDF (the chain alone instead "
+                             f"of a copy of that URDF); {model.name!r} is a "
+                             f"{model.convention} model, not read from a URDF",
+                             option="--chain-only")
         if fmt in ("urdf", "ur-kinematics") and model.joint_errors is not None:
             from kinecal.diagnostics import warn
 

@@ -95,5 +95,6 @@ def fk(
     out = T[:, :3, 3]
     if pose:
         out = np.column_stack([out, quaternion_from_matrix(T[:, :3, :3])])
-    lines = [",".join(header)] + [",".join(f"{v:.10g}" for v in row) for row in out]
+    # shortest round-trip digits (repr): what the API computes, bit for bit, in any unit
+    lines = [",".join(header)] + [",".join(map(repr, row)) for row in out.tolist()]
     sys.stdout.write("\n".join(lines) + "\n")

@@ -67,6 +67,53 @@ def _format_matrix(X: np.ndarray) -> str:
     return "\n".join("  [" + ", ".join(f"{v:12.6f}" for v in row) + "]" for row in X)
 
 
+def camera_height_option() -> float | None:
+    """``--camera-height``: X's translation along a SCARA's one rotation axis."""
+    return typer.Option(None, "--camera-height", help="Robots that turn about one axis only "
+                        "(SCARA, 4-axis): X's translation along that axis, which the poses "
+                        "cannot show: the camera's offset from the flange origin (eye-in-hand) "
+                        "or its height in the base frame (eye-to-hand), measured along the "
+                        "base's axis direction (+z for an upright SCARA).")
+
+
+def board_contact_option() -> str | None:
+    """``--board-contact``: a point of the board plane that fixes a SCARA's height."""
+    return typer.Option(None, "--board-contact", help="Instead of --camera-height: X,Y,Z of a "
+                        "point of the board's printed plane, touched by the tool tip, in the "
+                        "base frame (eye-in-hand) or flange frame (eye-to-hand).")
+
+
+def parse_contact(text: str | None) -> np.ndarray | None:
+    """``X,Y,Z`` of ``--board-contact`` as an array, or `InputError`."""
+    if text is None:
+        return None
+    try:
+        P = np.array([float(v) for v in text.split(",")])
+    except ValueError:
+        P = np.zeros(0)
+    if P.shape != (3,) or not np.all(np.isfinite(P)):
+        raise InputError(f"{text!r}: expected X,Y,Z (three numbers, e.g. 450,0,-12.5)",
+                         option="--board-contact")
+    return P
+
+
+def one_axis_lines(one: dict | None, unit: str) -> list[str]:
+    """Summary lines explaining a one-axis (SCARA) solution, none otherwise."""
+    if not one:
+        return []
+    a = np.round(one["axis_base"], 3) + 0.0  # no "-0.000"
+
+    def length(v: float) -> str:
+        return f"{round(float(v), 6) + 0.0:.6g} {unit}"
+
+    src = {"camera-height": "from --camera-height", "board-contact": "from --board-contact",
+           "none": "ASSUMED 0 (give --camera-height or --board-contact)"}[one["height_from"]]
+    return [f"rotations about one axis only ({a[0]:+.3f}, {a[1]:+.3f}, {a[2]:+.3f} in the base "
+            f"frame; SCARA): X's translation along it is not in the data, {src}; camera "
+            f"{length(one['camera_height'])} ({one['camera_height_is']}), board origin "
+            f"{length(one['board_height'])} ({one['board_height_is']}) along the axis"]
+
+
 _FORMAT_HELP = ("auto, quaternion, matrix (4x4), rotvec (UR), euler-zyx (KUKA A, B, C) or "
                 "rpy; append :deg for angles in degrees (e.g. euler-zyx:deg).")
 
@@ -130,6 +177,8 @@ def handeye(
     unit: str | None = typer.Option(None, "--unit", help="Length unit of the poses, for the "
                                     "output labels (default: the bundled recording's, else "
                                     "'input unit')."),
+    camera_height: float | None = camera_height_option(),
+    board_contact: str | None = board_contact_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),
     out: Path | None = typer.Option(None, "--out", help="Write the result JSON here."),
     report: Path | None = report_option(),
@@ -147,13 +196,18 @@ def handeye(
     record = report_record(report, {"PAIRS": pairs, "--robot-poses": robot_poses,
                                     "--target-poses": target_poses}, instrument, operator, note)
     _check_pairs_mode(method, refine, pairs_mode)
+    contact = parse_contact(board_contact)
+    if camera_height is not None and contact is not None:
+        raise InputError("give --camera-height or --board-contact, not both",
+                         option="--board-contact")
     with warnings_scope(strict) as found:
         F, C, source, default_setup = read_pairs(pairs, robot_poses, target_poses,
                                                  robot_format, target_format, invert_robot,
                                                  invert_target)
         setup = setup or default_setup or "eye-in-hand"
         res = calibrate_handeye(F, C, setup=setup, method=method, refine=refine,
-                                pairs=pairs_mode, seed=seed)
+                                pairs=pairs_mode, seed=seed, camera_height=camera_height,
+                                board_contact=contact)
     if unit is not None and not unit.strip():
         raise InputError("expected a unit name such as mm or m", option="--unit")
     length_unit = unit or (_BUNDLED_UNIT.get(str(pairs).partition(":")[0]) if pairs
@@ -177,7 +231,8 @@ def handeye(
              else f"{Path(robot_poses).name} + {Path(target_poses).name}")
     u = length_unit
     lines = [
-        f"{label}: {len(F)} stations, {setup}, method {method}, refine {refine}",
+        f"{label}: {len(F)} stations, {setup}, method {res.method}, refine {refine}",
+        *one_axis_lines(res.one_axis, u),
         f"X ({frame}; translation in {u}):",
         _format_matrix(res.X),
     ]

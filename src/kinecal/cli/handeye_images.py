@@ -24,6 +24,12 @@ from kinecal.cli._common import (
     with_warnings,
     write_json,
 )
+from kinecal.cli.handeye import (
+    board_contact_option,
+    camera_height_option,
+    one_axis_lines,
+    parse_contact,
+)
 from kinecal.errors import InputError
 
 #: image file types listed from IMAGES_DIR
@@ -57,6 +63,19 @@ def _parse_robot_noise(text: str | None) -> tuple[float, float] | None:
     return float(np.radians(rot_deg)), trans
 
 
+def _limits(min_corners: int | None, board: Any) -> Any:
+    """QualityLimits with ``--min-corners`` checked against the board (4 .. its corners)."""
+    from kinecal.vision.detection import QualityLimits
+
+    if min_corners is None:
+        return QualityLimits()
+    if not 4 <= min_corners <= board.n_corners:
+        raise InputError(f"{min_corners}: expected 4 to {board.n_corners} (the corners of "
+                         f"{board.spec}; a board pose needs at least 4)",
+                         option="--min-corners")
+    return QualityLimits(min_corners=min_corners)
+
+
 def _fmt_matrix(T: np.ndarray) -> str:
     return "\n".join("  [" + ", ".join(f"{v:12.6f}" for v in row) + "]" for row in T)
 
@@ -67,8 +86,10 @@ def handeye_images(
     robot_poses: Path = typer.Argument(..., help="CSV: image, flange_x..flange_qz "
                                        "(flange2base, board length unit) per image."),
     board: str = typer.Option(..., "--board", help="chessboard:COLSxROWS:SQUARE (inner "
-                              "corners), charuco:COLSxROWS:SQUARE:MARKER:DICT (squares) or "
-                              "acircles:COLSxROWS:SPACING."),
+                              "corners), charuco:COLSxROWS:SQUARE:MARKER:DICT (squares), "
+                              "acircles:COLSxROWS:SPACING, circles:COLSxROWS:PITCH[:DIAMETER] "
+                              "or modcircles:COLSxROWS:PITCH[:DIAMETER] (industrial_"
+                              "calibration's modified circle grid)."),
     intrinsics: Path | None = typer.Option(None, "--intrinsics", help="Camera: ROS "
                                            "camera_calibration YAML, OpenCV FileStorage or "
                                            "JSON (default: estimated from the images)."),
@@ -80,6 +101,12 @@ def handeye_images(
         "with X (default: when estimated from the images, not when given)."),
     robot_noise: str | None = typer.Option(None, "--robot-noise", help="ROT_DEG,TRANS: model "
                                            "robot pose errors of this std (deg, length)."),
+    min_corners: int | None = typer.Option(None, "--min-corners", help="Fewest corners an "
+                                           "image must show (ChArUco boards, seen in part; "
+                                           "default 60 % of the board's corners, at least "
+                                           "6). Grid boards are found whole or not at all."),
+    camera_height: float | None = camera_height_option(),
+    board_contact: str | None = board_contact_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the result as JSON."),
     out: Path | None = typer.Option(None, "--out", help="Write the result JSON here."),
     report: Path | None = report_option(),
@@ -106,12 +133,17 @@ def handeye_images(
         raise InputError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}",
                          option="--method")
     noise = _parse_robot_noise(robot_noise)
+    contact = parse_contact(board_contact)
+    if camera_height is not None and contact is not None:
+        raise InputError("give --camera-height or --board-contact, not both",
+                         option="--board-contact")
     with warnings_scope(strict) as found:
         from kinecal.vision.boards import parse_board
         from kinecal.vision.intrinsics import read_intrinsics
         from kinecal.vision.pipeline import calibrate_handeye_images
 
         the_board = parse_board(board)
+        limits = _limits(min_corners, the_board)
         files = list_images(images_dir)
         names, F = read_robot_poses(robot_poses)
         by_name = {p.name: p for p in files}
@@ -130,7 +162,8 @@ def handeye_images(
             res = calibrate_handeye_images([by_name[n] for n in names], F, the_board,
                                            names=names, intrinsics=intr, setup=setup,
                                            method=method, refine_intrinsics=refine_intrinsics,
-                                           robot_noise=noise, progress=update)
+                                           robot_noise=noise, limits=limits, progress=update,
+                                           camera_height=camera_height, board_contact=contact)
         result = with_warnings({"images_dir": str(images_dir),
                                 "robot_poses": str(robot_poses), **res.to_dict()}, found)
         if out is not None:
@@ -156,6 +189,7 @@ def _summary(res: Any) -> str:
     lines = [
         f"{len(res.records)} images, {len(res.used)} used, {len(res.rejected)} rejected, "
         f"{len(res.outliers)} outlier(s); {res.setup}, board {res.board.spec}",
+        *one_axis_lines(res.one_axis, "mm"),
         f"X ({frame}; translation in the board unit, mm):",
         _fmt_matrix(res.X),
         "X std (1 sigma): rotation " + ", ".join(f"{v:.4f}" for v in xr) + " deg, translation "

@@ -30,7 +30,25 @@ def simulate(
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     poses: int = typer.Option(..., "--poses", help="Number of random poses (a model with "
-                              "markers measures every marker at each: poses x markers rows)."),
+                              "markers measures every marker at each: poses x markers rows); "
+                              "gauge kinds: rows per pivot, pairs, touches per point or plane."),
+    kind: str = typer.Option("tracker", "--kind", help="tracker (x,y,z), ballbar "
+                             "(pivot,distance), pair (pair,distance), point or plane "
+                             "(docs/measurement-kinds.md)."),
+    pivot: list[str] | None = typer.Option(None, "--pivot", help="Ballbar pivot X,Y,Z "
+                                           "(repeatable; default 2 reachable pivots)."),
+    point: list[str] | None = typer.Option(None, "--point", help="Fixed point X,Y,Z "
+                                           "(repeatable; default 4 reachable points)."),
+    plane: list[str] | None = typer.Option(None, "--plane", help="Plane X,Y,Z,NX,NY,NZ: a "
+                                           "point and the normal (repeatable; default 2)."),
+    length: float | None = typer.Option(None, "--length", help="Ballbar or bar length "
+                                        "(length unit; default a quarter of the reach)."),
+    radius: float | None = typer.Option(None, "--radius", help="Planes: touches within "
+                                        "this distance of the plane's point (length unit)."),
+    groups: int | None = typer.Option(None, "--groups", min=1, help="Number of default "
+                                      "pivots, points or planes (default 2, 4, 2)."),
+    sigma_column: bool = typer.Option(False, "--sigma-column", help="Gauge kinds: write the "
+                                      "noise as each row's sigma column."),
     noise: float = typer.Option(0.0, "--noise", help="Gaussian noise sigma per coordinate."),
     errors: str = typer.Option("random", "--errors", help="zero, random or TRUTH.json."),
     seed: int = seed_option(),
@@ -42,8 +60,27 @@ def simulate(
                                       help="Orientation noise sigma (model angle unit)."),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
+    images: Path | None = typer.Option(None, "--images", help="Render board images of the "
+                                       "poses into this folder (--out is then STATIONS.csv; "
+                                       "--noise is image noise in grey levels). See "
+                                       "docs/arm-from-images.md."),
+    board: str | None = typer.Option(None, "--board", help="With --images: the board."),
+    setup: str = typer.Option("eye-in-hand", "--setup", help="With --images: eye-in-hand "
+                              "or eye-to-hand."),
+    home: str | None = typer.Option(None, "--home", help="With --images: joints q1,..,qn "
+                                    "(model units) where the camera faces the board."),
+    blur: float = typer.Option(0.0, "--blur", help="With --images: blur sigma (px)."),
+    intrinsics: Path | None = typer.Option(None, "--intrinsics", help="With --images: the "
+                                           "camera (default 800x600 px, f 900 px)."),
+    camera_out: Path | None = typer.Option(None, "--camera-out", help="With --images: "
+                                           "write the camera (ROS YAML)."),
 ) -> None:
-    """Simulate measurements of a model with true errors and noise."""
+    """Simulate measurements of a model with true errors and noise (any measurement kind;
+    with --images, rendered board images of its stations)."""
+    if images is not None:  # rendered stations of the arm: its own module
+        from kinecal.cli.simulate_images import simulate_images
+
+        return simulate_images(dict(locals()))
     from kinecal.calibration.diagnostics.sizes import check_angle_noise
     from kinecal.calibration.serial.simulate import read_truth, write_truth
     from kinecal.calibration.serial.simulate import simulate as run
@@ -60,6 +97,18 @@ def simulate(
             err: object = errors
         else:
             err = read_truth(Path(errors), m) - m.nominal
+        gauge = dict(pivot=pivot, point=point, plane=plane, length=length, radius=radius,
+                     groups=groups, sigma_column=sigma_column)
+        if kind != "tracker":
+            from kinecal.cli.calibrate_kinds import simulate_gauge
+
+            return simulate_gauge(m, kind, err, poses=poses, noise=noise, seed=seed, out=out,
+                                  truth_out=truth_out, quiet=quiet, gauge=gauge,
+                                  orientation=bool(orientation or angle_noise))
+        for option, value in gauge.items():
+            if value:
+                raise InputError("applies to the gauge kinds (--kind ballbar, pair, point, "
+                                 "plane) only", option="--" + option.replace("_", "-"))
         if angle_noise and not orientation:
             raise InputError("--angle-noise needs --orientation", option="--angle-noise")
         to_rad = np.pi / 180.0 if m.angle_unit == "deg" else 1.0
@@ -73,3 +122,4 @@ def simulate(
     if not quiet:
         typer.echo(f"wrote {poses} poses to {out}"
                    + (f", truth to {truth_out}" if truth_out else ""), err=True)
+

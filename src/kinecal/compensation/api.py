@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal import diagnostics
+from kinecal.calibration.diagnostics.program import check_target_units
 from kinecal.compensation.inputs import (
     check_base,
     check_tool,
@@ -45,6 +46,7 @@ from kinecal.compensation.inputs import (
     program_targets,
     with_nominal_tool,
 )
+from kinecal.compensation.moves import JOINT_MOVE_GAIN, mark_large_moves
 from kinecal.compensation.result import CompensationResult
 from kinecal.compensation.same_arm import check_same_arm, with_registered_base
 from kinecal.errors import InputError
@@ -178,6 +180,8 @@ def compensate(
         if outputs == "pose" and t.ndim == 2:
             raise InputError("pose compensation needs target orientations (qw, qx, qy, qz)")
         intended = t if outputs == "pose" or t.ndim == 2 else t[:, :3, 3]
+        if diagnose:  # metres given to a millimetre arm fold it onto its base
+            check_target_units(cal, t if t.ndim == 2 else t[:, :3, 3])
         if seeds is None:
             warn(
                 "no-seed-joints",
@@ -200,7 +204,8 @@ def compensate(
         kind=kind, outputs=outputs, q=res.q, q_nominal=q_nom, dq=res.q - q_nom,
         intended=intended, filtered=filtered, correction=corr, correction_rotation=corr_rot,
         error_before=before, error_before_rotation=before_rot, residual=res.position_error,
-        residual_rotation=res.rotation_error, converged=res.converged, status=res.status,
+        residual_rotation=res.rotation_error, converged=res.converged,
+        status=mark_large_moves(nom, res.status, res.q - q_nom, corr, corr_rot),
         nominal_converged=nominal_ok, ik=res, length_unit=nom.length_unit,
         prismatic=nom.is_prismatic())
     if diagnose:
@@ -255,5 +260,7 @@ def _warn_rows(res: CompensationResult) -> None:
     if sing:
         diagnostics.warn(
             "near-singular",
-            f"{sing} of {n} rows are close to a singularity: their joint corrections are large "
-            "and sensitive to the calibration; move such points away from it if you can")
+            f"{sing} of {n} rows are close to a singularity (condition number above 1e3, or "
+            f"joints moving over {JOINT_MOVE_GAIN:.0f} times what the correction needs): "
+            "their joint corrections are large and sensitive to the calibration; move such "
+            "points away from it if you can")

@@ -1,5 +1,8 @@
 """Strict numeric CSV tables: named columns, every cell a finite number, row numbers in errors.
 
+Every cell read must be a finite number of at most `MAX_CELL` in size, and every column
+read must appear once in the header.
+
 Reading runs at C speed: numpy's `loadtxt` parser reads the whole file in one call and the
 checks (field count, finite values) are vectorised; a 200 MB table of 2.5 million rows
 reads in a few seconds and about twice its binary size in memory. Only when that fast
@@ -30,12 +33,15 @@ from numpy.typing import NDArray
 from kinecal._files import atomic_open
 from kinecal.errors import InputError
 
-__all__ = ["read_column", "read_table", "write_table"]
+__all__ = ["MAX_CELL", "read_column", "read_table", "write_table"]
 
 #: lines per block of the checked (second) reading pass
 BLOCK_LINES = 65536
 #: rows per block of the writer
 WRITE_ROWS = 16384
+#: largest magnitude of a cell: beyond any length (1000 km in mm), angle or weight a
+#: calibration file holds; ``1e308`` in one cell overflowed the fit's squares (SVD failure)
+MAX_CELL = 1e12
 
 
 def read_table(
@@ -43,6 +49,7 @@ def read_table(
     required: Sequence[str],
     optional: Sequence[str] = (),
     min_rows: int = 1,
+    max_abs: float = MAX_CELL,
 ) -> dict[str, NDArray[np.float64]]:
     """Read the named numeric columns of a CSV file with a header line.
 
@@ -56,6 +63,8 @@ def read_table(
         Columns read when present.
     min_rows : int
         Fewest data rows accepted.
+    max_abs : float
+        Largest magnitude of a cell (default `MAX_CELL`).
 
     Returns
     -------
@@ -65,8 +74,9 @@ def read_table(
     Raises
     ------
     InputError
-        Unreadable file, missing columns, a non-numeric / NaN / infinite cell (with its
-        1-based data row and column), or fewer than `min_rows` rows.
+        Unreadable file, missing or repeated columns, a non-numeric / NaN / infinite /
+        too large cell (with its 1-based data row and column), or fewer than `min_rows`
+        rows.
     """
     path = Path(path)
     header, skip = _header(path, required)
@@ -78,10 +88,16 @@ def read_table(
             file=path,
         )
     wanted = list(required) + [c for c in optional if c in header]
+    twice = next((c for c in wanted if header.count(c) > 1), None)
+    if twice is not None:
+        where = [k + 1 for k, h in enumerate(header) if h == twice]
+        raise InputError(f"column {twice} appears {len(where)} times (columns "
+                         f"{', '.join(map(str, where))}): expected each column once",
+                         file=path)
     cols = [header.index(c) for c in wanted]
-    data = _read_fast(path, skip, len(header), cols)
+    data = _read_fast(path, skip, len(header), cols, max_abs)
     if data is None:
-        data = _read_checked(path, skip, header, wanted, cols)
+        data = _read_checked(path, skip, header, wanted, cols, max_abs)
     if data.shape[0] < min_rows:
         raise InputError(f"{data.shape[0]} data rows, expected at least {min_rows}", file=path)
     return {name: data[:, k] for k, name in enumerate(wanted)}
@@ -118,15 +134,21 @@ def _parse(lines, skip: int = 0, usecols: list[int] | None = None) -> NDArray[np
                           skiprows=skip, ndmin=2, encoding="utf-8", usecols=usecols)
 
 
-def _accept(a: NDArray[np.float64], n_fields: int, cols: list[int]) -> bool:
-    """Every row has the header's field count and finite values in the wanted columns."""
+def _sane(a: NDArray[np.float64], limit: float) -> bool:
+    """Every value finite and within `limit` in size."""
+    return bool(np.isfinite(a).all() and (np.abs(a) <= limit).all())
+
+
+def _accept(a: NDArray[np.float64], n_fields: int, cols: list[int], limit: float) -> bool:
+    """Every row has the header's field count and finite values within `limit` in the
+    wanted columns."""
     if a.shape[0] == 0:
         return True
     if a.shape[1] != n_fields:
         return False
     if len(set(cols)) == n_fields:
-        return bool(np.isfinite(a).all())
-    return all(np.isfinite(a[:, c]).all() for c in cols)
+        return _sane(a, limit)
+    return all(_sane(a[:, c], limit) for c in cols)
 
 
 def _columns(a: NDArray[np.float64], cols: list[int]) -> NDArray[np.float64]:
@@ -136,7 +158,7 @@ def _columns(a: NDArray[np.float64], cols: list[int]) -> NDArray[np.float64]:
     return a if cols == list(range(a.shape[1])) else a[:, cols]
 
 
-def _read_fast(path: Path, skip: int, n_fields: int, cols: list[int]
+def _read_fast(path: Path, skip: int, n_fields: int, cols: list[int], limit: float
                ) -> NDArray[np.float64] | None:
     """The wanted columns ``(N, k)`` by one C-parser pass over the file, or None when the
     file needs the checked pass (any doubt at all)."""
@@ -144,11 +166,11 @@ def _read_fast(path: Path, skip: int, n_fields: int, cols: list[int]
         a = _parse(path, skip)
     except Exception:  # any failure: the checked pass explains it
         return None
-    return _columns(a, cols) if _accept(a, n_fields, cols) else None
+    return _columns(a, cols) if _accept(a, n_fields, cols, limit) else None
 
 
 def _read_checked(path: Path, skip: int, header: list[str], wanted: list[str],
-                  cols: list[int]) -> NDArray[np.float64]:
+                  cols: list[int], limit: float) -> NDArray[np.float64]:
     """The wanted columns ``(N, k)``, block by block; a block the C parser does not
     accept is read cell by cell, which raises `InputError` at the first bad cell."""
     blocks = []
@@ -158,9 +180,9 @@ def _read_checked(path: Path, skip: int, header: list[str], wanted: list[str],
             for _ in range(skip):
                 next(fh)
             while lines := list(islice(fh, BLOCK_LINES)):
-                b = _block(lines, len(header), cols)
+                b = _block(lines, len(header), cols, limit)
                 if b is None:  # cell by cell: raises at the first bad cell
-                    b = _cells(lines, row, header, wanted, cols, path)
+                    b = _cells(lines, row, header, wanted, cols, path, limit)
                 blocks.append(b)
                 row += b.shape[0]
         except (OSError, UnicodeDecodeError, csv.Error) as exc:
@@ -168,7 +190,8 @@ def _read_checked(path: Path, skip: int, header: list[str], wanted: list[str],
     return np.concatenate(blocks) if blocks else np.empty((0, len(wanted)))
 
 
-def _block(lines: list[str], n_fields: int, cols: list[int]) -> NDArray[np.float64] | None:
+def _block(lines: list[str], n_fields: int, cols: list[int], limit: float
+           ) -> NDArray[np.float64] | None:
     """The wanted columns of a block of lines by the C parser, or None.
 
     All columns first (the parser then checks every row's field count); when that fails
@@ -177,7 +200,7 @@ def _block(lines: list[str], n_fields: int, cols: list[int]) -> NDArray[np.float
     """
     try:
         a = _parse(lines)
-        if _accept(a, n_fields, cols):
+        if _accept(a, n_fields, cols, limit):
             return _columns(a, cols)
     except Exception:  # try the wanted columns alone, or the cell-by-cell reading
         pass
@@ -189,11 +212,11 @@ def _block(lines: list[str], n_fields: int, cols: list[int]) -> NDArray[np.float
         a = _parse(lines, usecols=cols)
     except Exception:  # the cell-by-cell reading explains it
         return None
-    return a if a.shape[0] and np.isfinite(a).all() else None
+    return a if a.shape[0] and _sane(a, limit) else None
 
 
 def _cells(lines: Iterable[str], row: int, header: list[str], wanted: list[str],
-           cols: list[int], path: Path) -> NDArray[np.float64]:
+           cols: list[int], path: Path, limit: float) -> NDArray[np.float64]:
     """Cell-by-cell reading of a block: blank rows skipped, Python's ``float`` per cell."""
     out = []
     for fields in csv.reader(lines):
@@ -215,6 +238,10 @@ def _cells(lines: Iterable[str], row: int, header: list[str], wanted: list[str],
             if not np.isfinite(value):
                 raise InputError(f"column {name}: {cell!r}, expected a finite number",
                                  file=path, row=row)
+            if abs(value) > limit:
+                raise InputError(f"column {name}: {cell!r}, expected a number of at most "
+                                 f"{limit:g} in size (no length, angle or weight is "
+                                 "that large; check the exponent)", file=path, row=row)
             values.append(value)
         out.append(values)
     return np.array(out, dtype=float).reshape(-1, len(wanted))
@@ -249,9 +276,18 @@ def read_column(path: str | Path, name: str) -> list[str] | None:
     return out
 
 
+def _quoted(cell: str) -> str:
+    """A text cell as CSV writes it: in double quotes (inner ones doubled) when it holds a
+    space, a comma or a quote (a URDF joint named ``joint 1``), else as it is."""
+    if any(c in cell for c in ' ,"'):
+        return '"' + cell.replace('"', '""') + '"'
+    return cell
+
+
 def write_table(path: str | Path, columns: dict[str, NDArray]) -> None:
     """Write equal-length columns as CSV with a header, atomically: numbers with full float
-    precision, text columns (names without commas or quotes) as they are.
+    precision, text (header names, text columns) quoted where it holds a space, a comma
+    or a quote.
 
     Each number is written in its shortest form that reads back to the same float (as
     ``repr``), formatted in bulk a block of rows at a time.
@@ -260,7 +296,7 @@ def write_table(path: str | Path, columns: dict[str, NDArray]) -> None:
     arrays = [np.asarray(columns[n]) for n in names]
     text = [a.dtype.kind in "USO" for a in arrays]
     with atomic_open(path, "w") as fh:
-        fh.write(",".join(names) + "\n")
+        fh.write(",".join(map(_quoted, names)) + "\n")
         if not any(text):
             data = np.column_stack([a.astype(float) for a in arrays])
             for s in range(0, data.shape[0], WRITE_ROWS):
@@ -268,7 +304,7 @@ def write_table(path: str | Path, columns: dict[str, NDArray]) -> None:
                 # the list's repr formats every float like repr() in C, in one call
                 fh.write(str(block)[2:-2].replace("], [", "\n").replace(", ", ",") + "\n")
             return
-        cells = [[str(v) for v in a] if t else [repr(float(v)) for v in a.astype(float)]
+        cells = [[_quoted(str(v)) for v in a] if t else [repr(float(v)) for v in a.astype(float)]
                  for a, t in zip(arrays, text, strict=True)]
         for row in zip(*cells, strict=True):
             fh.write(",".join(row) + "\n")

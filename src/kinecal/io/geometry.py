@@ -57,12 +57,12 @@ _CIRCLE_KEYS = (
 class GeometrySpec(BaseModel):
     """Schema of a Stewart geometry file (lengths in `length_unit`, angles in `angle_unit`)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     name: str | None = None
     kind: Literal["stewart"] = "stewart"
     source: str | None = None
-    length_unit: str = "m"
+    length_unit: Literal["m", "mm"] = "m"
     angle_unit: Literal["deg", "rad"] = "deg"
     base_radius: float | None = None
     platform_radius: float | None = None
@@ -88,6 +88,13 @@ class GeometrySpec(BaseModel):
             raise ValueError("expected 6 leg offsets")
         return v
 
+    @field_validator("base_radius", "platform_radius")
+    @classmethod
+    def _radius(cls, v: float | None) -> float | None:
+        if v is not None and not v > 0:
+            raise ValueError(f"expected a radius > 0, got {v:g}")
+        return v
+
     @field_validator("leg_range")
     @classmethod
     def _range(cls, v: list[float]) -> list[float]:
@@ -106,6 +113,12 @@ class GeometrySpec(BaseModel):
         if not any(joints) and not all(circles):
             missing = [k for k, c in zip(_CIRCLE_KEYS, circles, strict=True) if not c]
             raise ValueError(f"missing {', '.join(missing)} (or give explicit joints)")
+        most = 120.0 if self.angle_unit == "deg" else 2.0 * np.pi / 3.0
+        for key in _CIRCLE_KEYS[2:]:  # a joint pair's short edge spans less than 120 deg
+            v = getattr(self, key)
+            if v is not None and not 0.0 <= v < most:
+                raise ValueError(f"{key}: expected an angle in [0, {most:.4g}) "
+                                 f"{self.angle_unit}, got {v:g}")
         return self
 
     def to_platform(self) -> StewartPlatform:
@@ -160,7 +173,8 @@ def load_geometry(name_or_path: str | Path) -> StewartPlatform:
     except ValidationError as exc:
         err = exc.errors()[0]
         loc = ".".join(str(x) for x in err["loc"])
-        raise InputError(f"{loc + ': ' if loc else ''}{err['msg']}", file=path) from None
+        msg = err["msg"].removeprefix("Value error, ")
+        raise InputError(f"{loc + ': ' if loc else ''}{msg}", file=path) from None
     except InputError as exc:
         raise InputError(exc.message, file=path) from None
 

@@ -32,12 +32,13 @@ from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
 # Measurements (kinecal.data) is re-exported here
-__all__ = ["Measurements", "joint_columns", "joint_names", "read_joints", "read_markers",
-           "read_measurements", "write_measurements"]
+__all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "read_joints",
+           "read_markers", "read_measurements", "resolve_csv", "write_measurements"]
 
 #: columns with a meaning of their own in measurement and program files: a joint of that
 #: name can only be given as q1..qn
-_RESERVED = frozenset(("x", "y", "z", "qw", "qx", "qy", "qz", "weight", "marker", "pose"))
+_RESERVED = frozenset(("x", "y", "z", "qw", "qx", "qy", "qz", "weight", "marker", "pose",
+                       "pivot", "pair", "point", "plane", "distance", "sigma"))
 
 
 def _q_column(name: str) -> bool:
@@ -100,7 +101,8 @@ def joint_columns(header: list[str], model: SerialModel, path: Path | None = Non
     return qs
 
 
-def _header(path: Path) -> list[str]:
+def csv_header(path: Path) -> list[str]:
+    """The header cells of a CSV file (InputError naming the file when unreadable)."""
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             return [h.strip() for h in next(csv.reader(fh), [])]
@@ -110,7 +112,7 @@ def _header(path: Path) -> list[str]:
         raise InputError(f"cannot read CSV: {exc}", file=path) from None
 
 
-def _resolve(path: str | Path) -> Path:
+def resolve_csv(path: str | Path) -> Path:
     """A file path, or the file of a bundled ``NAME:PART``."""
     spec = str(path)
     path = Path(path)
@@ -130,7 +132,7 @@ def read_markers(path: str | Path, model: SerialModel
     file, in order of first appearance. No column: ``(None, ())`` (and a warning when the
     model has several markers: every row is then taken as the first).
     """
-    path = _resolve(path)
+    path = resolve_csv(path)
     cells = read_column(path, "marker")
     known = model.marker_names
     if cells is None:
@@ -164,8 +166,8 @@ def read_joints(path: str | Path, model: SerialModel) -> NDArray[np.float64]:
     """Joint values ``(N, n_joints)`` (rad; prismatic: length unit) from a CSV with
     ``q1..qn`` or the model's joint names (model angle unit; other columns ignored) or a
     laser-tracker export (``joint_1..``, degrees)."""
-    path = _resolve(path)
-    header = _header(path)
+    path = resolve_csv(path)
+    header = csv_header(path)
     if "joint_1" in header and "x_t" in header:
         return read_measurements(path, model).q
     names = joint_columns(header, model, path)
@@ -183,8 +185,8 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
     InputError
         Missing columns, wrong joint count, NaN or non-numeric cells (with the row).
     """
-    path = _resolve(path)
-    header = _header(path)
+    path = resolve_csv(path)
+    header = csv_header(path)
     n = model.n_joints
     scale = model.joint_scale()  # per joint column: revolute in the angle unit, prismatic length
     if "x_t" in header and "joint_1" in header:  # laser-tracker export (degrees)

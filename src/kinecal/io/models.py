@@ -23,7 +23,9 @@ A ``urdf`` model's joints are URDF joints: ``{name, type: revolute|continuous|pr
 x, y, z, roll, pitch, yaw, offset, axis: [ax, ay, az]}`` (optional ``parent``/``child``
 link names, and ``effort``/``velocity`` limits in URDF units, kept for URDF export), fixed
 frames ``{frame, x, y, z, roll, pitch, yaw}``. A fixed frame is held at
-nominal unless it says ``calibrate: true``.
+nominal unless it says ``calibrate: true``. Origins (urdf joints, fixed frames) may carry
+a calibrated local rotation error ``wx, wy, wz`` composed after their nominal
+roll-pitch-yaw (`kinecal.kinematics.serial.motions.origin_motions`); absent means zero.
 
 Bundled models live in ``kinecal/robots/NAME.yaml`` and are loaded by name; a ``.urdf``
 path is read by `kinecal.io.urdf.load_urdf`.
@@ -74,6 +76,9 @@ class URDFJointSpec(BaseModel):
     roll: float = 0.0
     pitch: float = 0.0
     yaw: float = 0.0
+    wx: float = 0.0
+    wy: float = 0.0
+    wz: float = 0.0
     offset: float = 0.0
     axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
     parent: str | None = None
@@ -93,6 +98,9 @@ class FrameSpec(BaseModel):
     rx: float = 0.0
     ry: float = 0.0
     rz: float = 0.0
+    wx: float = 0.0
+    wy: float = 0.0
+    wz: float = 0.0
     calibrate: bool = False
 
 
@@ -107,6 +115,9 @@ class URDFFrameSpec(BaseModel):
     roll: float = 0.0
     pitch: float = 0.0
     yaw: float = 0.0
+    wx: float = 0.0
+    wy: float = 0.0
+    wz: float = 0.0
     calibrate: bool = False
     parent: str | None = None
     child: str | None = None
@@ -188,7 +199,10 @@ def entry_spec(convention: str, entry: dict) -> type[BaseModel]:
 
 
 #: angle-valued keys of chain entries (a urdf joint's offset only when it rotates)
-_ANGLE_KEYS = frozenset(("theta", "alpha", "beta", "rx", "ry", "rz", "roll", "pitch", "yaw"))
+_ANGLE_KEYS = frozenset(("theta", "alpha", "beta", "rx", "ry", "rz", "roll", "pitch", "yaw",
+                         "wx", "wy", "wz"))
+#: an origin's local rotation error (kinecal.kinematics.serial.motions.origin_motions)
+_LOCAL_KEYS = ("wx", "wy", "wz")
 
 
 def _angle_keys(entry: dict) -> frozenset[str]:
@@ -331,6 +345,9 @@ def model_to_dict(model: SerialModel, angle_unit: str = "deg") -> dict:
     joints = []
     for j in model.joints:
         entry = _convert_entry(dict(j), s)
+        for key in _LOCAL_KEYS:  # written only where an origin's rotation error is non-zero
+            if entry.get(key) == 0.0:
+                del entry[key]
         if "axis" in entry:
             entry["axis"] = [float(v) for v in entry["axis"]]
         joints.append(entry)

@@ -7,8 +7,10 @@ moving joints, see `chain_path`). Each joint on it becomes one chain entry
 (`kinecal.kinematics.serial.motions.urdf_motions`):
 
 * ``revolute``, ``continuous``, ``prismatic``: a moving joint ``{name, type, x, y, z,
-  roll, pitch, yaw, offset: 0, axis}`` whose origin components and offset are named
-  parameters ``<joint>.x .. <joint>.yaw, <joint>.offset``;
+  roll, pitch, yaw, offset: 0, axis}``; its calibratable parameters are the origin's
+  translation, the local rotation error composed after its ``rpy`` (which is held) and the
+  offset: ``<joint>.x, .y, .z, .wz, .wy, .wx, .offset``
+  (`kinecal.kinematics.serial.motions.origin_motions`: no gimbal lock at pitch = +-pi/2);
 * ``fixed``: a fixed frame ``{frame: <joint>, x .. yaw}`` (held at nominal unless the
   model file says ``calibrate: true``).
 
@@ -35,14 +37,18 @@ import numpy as np
 from kinecal import diagnostics
 from kinecal._files import MAX_TEXT_BYTES, check_input_file
 from kinecal.errors import InputError
+from kinecal.kinematics.serial.chain import check_chain_size
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import xyz_rpy_from_transform
 
-__all__ = ["MOVING", "chain_path", "load_urdf", "read_urdf", "urdf_entries"]
+__all__ = ["MAX_URDF_JOINTS", "MOVING", "chain_path", "load_urdf", "read_urdf", "urdf_entries"]
 
 MOVING = ("revolute", "continuous", "prismatic")
 _UNSUPPORTED = ("floating", "planar")
 _RESERVED = ("base", "tool")
+#: most ``<joint`` tags a URDF file may hold (transmissions name joints too): ten times the
+#: largest real robot descriptions; counted on the bytes, before any parsing
+MAX_URDF_JOINTS = 10_000
 #: metaheuristics' search box of an imported URDF: 1 mm and 0.3 degrees
 URDF_TOLERANCES = {"length": 1e-3, "angle": np.deg2rad(0.3)}
 
@@ -86,6 +92,10 @@ def read_urdf(path: str | Path):
     if len(data) > MAX_TEXT_BYTES:
         raise InputError(f"more than {MAX_TEXT_BYTES / 1e6:.0f} MB: too large for a URDF",
                          file=path)
+    tags = data.count(b"<joint")  # before parsing: a 400 000-joint file took minutes
+    if tags > MAX_URDF_JOINTS:
+        raise InputError(f"{tags:,} <joint> tags: expected at most {MAX_URDF_JOINTS:,} in a "
+                         "robot description", file=path)
     try:  # a clean message with the line before yourdfpy's recovering parser sees it; one
         # feed of the whole text (ET.parse's 64 kB feeds made expat quadratic in a long
         # token: a 300 MB comment took many minutes)
@@ -190,6 +200,37 @@ def _moving_below(link: str, by_parent: Mapping) -> bool:
     return False
 
 
+#: words of the link names users give as a chain's tip (tool0, flange, tcp, ee_link,
+#: end_effector_link, ...)
+TIP_WORDS = ("tool", "flange", "tcp", "ee", "end_effector", "endeffector", "tip", "eef")
+
+
+def _tip_like(link: str) -> bool:
+    words = link.lower().replace("-", "_").split("_")
+    low = link.lower()
+    return any(w in words or (len(w) > 3 and w in low) for w in TIP_WORDS)
+
+
+def _below(link: str, by_parent: Mapping) -> list[str]:
+    out, stack = [], [link]
+    while stack:
+        cur = stack.pop()
+        out.append(cur)
+        stack += [j.child for j in by_parent.get(cur, [])]
+    return out
+
+
+def _tip_candidates(link: str, kids: list, by_parent: Mapping, ends_here: bool) -> list[str]:
+    """The --tip-link candidates offered at a branching `link`: the links named like tips
+    (``end_effector_link``, ``tool0``, ``flange``: the link itself when only fixed frames
+    hang below it, as Kinova's sensor frames do), then every leaf below, fixed-only side
+    branches too (the tool link of a kinecal export sits beside a gripper's fingers)."""
+    below = [t for j in kids for t in _below(j.child, by_parent)]
+    named = [t for t in ([link] if ends_here else []) + below if _tip_like(t)]
+    leaves = [t for j in kids for t in _leaves(j.child, by_parent)]
+    return list(dict.fromkeys(sorted(named) + sorted(set(leaves) - set(named))))
+
+
 def _leaves(link: str, by_parent: Mapping) -> list[str]:
     out, stack = [], [link]
     while stack:
@@ -228,7 +269,7 @@ def chain_path(urdf, base_link: str | None = None, tip_link: str | None = None,
                                  "between them", option="--tip-link")
             chain.append(by_child[cur])
             cur = by_child[cur].parent
-        return chain[::-1]
+        return _sized(chain[::-1], path)
     chain, cur = [], base
     while by_parent.get(cur):
         kids = by_parent[cur]
@@ -239,14 +280,22 @@ def chain_path(urdf, base_link: str | None = None, tip_link: str | None = None,
             nxt = kids[0]
         else:
             branches = moving or kids
-            # every leaf below, fixed-only side branches too (the tool link of a kinecal
-            # export sits beside a gripper's fingers)
-            tips = sorted({t for j in kids for t in _leaves(j.child, by_parent)})
+            tips = _tip_candidates(cur, kids, by_parent, ends_here=not moving)
             raise InputError(
                 f"link {cur!r} branches ({', '.join(j.name for j in branches)}): choose the "
                 f"chain's end with --tip-link (one of {', '.join(tips)})", file=path)
         chain.append(nxt)
         cur = nxt.child
+    return _sized(chain, path)
+
+
+def _sized(chain: list, path: Path) -> list:
+    """`chain`, refused when longer than a model may be (`check_chain_size`)."""
+    try:
+        check_chain_size(len(chain), sum(j.type != "fixed" for j in chain),
+                         f"{chain[0].parent} -> {chain[-1].child}: " if chain else "")
+    except InputError as exc:
+        raise InputError(exc.message, file=path) from None
     return chain
 
 

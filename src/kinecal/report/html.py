@@ -141,6 +141,7 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes],
                    for kind, png in pngs.items())
     from kinecal.report.compensation import compensation_section
     from kinecal.report.iso9283 import validation_iso9283_section
+    from kinecal.report.kinds import kinds_section
     from kinecal.report.residual_maps import error_model_section
 
     return [
@@ -149,6 +150,7 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes],
         provenance_section(provenance),
         section("summary", "Model and data", summary),
         section("errors", "Position error before and after", errors),
+        kinds_section(result),
         validation_iso9283_section(result, validation),
         section("identifiability", "Identifiability", ident),
         section("parameters", "Parameters", params),

@@ -2,8 +2,11 @@
 
 The image side of hand-eye calibration from pictures (`kinecal.vision.pipeline`):
 
-- `boards`: chessboard, ChArUco and circle-grid boards and the ``--board`` syntax;
-- `detect`: detection with sub-pixel corners and per-image quality checks with reasons;
+- `boards`: chessboard and ChArUco boards and the ``--board`` syntax (`board_base`: the
+  interface; `circle_grids`: OpenCV's asymmetric and symmetric circle grids and
+  industrial_calibration's modified circle grid);
+- `detect`: detection with sub-pixel corners and per-image quality checks with reasons
+  (`detection`: what a detection returns; `detect_circles`: the circle grids);
 - `intrinsics`: camera intrinsics read from ROS / OpenCV / JSON files or estimated;
 - `pnp`: the board pose per image with its covariance;
 - `imaging`: a board's image through a known camera (distortion, light, blur, noise);

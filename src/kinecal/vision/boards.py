@@ -2,8 +2,9 @@
 
 Every board has a frame with its origin on the board plane, x along the rows of corners,
 y along the columns, z = x cross y (pointing away from a camera that sees the printed side,
-as in OpenCV), lengths in the unit of the spec (mm by convention). Corners are numbered
-by an id; `Board.object_points` gives the board coordinates of every id.
+as in OpenCV; industrial_calibration's modified circle grid is the exception, see
+`kinecal.vision.circle_grids`), lengths in the unit of the spec (mm by convention). Corners
+are numbered by an id; `Board.object_points` gives the board coordinates of every id.
 
 Specs (``kinecal handeye-images --board``):
 
@@ -16,8 +17,8 @@ Specs (``kinecal handeye-images --board``):
   and marker sides in the length unit, an OpenCV ArUco dictionary name, e.g.
   ``charuco:7x5:40:30:DICT_5X5_100`` (OpenCV's layout and corner ids; origin at the outer
   corner of the board).
-- ``acircles:COLSxROWS:SPACING``: OpenCV's asymmetric circle grid (e.g. ``acircles:4x11:20``),
-  circle ``(c, r)`` at ``((2 c + r mod 2) * SPACING, r * SPACING, 0)``, diameter SPACING.
+- ``acircles:COLSxROWS:SPACING``, ``circles:COLSxROWS:PITCH[:DIAMETER]`` and
+  ``modcircles:COLSxROWS:PITCH[:DIAMETER]``: circle grids (`kinecal.vision.circle_grids`).
 """
 
 from __future__ import annotations
@@ -30,97 +31,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.errors import InputError
+from kinecal.vision.board_base import SYNTAX, Board, grid_size, positive_length
+from kinecal.vision.circle_grids import (
+    AsymmetricCircleGrid,
+    ModifiedCircleGrid,
+    SymmetricCircleGrid,
+)
 
 Array = NDArray[np.float64]
 
-__all__ = ["AsymmetricCircleGrid", "Board", "Charuco", "Chessboard", "parse_board"]
-
-_SYNTAX = ("chessboard:COLSxROWS:SQUARE (inner corners, e.g. chessboard:9x6:30), "
-           "charuco:COLSxROWS:SQUARE:MARKER:DICT (squares, e.g. charuco:7x5:40:30:DICT_5X5_100) "
-           "or acircles:COLSxROWS:SPACING (e.g. acircles:4x11:20)")
-
-
-class Board:
-    """Common interface of the boards (see the module docstring)."""
-
-    kind: str = ""
-
-    @property
-    def spec(self) -> str:  # pragma: no cover - overridden
-        raise NotImplementedError
-
-    @property
-    def n_corners(self) -> int:
-        """Number of corner ids."""
-        return len(self.object_points)
-
-    @property
-    def object_points(self) -> Array:  # pragma: no cover - overridden
-        """Board coordinates ``(n_corners, 3)`` of every corner id (z = 0)."""
-        raise NotImplementedError
-
-    @property
-    def pitch(self) -> float:
-        """Distance between neighbouring corners (length unit)."""
-        raise NotImplementedError  # pragma: no cover
-
-    def extent(self) -> tuple[float, float, float, float]:
-        """``(x_min, y_min, x_max, y_max)`` of the printed pattern (board frame, no margin)."""
-        raise NotImplementedError  # pragma: no cover
-
-    def texture(self, px_per_unit: float, margin: float | None = None) -> tuple[Any, Array]:
-        """Image of the printed board (uint8, white margin) and its placement.
-
-        Parameters
-        ----------
-        px_per_unit : float
-            Texture resolution, pixels per length unit.
-        margin : float, optional
-            White quiet zone around the pattern (length unit); default one pitch.
-
-        Returns
-        -------
-        image : ndarray, shape (h, w), uint8
-        board2texture : ndarray, shape (3, 3)
-            Maps board ``(x, y, 1)`` to texture pixel coordinates (OpenCV convention:
-            integer coordinates are pixel centres).
-        """
-        raise NotImplementedError  # pragma: no cover
-
-    def _frame(self, px_per_unit: float, margin: float | None) -> tuple[int, int, Array]:
-        m = self.pitch if margin is None else float(margin)
-        x0, y0, x1, y1 = self.extent()
-        x0, y0, x1, y1 = x0 - m, y0 - m, x1 + m, y1 + m
-        w = int(np.ceil((x1 - x0) * px_per_unit))
-        h = int(np.ceil((y1 - y0) * px_per_unit))
-        A = np.array([[px_per_unit, 0.0, -x0 * px_per_unit - 0.5],
-                      [0.0, px_per_unit, -y0 * px_per_unit - 0.5],
-                      [0.0, 0.0, 1.0]])
-        return w, h, A
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{"spec", "kind", "corners", "pitch"}``."""
-        return {"spec": self.spec, "kind": self.kind, "corners": self.n_corners,
-                "pitch": self.pitch}
-
-
-def _grid(spec: str) -> tuple[int, int]:
-    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", spec)
-    if m is None:
-        raise InputError(f"board size {spec!r}: expected COLSxROWS, e.g. 9x6; {_SYNTAX}",
-                         option="--board")
-    return int(m.group(1)), int(m.group(2))
-
-
-def _length(text: str, what: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        v = float("nan")
-    if not (np.isfinite(v) and v > 0):
-        raise InputError(f"board {what} {text!r}: expected a positive length; {_SYNTAX}",
-                         option="--board")
-    return v
+__all__ = ["AsymmetricCircleGrid", "Board", "Charuco", "Chessboard", "ModifiedCircleGrid",
+           "SymmetricCircleGrid", "parse_board"]
 
 
 @dataclass(frozen=True)
@@ -149,6 +70,10 @@ class Chessboard(Board):
     @property
     def pitch(self) -> float:
         return self.square
+
+    def symmetries(self) -> list[tuple[Array, NDArray[np.intp]]]:
+        """The half turn when the board is `symmetric` (its colours do not tell the ends)."""
+        return self._turns(quarter=False) if self.symmetric else []
 
     @property
     def object_points(self) -> Array:
@@ -247,51 +172,6 @@ class Charuco(Board):
         return img, A
 
 
-@dataclass(frozen=True)
-class AsymmetricCircleGrid(Board):
-    """OpenCV's asymmetric circle grid: `cols` circles per row, `rows` rows."""
-
-    cols: int
-    rows: int
-    spacing: float
-    kind = "acircles"
-
-    def __post_init__(self) -> None:
-        if self.cols < 2 or self.rows < 3:
-            raise InputError(f"acircles {self.cols}x{self.rows}: expected at least 2x3 circles",
-                             option="--board")
-
-    @property
-    def spec(self) -> str:
-        return f"acircles:{self.cols}x{self.rows}:{self.spacing:g}"
-
-    @property
-    def pitch(self) -> float:
-        return self.spacing
-
-    @property
-    def object_points(self) -> Array:
-        c, r = np.meshgrid(np.arange(self.cols), np.arange(self.rows))
-        c, r = c.ravel(), r.ravel()
-        return np.column_stack([(2 * c + r % 2) * self.spacing, r * self.spacing,
-                                np.zeros(c.size)])
-
-    def extent(self) -> tuple[float, float, float, float]:
-        s = self.spacing
-        return -s / 2, -s / 2, (2 * self.cols - 1) * s + s / 2, (self.rows - 1) * s + s / 2
-
-    def texture(self, px_per_unit: float, margin: float | None = None) -> tuple[Any, Array]:
-        w, h, A = self._frame(px_per_unit, margin)
-        x = (np.arange(w) - A[0, 2]) / px_per_unit
-        y = (np.arange(h) - A[1, 2]) / px_per_unit
-        img = np.full((h, w), 255, np.uint8)
-        rad = 0.5 * self.spacing  # diameter = spacing (diagonal neighbours 1.41 apart)
-        for px, py, _ in self.object_points:
-            mask = (x[None, :] - px) ** 2 + (y[:, None] - py) ** 2 <= rad * rad
-            img[mask] = 0
-        return img, A
-
-
 def parse_board(spec: str) -> Board:
     """Board from its ``--board`` spec (see the module docstring).
 
@@ -303,13 +183,18 @@ def parse_board(spec: str) -> Board:
     parts = [p.strip() for p in str(spec).split(":")]
     kind = parts[0].lower()
     if kind == "chessboard" and len(parts) == 3:
-        c, r = _grid(parts[1])
-        return Chessboard(c, r, _length(parts[2], "square"))
+        c, r = grid_size(parts[1])
+        return Chessboard(c, r, positive_length(parts[2], "square"))
     if kind == "charuco" and len(parts) == 5:
-        c, r = _grid(parts[1])
-        return Charuco(c, r, _length(parts[2], "square"), _length(parts[3], "marker"),
-                       parts[4].upper())
+        c, r = grid_size(parts[1])
+        return Charuco(c, r, positive_length(parts[2], "square"),
+                       positive_length(parts[3], "marker"), parts[4].upper())
     if kind == "acircles" and len(parts) == 3:
-        c, r = _grid(parts[1])
-        return AsymmetricCircleGrid(c, r, _length(parts[2], "spacing"))
-    raise InputError(f"board {spec!r}: expected {_SYNTAX}", option="--board")
+        c, r = grid_size(parts[1])
+        return AsymmetricCircleGrid(c, r, positive_length(parts[2], "spacing"))
+    grids = {"circles": SymmetricCircleGrid, "modcircles": ModifiedCircleGrid}
+    if kind in grids and len(parts) in (3, 4):
+        c, r = grid_size(parts[1])
+        dot = positive_length(parts[3], "dot diameter") if len(parts) == 4 else None
+        return grids[kind](c, r, positive_length(parts[2], "pitch"), dot)
+    raise InputError(f"board {spec!r}: expected {SYNTAX}", option="--board")

@@ -1,158 +1,51 @@
 """Board detection with sub-pixel corners and per-image quality checks.
 
 `detect` finds the board's corners in one grey image and either accepts it or rejects it
-with a reason a user can act on:
+with a reason a user can act on, saying what was seen:
 
-- ``no board found`` (nothing board-like; with the image's edge width when it is blurred);
+- ``no board found`` (nothing board-like; with the image's edge width when it is blurred;
+  circle grids: how many dots were found);
 - ``board partly visible`` (a chessboard cut by the image border or occluded: a part of
-  the grid is found but not all of it; a ChArUco board with fewer corners than needed; any
-  corner closer to the border than the sub-pixel window);
+  the grid is found but not all of it; any corner closer to the border than the sub-pixel
+  window);
+- ``too few corners`` (ChArUco: ``13 of 17 markers found, 9 of 24 corners interpolated``,
+  fewer than `QualityLimits.min_corners`);
 - ``blurred`` (edge width above `QualityLimits.max_edge_width` pixels);
-- ``too few corners`` (ChArUco, circle grids: fewer than `QualityLimits.min_corners`);
 - ``too oblique`` is judged later from the board pose (`kinecal.vision.pnp`).
 
 Chessboard corners come from ``cv2.findChessboardCorners`` refined by ``cv2.cornerSubPix``
 on the image smoothed by a Gaussian of up to 1.5 px, with a window of 0.9 times the corner
 spacing (half-width at most 15 px). On rendered images both choices lower the corner error
 against OpenCV's customary 11 x 11 window on the raw image: noise-free 0.053 -> 0.021 px
-RMS, with blur and noise 0.042 -> 0.036 px (tests/vision). ChArUco corners from
-``cv2.aruco.CharucoDetector`` are refined again the same way with the window kept inside
-the gap between square corner and marker (noise-free 0.057 -> 0.040 px). OpenCV may list the
-corners starting from either end of the board; `detect` puts them in the board's own order
-by the colour of the square diagonally outside corner 0 (black by the board's definition),
-so that a board turned by 180 deg between images keeps its frame. Boards that look the same
-after a half turn (inner corner counts both even or both odd) cannot be oriented and are
-reported by `orientation_ambiguous`.
-
-The edge width is the 10-90 % rise distance of the board's sharpest edges estimated as
-``contrast / peak gradient * 0.78`` (a Gaussian-blurred step of sigma s gives 2.56 s; a
-sharp, pixel-integrated edge about 1-1.5 px).
+RMS, with blur and noise 0.042 -> 0.036 px (tests/vision). ChArUco markers are found by
+``cv2.aruco.CharucoDetector`` with its board-guided second search for the markers the
+first pass missed (``tryRefineMarkers``: on industrial_calibration's real ``test_set_charuco``
+the corners found in its five hardest images rise from 4-14 to 24 of 24); the corners are
+refined again the same way as a chessboard's with the window kept inside the gap between
+square corner and marker (noise-free 0.057 -> 0.040 px). OpenCV may list chessboard corners
+starting from either end of the board; `detect` puts them in the board's own order by the
+colour of the square diagonally outside corner 0 (black by the board's definition), so that
+a board turned by 180 deg between images keeps its frame. Boards that look the same after a
+turn (inner corner counts both even or both odd; symmetric circle grids) cannot be oriented
+and are reported by `orientation_ambiguous`. Circle grids: `kinecal.vision.detect_circles`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.vision import require_cv2
-from kinecal.vision.boards import AsymmetricCircleGrid, Board, Charuco, Chessboard
+from kinecal.vision.boards import Board, Charuco, Chessboard
+from kinecal.vision.circle_grids import CircleGrid
+from kinecal.vision.detect_circles import detect_circle_grid
+from kinecal.vision.detection import Detection, QualityLimits, edge_width, orientation_ambiguous
 
 Array = NDArray[np.float64]
 
 __all__ = ["Detection", "QualityLimits", "detect", "edge_width", "orientation_ambiguous"]
-
-
-@dataclass
-class QualityLimits:
-    """Thresholds of the per-image checks.
-
-    Attributes
-    ----------
-    max_edge_width : float
-        Reject images whose board edges are wider than this (px, 10-90 % rise).
-    min_corners : int or None
-        Fewest corners accepted (ChArUco); default 60 % of the board's corners (at least 6):
-        half a board is rejected, a view with a few occluded corners is not.
-    border : float
-        Reject boards with a corner closer than this to the image border (px).
-    max_tilt_deg : float
-        Reject views where the board plane is tilted more than this from facing the
-        camera (judged from the board pose).
-    max_pnp_rms : float
-        Reject images whose corners do not fit the board pose better than this (px RMS):
-        a wrongly ordered or mis-detected grid.
-    """
-
-    max_edge_width: float = 4.5
-    min_corners: int | None = None
-    border: float = 3.0
-    max_tilt_deg: float = 70.0
-    max_pnp_rms: float = 3.0
-
-    def corners_needed(self, board: Board) -> int:
-        """The minimum corner count for `board`."""
-        if self.min_corners is not None:
-            return int(self.min_corners)
-        return max(6, int(np.ceil(0.6 * board.n_corners)))
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able dict."""
-        return dict(self.__dict__)
-
-
-@dataclass
-class Detection:
-    """Corners found in one image.
-
-    Attributes
-    ----------
-    ok : bool
-        Accepted for calibration.
-    reason : str
-        Why it was rejected ("" when accepted).
-    corners : ndarray, shape (N, 2)
-        Pixel positions (OpenCV convention) of the detected corners.
-    ids : ndarray, shape (N,)
-        Their corner ids (rows of `Board.object_points`).
-    size : (int, int)
-        Image width, height.
-    edge_width : float
-        Edge width of the board region (px), NaN when not measured.
-    partial : bool
-        Not every corner of the board was found (ChArUco).
-    """
-
-    ok: bool
-    reason: str
-    corners: Array = field(default_factory=lambda: np.zeros((0, 2)))
-    ids: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
-    size: tuple[int, int] = (0, 0)
-    edge_width: float = float("nan")
-    partial: bool = False
-
-    def reject(self, reason: str) -> Detection:
-        """This detection, rejected for `reason` (corners kept for the report)."""
-        self.ok = False
-        self.reason = reason
-        return self
-
-    def object_points(self, board: Board) -> Array:
-        """Board coordinates ``(N, 3)`` of the detected corners."""
-        return board.object_points[self.ids]
-
-
-def orientation_ambiguous(board: Board) -> bool:
-    """True when `board` looks the same after a half turn (a chessboard whose inner corner
-    counts are both even or both odd), so its frame cannot be told from the image."""
-    return isinstance(board, Chessboard) and board.symmetric
-
-
-def edge_width(gray: NDArray[np.uint8], mask: NDArray[np.bool_] | None = None) -> float:
-    """10-90 % edge width (px) of the sharpest edges of `gray` (within `mask`).
-
-    ``0.78 * contrast / peak gradient``, with the contrast between the 2nd and 98th
-    intensity percentiles and the peak gradient the 99.5th percentile of the Sobel gradient
-    magnitude; NaN when the region has no contrast.
-    """
-    cv2 = require_cv2()
-    g = gray.astype(np.float32)
-    gx = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3) / 8.0
-    gy = cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3) / 8.0
-    mag = np.sqrt(gx * gx + gy * gy)
-    if mask is not None:
-        vals, mags = g[mask], mag[mask]
-    else:
-        vals, mags = g.ravel(), mag.ravel()
-    if vals.size < 16:
-        return float("nan")
-    lo, hi = np.percentile(vals, [2.0, 98.0])
-    peak = float(np.percentile(mags, 99.5))
-    if hi - lo < 10.0 or peak <= 0:
-        return float("nan")
-    return float(0.78 * (hi - lo) / peak)
 
 
 def _hull_mask(shape: tuple[int, int], pts: Array, grow: float) -> NDArray[np.bool_]:
@@ -277,56 +170,58 @@ def _detect_charuco(gray: NDArray[np.uint8], board: Charuco, det: Detection,
                     limits: QualityLimits) -> Detection:
     cv2 = require_cv2()
     params = cv2.aruco.CharucoParameters()
-    dparams = cv2.aruco.DetectorParameters()
-    detector = cv2.aruco.CharucoDetector(board.cv_board(), params, dparams)
+    params.tryRefineMarkers = True  # look again for the markers the layout predicts
+    detector = cv2.aruco.CharucoDetector(board.cv_board(), params,
+                                         cv2.aruco.DetectorParameters())
     corners, ids, _, marker_ids = detector.detectBoard(gray)
     n = 0 if ids is None else len(ids)
+    nm = 0 if marker_ids is None else len(marker_ids)
     need = limits.corners_needed(board)
+    det.seen = (f"{nm} of {board.cols * board.rows // 2} markers found, {n} of "
+                f"{board.n_corners} corners interpolated")
     if n == 0:
         w = edge_width(gray)
-        nm = 0 if marker_ids is None else len(marker_ids)
         if nm:
-            return det.reject(f"board partly visible: {nm} marker(s) but no corner found")
+            return det.reject(f"board partly visible: {det.seen}")
         if np.isfinite(w) and w > limits.max_edge_width:
             return det.reject(f"no board found; the image is blurred (edge width {w:.1f} px)")
-        return det.reject("no board found (no ChArUco markers detected)")
+        return det.reject(f"no board found (no {board.dictionary} markers detected)")
     c = corners.reshape(-1, 2).astype(float)
     i = ids.ravel().astype(np.intp)
     order = np.argsort(i)
     c, i = c[order], i[order]
-    if len(c) >= 2:  # re-refine: smoothed image, window inside the marker-free gap
-        d = np.linalg.norm(c[:, None] - c[None, :], axis=2)
-        np.fill_diagonal(d, np.inf)
-        spacing = float(np.median(d.min(axis=1)))
-        gap = spacing * (board.square - board.marker) / (2.0 * board.square)
-        half = int(np.clip(round(gap), 2, 15))
-        sigma = 1.0 if half >= 3 else 0.7
-        crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
-        smooth = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), sigma)
-        c = cv2.cornerSubPix(smooth, c.astype(np.float32).reshape(-1, 1, 2), (half, half),
-                             (-1, -1), crit).reshape(-1, 2).astype(float)
+    if len(c) >= 2:
+        c = _refine_charuco(gray, c, board)
     det.corners, det.ids = c, i
     det.partial = n < board.n_corners
     if n < need:
-        return det.reject(f"too few corners: {n} of {board.n_corners} found, {need} needed "
-                          "(board partly visible or occluded)")
+        default = "" if limits.min_corners is not None else " (60 % of the board's, default)"
+        return det.reject(f"too few corners: {det.seen}; --min-corners {need}{default}")
+    if n >= 3 and _collinear(board.object_points[i]):
+        return det.reject(f"corners on one line: {det.seen}, all on one row or column of "
+                          "the board (no board pose)")
     return det
 
 
-def _detect_acircles(gray: NDArray[np.uint8], board: AsymmetricCircleGrid,
-                     det: Detection) -> Detection:
+def _refine_charuco(gray: NDArray[np.uint8], c: Array, board: Charuco) -> Array:
+    """Re-refine ChArUco corners on the smoothed image, window inside the marker-free gap."""
     cv2 = require_cv2()
-    found, centers = cv2.findCirclesGrid(gray, (board.cols, board.rows),
-                                         flags=cv2.CALIB_CB_ASYMMETRIC_GRID)
-    if not found:
-        w = edge_width(gray)
-        if np.isfinite(w) and w > 4.5:
-            return det.reject(f"no board found; the image is blurred (edge width {w:.1f} px)")
-        return det.reject(f"no board found (no {board.cols}x{board.rows} asymmetric circle "
-                          "grid; partly visible grids are not detected)")
-    det.corners = centers.reshape(-1, 2).astype(float)
-    det.ids = np.arange(board.n_corners)
-    return det
+    d = np.linalg.norm(c[:, None] - c[None, :], axis=2)
+    np.fill_diagonal(d, np.inf)
+    spacing = float(np.median(d.min(axis=1)))
+    gap = spacing * (board.square - board.marker) / (2.0 * board.square)
+    half = int(np.clip(round(gap), 2, 15))
+    sigma = 1.0 if half >= 3 else 0.7
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
+    smooth = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), sigma)
+    return cv2.cornerSubPix(smooth, c.astype(np.float32).reshape(-1, 1, 2), (half, half),
+                            (-1, -1), crit).reshape(-1, 2).astype(float)
+
+
+def _collinear(P: Array) -> bool:
+    """Board points ``(N, 3)`` on one line (second singular value ~ 0)."""
+    s = np.linalg.svd(P[:, :2] - P[:, :2].mean(axis=0), compute_uv=False)
+    return bool(s[1] <= 1e-9 * max(s[0], 1e-300))
 
 
 def detect(image: NDArray[Any], board: Board,
@@ -358,9 +253,9 @@ def detect(image: NDArray[Any], board: Board,
         det = _detect_chessboard(gray, board, det, limits)
     elif isinstance(board, Charuco):
         det = _detect_charuco(gray, board, det, limits)
-    elif isinstance(board, AsymmetricCircleGrid):
-        det = _detect_acircles(gray, board, det)
-    else:  # pragma: no cover - parse_board only makes the three kinds
+    elif isinstance(board, CircleGrid):
+        det = detect_circle_grid(gray, board, det, limits)
+    else:  # pragma: no cover - parse_board only makes these kinds
         raise TypeError(f"unsupported board {board!r}")
     if not det.ok or len(det.corners) == 0:
         return det

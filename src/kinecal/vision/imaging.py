@@ -177,7 +177,7 @@ def render_board(
         my = A[1, 1] * (lam * (R[0, 1] * x + R[1, 1] * y + R[2, 1]) - bt[1]) + A[1, 2]
         mx = np.where(front, mx, -1e6).astype(np.float32)
         my = np.where(front, my, -1e6).astype(np.float32)
-        if n @ t <= 0:  # the printed side faces away: the camera sees the plain back
+        if board.faces * (n @ t) <= 0:  # the printed side faces away: the plain back
             tex = np.full_like(albedo_tex, 200.0)
         else:
             tex = albedo_tex

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal._files import read_text, write_text_atomic
+from kinecal._files import load_yaml, read_text, write_text_atomic
 from kinecal.calibration.handeye.camera import check_camera
 from kinecal.errors import InputError
 
@@ -190,12 +190,7 @@ def read_intrinsics(path: str | Path) -> CameraIntrinsics:
         raise InputError(f"unknown intrinsics file type {suffix or '(none)'!r}; expected "
                          ".yaml/.yml (ROS camera_calibration or OpenCV), .xml or .json",
                          file=path)
-    import yaml
-
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise InputError(f"not valid YAML: {' '.join(str(exc).split())}", file=path) from None
+    doc = load_yaml(text, path)  # safe, alias bombs and deep nesting refused
     if not isinstance(doc, dict):
         raise InputError("expected a mapping with camera_matrix (ROS camera_calibration)",
                          file=path)

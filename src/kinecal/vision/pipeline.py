@@ -35,6 +35,7 @@ from kinecal.errors import InputError
 from kinecal.vision import require_cv2
 from kinecal.vision.boards import Board
 from kinecal.vision.detect import QualityLimits, detect, orientation_ambiguous
+from kinecal.vision.image_files import check_image_size
 from kinecal.vision.intrinsics import CameraIntrinsics, estimate_intrinsics
 from kinecal.vision.pnp import board_pose
 from kinecal.vision.results import ImageHandEyeResult, ImageRecord
@@ -45,8 +46,13 @@ __all__ = ["ImageHandEyeResult", "ImageRecord", "calibrate_handeye_images", "loa
 
 
 def load_gray(path: str | Path) -> NDArray[np.uint8] | None:
-    """8-bit grey image from a file (None when OpenCV cannot read it)."""
+    """8-bit grey image from a file (None when OpenCV cannot read it).
+
+    Raises `InputError` for an image too large to be a camera's, judged from its header
+    before decoding (`kinecal.vision.image_files.check_image_size`).
+    """
     cv2 = require_cv2()
+    check_image_size(path)
     img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     return None if img is None else np.asarray(img)
 
@@ -65,6 +71,8 @@ def calibrate_handeye_images(
     robust: bool = True,
     limits: QualityLimits | None = None,
     progress: Callable[..., None] | None = None,
+    camera_height: float | None = None,
+    board_contact: Any = None,
 ) -> ImageHandEyeResult:
     """Hand-eye calibration from board images and robot poses.
 
@@ -96,6 +104,9 @@ def calibrate_handeye_images(
         Per-image quality thresholds.
     progress : callable, optional
         Called as ``progress()`` after each image is detected.
+    camera_height, board_contact : optional
+        Robots that turn about one axis only (SCARA): X's height along the axis, or a point
+        of the board plane touched by the tool (`kinecal.calibration.handeye.calibrate_handeye`).
 
     Returns
     -------
@@ -120,11 +131,7 @@ def calibrate_handeye_images(
                  for i, im in enumerate(images)]
     with diagnostics.collect() as found:
         if orientation_ambiguous(board):
-            diagnostics.warn("board-symmetric",
-                             f"{board.spec} looks the same turned by 180 deg (inner corner "
-                             "counts both even or both odd): its frame can flip between "
-                             "images and is then guessed from the robot poses; use a board "
-                             "with one even and one odd count, or ChArUco")
+            _warn_symmetric(board)
         expected = None if intrinsics is None or not intrinsics.size else \
             tuple(intrinsics.size)
         records, size = _detect_all(images, names, board, limits, progress, expected)
@@ -140,13 +147,15 @@ def calibrate_handeye_images(
         if orientation_ambiguous(board) and _turn_flipped(records, used, board, F[idx], C,
                                                           setup, method):
             C = np.array([records[k].pose.target2cam for k in used])
-        seed = calibrate_handeye(F[idx], C, setup=setup, method=method, refine="lm")
+        seed = calibrate_handeye(F[idx], C, setup=setup, method=method, refine="lm",
+                                 camera_height=camera_height, board_contact=board_contact)
+        one = _one_axis(seed, F[idx], setup, camera_height, board_contact)
         obj = [records[k].detection.object_points(board) for k in used]
         pix = [records[k].detection.corners for k in used]
         ref = refine_reprojection(F[idx], obj, pix, intr.K, intr.dist, seed.X, seed.target,
                                   setup=setup, refine_intrinsics=refine_intrinsics,
                                   rational=intr.rational, robot_noise=robot_noise,
-                                  robust=robust)
+                                  robust=robust, one_axis=one)
         for j, k in enumerate(used):
             records[k].residuals = ref.residuals[j]
         for j in ref.outliers:
@@ -162,8 +171,25 @@ def calibrate_handeye_images(
                                     intr.rational)
         _plausibility(ref, records, limits)
     warnings = [d.to_dict() for d in found]
-    return ImageHandEyeResult(ref.X, ref.Y, setup, method, board, intr, refine_intrinsics,
-                              records, ref, seed, warnings, time.perf_counter() - t0)
+    res = ImageHandEyeResult(ref.X, ref.Y, setup, seed.method, board, intr, refine_intrinsics,
+                             records, ref, seed, warnings, time.perf_counter() - t0)
+    if one is not None:
+        from kinecal.calibration.handeye.one_axis import one_axis_summary
+
+        res.one_axis = one_axis_summary(*one, ref.X, ref.Y)
+    return res
+
+
+def _one_axis(seed: Any, F: Array, setup: str, camera_height: float | None,
+              board_contact: Any) -> Any:
+    """(axis, height) when the seed found one-axis stations (SCARA), else None."""
+    if seed.one_axis is None:
+        return None
+    from kinecal.calibration.handeye.scara import AxisHeight, detect_one_axis
+    from kinecal.spatial import invert_transform
+
+    G = F if setup == "eye-in-hand" else invert_transform(F)
+    return detect_one_axis(G, setup), AxisHeight.from_options(camera_height, board_contact)
 
 
 def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
@@ -176,9 +202,14 @@ def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
     records: list[ImageRecord] = []
     sizes: list[tuple[int, int] | None] = []
     for name, im in zip(names, images, strict=True):
-        gray = load_gray(im) if isinstance(im, str | Path) else np.asarray(im)
+        try:
+            gray = load_gray(im) if isinstance(im, str | Path) else np.asarray(im)
+        except InputError as exc:  # too large to decode: rejected from its header
+            gray, reason = None, exc.message
+        else:
+            reason = "cannot read the image file"
         if gray is None or gray.size == 0:
-            records.append(ImageRecord(str(name), "rejected", "cannot read the image file"))
+            records.append(ImageRecord(str(name), "rejected", reason))
             sizes.append(None)
         else:
             h, w = gray.shape[:2]
@@ -256,39 +287,58 @@ def _poses(records: list[ImageRecord], board: Board, intr: CameraIntrinsics,
                         "mis-detected or mis-ordered corners")
 
 
+def _warn_symmetric(board: Board) -> None:
+    turns = sorted({round(float(np.degrees(np.arctan2(T[1, 0], T[0, 0]))) % 360)
+                    for T, _ in board.symmetries()})
+    what = " and ".join(f"{a} deg" for a in turns)
+    advice = ("use a board with one even and one odd count, or ChArUco"
+              if board.kind == "chessboard" else
+              "use a modcircles board (its origin dot fixes the frame), acircles or ChArUco")
+    diagnostics.warn("board-symmetric",
+                     f"{board.spec} looks the same turned by {what}: its frame can turn "
+                     f"between images and is then put back from the robot poses; {advice}")
+
+
 def _turn_flipped(records: list[ImageRecord], used: list[int], board: Board, F: Array,
                   C: Array, setup: str, method: str) -> int:
-    """Symmetric chessboards: put back the stations whose corners were listed from the
-    other end (board frame turned by 180 deg about the board centre), judged by the pose
-    the robot and a robust solution (RANSAC start: tolerates about half the stations
-    turned) predict. Returns how many were turned."""
+    """Symmetric boards: put back the stations whose corners were listed turned (board
+    frame turned by one of `Board.symmetries`, e.g. 180 deg about the board centre), judged
+    by the pose the robot and a robust solution (RANSAC start: tolerates about half the
+    stations turned) predict. Returns how many were turned."""
     from kinecal.calibration.handeye import robust_solve
-    from kinecal.spatial import invert_transform, rotation_angle, transform_from
+    from kinecal.spatial import invert_transform, rotation_angle
 
-    c = board.object_points.mean(axis=0)
-    turn = transform_from(np.diag([-1.0, -1.0, 1.0]), 2.0 * np.array([c[0], c[1], 0.0]))
     G = F if setup == "eye-in-hand" else invert_transform(F)
     try:
         X, Y = robust_solve(G, C, method)
     except InputError:  # degenerate motions: calibrate_handeye reports them next
         return 0
     pred = invert_transform(X) @ invert_transform(G) @ Y  # target2cam
+    sym = board.symmetries()
+    step = min(rotation_angle(T[:3, :3]) for T, _ in sym)  # smallest turn (pi or pi / 2)
     turned = 0
     for j, k in enumerate(used):
         r = records[k]
         T = r.pose.target2cam
+        errs = [rotation_angle(pred[j, :3, :3].T @ (T @ invert_transform(turn))[:3, :3])
+                for turn, _ in sym]
+        best = int(np.argmin(errs))
         e0 = rotation_angle(pred[j, :3, :3].T @ T[:3, :3])
-        e1 = rotation_angle(pred[j, :3, :3].T @ (T @ turn)[:3, :3])
-        if e0 > np.pi / 2 and e1 < np.pi / 4:
-            r.detection.corners = r.detection.corners[::-1].copy()
-            r.pose.target2cam = T @ turn
-            r.pose.residuals = r.pose.residuals[::-1].copy()
+        if e0 > step / 2 and errs[best] < step / 4:
+            turn, perm = sym[best]
+            fixed = np.empty_like(r.detection.corners)
+            fixed[perm] = r.detection.corners
+            r.detection.corners = fixed
+            r.pose.target2cam = T @ invert_transform(turn)
+            res = np.empty_like(r.pose.residuals)
+            res[perm] = r.pose.residuals
+            r.pose.residuals = res
             turned += 1
     if turned:
         diagnostics.warn("board-turned",
                          f"{turned} image(s) of the symmetric board {board.spec} were listed "
-                         "from the other end; their frame was turned by 180 deg to agree with "
-                         "the robot poses (use an asymmetric board to avoid the guess)")
+                         "turned; their frame was turned back to agree with the robot poses "
+                         "(use an asymmetric board to avoid the guess)")
     return turned
 
 

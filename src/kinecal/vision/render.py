@@ -99,7 +99,8 @@ def plan_views(
         c = rng.uniform(cos_max, 1.0)
         phi = rng.uniform(0, 2 * np.pi)
         s = np.sqrt(1 - c * c)
-        direction = np.array([s * np.cos(phi), s * np.sin(phi), -c])  # board z points away
+        # the camera on the printed side (-z for OpenCV's boards: board z points away)
+        direction = np.array([s * np.cos(phi), s * np.sin(phi), -board.faces * c])
         dist_ = d0 * (1.0 + distance_spread * rng.uniform(-1, 1))
         aim = centre + np.array([rng.uniform(-0.15, 0.15) * (x1 - x0),
                                  rng.uniform(-0.15, 0.15) * (y1 - y0), 0.0])
@@ -177,6 +178,7 @@ def render_handeye_scene(
     seed: int = 0,
     supersample: int = 3,
     view_options: dict[str, Any] | None = None,
+    flange2base: Array | None = None,
 ) -> HandEyeScene:
     """Render `n` stations of a hand-eye set-up with known X and board pose.
 
@@ -205,6 +207,10 @@ def render_handeye_scene(
         See `render_board`.
     view_options : dict, optional
         Passed to `plan_views` (``fill``, ``tilt_deg``, ``roll_deg``, ...).
+    flange2base : ndarray, shape (n, 4, 4), optional
+        The robot's true flange poses instead of planned views (e.g. a SCARA's, whose
+        rotations turn about one axis); the board must be in view from each (X and `target`
+        given).
 
     Returns
     -------
@@ -215,6 +221,14 @@ def render_handeye_scene(
                          option="setup")
     K, d8 = check_camera(K, dist)
     rng = np.random.default_rng(seed)
+    if flange2base is not None:
+        F = np.asarray(flange2base, dtype=float)
+        if X is None or target is None or F.shape != (n, 4, 4):
+            raise InputError(f"flange2base: expected {n} poses (n, 4, 4) with X and target "
+                             "given", option="flange2base")
+        C = _views_of(board, K, d8, size, F, X, target, setup)
+        return _render(board, K, d8, size, setup, X, target, F, C, conditions, robot_noise,
+                       vary_light, rng, supersample)
     C = plan_views(board, K, d8, size, n, rng, **(view_options or {}))  # target2cam
     if setup == "eye-in-hand":
         X = X if X is not None else transform_from(
@@ -227,6 +241,33 @@ def render_handeye_scene(
         target = target if target is not None else transform_from(
             matrix_from_axis_angle([0.0, np.pi, 0.2]), [10.0, -15.0, 80.0])
         F = X @ C @ invert_transform(target)
+    return _render(board, K, d8, size, setup, X, target, F, C, conditions, robot_noise,
+                   vary_light, rng, supersample)
+
+
+def _views_of(board: Board, K: Array, d8: Array, size: tuple[int, int], F: Array, X: Array,
+              target: Array, setup: str) -> Array:
+    """``target2cam`` of given flange poses; `InputError` when a view misses the board."""
+    if setup == "eye-in-hand":
+        C = invert_transform(X) @ invert_transform(F) @ target
+    else:
+        C = invert_transform(X) @ F @ target
+    for i, T in enumerate(C):
+        P = board.object_points @ T[:3, :3].T + T[:3, 3]
+        uv = project(K, d8, P) if np.all(P[:, 2] > 0) else np.full((1, 2), -1.0)
+        if not (np.all(np.isfinite(uv)) and uv.min() >= 0 and uv[:, 0].max() <= size[0] - 1
+                and uv[:, 1].max() <= size[1] - 1):
+            raise InputError(f"flange pose {i}: the board is not wholly in view",
+                             option="flange2base")
+    return C
+
+
+def _render(board: Board, K: Array, d8: Array, size: tuple[int, int], setup: str, X: Array,
+            target: Array, F: Array, C: Array, conditions: ImageConditions | None,
+            robot_noise: tuple[float, float], vary_light: float, rng: np.random.Generator,
+            supersample: int) -> HandEyeScene:
+    """Images of the views C with the reported (noisy) robot poses."""
+    n = len(C)
     F_rep = F
     if robot_noise[0] > 0 or robot_noise[1] > 0:
         E = transform_from(matrix_from_axis_angle(rng.normal(size=(n, 3)) * robot_noise[0]),

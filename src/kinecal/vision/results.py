@@ -70,6 +70,7 @@ class ImageRecord:
         return {
             "image": self.name, "status": self.status, "reason": self.reason,
             "corners": 0 if det is None else len(det.corners),
+            "seen": "" if det is None else det.seen,
             "rms_px": self.rms_px, "max_px": self.max_px,
             "pnp_rms_px": None if pose is None else pose.rms_px,
             "tilt_deg": None if pose is None else pose.tilt_deg,
@@ -102,6 +103,9 @@ class ImageHandEyeResult:
     warnings : list of dict
         Plausibility warnings raised on the way (``code``, ``message``).
     seconds : float
+    one_axis : dict or None
+        The robot turned about one axis only (SCARA): the axis and X's height along it
+        (`kinecal.calibration.handeye.one_axis.one_axis_summary`).
     """
 
     X: Array
@@ -116,6 +120,7 @@ class ImageHandEyeResult:
     seed: HandEyeResult
     warnings: list[dict[str, str]] = field(default_factory=list)
     seconds: float = 0.0
+    one_axis: dict[str, Any] | None = None
 
     @property
     def used(self) -> list[ImageRecord]:
@@ -169,6 +174,7 @@ class ImageHandEyeResult:
             "seed": {"method": self.method, "X": self.seed.X.tolist(),
                      "rotation_rms_deg": self.seed.rotation_rms_deg,
                      "translation_rms": self.seed.translation_rms},
+            "one_axis": self.one_axis,
             "warnings": list(self.warnings),
             "seconds": self.seconds,
         }

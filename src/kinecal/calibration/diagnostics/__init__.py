@@ -29,24 +29,39 @@ CODES: dict[str, str] = {
     "residual-offset": "the residual holds an offset a free base frame would take",
     "lack-of-fit": "the residual is far above the repeatability of repeated poses",
     "residual-above-noise": "the residual is far above the instrument's stated noise (--sigma)",
+    "residual-below-noise": "the residual is far below the instrument's stated noise (--sigma)",
     "outliers": "poses whose error is far outside the others' spread",
+    "optimizer-stalled": "a metaheuristic stopped far above what a least-squares polish reaches",
+    # measurement kinds: ballbar and pair distances, fixed points, planes
+    "pivot-moved": "a ballbar's distances fit no single pivot to the noise",
+    "point-spread": "a fixed point's touches disagree by more than the noise",
+    "plane-not-flat": "a plane's touches are not flat to the noise",
+    "noise-estimate": "the noise of several measurement sets did not settle (they contradict)",
     "leg-range": "Stewart leg readings outside the geometry's leg range",
     "angle-units": "Stewart pose angles or hand-eye pose-file angles that look like radians",
     "handeye-conditioning": "hand-eye motions too close to one rotation axis for the noise",
+    "handeye-one-axis": "robot rotations about one axis only (SCARA) and no height given: X's "
+                        "translation along it assumed",
+    "handeye-height-unused": "a SCARA height given for stations that turn about several axes",
     "handeye-inconsistent": "robot and target poses that fit no X (inverted, quaternion order, "
     "angle unit, --setup)",
     "absolute-errors": "simulate(errors=...) got absolute parameter values, not deviations",
     # hand-eye calibration from images
-    "board-symmetric": "a board that looks the same turned by 180 deg (frames can flip)",
-    "board-turned": "images of a symmetric board turned back by 180 deg to fit the robot poses",
+    "board-symmetric": "a board that looks the same turned (180 deg, or 90 deg for square "
+                       "circle grids): frames can flip",
+    "board-turned": "images of a symmetric board turned back to fit the robot poses",
     "intrinsics-size": "intrinsics made for another image size than the images'",
     "intrinsics-rms": "the camera calibration from the images leaves more than 1 px RMS",
     "pnp-rms": "the board poses fit the detected corners poorly (wrong intrinsics or board)",
     "images-rejected": "more than half of the images rejected",
     "reprojection-rms": "the hand-eye solution reprojects the corners poorly",
     "many-outliers": "more than 30 % of the hand-eye stations flagged as outliers",
+    # arm calibration from images
+    "station-skipped": "stations whose board was not found or not trusted, left out",
+    "board-scale": "identified lengths uniformly off nominal: the --board size is wrong",
     # compensation
     "no-seed-joints": "targets without seed joints: inverse kinematics chose the configuration",
+    "target-units": "Cartesian targets outside the arm's reach that fit it in another unit",
     "joints-outside-limits": "program or seed joints outside the model's joint limits",
     "base-frame-far": "the calibrated base frame is far from the nominal one",
     "tool-point-far": "the calibrated tool point is far from the nominal one (a target?)",

@@ -216,7 +216,14 @@ def handeye_uncertainty(G: Array, C: Array, X: Array, Y: Array,
     scale = np.r_[[1.0 / sr] * 3, [1.0 / st] * 3]
     Js = (J * scale[None, :, None]).reshape(-1, UNKNOWNS)
     r = np.concatenate([rot / sr, tr / st], axis=1).ravel()
-    cov = float(r @ r) / (6 * n - UNKNOWNS) * np.linalg.pinv(Js.T @ Js)
+    # columns scaled to unit norm before the pseudo-inverse: rotation rows weighted by
+    # 1 / s_R (1e11 for exact rotations read from a file) otherwise put the translation's
+    # information below pinv's cut-off, and X's translation came out 1e-26 "certain"
+    N = Js.T @ Js
+    d = np.sqrt(np.diag(N))
+    d = 1.0 / np.where(d > 0, d, 1.0)
+    cov = float(r @ r) / (6 * n - UNKNOWNS) * (d[:, None] * np.linalg.pinv(
+        d[:, None] * N * d[None, :], hermitian=True) * d[None, :])
     wr = np.clip(np.linalg.eigvalsh(cov[:3, :3]), 0.0, None)
     wt, vt = np.linalg.eigh(cov[3:6, 3:6])
     wt = np.clip(wt, 0.0, None)

@@ -12,6 +12,10 @@ adjustment) does:
   ``f = 3 n - r`` (``n`` independent poses, ``r`` the rank of the fit); with measured
   orientations the parameters are shared by position and rotation rows, and
   ``f = 3 n - trace(H_pos)``, the position rows' share of the hat matrix.
+* ``residual-below-noise`` is warned when the statistic lies in the lower ``ALPHA`` tail
+  and the residual's RMS per coordinate is at most `MAX_DEFICIT` (half) of ``S``: a
+  pessimistic stated noise (another unit, a worst case) doubles the standard errors
+  computed with it.
 * ``residual-above-noise`` is warned when that statistic exceeds its upper ``ALPHA``
   quantile (clean data trip it with probability 0.001) *and* the residual's RMS per
   coordinate is at least ``sqrt(1 + MIN_EXCESS^2)`` = 1.118 times ``S``: the part the model
@@ -40,14 +44,18 @@ from scipy.special import chdtr, chdtrc
 from kinecal.calibration.diagnostics._common import ALPHA
 from kinecal.diagnostics import warn
 
-__all__ = ["MIN_EXCESS", "check_stated_noise", "check_stated_sigma", "known_covariance",
-           "noise_entry", "noise_lines"]
+__all__ = ["MAX_DEFICIT", "MIN_EXCESS", "check_stated_noise", "check_stated_sigma",
+           "known_covariance", "noise_entry", "noise_lines"]
 
 Array = NDArray[np.float64]
 
 #: the model misses "something" when its unmodelled part (RMS per coordinate) is at least
 #: this fraction of the stated noise: the residual is then >= sqrt(1 + 0.5^2) = 1.118 S
 MIN_EXCESS = 0.5
+#: a stated noise this many times above the residual (RMS per coordinate, and in the
+#: chi-square lower tail) is warned as pessimistic: the standard errors with it are more
+#: than twice too large
+MAX_DEFICIT = 0.5
 
 
 def check_stated_sigma(model, sigma: float | None) -> float | None:
@@ -143,6 +151,15 @@ def check_stated_noise(problem, x: Array, unc, sigma: float, *,
         verdict = "above" if above else "below" if below else "consistent"
         out.update(residual_sigma=resid, ratio=ratio, p_value=p, verdict=verdict,
                    consistent=verdict == "consistent")
+        if below and ratio <= MAX_DEFICIT:
+            warn("residual-below-noise",
+                 f"the residual is {ratio:.3g} times the stated instrument noise "
+                 f"({resid:.3g} against {sigma:.3g} {model.length_unit} per coordinate; "
+                 f"chi-square {rss / sigma**2:.4g} on {dof:.0f} degrees of freedom, lower "
+                 f"tail p = {float(chdtr(dof, rss / sigma**2)):.2g}): the stated noise is "
+                 "pessimistic (another unit, or the instrument's worst case rather than its "
+                 "1-sigma noise per coordinate), and so are the standard errors computed "
+                 "with it")
         if above:
             unit = model.length_unit
             short = ("" if method in ("lm", "householder") else

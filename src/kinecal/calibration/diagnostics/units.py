@@ -79,18 +79,20 @@ def _other_angle_unit(model: SerialModel, q: Array) -> Array:
     return out
 
 
-def check_joint_units(model: SerialModel, q: Array, what: str = "poses") -> bool:
+def check_joint_units(model: SerialModel, q: Array, what: str = "poses",
+                      min_rows: int = 2) -> bool:
     """``joint-units``: revolute readings of a degree model that all stay within +-2 pi.
 
     Readings in degrees that never leave +-6.3 deg on any joint, in a model whose limits
     allow four times more, are radians read as degrees (no calibration pose set moves an
-    arm that little). Returns True when it warned.
+    arm that little). Judged from `min_rows` rows on (a robot program's single row of
+    radians is as telling as a pose set's). Returns True when it warned.
     """
     if model.angle_unit != "deg":
         return False
     rev = ~model.is_prismatic()
     q = np.asarray(q, dtype=float)
-    if not rev.any() or q.shape[0] < 2:
+    if not rev.any() or q.shape[0] < min_rows:
         return False
     span = np.abs(q[:, rev]).max()
     small = 2.0 * np.pi * np.pi / 180.0  # 2 pi read as degrees, in rad

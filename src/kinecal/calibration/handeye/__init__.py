@@ -9,6 +9,10 @@ Entry point: `calibrate_handeye`. Input conventions are OpenCV's ``calibrateHand
 
 In both cases ``G_i X C_i = Y`` with ``C_i = target2cam`` and ``G_i = flange2base``
 (eye-in-hand) or ``base2flange`` (eye-to-hand); see docs/handeye.md.
+
+Stations whose robot rotations all turn about one axis (SCARA, 4-axis arms) are recognised
+and solved by Ulrich & Steger (2016) (`kinecal.calibration.handeye.scara`), the height along
+the axis taken from ``camera_height`` or ``board_contact``.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from kinecal.calibration.handeye.errors import (
     rms,
     station_residuals,
 )
+from kinecal.calibration.handeye.scara import AxisHeight, detect_one_axis
 from kinecal.calibration.method_options import check_refine_options
 from kinecal.errors import InputError
 from kinecal.spatial import invert_transform
@@ -74,6 +79,9 @@ class HandEyeResult:
         Plausibility diagnostics (`kinecal.calibration.diagnostics.handeye`).
     x_uncertainty : XUncertainty or None
         First-order uncertainty of X from the residuals (None for noise-free data).
+    one_axis : dict or None
+        One-axis stations (SCARA): the axis, where X's height along it came from and the
+        heights (`kinecal.calibration.handeye.one_axis.one_axis_summary`); None otherwise.
     """
 
     X: Array
@@ -91,6 +99,7 @@ class HandEyeResult:
     seconds: float = 0.0
     warnings: list = field(default_factory=list)
     x_uncertainty: Any = None
+    one_axis: dict[str, Any] | None = None
 
     @property
     def rotation_rms_deg(self) -> float:
@@ -124,6 +133,7 @@ class HandEyeResult:
             "nfev": self.nfev,
             "seconds": self.seconds,
             "x_uncertainty": None if self.x_uncertainty is None else self.x_uncertainty.to_dict(),
+            "one_axis": self.one_axis,
             "warnings": [d.to_dict() for d in self.warnings],
         }
 
@@ -181,6 +191,8 @@ def calibrate_handeye(
     robust: bool = True,
     rotation_weight: float | None = None,
     options: dict[str, Any] | None = None,
+    camera_height: float | None = None,
+    board_contact: ArrayLike | None = None,
 ) -> HandEyeResult:
     """Hand-eye calibration from pose pairs (OpenCV's input conventions).
 
@@ -213,6 +225,10 @@ def calibrate_handeye(
         Metaheuristic options (``popsize``, ``maxiter``, ``rotation_box``,
         ``translation_box``, ``maxfev``, ``length``, ``method_options``), see
         `refine_meta.metaheuristic`.
+    camera_height, board_contact : optional
+        Stations turning about one axis only (SCARA): X's translation along it, which AX = XB
+        cannot see, or a point (3,) of the board plane touched by the tool (base frame
+        eye-in-hand, flange frame eye-to-hand); `kinecal.calibration.handeye.scara`.
 
     Returns
     -------
@@ -222,7 +238,7 @@ def calibrate_handeye(
     ------
     InputError
         Bad shapes, non-rigid transforms, unknown names, fewer than 3 distinct stations or
-        degenerate motions (fewer than two non-parallel rotation axes).
+        degenerate motions (pure translations, or rotations about one line only).
 
     Notes
     -----
@@ -233,13 +249,14 @@ def calibrate_handeye(
     """
     with diagnostics.collect(python_warnings=True) as found:
         res = _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, seed,
-                                 robust, rotation_weight, options)
+                                 robust, rotation_weight, options,
+                                 AxisHeight.from_options(camera_height, board_contact))
     res.warnings = list(found)
     return res
 
 
 def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, seed, robust,
-                       rotation_weight, options) -> HandEyeResult:
+                       rotation_weight, options, height) -> HandEyeResult:
     from kinecal.calibration.diagnostics.handeye import (
         check_handeye_conditioning,
         check_handeye_stations,
@@ -268,8 +285,22 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
         raise InputError(f"rotation_weight {rotation_weight}: expected a positive length per "
                          "radian", option="rotation_weight")
     G = F if setup == "eye-in-hand" else invert_transform(F)
+    axis = detect_one_axis(G, setup)
+    if axis is not None:  # SCARA: Ulrich & Steger, the height from the caller
+        from kinecal.calibration.handeye.one_axis import calibrate_one_axis
+
+        s = calibrate_one_axis(F, C, G, setup, axis, height, refine, robust, rotation_weight,
+                               seed, pairs, _meta_options(options))
+        res = HandEyeResult(s.X, s.Y, setup, "ulrich-steger", refine, *s.residuals,
+                            s.outliers, s.history, s.nfev, time.perf_counter() - t0)
+        res.x_uncertainty, res.one_axis = s.uncertainty, s.summary
+        return res
     X, Y = solve(G, C, method, pairs)
     X0 = X
+    if height.given:
+        from kinecal.calibration.handeye.one_axis import warn_height_unused
+
+        warn_height_unused(height, G)
     history: list[float] = []
     nfev = 0
     outliers: list[int] = []
@@ -283,12 +314,7 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
     elif refine in ("igwo", "dlh-gwo-de"):
         from kinecal.calibration.handeye.refine_meta import metaheuristic
 
-        opts = dict(options or {})
-        unknown = sorted(set(opts) - _META_OPTIONS)
-        if unknown:
-            raise InputError(f"unknown option(s) {', '.join(unknown)}; expected "
-                             f"{', '.join(sorted(_META_OPTIONS))}", option="options")
-        res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **opts)
+        res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **_meta_options(options))
         X, history, nfev = res.X, res.history, res.nfev
         Y = mean_target_pose(G, X, C)
     if refine != "lm":
@@ -311,6 +337,16 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
                         nfev, time.perf_counter() - t0)
     res.x_uncertainty = unc
     return res
+
+
+def _meta_options(options: dict[str, Any] | None) -> dict[str, Any]:
+    """The metaheuristic refiners' options, unknown names refused."""
+    opts = dict(options or {})
+    unknown = sorted(set(opts) - _META_OPTIONS)
+    if unknown:
+        raise InputError(f"unknown option(s) {', '.join(unknown)}; expected "
+                         f"{', '.join(sorted(_META_OPTIONS))}", option="options")
+    return opts
 
 
 def _consensus_refinement(G: Array, C: Array, first: Any, seed: Any,
@@ -361,6 +397,13 @@ def robust_solve(G: Array, C: Array, method: str = "park", seed: int = 0) -> tup
     """
     from kinecal.calibration.handeye.refine import lm
 
+    axis = detect_one_axis(G, "eye-in-hand")
+    if axis is not None:  # one axis: no minimal sets for RANSAC; the height does not matter
+        from kinecal.calibration.handeye.scara import solve_one_axis
+
+        X, Y = solve_one_axis(G, C, axis)
+        res = lm(G, C, X, Y)
+        return res.X, res.Y
     X, Y = solve(G, C, method)
     res = _consensus_refinement(G, C, lm(G, C, X, Y), seed, None)
     return res.X, res.Y

@@ -44,6 +44,7 @@ from kinecal.calibration.handeye.reprojection import (
     predict_pixels,
     unpack,
 )
+from kinecal.calibration.handeye.scara import AxisHeight, OneAxis
 from kinecal.errors import InputError
 
 Array = NDArray[np.float64]
@@ -143,6 +144,7 @@ def refine_reprojection(
     robust: bool = True,
     outlier_level: float = 0.999,
     max_outer: int = 8,
+    one_axis: tuple[OneAxis, AxisHeight] | None = None,
 ) -> ReprojectionRefinement:
     """Refine X, the board pose (and optionally intrinsics, robot poses) on the pixels.
 
@@ -174,6 +176,10 @@ def refine_reprojection(
         Chi-square probability of the outlier bound.
     max_outer : int
         Reweighting passes.
+    one_axis : (OneAxis, AxisHeight), optional
+        The robot turns about one axis only (SCARA): the pixels do not see X's translation
+        along it either (`kinecal.calibration.handeye.scara`, eq. (3)); the solution is put
+        where the height says, and the covariance is taken under that constraint.
 
     Returns
     -------
@@ -276,17 +282,51 @@ def refine_reprojection(
     # covariance: the Jacobian of the final pass at the solution, residual variance
     J = sol.jac
     m = J.shape[0]
-    s2 = float(np.sum(sol.fun**2)) / max(m - pr.n_params, 1)
-    try:
-        cov = s2 * np.linalg.inv(J.T @ J)
-    except np.linalg.LinAlgError:
-        cov = np.full((pr.n_params, pr.n_params), np.inf)
+    row = None
+    if one_axis is not None:  # eq. (8) of `scara`: move along the null direction, constrain
+        p, row = _place_on_axis(pr, p, *one_axis)
+        r, srms = residual_stats(p)
+    s2 = float(np.sum(sol.fun**2)) / max(m - pr.n_params + (row is not None), 1)
+    cov = _covariance(J, s2, row)
     X, Y, Kf, df, E = unpack(pr, p)
     res = np.split(-r, np.cumsum(counts)[:-1])
     outliers = [int(i) for i in np.flatnonzero(~inlier)]
     return ReprojectionRefinement(X, Y, Kf, df, None if E is None else E.copy(), res, srms,
                                   outliers, float(sigma), cov, parameter_names(pr), nfev,
                                   history, time.perf_counter() - t0)
+
+
+def _place_on_axis(pr: ReprojectionProblem, p: Array, axis: OneAxis,
+                   height: AxisHeight) -> tuple[Array, Array]:
+    """Parameters moved along the unobservable direction so that the height holds, and the
+    constraint row ``(n_params,)`` of the height at the result (`scara.AxisHeight`)."""
+    from kinecal.calibration.handeye.refine import _jr
+
+    X, Y = unpack(pr, p)[:2]
+    X2, Y2 = height.place(axis, X, Y)
+    q = p.copy()
+    q[3:6] += X2[:3, 3] - X[:3, 3]
+    q[9:12] += Y2[:3, 3] - Y[:3, 3]
+    c = height.constraint(axis, Y2)
+    row = np.zeros(pr.n_params)
+    row[:12] = c
+    # the rotations are R0 Exp(p): a change d of p turns the frame by J_r(p) d
+    row[0:3] = _jr(q[0:3]).T @ c[0:3]
+    row[6:9] = _jr(q[6:9]).T @ c[6:9]
+    return q, row
+
+
+def _covariance(J: Array, s2: float, row: Array | None) -> Array:
+    """``s2 (J^T J)^-1``, restricted to ``row . p = 0`` when a row is given (a constrained
+    direction that J does not see)."""
+    n = J.shape[1]
+    try:
+        if row is None:
+            return s2 * np.linalg.inv(J.T @ J)
+        N = np.linalg.svd(row.reshape(1, -1))[2][1:].T
+        return s2 * N @ np.linalg.inv(N.T @ (J.T @ J) @ N) @ N.T
+    except np.linalg.LinAlgError:
+        return np.full((n, n), np.inf)
 
 
 def _outlier_stations(srms: Array, counts: Array, sigma: float, level: float) -> Array:

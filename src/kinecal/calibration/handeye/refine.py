@@ -281,8 +281,11 @@ def _distances(G: Array, C: Array, X: Array, Y: Array, sr: float, st: float) -> 
 def flag_outliers(G: Array, C: Array, X: Array, Y: Array, level: float = 0.999) -> list[int]:
     """Stations whose normalised residual exceeds the chi-square(6) `level` quantile.
 
-    Scales are the robust (median-based) ones of `lm`, so a few gross outliers do not hide
-    themselves by inflating the scale. Used for results that were not refined by `lm`.
+    Judged as `lm` judges them, from a robust refinement started at (`X`, `Y`): the
+    residuals of an unrefined closed form also hold its own bias (Andreff's or
+    Daniilidis' rotation, off by 0.01 deg under translation-only noise, flagged stations
+    whose noise equalled the others'), which is no station's fault. Used for results that
+    were not refined by `lm` (their X is kept).
 
     Parameters
     ----------
@@ -298,8 +301,4 @@ def flag_outliers(G: Array, C: Array, X: Array, Y: Array, level: float = 0.999) 
     list of int
         0-based station indices.
     """
-    L = max(float(np.sqrt(np.mean(np.sum(C[:, :3, 3] ** 2, axis=1)))), 1e-300)
-    rot, tr = camera_residuals(G, C, X, Y)
-    sr, st = _scales(rot, tr, L)
-    d = _distances(G, C, X, Y, sr, st)
-    return [int(i) for i in np.flatnonzero(d**2 > chdtri(6, 1.0 - level))]
+    return lm(G, C, X, Y, robust=True, outlier_level=level).outliers

@@ -9,7 +9,8 @@ Public entry points
 -------------------
 `calibrate` (`api`)
     ``calibrate(model, data, method="lm", free="identifiable", validate=...)`` ->
-    `CalibrationResult` (`result`).
+    `CalibrationResult` (`result`); a metaheuristic's answer is checked by a local
+    least-squares polish (`polish`, warning ``optimizer-stalled``).
 `calibrate_error_model` (`error_model`)
     Geometric plus non-geometric joint errors, chosen by cross-validation
     (`cross_validation`, `error_model_spec`, `joint_identifiability`).

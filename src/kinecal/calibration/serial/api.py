@@ -27,6 +27,7 @@ from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stat
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
+from kinecal.calibration.serial.polish import check_local_polish
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
 from kinecal.calibration.serial.solve import solve_lm
@@ -120,11 +121,11 @@ def _with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
 
 def calibrate(
     model: SerialModel,
-    data: Measurements,
+    data: Measurements | Sequence[Any],
     method: str = "lm",
     *,
     free: str | Sequence[str] = "identifiable",
-    validate: Measurements | None = None,
+    validate: Measurements | Sequence[Any] | None = None,
     rng: int | np.random.Generator | None = None,
     loss: str = "linear",
     f_scale: float | None = None,
@@ -134,7 +135,7 @@ def calibrate(
     progress: Callable[[int, float], Any] | None = None,
     rank_tol: float = CALIBRATION_RANK_TOL,
     rotation_weight: float | None = None,
-    sigma: float | None = None,
+    sigma: float | Sequence[float | None] | None = None,
 ) -> CalibrationResult:
     """Identify the geometric parameters of `model` from `data`.
 
@@ -142,15 +143,19 @@ def calibrate(
     ----------
     model : SerialModel
         Nominal model.
-    data : Measurements
-        Calibration poses (joint angles, measured tool positions).
+    data : Measurements or sequence
+        Calibration poses (joint angles, measured tool positions); or several data sets of
+        any measurement kinds (`kinecal.io.kinds.read_kind`: tracker points / poses,
+        ballbar and pair distances, fixed points, planes), calibrated as one problem
+        (`kinecal.calibration.blocks.calibrate_blocks`; tracker-only sets are merged and
+        take this function's path).
     method : str
         One of `CALIBRATION_METHODS` (see module docstring).
     free : {"identifiable", "all"} or sequence of str
         Free parameters: the identifiable subset of the model's calibratable parameters
         (default), all of them, or explicit names.
-    validate : Measurements, optional
-        Held-out poses for before/after validation statistics.
+    validate : Measurements or sequence, optional
+        Held-out poses (or data sets of any kinds) for before/after validation statistics.
     rng : int or Generator, optional
         Randomness of the metaheuristics (an int is recorded as the result's seed).
     loss : str
@@ -174,11 +179,12 @@ def calibrate(
     rotation_weight : float, optional
         With measured orientations (``data.rotations``): length units per radian of rotation
         error (default: the workspace's characteristic length; see `CalibrationProblem`).
-    sigma : float, optional
+    sigma : float or sequence of float or None, optional
         The instrument's stated 1-sigma noise per coordinate (length unit, a row of weight
         1): the residual is tested against it (``residual-above-noise``) and the standard
         errors with the noise known are added as ``extra["noise"]``
-        (`kinecal.calibration.diagnostics.noise`).
+        (`kinecal.calibration.diagnostics.noise`). With several data sets: one per set
+        (None: estimated), the sets weighted by it.
 
     Returns
     -------
@@ -192,6 +198,12 @@ def calibrate(
     InputError
         Bad arguments, or data that cannot give an answer (too few distinct poses).
     """
+    if not isinstance(data, Measurements) or not (validate is None or isinstance(
+            validate, Measurements)):
+        return _several(model, data, method, free=free, validate=validate, loss=loss,
+                        f_scale=f_scale, rank_tol=rank_tol, rotation_weight=rotation_weight,
+                        sigma=sigma, rng=rng, maxiter=maxiter, target=target,
+                        options=options, progress=progress)
     with diagnostics.collect(python_warnings=True) as found:
         res = _calibrate(model, data, method, free=free, validate=validate, rng=rng, loss=loss,
                          f_scale=f_scale, maxiter=maxiter, target=target, options=options,
@@ -199,6 +211,28 @@ def calibrate(
                          sigma=sigma)
     res.warnings = list(found)
     return res
+
+
+def _several(model, data, method, *, free, validate, loss, f_scale, rank_tol,
+             rotation_weight, sigma, **kw) -> CalibrationResult:
+    """Several data sets or another kind than tracker points: tracker files alone are
+    merged for the fast path (`kinecal.calibration.serial.merge`), anything else is one
+    stacked problem (`kinecal.calibration.blocks.calibrate_blocks`)."""
+    from kinecal.calibration.serial.merge import data_sets, merge_tracker_sets
+
+    sets, sig = data_sets(data, sigma, "data")
+    vsets = None if validate is None else data_sets(validate, None, "validation")[0]
+    one = merge_tracker_sets(sets, sig)
+    vone = None if vsets is None else merge_tracker_sets(vsets, [None] * len(vsets))
+    if one is not None and (vsets is None or vone is not None):
+        return calibrate(model, one[0], method, free=free, validate=None if vone is None
+                         else vone[0], loss=loss, f_scale=f_scale, rank_tol=rank_tol,
+                         rotation_weight=rotation_weight, sigma=one[1], **kw)
+    from kinecal.calibration.blocks.api import calibrate_blocks
+
+    return calibrate_blocks(model, sets, sigma=sig, validate=vsets, method=method, free=free,
+                            loss=loss, f_scale=f_scale, rank_tol=rank_tol,
+                            rotation_weight=rotation_weight)
 
 
 def _check_arguments(method: str, loss: str, f_scale, maxiter, target, options, model,
@@ -295,6 +329,8 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
                                 maxiter=maxiter, target=target, options=options,
                                 progress=progress)
     x = np.asarray(res.x, dtype=float)
+    if method not in ("lm", "householder"):  # did the metaheuristic reach a minimum?
+        check_local_polish(problem, x, method, target)
     explicit = list(first_report.names) == list(names)
     normal = res.get("normal_matrix") if loss == "linear" else None
     # errors at the solution: from LM's last residual when it has one (no FK pass)

@@ -27,7 +27,7 @@ from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["candidate_measurements", "marker_rows", "select_poses"]
+__all__ = ["candidate_measurements", "d_optimal", "marker_rows", "select_poses"]
 
 Array = NDArray[np.float64]
 
@@ -71,6 +71,40 @@ def _gain(M_inv: Array, B: Array) -> Array:
     """``log det(I + B M^-1 B^T)`` for each block ``B`` (N, r, k): gain of adding a pose."""
     G = np.eye(B.shape[1]) + B @ M_inv @ np.swapaxes(B, 1, 2)
     return np.linalg.slogdet(G)[1]
+
+
+def d_optimal(B: Array, count: int, *, exchanges: int = 2, ridge: float = 1e-6) -> list[int]:
+    """`count` of the candidate row blocks ``B`` ``(N, r, k)`` maximising ``log det`` of
+    their information ``sum B_j^T B_j``: greedy build-up, then Fedorov-style exchanges.
+
+    Returns the chosen candidates' indices in selection order.
+    """
+    k = B.shape[2]
+    M = ridge * np.eye(k)
+    chosen: list[int] = []
+    available = np.ones(B.shape[0], dtype=bool)
+    for _ in range(count):  # greedy build-up
+        gain = np.where(available, _gain(np.linalg.inv(M), B), -np.inf)
+        j = int(np.argmax(gain))
+        chosen.append(j)
+        available[j] = False
+        M = M + B[j].T @ B[j]
+    for _ in range(exchanges):  # Fedorov-style exchange: drop the weakest, add the best
+        improved = False
+        for pos in range(count):
+            out = chosen[pos]
+            M_without = M - B[out].T @ B[out]
+            gain = np.where(available, _gain(np.linalg.inv(M_without), B), -np.inf)
+            j = int(np.argmax(gain))
+            loss = _gain(np.linalg.inv(M_without), B[out:out + 1])[0]
+            if gain[j] > loss + 1e-12:
+                available[out], available[j] = True, False
+                chosen[pos] = j
+                M = M_without + B[j].T @ B[j]
+                improved = True
+        if not improved:
+            break
+    return chosen
 
 
 def select_poses(
@@ -118,30 +152,7 @@ def select_poses(
                          "parameters", option="--count")
     B = _blocks(model, q, names)
     k = len(names)
-    M = ridge * np.eye(k)
-    chosen: list[int] = []
-    available = np.ones(q.shape[0], dtype=bool)
-    for _ in range(count):  # greedy build-up
-        gain = np.where(available, _gain(np.linalg.inv(M), B), -np.inf)
-        j = int(np.argmax(gain))
-        chosen.append(j)
-        available[j] = False
-        M = M + B[j].T @ B[j]
-    for _ in range(exchanges):  # Fedorov-style exchange: drop the weakest, add the best
-        improved = False
-        for pos in range(count):
-            out = chosen[pos]
-            M_without = M - B[out].T @ B[out]
-            gain = np.where(available, _gain(np.linalg.inv(M_without), B), -np.inf)
-            j = int(np.argmax(gain))
-            loss = _gain(np.linalg.inv(M_without), B[out:out + 1])[0]
-            if gain[j] > loss + 1e-12:
-                available[out], available[j] = True, False
-                chosen[pos] = j
-                M = M_without + B[j].T @ B[j]
-                improved = True
-        if not improved:
-            break
+    chosen = d_optimal(B, count, exchanges=exchanges, ridge=ridge)
     idx = np.array(chosen, dtype=np.intp)
     s = np.linalg.svd(B[idx].reshape(-1, k), compute_uv=False)
     return idx, observability_indices(s, rows * count)

@@ -201,8 +201,13 @@ def write_truth(path: str | Path, model: SerialModel, true_params: Array) -> Non
     write_text_atomic(path, json.dumps(data, indent=2) + "\n")
 
 
+#: length units of truth files and their size in metres
+_METRES = {"m": 1.0, "mm": 1e-3}
+
+
 def read_truth(path: str | Path, model: SerialModel) -> Array:
-    """True parameter vector ``(n_params,)`` from a truth file's ``errors``."""
+    """True parameter vector ``(n_params,)`` from a truth file's ``errors`` (angles in its
+    ``angle_unit``, lengths in its ``length_unit``, each the model's when absent)."""
     path = Path(path)
     data = read_json(path)
     errors = data.get("errors") if isinstance(data, dict) else None
@@ -211,6 +216,11 @@ def read_truth(path: str | Path, model: SerialModel) -> Array:
     unit = data.get("angle_unit", model.angle_unit)
     if unit not in ("deg", "rad"):
         raise InputError(f"angle_unit: expected deg or rad, got {unit!r}", file=path)
+    length = data.get("length_unit", model.length_unit)
+    if length not in _METRES or model.length_unit not in _METRES:
+        raise InputError(f"length_unit: expected one of {', '.join(_METRES)}, got {length!r}",
+                         file=path)
+    f = _METRES[length] / _METRES[model.length_unit]  # the file's lengths in the model's
     s = np.pi / 180.0 if unit == "deg" else 1.0
     p = model.nominal
     angle = model.is_angle()
@@ -221,6 +231,9 @@ def read_truth(path: str | Path, model: SerialModel) -> Array:
             v = float(value)
         except (TypeError, ValueError):
             raise InputError(f"errors.{name}: expected a number", file=path) from None
+        if isinstance(value, bool) or not np.isfinite(v):
+            raise InputError(f"errors.{name}: expected a finite number, got {value!r}",
+                             file=path)
         k = model.index([name])[0]
-        p[k] += v * s if angle[k] else v
+        p[k] += v * s if angle[k] else v * f
     return p

@@ -3,11 +3,16 @@
 A chain is a list of entries (dicts), in order from the base to the flange:
 
 * a moving joint of the model's convention (``theta, d, a, alpha[, beta]`` for the D-H
-  family, ``name, x, y, z, roll, pitch, yaw, offset, axis`` for urdf), optionally
-  ``type: prismatic`` (urdf also ``continuous``);
-* a fixed frame ``{frame: NAME, x, y, z, rx, ry, rz}`` (urdf: ``roll, pitch, yaw``) with an
-  optional ``calibrate: true``; its parameters are ``NAME.x ... NAME.rz`` and are held at
-  nominal unless ``calibrate`` is true.
+  family, ``name, x, y, z, roll, pitch, yaw, wx, wy, wz, offset, axis`` for urdf),
+  optionally ``type: prismatic`` (urdf also ``continuous``);
+* a fixed frame ``{frame: NAME, x, y, z, rx, ry, rz, wx, wy, wz}`` (urdf: ``roll, pitch,
+  yaw`` for ``rx, ry, rz``) with an optional ``calibrate: true``; its parameters are
+  ``NAME.x ... NAME.wx`` and are held at nominal unless ``calibrate`` is true.
+
+Origins (urdf joints, fixed frames) hold their nominal roll-pitch-yaw and calibrate the
+local rotation error ``wx, wy, wz`` composed after it
+(`kinecal.kinematics.serial.motions.origin_motions`): identifiability never depends on the
+nominal angles.
 
 The base frame (``base.x ... base.rz``) comes first, the tool (``tool.x, tool.y, tool.z``
 and optionally ``tool.rx, tool.ry, tool.rz``) last; a model with several markers has
@@ -38,7 +43,8 @@ from kinecal.kinematics.serial.motions import (
     pose_motions,
 )
 
-__all__ = ["BASE_NAMES", "TOOL_NAMES", "Chain", "build_chain", "chain_entries"]
+__all__ = ["BASE_NAMES", "MAX_ENTRIES", "MAX_JOINTS", "TOOL_NAMES", "Chain", "build_chain",
+           "chain_entries", "check_chain_size"]
 
 BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
 TOOL_NAMES = ("tool.x", "tool.y", "tool.z", "tool.rx", "tool.ry", "tool.rz")
@@ -46,6 +52,12 @@ _RESERVED = ("base", "tool")
 #: largest length (model's unit) a chain accepts: 1000 km in mm, beyond any machine in m;
 #: an origin of 1e300 let FK run but overflowed the Jacobian's squares (NaN everywhere)
 MAX_LENGTH = 1e9
+#: most moving joints, and chain entries (joints and fixed frames), of one model: far
+#: beyond any serial arm (six or seven joints; hyper-redundant snakes a few dozen) and what
+#: an identifiability analysis covers in seconds (100 joints: 4 s); a 1000-joint chain took
+#: minutes and a 3000-joint one ran out of memory
+MAX_JOINTS = 100
+MAX_ENTRIES = 400
 
 
 @dataclass(frozen=True)
@@ -80,9 +92,13 @@ class Chain:
 
 
 def _check_name(name: object, what: str) -> str:
-    if not isinstance(name, str) or not name or any(c in name for c in ", \t\n\"'"):
-        raise InputError(f"{what} name {name!r}: expected a non-empty name without spaces, "
-                         "commas or quotes")
+    """A joint or frame name: any text a URDF attribute holds (spaces and quotes too: CSV
+    headers quote them), except commas (they separate the names of ``--free``), control
+    characters and spaces at either end (CSV readers strip them)."""
+    if not isinstance(name, str) or not name or name != name.strip() or "," in name \
+            or any(ord(c) < 32 or c == "\x7f" for c in name):
+        raise InputError(f"{what} name {name!r}: expected a non-empty name without commas, "
+                         "control characters or spaces at either end")
     if name in _RESERVED:
         raise InputError(f"{what} name {name!r} is reserved for the base and tool frames")
     return name
@@ -130,6 +146,8 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
         raise InputError(
             f"unknown convention {convention!r}; expected one of {', '.join(CONVENTIONS)}")
     make = CONVENTIONS[convention]
+    check_chain_size(len(entries), sum(isinstance(e, Mapping) and "frame" not in e
+                                       for e in entries))
     motions: list[Motion] = pose_motions("base")
     owners: list = ["base"] * 6
     values: dict[str, float] = dict.fromkeys(BASE_NAMES, 0.0)
@@ -165,6 +183,7 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
             default = 0.0 if convention == "urdf" else None
             kind = entry.get("type", REVOLUTE)
             kinds.append(PRISMATIC if kind == PRISMATIC else REVOLUTE)
+        frozen.update(m.name for m in em if m.held)  # nominal rpy: the error is local
         for m in em:
             if m.name in values:
                 raise InputError(f"{where}: parameter {m.name!r} appears twice in the chain")
@@ -200,6 +219,16 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
         raise InputError(f"parameter {duplicate[0]!r} appears twice in the chain")
     return Chain(tuple(motions), tuple(owners), names, values, tuple(kinds), frozenset(frozen),
                  tuple(points) if markers is not None else ())
+
+
+def check_chain_size(entries: int, joints: int, where: str = "") -> None:
+    """Refuse a chain of more than `MAX_ENTRIES` entries or `MAX_JOINTS` moving joints
+    (`where`: what the chain is, for the message)."""
+    if joints > MAX_JOINTS or entries > MAX_ENTRIES:
+        raise InputError(f"{where}{joints} moving joints and {entries - joints} fixed frames "
+                         f"in one chain: expected at most {MAX_JOINTS} moving joints and "
+                         f"{MAX_ENTRIES} entries (no serial arm is that long; choose the "
+                         "chain's ends)")
 
 
 def _check_lengths(values: Mapping[str, float], lengths: Sequence[str]) -> None:

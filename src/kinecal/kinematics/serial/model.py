@@ -7,7 +7,8 @@ convention lists a joint's elementary motions in order (see ``docs/conventions.m
 * `dh_motions` (standard D-H, paper 000 eq. 1): ``Rz(theta + q) Tz(d) Tx(a) Rx(alpha)``
 * `craig_motions` (modified / proximal D-H): ``Rx(alpha) Tx(a) Rz(theta + q) Tz(d)``
 * `hayati_motions` (paper 002): ``Rz(theta + q) Tz(d) Tx(a) Rx(alpha) Ry(beta)``
-* `urdf_motions`: ``Tx(x) Ty(y) Tz(z) Rz(yaw) Ry(pitch) Rx(roll)`` then the motion about
+* `urdf_motions`: ``Tx(x) Ty(y) Tz(z) Rz(yaw) Ry(pitch) Rx(roll)``, the origin's local
+  rotation error ``Rz(wz) Ry(wy) Rx(wx)`` (the nominal rpy held), then the motion about
   or along the joint's unit axis by ``offset + q``
 
 Prismatic joints add their reading to a translation (``d`` in the D-H family); fixed

@@ -8,12 +8,21 @@ that lists one joint's motions in order (see ``docs/conventions.md``):
 * `craig_motions` (modified / proximal D-H): ``Rx(alpha) Tx(a) Rz(theta + q) Tz(d)``
 * `hayati_motions` (paper 002): ``Rz(theta + q) Tz(d) Tx(a) Rx(alpha) Ry(beta)``
 * `urdf_motions` (the URDF joint, ROS REP 103 / urdf/XML/joint): origin
-  ``Tx(x) Ty(y) Tz(z) Rz(yaw) Ry(pitch) Rx(roll)``, then ``R(axis, offset + q)`` (revolute,
-  continuous) or ``T(axis, offset + q)`` (prismatic) about / along a unit axis.
+  ``Tx(x) Ty(y) Tz(z) Rz(yaw) Ry(pitch) Rx(roll)``, its local rotation error
+  ``Rz(wz) Ry(wy) Rx(wx)``, then ``R(axis, offset + q)`` (revolute, continuous) or
+  ``T(axis, offset + q)`` (prismatic) about / along a unit axis.
 
 A prismatic D-H joint moves along z: its reading adds to ``d`` instead of ``theta``. A
-fixed frame (a mount, a positioner base, a camera bracket) is six motions
-``Tx Ty Tz Rz Ry Rx`` (`frame_motions`), like the base frame.
+fixed frame (a mount, a positioner base, a camera bracket) is an origin like a URDF
+joint's (`frame_motions`).
+
+Origins with a local rotation error (`origin_motions`): the nominal roll-pitch-yaw of a
+URDF joint or a fixed frame is *held* (`Motion.held`: never calibrated by default), and
+its error is the small rotation ``Rz(wz) Ry(wy) Rx(wx)`` composed after it, about the
+origin frame's own axes; near zero, ``(wx, wy, wz)`` is a rotation vector to first order.
+Roll-pitch-yaw angles are singular at ``pitch = +-pi/2`` (roll and yaw turn about one
+axis there, which UR and Baxter URDFs use), so calibrating them directly lost one rank per
+such origin; the local error's axes are independent whatever the nominal angles.
 
 A joint's reading adds to exactly one motion (`Motion.joint`); code that needs the
 derivative of the tool pose with respect to the joints uses that motion's column.
@@ -39,6 +48,7 @@ __all__ = [
     "frame_motions",
     "hayati_motions",
     "joint_type",
+    "origin_motions",
     "pose_motions",
     "rotate_axes",
     "urdf_motions",
@@ -51,6 +61,8 @@ REVOLUTE, CONTINUOUS, PRISMATIC = "revolute", "continuous", "prismatic"
 #: keys of a fixed-frame entry (and of the URDF joint origin), per convention
 RXYZ = ("x", "y", "z", "rx", "ry", "rz")
 RPY = ("x", "y", "z", "roll", "pitch", "yaw")
+#: keys of an origin's local rotation error (rad, about the origin frame's x, y, z axes)
+LOCAL = ("wx", "wy", "wz")
 
 
 @dataclass(frozen=True)
@@ -72,6 +84,9 @@ class Motion:
         Unit axis in the moving frame, for motions about / along a general axis (URDF).
     key : str
         Key of the value in its chain entry (``theta``, ``x``, ``offset``, ...).
+    held : bool
+        The value is an origin's nominal roll, pitch or yaw: held at nominal unless freed
+        by name, its error being the origin's local rotation (`origin_motions`).
     """
 
     kind: str
@@ -80,6 +95,7 @@ class Motion:
     joint: int | None = None
     direction: tuple[float, float, float] | None = None
     key: str = ""
+    held: bool = False
 
     def vector(self, axes: Sequence[np.ndarray]) -> np.ndarray:
         """The motion's axis as a stack ``(3, ...)`` in the fixed frame, given the moving
@@ -187,6 +203,19 @@ def pose_motions(prefix: str, keys: Sequence[str] = RXYZ) -> list[Motion]:
     ]
 
 
+def origin_motions(prefix: str, keys: Sequence[str] = RPY) -> list[Motion]:
+    """An origin with a local rotation error: ``Tx Ty Tz Rz Ry Rx`` (`pose_motions`, the
+    three rotations `held` at nominal) then ``Rz(wz) Ry(wy) Rx(wx)`` named
+    ``prefix.wz .. prefix.wx`` (zero nominally; see the module docstring)."""
+    pose = pose_motions(prefix, keys)
+    held = [Motion(m.kind, m.axis, m.name, key=m.key, held=True) for m in pose[3:]]
+    wx, wy, wz = LOCAL
+    return [*pose[:3], *held,
+            Motion(ROTATION, Z, f"{prefix}.{wz}", key=wz),
+            Motion(ROTATION, Y, f"{prefix}.{wy}", key=wy),
+            Motion(ROTATION, X, f"{prefix}.{wx}", key=wx)]
+
+
 def _unit_axis(name: str, axis) -> tuple[float, float, float]:
     try:
         a = np.asarray(axis, dtype=float).reshape(3)
@@ -200,9 +229,10 @@ def _unit_axis(name: str, axis) -> tuple[float, float, float]:
 
 def urdf_motions(i: int, joint: Mapping) -> list[Motion]:
     """URDF joint ``i`` named ``joint["name"]``: the origin ``Tx(x) Ty(y) Tz(z) Rz(yaw)
-    Ry(pitch) Rx(roll)`` (URDF's ``rpy``, ``R = Rz(yaw) Ry(pitch) Rx(roll)``), then the
-    motion about (revolute, continuous) or along (prismatic) the unit `axis` of the joint
-    frame by ``offset + q``.
+    Ry(pitch) Rx(roll)`` (URDF's ``rpy``, ``R = Rz(yaw) Ry(pitch) Rx(roll)``) and its local
+    rotation error ``Rz(wz) Ry(wy) Rx(wx)`` (`origin_motions`), then the motion about
+    (revolute, continuous) or along (prismatic) the unit `axis` of the joint frame by
+    ``offset + q``.
 
     An axis along +x, +y or +z is an elementary motion; any other axis a Rodrigues step.
     """
@@ -214,13 +244,14 @@ def urdf_motions(i: int, joint: Mapping) -> list[Motion]:
     elementary = [k for k in range(3) if d[k] == 1.0]
     axis, direction = (elementary[0], None) if elementary else (None, d)
     move = TRANSLATION if kind == PRISMATIC else ROTATION
-    return [*pose_motions(name, RPY),
+    return [*origin_motions(name, RPY),
             Motion(move, axis, f"{name}.offset", i - 1, direction, key="offset")]
 
 
 def frame_motions(name: str, keys: Sequence[str] = RXYZ) -> list[Motion]:
-    """A fixed frame ``name`` in the chain: ``Tx Ty Tz Rz Ry Rx`` named ``name.x ...``."""
-    return pose_motions(name, keys)
+    """A fixed frame ``name`` in the chain: ``Tx Ty Tz Rz Ry Rx`` named ``name.x ...``
+    and its local rotation error ``name.wz, name.wy, name.wx`` (`origin_motions`)."""
+    return origin_motions(name, keys)
 
 
 CONVENTIONS: dict[str, Callable[[int, Mapping], list[Motion]]] = {

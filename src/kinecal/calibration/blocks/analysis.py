@@ -1,0 +1,246 @@
+"""Identifiability of a stacked problem: the arm's parameters with every block's unknowns
+free, and the motions of the whole arm that the mix of measurement kinds cannot see.
+
+The nuisance columns are marginalised exactly: the stacked, weighted Jacobian with the
+nuisance columns first, ``[J_n | J_a]``, is folded block by block into its R factor
+(`kinecal.optimize.factor.qr_update`); the trailing ``(k, k)`` block ``R_aa`` of that
+factor satisfies ``R_aa^T R_aa = J_a^T (I - P_n) J_a``, the arm's information once every
+pivot, point and plane has taken what it can. `kinecal.calibration.identifiability`'s
+pivoted QR then runs on ``R_aa``.
+
+Motions no kind of the mix sees. A ballbar's distances do not change when the whole arm
+moves rigidly with its pivots; fixed points and planes neither when the arm moves rigidly
+or grows uniformly with them. Each block says which of these *similarity motions* of the
+measurement frame it is blind to (``blind_to``: translation, rotation, scale); the mix is
+blind to those every block is blind to. Such a motion is an exact null direction only at
+consistent data (at the nominal geometry a point's touches disagree by the arm's errors,
+and the motion shows faintly, ~ error / size); the analysis therefore removes from
+``R_aa`` the arm directions that produce the blind motions on the tool points (least
+squares on the tool-point Jacobian), so that the rank and the parameters held are those
+of the true problem, and names the motions in words.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.calibration.blocks.stack import StackedProblem
+from kinecal.calibration.identifiability import IdentifiabilityReport, analyse_factor
+from kinecal.calibration.serial.problem import column_scale
+from kinecal.data import Measurements
+from kinecal.errors import InputError
+from kinecal.optimize.factor import qr_update
+
+__all__ = ["MOTIONS", "StackAnalysis", "analyse_stack", "blind_basis", "report_for",
+           "stack_scale", "unseen_words"]
+
+Array = NDArray[np.float64]
+
+#: the similarity motions of the measurement frame, by the blind-to words of the blocks
+MOTIONS = {"translation": ("translation x", "translation y", "translation z"),
+           "rotation": ("rotation x", "rotation y", "rotation z"),
+           "scale": ("scale",)}
+#: a motion counts as produced by the arm's parameters when their least-squares fit
+#: leaves less than this fraction of it on the tool points
+PRODUCIBLE = 1e-6
+#: a block's own unknowns count as undetermined below this relative singular value
+NUISANCE_TOL = 1e-9
+
+
+@dataclass
+class StackAnalysis:
+    """What `analyse_stack` found.
+
+    Attributes
+    ----------
+    report : IdentifiabilityReport
+        The arm's candidate parameters, nuisance marginalised, blind motions removed.
+    unseen : list of str
+        Motions of the whole arm the mix does not see (``translation x`` ... ``scale``)
+        that the candidate parameters can make.
+    factor : ndarray, shape (k, k)
+        ``R_aa`` (parameter units) before the blind motions were removed.
+    reduced : ndarray, shape (k, k)
+        ``R_aa`` in scaled columns with the blind motions removed (what the rank is
+        decided on).
+    scale : ndarray, shape (k,)
+        Column scale of the arm's candidates (1 for lengths, 1 / L for angles).
+    length : float
+        The workspace's characteristic length L.
+    """
+
+    report: IdentifiabilityReport
+    unseen: list[str]
+    factor: Array
+    reduced: Array
+    scale: Array
+    length: float
+    n_rows: int = 0
+
+
+def _configurations(problem: StackedProblem) -> tuple[Array, NDArray[np.intp] | None]:
+    model = problem.model
+    qs, ms = [], []
+    for b in problem.blocks:
+        q, m = b.configurations()
+        qs.append(q)
+        ms.append(np.zeros(len(q), dtype=np.intp) if m is None else m)
+    q = np.concatenate(qs)
+    return q, (np.concatenate(ms) if model.marker_names else None)
+
+
+def stack_scale(problem: StackedProblem, params: Array, names=None) -> tuple[Array, float,
+                                                                          Array, Array]:
+    """Arm column scale ``(k,)``, characteristic length, configurations and tool points.
+
+    As `kinecal.calibration.serial.problem.column_scale` over every tool point the blocks
+    measure.
+    """
+    q, marker = _configurations(problem)
+    P = problem.model.positions(q, params, marker)
+    meas = Measurements(q, P, marker=marker,
+                        marker_names=problem.model.marker_names if marker is not None else ())
+    names = problem.free if names is None else names
+    D = column_scale(problem.model, meas, names, params, positions=P)
+    d = P - P.mean(axis=0)
+    L = float(np.sqrt(np.einsum("ij,ij->", d, d) / max(len(d), 1))) or 1.0
+    return D, L, q, P
+
+
+def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool) -> Array:
+    """``R`` of the scaled, weighted ``[J_n | J_a]`` ``(n, n)``; with `check`, refuses a
+    block whose rows do not determine its own unknowns."""
+    k, n = problem.k, problem.n
+    nn = n - k
+    R = None
+    for b, (_, Ja, Jn, s) in zip(problem.blocks, problem._weighted_rows(x), strict=True):
+        if b.n_nuisance and check:
+            Js = Jn * b.nuisance_scale(L)
+            sv = np.linalg.svd(Js, compute_uv=False)
+            if sv.size < b.n_nuisance or sv[-1] <= NUISANCE_TOL * max(sv[0], 1e-300):
+                raise InputError(f"{b.name}: its rows do not determine its own unknowns "
+                                 f"({', '.join(b.nuisance_names[:6])}...): too few or too "
+                                 "similar rows per group")
+        block = np.zeros((Ja.shape[0], n), order="F")
+        block[:, s.start - k:s.stop - k] = Jn * b.nuisance_scale(L)
+        block[:, nn:] = Ja * D
+        R = qr_update(R, block)
+    return np.zeros((n, n)) if R is None else R
+
+
+def blind_basis(problem: StackedProblem, params: Array, q: Array, P: Array, D: Array,
+                ) -> tuple[Array, list[str]]:
+    """Orthonormal arm directions ``(k, b)`` (columns scaled by `D`) producing the mix's
+    blind motions on the tool points `P` ``(N, 3)`` of the configurations `q`, and the
+    motions' names (`stack_scale` gives `D`, `q` and `P`)."""
+    blind = None
+    for b in problem.blocks:
+        blind = set(b.blind_to) if blind is None else blind & set(b.blind_to)
+    if not blind or problem.k == 0:
+        return np.zeros((problem.k, 0)), []
+    _, marker = _configurations(problem)
+    J = problem.model.identification_jacobian(q, params, marker=marker)[:, :, problem.index]
+    J = J.reshape(-1, problem.k)
+    fields, names = [], []
+    for word in ("translation", "rotation", "scale"):
+        if word not in blind:
+            continue
+        for a, name in enumerate(MOTIONS[word]):
+            if word == "translation":
+                f = np.zeros_like(P)
+                f[:, a] = 1.0
+            elif word == "rotation":
+                f = np.cross(np.eye(3)[a], P)
+            else:
+                f = P.copy()
+            fields.append(f.ravel())
+            names.append(name)
+    F = np.column_stack(fields)
+    v, *_ = np.linalg.lstsq(J, F, rcond=None)
+    left = np.linalg.norm(J @ v - F, axis=0) / np.maximum(np.linalg.norm(F, axis=0), 1e-300)
+    made = left <= PRODUCIBLE
+    if not made.any():
+        return np.zeros((problem.k, 0)), []
+    V = v[:, made] / D[:, None]  # scaled coordinates
+    U, s, _ = np.linalg.svd(V, full_matrices=False)
+    rank = int((s > 1e-9 * max(s.max(), 1e-300)).sum())
+    return U[:, :rank], [n for n, m in zip(names, made, strict=True) if m]
+
+
+def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = False
+                  ) -> StackAnalysis:
+    """Identifiability of `problem`'s arm parameters at `x` (module docstring).
+
+    Parameters
+    ----------
+    problem : StackedProblem
+        With the candidate parameters free.
+    x : ndarray, shape (n,)
+    tol : float
+        Relative rank threshold (`kinecal.calibration.identifiability.analyse_factor`).
+    check : bool
+        Refuse (`InputError`) a block whose rows do not determine its own unknowns (the
+        data's fault at the start values; at a solution, the fit's).
+    """
+    params = problem.params(x)
+    D, L, q, P = stack_scale(problem, params)
+    R = _factor(problem, x, D, L, check)
+    nn = problem.n - problem.k
+    Raa = R[nn:, nn:]
+    Q, unseen = blind_basis(problem, params, q, P, D)
+    B = Raa - (Raa @ Q) @ Q.T if Q.size else Raa
+    n_rows = max(problem.m - nn, 1)
+    report = analyse_factor(B / D, problem.free, n_rows, tol=tol, scale=D)
+    return StackAnalysis(report, unseen, Raa / D, B, D, L, n_rows)
+
+
+def report_for(analysis: StackAnalysis, free: list[str], tol: float) -> IdentifiabilityReport:
+    """The report of a fit on `free` from the analysis of all candidates.
+
+    Rank, condition number and observability are those of the free set; the held
+    candidates are unidentifiable, each with the free parameters whose combination has its
+    effect (the pivoting of the candidates may have kept another member of a confounded
+    pair than the fit did: d2 for d3 of near-parallel axes).
+    """
+    names = analysis.report.names
+    pos = [names.index(n) for n in free]
+    D, B = analysis.scale, analysis.reduced
+    sub = analyse_factor(B[:, pos] / D[pos], free, analysis.n_rows, tol=tol, scale=D[pos])
+    kept = [names.index(n) for n in sub.identifiable]
+    held = [j for j, n in enumerate(names) if n not in sub.identifiable]
+    confounded = dict(sub.confounded_with)
+    if kept and held:
+        coef = np.linalg.lstsq(B[:, kept], B[:, held], rcond=None)[0]
+        coef = coef * D[kept][:, None] / D[held][None, :]
+        for j, col in enumerate(held):
+            if names[col] in confounded:
+                continue
+            c = coef[:, j]
+            big = np.abs(c) > 1e-6 * max(np.abs(c).max(), 1e-300)
+            norm = np.linalg.norm(B[:, col])
+            confounded[names[col]] = ({} if norm <= tol * np.linalg.norm(B, 2) else
+                                      {names[kept[i]]: float(c[i]) for i in np.flatnonzero(big)})
+    return IdentifiabilityReport(
+        names=list(names), rank=sub.rank, identifiable=list(sub.identifiable),
+        unidentifiable=[n for n in names if n not in sub.identifiable],
+        confounded_with={n: confounded.get(n, {}) for n in names if n not in sub.identifiable},
+        condition_number=sub.condition_number,
+        singular_values=analysis.report.singular_values, observability=sub.observability)
+
+
+def unseen_words(unseen: list[str]) -> str:
+    """The blind motions in words: ``the base frame (translation and rotation), scale``."""
+    parts = []
+    t = [u for u in unseen if u.startswith("translation")]
+    r = [u for u in unseen if u.startswith("rotation")]
+    if len(t) == 3 and len(r) == 3:
+        parts.append("the base frame (where the arm stands: translation and rotation of the "
+                     "whole arm)")
+    else:
+        parts += t + r
+    if "scale" in unseen:
+        parts.append("scale (every length of the arm in proportion)")
+    return ", ".join(parts)

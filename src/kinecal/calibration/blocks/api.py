@@ -1,0 +1,224 @@
+"""`calibrate_blocks`: identify a serial arm from measurement sets of any kinds at once.
+
+Steps: blocks from the data (`make`), each block's unknowns started from the data at the
+nominal geometry (`fit_nuisance`: the "before" state), data checks per kind, the
+identifiability of the arm on the stack with the mix's blind motions removed
+(`analysis`), the fit with the noise of each block stated or estimated (`solve`),
+uncertainty on the identifiable subspace with every unknown marginalised, plausibility
+checks per kind, before/after statistics per set and on validation sets of any kind.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from kinecal import diagnostics
+from kinecal.calibration.blocks.analysis import analyse_stack, report_for, unseen_words
+from kinecal.calibration.blocks.base import ResidualBlock
+from kinecal.calibration.blocks.checks import check_blocks, check_fits
+from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
+from kinecal.calibration.blocks.result import KindsCalibrationResult, kind_entry
+from kinecal.calibration.blocks.solve import fit_stack
+from kinecal.calibration.blocks.stack import StackedProblem, fit_nuisance
+from kinecal.calibration.blocks.uncertainty import stack_uncertainty
+from kinecal.calibration.blocks.weights import initial_sigma
+from kinecal.calibration.diagnostics.fit import (
+    check_parameter_tolerance,
+    check_unidentifiable_free,
+)
+from kinecal.calibration.serial.problem import candidate_names
+from kinecal.errors import InputError
+from kinecal.kinematics.serial.markers import model_for_markers
+from kinecal.kinematics.serial.model import SerialModel
+from kinecal.optimize.lsq import LOSSES
+
+__all__ = ["BLOCK_METHODS", "RANK_TOL", "calibrate_blocks", "validation_errors"]
+
+#: solvers of the stacked problem
+BLOCK_METHODS = ("lm",)
+#: rank threshold of free="identifiable": the serial calibration's (CALIBRATION_RANK_TOL)
+RANK_TOL = 1e-4
+
+
+def calibrate_blocks(
+    model: SerialModel,
+    data: Sequence[DataSet],
+    *,
+    sigma: Sequence[float | None] | None = None,
+    validate: Sequence[DataSet] | None = None,
+    validate_sigma: Sequence[float | None] | None = None,
+    method: str = "lm",
+    free: str | Sequence[str] = "identifiable",
+    loss: str = "linear",
+    f_scale: float | None = None,
+    rank_tol: float = RANK_TOL,
+    rotation_weight: float | None = None,
+) -> KindsCalibrationResult:
+    """Identify `model`'s geometry from measurement sets of any kinds (one problem).
+
+    Parameters
+    ----------
+    model : SerialModel
+        Nominal model.
+    data : sequence of Measurements, GaugeMeasurements or ResidualBlock
+        The measurement sets: tracker points / poses, ballbar and pair distances, fixed
+        points, planes (`kinecal.io.kinds.read_kind`), or blocks of other kinds.
+    sigma : sequence of float or None, optional
+        Stated 1-sigma noise per set (length unit; what it is the noise of depends on the
+        kind: docs/measurement-kinds.md); None for a set: its file's ``sigma`` column, else
+        estimated from the fit (and said so).
+    validate : sequence, optional
+        Held-out sets of any kinds: their own unknowns are fitted with the arm held, at
+        nominal (before) and at the calibrated geometry (after).
+    validate_sigma : sequence of float or None, optional
+        Their noise (for the fit of their unknowns when rows differ in noise).
+    method : {"lm"}
+        Levenberg-Marquardt on the stacked normal equations.
+    free : {"identifiable", "all"} or sequence of str
+        As in `kinecal.calibrate`; "identifiable" is decided on the stack.
+    loss, f_scale
+        Robust loss of a final refit (``huber``, ``soft_l1``, ``cauchy``, ``arctan``) and its
+        scale in units of the noise; outlier observations are flagged either way.
+    rank_tol : float
+        Relative rank threshold of the identifiability analysis.
+    rotation_weight : float, optional
+        Tracker poses: length units per rad of the rotation rows.
+
+    Returns
+    -------
+    KindsCalibrationResult
+    """
+    with diagnostics.collect(python_warnings=True) as found:
+        res = _calibrate(model, list(data), sigma, validate, validate_sigma, method, free,
+                         loss, f_scale, rank_tol, rotation_weight)
+    res.warnings = list(found)
+    return res
+
+
+def _check_arguments(method: str, loss: str, data: list, f_scale, rank_tol) -> None:
+    if method not in BLOCK_METHODS:
+        raise InputError(f"unknown method {method!r} for several measurement kinds; expected "
+                         f"one of {', '.join(BLOCK_METHODS)}", option="--method")
+    if loss not in LOSSES:
+        raise InputError(f"loss: expected one of {', '.join(LOSSES)}, got {loss!r}",
+                         option="--loss")
+    if not data:
+        raise InputError("no measurement sets")
+    if f_scale is not None and not (np.isfinite(f_scale) and f_scale > 0):
+        raise InputError(f"f_scale: expected a positive number, got {f_scale}")
+    if not (0 < rank_tol < 1):
+        raise InputError(f"rank_tol: expected 0 < rank_tol < 1, got {rank_tol}")
+
+
+def start_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], params: np.ndarray
+                 ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Each block's unknowns fitted to its data with the arm at `params`, and its
+    residuals there."""
+    nuis, res = [], []
+    for b in blocks:
+        v, r = fit_nuisance(b, model, params, b.start(model, params), b.stated_sigma())
+        nuis.append(v)
+        res.append(r)
+    return nuis, res
+
+
+def validation_errors(model: SerialModel, blocks: Sequence[ResidualBlock],
+                      params: np.ndarray) -> list[np.ndarray]:
+    """Error per observation of each validation block at `params`, its unknowns fitted."""
+    _, res = start_blocks(model, blocks, params)
+    return [b.observation_errors(r) for b, r in zip(blocks, res, strict=True)]
+
+
+def _length_errors(blocks, errors) -> np.ndarray:
+    """Errors of the blocks in the length unit (all blocks if none is), concatenated."""
+    use = [e for b, e in zip(blocks, errors, strict=True) if b.unit == "length"] or errors
+    return np.concatenate(use) if use else np.zeros(0)
+
+
+def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss, f_scale,
+               rank_tol, rotation_weight) -> KindsCalibrationResult:
+    _check_arguments(method, loss, data, f_scale, rank_tol)
+    t0 = time.perf_counter()
+    model = model_for_markers(model, marker_names(list(data) + list(validate or [])))
+    blocks = make_blocks(model, data, sigma, rotation_weight)
+    val_blocks = make_blocks(model, validate or [], validate_sigma, rotation_weight)
+    p0 = model.nominal
+    nuis0, r0 = start_blocks(model, blocks, p0)
+    before = [b.observation_errors(r) for b, r in zip(blocks, r0, strict=True)]
+    sig0, known = initial_sigma(blocks)
+    cand = candidate_names(model, free)
+    start = StackedProblem(model, blocks, cand, sig0)
+    ana0 = analyse_stack(start, start.pack(p0, nuis0), rank_tol, check=True)
+    names = ana0.report.identifiable if free == "identifiable" else cand
+    check_blocks(model, blocks, nuis0, before, ana0, names)
+    fit = fit_stack(model, blocks, list(names), cand, p0, nuis0, sig0, known, tol=rank_tol,
+                    grow=free == "identifiable", loss=loss, f_scale=f_scale)
+    prob, x = fit.problem, np.asarray(fit.result.x, dtype=float)
+    params, nuis = prob.params(x), prob.nuisance(x)
+    final = StackedProblem(model, blocks, cand, prob.sigma, params)
+    ana = analyse_stack(final, final.pack(params, nuis), rank_tol)
+    ana.report = report_for(ana, prob.free, rank_tol)
+    unc, nuis_std = stack_uncertainty(prob, x, ana, fit.outliers if loss != "linear" else [])
+    unc.estimable &= ~np.isin(prob.free, ana.report.unidentifiable)
+    check_unidentifiable_free([n for n, e in zip(prob.free, unc.estimable, strict=True)
+                               if not e], free)
+    check_parameter_tolerance(model, params, np.where(unc.estimable, unc.std, np.inf),
+                              prob.free, ana.report.confounded_with)
+    r1 = prob.block_residuals(x)
+    after = [b.observation_errors(r) for b, r in zip(blocks, r1, strict=True)]
+    flagged = check_fits(model, prob, x, r1, fit, loss)
+    entries = []
+    for i, b in enumerate(blocks):
+        how = "stated" if fit.known[i] else (
+            "estimated" if np.isfinite(fit.factors[i]) else "not estimable")
+        entries.append(kind_entry(b, prob.sigma[i], how, before[i], after[i],
+                                  b.nuisance_report(nuis[i], nuis_std[i])))
+    val_entries, val_before, val_after = [], None, None
+    if val_blocks:
+        vb = validation_errors(model, val_blocks, p0)
+        va = validation_errors(model, val_blocks, params)
+        val_entries = [kind_entry(b, b.stated_sigma(), "stated" if b.stated_sigma() is not None
+                                  else "not used", e0, e1)
+                       for b, e0, e1 in zip(val_blocks, vb, va, strict=True)]
+        val_before, val_after = _length_errors(val_blocks, vb), _length_errors(val_blocks, va)
+    return _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,
+                   val_before, val_after, flagged, blocks, val_blocks, t0, loss)
+
+
+def _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,
+            val_before, val_after, flagged, blocks, val_blocks, t0, loss):
+    res = fit.result
+    names = prob.free
+    report = ana.report
+    std = np.zeros(model.n_params)
+    std[prob.index] = unc.std
+    offsets = np.cumsum([0, *[b.n_obs for b in blocks]])
+    outliers = [int(offsets[i] + j) for i, j in (fit.outliers or flagged)]
+    labels = [blocks[i].observation_labels()[j] for i, j in (fit.outliers or flagged)]
+    qs = [b.configurations() for b in blocks]
+    q_all = np.concatenate([q for q, _ in qs])
+    m_all = (np.concatenate([np.zeros(len(q), np.intp) if m is None else m for q, m in qs])
+             if model.marker_names else None)
+    extra = {"kinds": entries, "not_seen": list(ana.unseen),
+             "not_seen_words": unseen_words(ana.unseen), "noise_rounds": int(fit.rounds),
+             "data": [b.source for b in blocks]}
+    if val_entries:
+        extra["validation_kinds"] = val_entries
+        extra["validation_data"] = [b.source for b in val_blocks]
+    if labels:
+        extra["outlier_observations"] = labels
+    if loss != "linear":
+        extra["loss"] = loss
+    return KindsCalibrationResult(
+        model=model.with_params(params, name=f"{model.name}-calibrated"),
+        nominal_model=model, method="lm", free=list(names), params=params, std=std,
+        covariance=unc.covariance, identifiability=report,
+        errors_before=_length_errors(blocks, before), errors_after=_length_errors(blocks, after),
+        val_before=val_before, val_after=val_after, seed=None, iterations=int(res.nit),
+        evaluations=int(res.nfev), seconds=time.perf_counter() - t0,
+        history=list(res.history), outliers=outliers, message=str(res.message),
+        success=bool(res.success), sigma=unc.sigma, extra=extra, q_calibration=q_all,
+        q_validation=None, marker_calibration=m_all, uncertainty=unc, lost=[])

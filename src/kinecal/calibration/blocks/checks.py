@@ -1,0 +1,84 @@
+"""The plausibility checks of a stacked calibration: before the fit (joint readings, units,
+each file against the nominal model, the count of equations) and after it (each block's
+own check, the stated noise against the residual, outliers)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from kinecal.calibration.blocks.analysis import StackAnalysis
+from kinecal.calibration.blocks.base import ResidualBlock
+from kinecal.calibration.blocks.stack import StackedProblem
+from kinecal.calibration.blocks.tracker import TrackerBlock
+from kinecal.calibration.diagnostics._common import plural
+from kinecal.calibration.diagnostics.kinds import check_block_noise, check_initial_error
+from kinecal.calibration.diagnostics.serial import MIN_EQUATION_RATIO, reference
+from kinecal.calibration.diagnostics.units import (
+    check_frame_and_units,
+    check_joint_limits,
+    check_joint_units,
+)
+from kinecal.diagnostics import warn
+from kinecal.errors import InputError
+from kinecal.kinematics.serial.chain import BASE_NAMES
+from kinecal.kinematics.serial.model import SerialModel
+
+__all__ = ["check_blocks", "check_fits"]
+
+
+def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, before,
+                 analysis: StackAnalysis, names: Sequence[str]) -> None:
+    """Checks before the fit; raises ``too-few-poses`` when the rows cannot determine the
+    unknowns."""
+    from kinecal.calibration.diagnostics.sizes import check_tolerances
+
+    check_tolerances(model)
+    ref = reference(model, analysis.report.names)
+    base_free = set(BASE_NAMES) <= set(model.calibratable)
+    p0 = model.nominal
+    for b, v, e in zip(blocks, nuisance, before, strict=True):
+        what = b.name
+        check_joint_limits(model, b.q, what)
+        warned = check_joint_units(model, b.q, what)
+        if isinstance(b, TrackerBlock):
+            check_frame_and_units(model, b.data, ref, base_free, what, warned)
+            continue
+        b.check_data(model, p0, v)
+        if b.unit == "length" and e.size and not warned:
+            check_initial_error(b.name, float(np.sqrt(np.mean(e**2))), ref.reach,
+                                ref.tolerance_error, model.length_unit)
+    m = sum(b.n_rows for b in blocks)
+    n = len(names) + sum(b.n_nuisance for b in blocks)
+    if m <= n:
+        raise InputError(f"{m} equations for {n} unknowns ({len(names)} arm parameters and "
+                         f"{n - len(names)} of the gauges' own): expected more than {n}; "
+                         "measure more rows [too-few-poses]")
+    if m < MIN_EQUATION_RATIO * n:
+        warn("few-poses", f"{m} equations for {n} unknowns (fewer than {MIN_EQUATION_RATIO} "
+             "per unknown): the fit can absorb noise and its uncertainty is unreliable; "
+             "measure more rows")
+
+
+def check_fits(model: SerialModel, problem: StackedProblem, x: np.ndarray, residuals,
+               fit, loss: str) -> list[tuple[int, int]]:
+    """Checks after the fit: each block's hook, stated noise, outliers. Returns the
+    outliers flagged (a plain fit reports them; a robust one has them in `fit`)."""
+    params, nuis = problem.params(x), problem.nuisance(x)
+    for i, (b, v, r, s) in enumerate(zip(problem.blocks, nuis, residuals, problem.sigma,
+                                         strict=True)):
+        b.check_fit(model, params, v, r, s)
+        if fit.known[i]:
+            rss = float(np.sum((r * problem.row_weight[i]) ** 2))
+            check_block_noise(b.name, rss, float(fit.redundancy[i]), b.noise_of)
+    if not fit.outliers:
+        return []
+    labels = [problem.blocks[i].observation_labels()[j] for i, j in fit.outliers]
+    shown = ", ".join(labels[:8]) + (", ..." if len(labels) > 8 else "")
+    if loss == "linear":
+        warn("outliers", f"{plural(len(labels), 'observation')} ({shown}) far outside the "
+             "spread of their measurement set: outliers pull a least-squares fit; check "
+             "those rows or calibrate with a robust loss (--loss soft_l1)")
+        return list(fit.outliers)
+    return []

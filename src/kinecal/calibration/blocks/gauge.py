@@ -1,0 +1,107 @@
+"""What the gauge kinds share: rows grouped by an id (a pivot, a bar, a socket, a plane),
+each group with its own unknowns, at least as many rows as the group needs, a stated noise
+per row from the file's ``sigma`` column, and the per-group spread test after the fit."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.calibration.blocks.base import ResidualBlock, group_rows
+from kinecal.calibration.diagnostics.kinds import check_group_spread
+from kinecal.data import GaugeMeasurements
+from kinecal.errors import InputError
+from kinecal.kinematics.serial.model import SerialModel
+
+__all__ = ["GaugeBlock"]
+
+Array = NDArray[np.float64]
+
+#: residuals below this fraction of the machine's size are round-off, not a finding
+ROUND_OFF = 1e-9
+
+
+def _rows_text(rows: NDArray[np.intp]) -> str:
+    shown = ", ".join(str(int(r) + 1) for r in rows[:6])
+    return ("row " if rows.size == 1 else "rows ") + shown + (", ..." if rows.size > 6 else "")
+
+
+class GaugeBlock(ResidualBlock):
+    """A `GaugeMeasurements` file as a residual block; subclasses set the kind's numbers.
+
+    Parameters
+    ----------
+    data : GaugeMeasurements
+    sigma : float, optional
+        Stated noise of every row (overrides the file's ``sigma`` column).
+    """
+
+    #: the group column's name and what a group is, in words
+    group_word: ClassVar[str] = ""
+    #: unknowns per group, and the fewest rows a group needs (and why)
+    per_group: ClassVar[int] = 0
+    min_rows: ClassVar[int] = 1
+    min_reason: ClassVar[str] = ""
+    shares_tool_points = True
+    #: code of the per-group spread check after the fit (docs/diagnostics.md)
+    spread_code: ClassVar[str] = ""
+    spread_advice: ClassVar[str] = ""
+
+    def __init__(self, data: GaugeMeasurements, sigma: float | None = None) -> None:
+        if data.kind != self.kind:
+            raise InputError(f"{data.source}: {data.kind} measurements given to the "
+                             f"{self.kind} block")
+        self.data = data
+        self.groups = group_rows(np.asarray(data.group), len(data.group_names))
+        super().__init__(data.source, data.q, data.marker, sigma,
+                         obs_sigma=None if sigma is not None else self._obs_sigma(data))
+        self._check_groups()
+
+    def _obs_sigma(self, data: GaugeMeasurements) -> Array | None:
+        return None if data.sigma is None else np.asarray(data.sigma, dtype=float)
+
+    def _check_groups(self) -> None:
+        for name, rows in zip(self.data.group_names, self.groups, strict=True):
+            if 0 < rows.size < self.min_rows:
+                where = "" if rows.size == 1 else f" ({_rows_text(rows)})"
+                raise InputError(
+                    f"{self.name}: {self.group_word} {name!r} has {rows.size} "
+                    f"{'row' if rows.size == 1 else 'rows'}{where}: expected at least "
+                    f"{self.min_rows} ({self.min_reason})", file=self.source,
+                    row=int(rows[0]) + 1)
+
+    @property
+    def live_groups(self) -> list[int]:
+        """Groups with rows (ids listed by a file's writer may be unused)."""
+        return [g for g, rows in enumerate(self.groups) if rows.size]
+
+    @property
+    def nuisance_names(self) -> list[str]:
+        names = self.data.group_names
+        return [f"{self.group_word}.{names[g]}.{c}" for g in self.live_groups
+                for c in self.nuisance_components]
+
+    nuisance_components: ClassVar[tuple[str, ...]] = ()
+
+    def group_residual_rows(self, g: int) -> NDArray[np.intp]:
+        """Residual rows of group `g` (default: one residual row per file row)."""
+        return self.groups[g]
+
+    def check_fit(self, model: SerialModel, params: Array, nuisance: Array, r: Array,
+                  sigma: Array) -> None:
+        if not self.spread_code or not len(self.q):
+            return
+        size = float(np.abs(model.positions(self.q[:16], params, None if self.marker is None
+                                            else self.marker[:16])).max())
+        if np.abs(r).max(initial=0.0) <= ROUND_OFF * max(size, 1.0):
+            return  # residuals at round-off (noise-free data): nothing to judge
+        w = np.asarray(r) / sigma[self.obs_index]
+        live = self.live_groups
+        rss = np.array([float(np.sum(w[self.group_residual_rows(g)] ** 2)) for g in live])
+        dof = np.array([self.group_residual_rows(g).size - self.per_group for g in live])
+        check_group_spread(self.spread_code, self.name, self.group_word,
+                           [self.data.group_names[g] for g in live], rss, dof,
+                           stated=self.stated_sigma() is not None,
+                           advice=self.spread_advice)

@@ -1,0 +1,93 @@
+"""Residual blocks from in-memory measurements: one block per data set, by its kind."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+
+from kinecal.calibration.blocks.ballbar import BallbarBlock
+from kinecal.calibration.blocks.base import ResidualBlock
+from kinecal.calibration.blocks.pair import PairBlock
+from kinecal.calibration.blocks.plane import PlaneBlock
+from kinecal.calibration.blocks.point import PointBlock
+from kinecal.calibration.blocks.tracker import TrackerBlock
+from kinecal.data import GaugeMeasurements, Measurements
+from kinecal.errors import InputError
+from kinecal.kinematics.serial.markers import remap_markers
+from kinecal.kinematics.serial.model import SerialModel
+
+__all__ = ["BLOCK_TYPES", "DataSet", "kind_of", "make_blocks", "marker_names"]
+
+#: the block of each gauge kind (`kinecal.data.GAUGE_KINDS`)
+BLOCK_TYPES = {"ballbar": BallbarBlock, "pair": PairBlock, "point": PointBlock,
+               "plane": PlaneBlock}
+
+DataSet = Measurements | GaugeMeasurements | ResidualBlock
+
+
+def kind_of(data: DataSet) -> str:
+    """``tracker``, ``ballbar``, ``pair``, ``point``, ``plane`` (or a block's kind)."""
+    if isinstance(data, Measurements):
+        return "tracker"
+    return data.kind
+
+
+def marker_names(data: Sequence[DataSet]) -> list[str]:
+    """Every marker name the data sets use, in order of first appearance."""
+    names: list[str] = []
+    for d in data:
+        for n in getattr(d, "marker_names", ()) or ():
+            if n not in names:
+                names.append(n)
+    return names
+
+
+def _remapped(data, model: SerialModel):
+    """`data` with its marker indices into `model`'s markers (by name)."""
+    if data.marker is None or tuple(data.marker_names) == model.marker_names:
+        return data
+    m = remap_markers(data.marker, data.marker_names, model.marker_names)
+    return dataclasses.replace(data, marker=m, marker_names=model.marker_names)
+
+
+def make_blocks(model: SerialModel, data: Sequence[DataSet],
+                sigma: Sequence[float | None] | None = None,
+                rotation_weight: float | None = None) -> list[ResidualBlock]:
+    """One residual block per data set (blocks given as such pass through).
+
+    Parameters
+    ----------
+    model : SerialModel
+        The model (with the markers the data name).
+    data : sequence
+        `Measurements` (tracker points / poses), `GaugeMeasurements` (a gauge kind) or
+        ready `ResidualBlock` objects (another kind, e.g. a camera's).
+    sigma : sequence of float or None, optional
+        Stated noise per data set (overrides a file's ``sigma`` column); None: the file's
+        column, else estimated.
+    rotation_weight : float, optional
+        Tracker poses: length units per rad of the rotation rows.
+    """
+    sigma = [None] * len(data) if sigma is None else list(sigma)
+    if len(sigma) != len(data):
+        raise InputError(f"sigma: expected one value (or None) per data set, {len(data)}, "
+                         f"got {len(sigma)}", option="--sigma")
+    blocks: list[ResidualBlock] = []
+    for d, s in zip(data, sigma, strict=True):
+        if isinstance(d, ResidualBlock):
+            if s is not None:
+                d.sigma, d.obs_sigma = float(s), None
+            blocks.append(d)
+        elif isinstance(d, Measurements):
+            blocks.append(TrackerBlock(_remapped(d, model), s, rotation_weight))
+        elif isinstance(d, GaugeMeasurements):
+            blocks.append(BLOCK_TYPES[d.kind](_remapped(d, model), s))
+        else:
+            raise InputError(f"data: expected Measurements, GaugeMeasurements or a residual "
+                             f"block, got {type(d).__name__}")
+        if len(blocks[-1].q) and np.shape(blocks[-1].q)[1] != model.n_joints:
+            raise InputError(f"{blocks[-1].name}: {np.shape(blocks[-1].q)[1]} joint values "
+                             f"per row, model {model.name!r} has {model.n_joints} joints")
+    return blocks

@@ -1,0 +1,87 @@
+"""Fixed points: ``p(q) - c_g`` (3 rows per touch), one unknown point ``c_g`` per ``point`` id.
+
+A sphere tip seated in a fixed socket or cone, touched in many arm configurations (MUKCa's
+printed plate with two sockets). The touches see the arm's angles and the differences of
+its lengths, not where the arm stands nor its scale: a rigid motion or a uniform scaling
+of the whole arm moves the points with it. Mix with a distance (a ballbar, a bar's pair)
+to fix the scale.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.calibration.blocks.base import BlockRows, tool_points
+from kinecal.calibration.blocks.gauge import GaugeBlock
+from kinecal.kinematics.serial.model import SerialModel
+
+__all__ = ["PointBlock"]
+
+Array = NDArray[np.float64]
+
+
+class PointBlock(GaugeBlock):
+    """Touches of unknown fixed points (``q1..qn,point`` files); the stated noise is per
+    coordinate of a touch."""
+
+    kind = "point"
+    blind_to = frozenset({"translation", "rotation", "scale"})
+    obs_dof = 3
+    noise_of = "each coordinate of a touch"
+    group_word = "point"
+    per_group = 3
+    min_rows = 2
+    min_reason = "one touch only locates the point; the second and later ones inform the arm"
+    spread_code = "point-spread"
+    spread_advice = ("a socket that moved, a tip that did not seat, or two sockets under one "
+                     "id; check the touches of that point")
+    nuisance_components = ("x", "y", "z")
+
+    @property
+    def n_obs(self) -> int:
+        return len(self.data)
+
+    @property
+    def obs_index(self) -> NDArray[np.intp]:
+        return np.repeat(np.arange(len(self.data), dtype=np.intp), 3)
+
+    def group_residual_rows(self, g: int) -> NDArray[np.intp]:
+        rows = self.groups[g]
+        return (3 * rows[:, None] + np.arange(3)).ravel()
+
+    def start(self, model: SerialModel, params: Array) -> Array:
+        """Each point as the centroid of its touches."""
+        P = model.positions(self.q, params, self.marker)
+        out = [P[self.groups[g]].mean(axis=0) for g in self.live_groups]
+        return np.concatenate(out) if out else np.zeros(0)
+
+    def evaluate(self, model: SerialModel, params: Array, nuisance: Array,
+                 columns: NDArray[np.intp] | None = None, jacobian: bool = False,
+                 points: tuple[Array, Array | None] | None = None) -> BlockRows:
+        P, Jt = points if points is not None else tool_points(
+            model, self.q, params, self.marker, columns if jacobian else None)
+        C = np.zeros((len(self.groups), 3))
+        C[self.live_groups] = np.asarray(nuisance, dtype=float).reshape(-1, 3)
+        r = (P - C[self.data.group]).ravel()
+        if not jacobian:
+            return BlockRows(r)
+        arm = Jt.transpose(2, 1, 0).reshape(r.size, Jt.shape[0])
+        nuis = np.zeros((r.size, self.n_nuisance))
+        pos = {g: i for i, g in enumerate(self.live_groups)}
+        col = np.array([3 * pos[g] for g in self.data.group])
+        rows = np.arange(len(self.data))
+        for c in range(3):
+            nuis[3 * rows + c, col + c] = -1.0
+        return BlockRows(r, arm, nuis)
+
+    def observation_errors(self, r: Array) -> Array:
+        e = np.asarray(r).reshape(-1, 3)
+        return np.sqrt(np.einsum("ij,ij->i", e, e))
+
+    def nuisance_report(self, nuisance: Array, std: Array) -> list[dict]:
+        C = np.asarray(nuisance, dtype=float).reshape(-1, 3)
+        S = np.asarray(std, dtype=float).reshape(-1, 3)
+        return [{"point": self.data.group_names[g], "touches": int(self.groups[g].size),
+                 "xyz": C[i].tolist(), "std": S[i].tolist()}
+                for i, g in enumerate(self.live_groups)]

@@ -1,0 +1,90 @@
+"""`KindsCalibrationResult`: a `CalibrationResult` of several measurement kinds.
+
+Everything of the tracker result (parameters, uncertainty, JSON, report, model file),
+plus per measurement set: its kind, noise (stated or estimated), error statistics per
+observation before and after, and its solved unknowns (``extra["kinds"]``); the motions
+the mix does not see (``extra["not_seen"]``); validation sets of any kind.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from kinecal.calibration.serial.result import CalibrationResult
+from kinecal.metrology.stats import error_stats
+
+__all__ = ["KindsCalibrationResult", "kind_entry", "kind_lines"]
+
+
+def kind_entry(block, sigma: np.ndarray | None, how: str, before: np.ndarray,
+               after: np.ndarray, nuisance: list[dict] | None = None) -> dict[str, Any]:
+    """One measurement set's entry of ``extra["kinds"]`` (JSON-able).
+
+    `sigma`: its noise per observation (None: not known); `how`: ``stated``,
+    ``estimated`` or ``not estimable``; `before` / `after`: error per observation
+    (block unit).
+    """
+    entry: dict[str, Any] = {
+        "file": block.source, "kind": block.kind, "unit": block.unit,
+        "observations": int(block.n_obs), "rows": int(block.n_rows),
+        "sigma": None if sigma is None else float(np.sqrt(np.mean(np.square(sigma)))),
+        "sigma_source": how, "noise_of": block.noise_of,
+        "before": error_stats(before), "after": error_stats(after),
+    }
+    if nuisance:
+        entry["unknowns"] = nuisance
+    return entry
+
+
+def kind_lines(entries: list[dict], length_unit: str, title: str) -> list[str]:
+    """Text table of per-kind statistics (summary, report)."""
+    if not entries:
+        return []
+    lines = ["", title,
+             f"{'kind':8s} {'file':18s} {'n':>5s} {'sigma':>10s} {'rms before':>11s} "
+             f"{'rms after':>10s} {'max after':>10s}"]
+    for e in entries:
+        unit = length_unit if e["unit"] == "length" else e["unit"]
+        s = e["sigma"]
+        sig = "-" if s is None else f"{s:.3g}{'*' if e['sigma_source'] == 'estimated' else ''}"
+        name = str(e["file"]).replace("\\", "/").rsplit("/", 1)[-1][:18]
+        lines.append(f"{e['kind']:8s} {name:18s} {e['observations']:5d} {sig:>10s} "
+                     f"{e['before']['rms']:11.4g} {e['after']['rms']:10.4g} "
+                     f"{e['after']['max']:10.4g}" + ("" if unit == length_unit else f" {unit}"))
+    if any(e["sigma_source"] == "estimated" for e in entries):
+        lines.append(f"(* noise estimated from the fit: no --sigma or sigma column; "
+                     f"{length_unit})")
+    return lines
+
+
+@dataclass
+class KindsCalibrationResult(CalibrationResult):
+    """Outcome of a calibration from several measurement kinds (module docstring).
+
+    ``errors_before`` / ``errors_after`` hold the error of every observation (a distance
+    error, a touch's distance from its point or plane, a tracker point's distance error;
+    length unit), file after file; ``q_calibration`` every configuration the files
+    measured (for the predicted uncertainty).
+    """
+
+    def summary(self) -> str:
+        """The tracker summary with the per-kind table and the motions not seen."""
+        text = super().summary().split("\n")
+        unit = self.nominal_model.length_unit
+        extra = [line for line in kind_lines(self.extra.get("kinds", []), unit,
+                                             f"per measurement set (rms, max: error per "
+                                             f"observation, {unit})")]
+        extra += kind_lines(self.extra.get("validation_kinds", []), unit,
+                            "validation sets (their own unknowns fitted)")
+        unseen = self.extra.get("not_seen_words")
+        if unseen:
+            extra += ["", f"not seen by this mix of measurements: {unseen}; the parameters "
+                      "that only move those are held at nominal"]
+        # after the identifiability lines, before the error tables
+        cut = next((i for i, line in enumerate(text) if not line), len(text))
+        text = text[:cut] + extra + text[cut:]
+        return "\n".join(line.replace("position error [", "error per observation [")
+                         for line in text)

@@ -1,0 +1,202 @@
+"""`StackedProblem`: the arm's free parameters and every block's nuisance in one vector.
+
+Unknowns ``x = [arm free (k) | nuisance of block 1 | nuisance of block 2 | ...]``; residual
+rows ``r_b / sigma_b`` of every block, stacked (unitless: each row divided by the noise of
+its observation). The normal equations are assembled block by block (the arm columns are
+shared, each block's nuisance columns are its own), never as the dense stacked Jacobian;
+`jacobian` forms it for the robust losses and the tests.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from itertools import pairwise
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.calibration.blocks.base import ResidualBlock, tool_points
+from kinecal.errors import InputError
+from kinecal.kinematics.serial.model import SerialModel
+from kinecal.optimize.lsq import levenberg_marquardt
+
+__all__ = ["StackedProblem", "fit_nuisance"]
+
+Array = NDArray[np.float64]
+
+
+class StackedProblem:
+    """Least-squares view of a calibration from several residual blocks.
+
+    Parameters
+    ----------
+    model : SerialModel
+        Nominal model (start point; values of the parameters held).
+    blocks : sequence of ResidualBlock
+        The measurement sets, each `start`-ed (their references set).
+    free : sequence of str
+        The arm's free parameters.
+    sigma : sequence of ndarray
+        Noise per observation ``(n_obs,)`` of each block (block unit).
+    params : ndarray, shape (n_params,), optional
+        Values of the held parameters (default nominal).
+    """
+
+    def __init__(self, model: SerialModel, blocks: Sequence[ResidualBlock],
+                 free: Sequence[str], sigma: Sequence[Array],
+                 params: Array | None = None) -> None:
+        self.model = model
+        self.blocks = list(blocks)
+        self.free = list(free)
+        self.index = model.index(self.free)
+        self.k = len(self.free)
+        self.base_params = model.nominal if params is None else np.asarray(params, float).copy()
+        sizes = [b.n_nuisance for b in self.blocks]
+        ends = self.k + np.cumsum([0, *sizes])
+        self.slices = [slice(int(a), int(b)) for a, b in pairwise(ends)]
+        self.n = int(ends[-1])
+        rows = np.cumsum([0, *[b.n_rows for b in self.blocks]])
+        self.row_slices = [slice(int(a), int(b)) for a, b in pairwise(rows)]
+        self.m = int(rows[-1])
+        self.set_sigma(sigma)
+        # the blocks whose tool points one shared sweep computes
+        self._shared = [i for i, b in enumerate(self.blocks) if b.shares_tool_points]
+        if self._shared:
+            qs = [self.blocks[i].configurations() for i in self._shared]
+            self._q = np.concatenate([q for q, _ in qs])
+            self._marker = (np.concatenate([np.zeros(len(q), np.intp) if mk is None else mk
+                                            for q, mk in qs]) if model.marker_names else None)
+            ends = np.cumsum([0, *[len(q) for q, _ in qs]])
+            self._point_slices = dict(zip(self._shared, (slice(int(a), int(b))
+                                                           for a, b in pairwise(ends)),
+                                          strict=True))
+
+    def set_sigma(self, sigma: Sequence[Array]) -> None:
+        """Set the noise per observation of each block (the row weights ``1 / sigma``)."""
+        self.sigma = [np.asarray(s, dtype=float) for s in sigma]
+        self.row_weight = [1.0 / s[b.obs_index] for s, b in zip(self.sigma, self.blocks,
+                                                                strict=True)]
+
+    # ------------------------------------------------------------------ layout
+    @property
+    def names(self) -> list[str]:
+        """Names of ``x``: the arm's free parameters, then every block's nuisance."""
+        return self.free + [n for b in self.blocks for n in b.nuisance_names]
+
+    def params(self, x: Array) -> Array:
+        """Full arm parameter vector ``(n_params,)`` at `x`."""
+        p = self.base_params.copy()
+        p[self.index] = np.asarray(x, dtype=float)[:self.k]
+        return p
+
+    def nuisance(self, x: Array) -> list[Array]:
+        """Each block's nuisance at `x`."""
+        x = np.asarray(x, dtype=float)
+        return [x[s] for s in self.slices]
+
+    def pack(self, params: Array, nuisance: Sequence[Array]) -> Array:
+        """``x`` from a full parameter vector and the blocks' nuisance."""
+        x = np.empty(self.n)
+        x[:self.k] = np.asarray(params, dtype=float)[self.index]
+        for s, v in zip(self.slices, nuisance, strict=True):
+            x[s] = v
+        return x
+
+    # ------------------------------------------------------------------ rows
+    def _points(self, p: Array, jacobian: bool) -> dict[int, tuple]:
+        """Tool points (and their Jacobian) of the sharing blocks, one sweep for all."""
+        if not self._shared:
+            return {}
+        P, Jt = tool_points(self.model, self._q, p, self._marker,
+                            self.index if jacobian else None)
+        return {i: (P[s], None if Jt is None else Jt[:, :, s])
+                for i, s in self._point_slices.items()}
+
+    def block_residuals(self, x: Array) -> list[Array]:
+        """Unweighted residuals of each block at `x` (block units)."""
+        p = self.params(x)
+        pts = self._points(p, False)
+        return [b.evaluate(self.model, p, v, points=pts.get(i)).r
+                for i, (b, v) in enumerate(zip(self.blocks, self.nuisance(x), strict=True))]
+
+    def residuals(self, x: Array) -> Array:
+        """Weighted residual vector ``(m,)``."""
+        r = self.block_residuals(x)
+        return np.concatenate([ri * w for ri, w in zip(r, self.row_weight, strict=True)]
+                              ) if r else np.zeros(0)
+
+    def _weighted_rows(self, x: Array):
+        p = self.params(x)
+        pts = self._points(p, True)
+        for i, (b, v, w, s) in enumerate(zip(self.blocks, self.nuisance(x), self.row_weight,
+                                             self.slices, strict=True)):
+            rows = b.evaluate(self.model, p, v, self.index, jacobian=True, points=pts.get(i))
+            yield rows.r * w, rows.arm * w[:, None], rows.nuisance * w[:, None], s
+
+    def jacobian(self, x: Array) -> Array:
+        """Dense weighted Jacobian ``(m, n)`` of `residuals`."""
+        J = np.zeros((self.m, self.n))
+        for (_, Ja, Jn, s), rs in zip(self._weighted_rows(x), self.row_slices, strict=True):
+            J[rs, :self.k] = Ja
+            J[rs, s] = Jn
+        return J
+
+    def normal_equations(self, x: Array) -> tuple[Array, Array, Array]:
+        """``(residuals, J^T J, J^T r)`` at `x`, assembled block by block."""
+        A = np.zeros((self.n, self.n))
+        g = np.zeros(self.n)
+        parts = []
+        k = self.k
+        for r, Ja, Jn, s in self._weighted_rows(x):
+            parts.append(r)
+            A[:k, :k] += Ja.T @ Ja
+            A[:k, s] = Ja.T @ Jn
+            A[s, :k] = A[:k, s].T
+            A[s, s] = Jn.T @ Jn
+            g[:k] += Ja.T @ r
+            g[s] = Jn.T @ r
+        return (np.concatenate(parts) if parts else np.zeros(0)), A, g
+
+    def block_grams(self, x: Array) -> list[Array]:
+        """Each block's share ``J_b^T J_b`` ``(n, n)`` of the normal matrix (weighted)."""
+        out = []
+        for _, Ja, Jn, s in self._weighted_rows(x):
+            Jb = np.zeros((Ja.shape[0], self.n))
+            Jb[:, :self.k] = Ja
+            Jb[:, s] = Jn
+            out.append(Jb.T @ Jb)
+        return out
+
+    def monitor(self, r: Array) -> float:
+        """RMS of the weighted residual (1 when the noise is what was stated)."""
+        return float(np.sqrt(np.mean(np.square(r)))) if r.size else 0.0
+
+
+def fit_nuisance(block: ResidualBlock, model: SerialModel, params: Array, start: Array,
+                 sigma: Array | None = None) -> tuple[Array, Array]:
+    """A block's nuisance fitted with the arm held at `params` (start values, validation).
+
+    Returns
+    -------
+    nuisance : ndarray, shape (n_b,)
+    r : ndarray, shape (m_b,)
+        Unweighted residuals there.
+    """
+    start = np.asarray(start, dtype=float)
+    w = 1.0 if sigma is None else 1.0 / np.asarray(sigma, float)[block.obs_index]
+    if start.size == 0:
+        return start, block.evaluate(model, params, start).r
+    if block.n_rows < start.size:
+        raise InputError(f"{block.name}: {block.n_rows} residual rows for {start.size} "
+                         "unknowns of its own")
+
+    def residual(v: Array) -> Array:
+        return block.evaluate(model, params, v).r * w
+
+    def jacobian(v: Array) -> Array:
+        rows = block.evaluate(model, params, v, np.zeros(0, dtype=np.intp), jacobian=True)
+        return rows.nuisance * (w[:, None] if np.ndim(w) else w)
+
+    res = levenberg_marquardt(residual, jacobian, start, max_nfev=200)
+    v = np.asarray(res.x, dtype=float)
+    return v, block.evaluate(model, params, v).r

@@ -1,0 +1,82 @@
+"""Tracker points and poses as a residual block: ``p_model - p_measured`` (3 rows per row of
+the file, 6 with measured orientations), no nuisance (the base frame is the arm's).
+
+Used in mixes with gauges; a tracker file alone is calibrated on the chunked fast path of
+`kinecal.calibration.serial` (the same residual rows, `PoseRows`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.calibration.blocks.base import BlockRows, ResidualBlock
+from kinecal.calibration.serial.problem import characteristic_length, row_norms
+from kinecal.calibration.serial.rows import PoseRows
+from kinecal.data import Measurements
+from kinecal.kinematics.serial.model import SerialModel
+
+__all__ = ["TrackerBlock"]
+
+Array = NDArray[np.float64]
+
+
+class TrackerBlock(ResidualBlock):
+    """Measured tool points (and orientations) of a laser tracker or CMM.
+
+    Parameters
+    ----------
+    data : Measurements
+        Joint readings and measured points (the model's markers).
+    sigma : float, optional
+        Stated noise per coordinate of a row of weight 1 (length unit).
+    rotation_weight : float, optional
+        With orientations: length units per rad of the rotation rows (default: the
+        workspace's characteristic length at nominal).
+    """
+
+    kind = "tracker"
+    noise_of = "each measured coordinate"
+
+    def __init__(self, data: Measurements, sigma: float | None = None,
+                 rotation_weight: float | None = None) -> None:
+        w = None if data.weights is None else 1.0 / np.sqrt(np.asarray(data.weights, float))
+        super().__init__(data.source, data.q, data.marker, sigma, relative=w)
+        self.data = data
+        self.rows = 3 if data.rotations is None else 6
+        self.obs_dof = self.rows
+        self.rotation_weight = rotation_weight
+        self._obs = np.repeat(np.arange(len(data), dtype=np.intp), self.rows)
+        self._pose_rows: PoseRows | None = None
+
+    @property
+    def n_obs(self) -> int:
+        return len(self.data)
+
+    @property
+    def obs_index(self) -> NDArray[np.intp]:
+        return self._obs
+
+    def start(self, model: SerialModel, params: Array) -> Array:
+        if self._pose_rows is None:
+            w = self.rotation_weight
+            if w is None and self.rows == 6:
+                w = characteristic_length(model, self.data, params)
+            self._pose_rows = PoseRows(model, self.data, w or 0.0, weighted=False)
+        return np.zeros(0)
+
+    def evaluate(self, model: SerialModel, params: Array, nuisance: Array,
+                 columns: NDArray[np.intp] | None = None, jacobian: bool = False,
+                 points=None) -> BlockRows:
+        if self._pose_rows is None:
+            self.start(model, params)
+        cols = (np.zeros(0, dtype=np.intp) if columns is None else columns) if jacobian else None
+        e, Jt, _ = self._pose_rows.evaluate(params, slice(None), cols)
+        if not jacobian:
+            return BlockRows(e.ravel())
+        arm = Jt.transpose(2, 1, 0).reshape(e.size, Jt.shape[0])
+        return BlockRows(e.ravel(), arm, np.zeros((arm.shape[0], 0)))
+
+    def observation_errors(self, r: Array) -> Array:
+        """Distance error per measured point (length unit; the position rows)."""
+        return row_norms(np.asarray(r).reshape(-1, self.rows)[:, :3])

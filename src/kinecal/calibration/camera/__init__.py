@@ -1,0 +1,48 @@
+"""Calibrate a serial arm from camera images: arm, camera mount and board in one bundle
+adjustment (issue 24).
+
+The camera pixels are one residual block of issue 25's stacked calibration
+(`kinecal.calibration.blocks`): `CameraBlock` (`kinecal.calibration.camera.residual_block`)
+mixes with tracker points, ballbars, sockets and planes in one problem.
+
+The measurement is the pixel position of every board corner seen by a camera on the
+flange (eye-in-hand) or fixed beside the arm (eye-to-hand). The residual block
+(`kinecal.calibration.camera.block.PixelBlock`) predicts every corner through the arm's
+forward kinematics, the camera mount X, the board pose and the camera model, with the
+analytic Jacobian with respect to the arm's parameters (chain rule through the serial
+model's identification Jacobian of the flange pose) and to its own nuisance parameters
+(X, board pose, intrinsics). The cost is the reprojection error of hand-eye calibration
+from images (Tabb & Ahmad Yousef 2017; Koide & Menegatti 2019) with the arm's geometry
+free, as in ROS robot_calibration's ``chain3d_to_camera2d`` and industrial_calibration's
+``KinematicCalibrationProblem2D3D``.
+
+Entry points:
+
+- `calibrate_arm_camera` (`kinecal.calibration.camera.solve`): the bundle adjustment from
+  joints and detected corners (the stacked calibration on one camera block), started by
+  `closed_form_start`
+  (`kinecal.calibration.camera.start`: nominal flange poses, per-image board poses,
+  ``AX = XB`` / ``AX = ZB``);
+- `camera_identifiability` (`kinecal.calibration.camera.identify`): what the pixels
+  identify, in words (the base frame against the board pose, the flange against X, the
+  scale set by the board's size);
+- `ArmCameraResult` (`kinecal.calibration.camera.result`).
+
+The images are read and the board detected by `kinecal.vision.arm_images`; stations of a
+perturbed arm are rendered by `kinecal.vision.stations`.
+"""
+
+from kinecal._lazy import lazy_exports
+
+__all__ = ["ArmCameraResult", "CameraBlock", "PixelBlock", "Stations", "calibrate_arm_camera",
+           "camera_identifiability", "closed_form_start"]
+
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "ArmCameraResult": "kinecal.calibration.camera.result",
+    "CameraBlock": "kinecal.calibration.camera.residual_block",
+    "PixelBlock": "kinecal.calibration.camera.block",
+    "Stations": "kinecal.calibration.camera.result",
+    "calibrate_arm_camera": "kinecal.calibration.camera.solve",
+    "camera_identifiability": "kinecal.calibration.camera.identify",
+    "closed_form_start": "kinecal.calibration.camera.start",
+})

@@ -1,0 +1,254 @@
+"""`PixelBlock`: the camera-pixel residual block of an arm calibration.
+
+Station ``i`` has joint readings ``q_i`` and the detected corners of a board. The arm's
+forward kinematics ``F_i = F(q_i; theta)`` (the model's end frame in its base frame; the
+tool frame when the model has one) places the camera or the board:
+
+- eye-in-hand (camera on the flange, board fixed): a board point ``P`` is seen at
+  ``project(K, d, X^-1 F_i^-1 Y P)`` with ``X = cam2flange``, ``Y = target2base``;
+- eye-to-hand (camera fixed, board on the flange): at ``project(K, d, X^-1 F_i Y P)`` with
+  ``X = cam2base``, ``Y = target2flange``.
+
+``project`` is OpenCV's camera model (`kinecal.calibration.handeye.camera`). The arm's
+parameters ``theta`` enter through ``F_i``; their Jacobian is the chain rule through the
+serial model's identification Jacobian of the end-frame pose (position, and the small
+rotation vector in the base frame: ``dR = [dphi]x R``):
+
+- eye-in-hand, ``z = R_F^T (w - t_F)`` with ``w = Y P``:
+  ``dz = R_F^T ([w - t_F]x dphi - dt)``;
+- eye-to-hand, ``u = R_F w + t_F``: ``du = -[R_F w]x dphi + dt``;
+
+then ``d uv = J_proj R_X^T d(z or u)``. The block's own (nuisance) parameters are
+increments on a start: X's rotation vector (right-multiplied, X frame) and translation, the
+board pose's likewise, and optionally the intrinsics ``(fx, fy, cx, cy, k1, k2, p1, p2,
+k3[, k4, k5, k6])``, as in `kinecal.calibration.handeye.reprojection`. Every column is
+checked against central differences in the tests.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.calibration.handeye.camera import (
+    INTRINSIC_NAMES,
+    check_camera,
+    intrinsic_vector,
+    project_jacobian,
+    with_intrinsics,
+)
+from kinecal.calibration.handeye.refine import _jr
+from kinecal.errors import InputError
+from kinecal.kinematics.serial.model import SerialModel
+from kinecal.spatial import matrix_from_axis_angle, skew, transform_from
+
+Array = NDArray[np.float64]
+
+__all__ = ["SETUPS", "PixelBlock", "nuisance_names"]
+
+SETUPS = ("eye-in-hand", "eye-to-hand")
+
+
+def nuisance_names(setup: str, n_int: int) -> list[str]:
+    """Names of the block's own parameters: X (``cam2flange`` eye-in-hand, ``cam2base``
+    eye-to-hand), the board pose (``target2base``, ``target2flange``), the free intrinsics."""
+    if setup not in SETUPS:
+        raise InputError(f"unknown setup {setup!r}; expected {' or '.join(SETUPS)}",
+                         option="--setup")
+    names = [f"X.{c}" for c in ("rx", "ry", "rz", "x", "y", "z")]
+    names += [f"board.{c}" for c in ("rx", "ry", "rz", "x", "y", "z")]
+    return names + list(INTRINSIC_NAMES[:n_int])
+
+
+@dataclass
+class PixelBlock:
+    """Corner pixels of all stations and the fixed parts of their model.
+
+    Parameters
+    ----------
+    model : SerialModel
+        The arm (its `nominal` is not used: the parameter vector is passed in).
+    q : ndarray, shape (n, n_joints)
+        Joint readings per station (rad; prismatic: length unit).
+    points : list of ndarray, shape (N_i, 3)
+        Board coordinates of the corners detected in station i (board length unit, which
+        must be the model's length unit).
+    pixels : list of ndarray, shape (N_i, 2)
+        Their detected pixel positions.
+    setup : {"eye-in-hand", "eye-to-hand"}
+    K, dist
+        Camera matrix and OpenCV distortion coefficients (start values when intrinsics
+        are free).
+    X0, Y0 : ndarray, shape (4, 4)
+        Start of X and of the board pose.
+    n_int : int
+        Free intrinsics: 0, 9, or 12 (rational model).
+    """
+
+    model: SerialModel
+    q: Array
+    points: Sequence[Array]
+    pixels: Sequence[Array]
+    setup: str
+    K: Array
+    dist: Array | None
+    X0: Array
+    Y0: Array
+    n_int: int = 0
+
+    def __post_init__(self) -> None:
+        if self.setup not in SETUPS:
+            raise InputError(f"unknown setup {self.setup!r}; expected {' or '.join(SETUPS)}",
+                             option="--setup")
+        if self.n_int not in (0, 9, 12):
+            raise InputError(f"n_int: expected 0, 9 or 12 free intrinsics, got {self.n_int}")
+        self.K, self.d8 = check_camera(self.K, self.dist)
+        self.q = np.atleast_2d(np.asarray(self.q, dtype=float))
+        n = len(self.q)
+        if len(self.points) != n or len(self.pixels) != n:
+            raise InputError(f"{n} stations but {len(self.points)} / {len(self.pixels)} "
+                             "corner sets")
+        counts = np.array([len(p) for p in self.points], dtype=np.intp)
+        self.counts = counts
+        self.sid = np.repeat(np.arange(n), counts).astype(np.intp)
+        self.P = np.concatenate([np.asarray(p, float).reshape(-1, 3) for p in self.points])
+        self.uv = np.concatenate([np.asarray(p, float).reshape(-1, 2) for p in self.pixels])
+        self.X0 = np.asarray(self.X0, float)
+        self.Y0 = np.asarray(self.Y0, float)
+        self.eye_in_hand = self.setup == "eye-in-hand"
+
+    # ------------------------------------------------------------------ sizes and names
+    @property
+    def n_stations(self) -> int:
+        """Number of stations."""
+        return len(self.q)
+
+    @property
+    def n_corners(self) -> int:
+        """Number of corners (each gives 2 residual rows)."""
+        return len(self.P)
+
+    @property
+    def n_nuisance(self) -> int:
+        """Length of the block's own parameter vector."""
+        return 12 + self.n_int
+
+    @property
+    def nuisance_names(self) -> list[str]:
+        """Names of the block's own parameters, in vector order."""
+        return nuisance_names(self.setup, self.n_int)
+
+    def nuisance_groups(self) -> dict[str, slice]:
+        """``{"X": slice, "board": slice, "intrinsics": slice}`` into the nuisance vector."""
+        out = {"X": slice(0, 6), "board": slice(6, 12)}
+        if self.n_int:
+            out["intrinsics"] = slice(12, 12 + self.n_int)
+        return out
+
+    # ------------------------------------------------------------------ model
+    def unpack(self, nu: Array) -> tuple[Array, Array, Array, Array]:
+        """X, Y ``(4, 4)``, K ``(3, 3)`` and the 8 distortion coefficients at `nu`."""
+        nu = np.asarray(nu, float)
+        X = transform_from(self.X0[:3, :3] @ matrix_from_axis_angle(nu[0:3]),
+                           self.X0[:3, 3] + nu[3:6])
+        Y = transform_from(self.Y0[:3, :3] @ matrix_from_axis_angle(nu[6:9]),
+                           self.Y0[:3, 3] + nu[9:12])
+        K, d = self.K, self.d8
+        if self.n_int:
+            K, d = with_intrinsics(self.K, self.d8, intrinsic_vector(self.K, self.d8,
+                                                                      self.n_int == 12)
+                                   + nu[12:12 + self.n_int])
+        return X, Y, K, d
+
+    def predict(self, params: Array, nu: Array, columns: Array | None = None,
+                jac: bool = False, scale_column: bool = False
+                ) -> tuple[Array, Array | None, Array | None]:
+        """Predicted pixels and (optionally) their Jacobians.
+
+        Parameters
+        ----------
+        params : ndarray, shape (n_params,)
+            The arm's full parameter vector (length unit, rad).
+        nu : ndarray, shape (n_nuisance,)
+            The block's own parameters (increments, see the module docstring).
+        columns : ndarray of int, optional
+            Arm parameters (indices into `params`) to differentiate (default none).
+        jac : bool
+            Also return the Jacobians.
+        scale_column : bool
+            Append to the nuisance Jacobian the column of a uniform scale of the board
+            (``P -> (1 + s) P``): the board's size as an unknown.
+
+        Returns
+        -------
+        uv : ndarray, shape (M, 2)
+            Predicted pixels of every corner (M = total corners).
+        J_arm : ndarray, shape (M, 2, k) or None
+            Pixels per unit of the arm's parameters `columns` (px per length unit or rad).
+        J_nu : ndarray, shape (M, 2, n_nuisance [+ 1]) or None
+            Pixels per unit of the nuisance parameters.
+
+        Raises
+        ------
+        InputError
+            A corner behind the camera (the joints do not fit the images).
+        """
+        X, Y, K, d = self.unpack(nu)
+        cols = np.zeros(0, np.intp) if columns is None else np.asarray(columns, np.intp)
+        sw = self.model.sweep(self.q, params)
+        RF, tF = sw.rotations, sw.positions
+        s = self.sid
+        RY, tY, RX, tX = Y[:3, :3], Y[:3, 3], X[:3, :3], X[:3, 3]
+        w = self.P @ RY.T + tY  # board point in the base (in-hand) or flange (to-hand) frame
+        if self.eye_in_hand:
+            dw = w - tF[s]
+            u = np.einsum("mji,mj->mi", RF[s], dw)  # F^-1 w, in the flange frame
+        else:
+            Rw = np.einsum("mij,mj->mi", RF[s], w)
+            u = Rw + tF[s]  # F w, in the base frame
+        pc = (u - tX) @ RX  # R_X^T (u - t_X)
+        if np.any(pc[:, 2] <= 0):
+            bad = int(s[np.argmax(pc[:, 2] <= 0)])
+            raise InputError(f"station {bad + 1}: the board is behind the camera for these "
+                             "joints and X: the joints do not fit the images (wrong --setup, "
+                             "joint order or unit?)")
+        uv, Jp, Jint = project_jacobian(K, d, pc, rational=self.n_int == 12)
+        if not jac:
+            return uv, None, None
+        M = len(pc)
+        JpR = Jp @ RX.T  # d uv / d u   (M, 2, 3)
+        # arm: d uv / d(t_F, phi_F) per corner, then through the pose Jacobian
+        Jpose = sw.jacobian_t("pose", columns=cols) if cols.size else np.zeros((0, 6, len(RF)))
+        Jt_arm = np.transpose(Jpose[:, :3, :], (2, 1, 0))  # (n, 3, k)
+        Jr_arm = np.transpose(Jpose[:, 3:, :], (2, 1, 0))
+        if self.eye_in_hand:
+            B = JpR @ np.swapaxes(RF, 1, 2)[s]  # d uv / d(base-frame vector)
+            J_arm = (B @ skew(dw)) @ Jr_arm[s] - B @ Jt_arm[s]
+            dq_dw = np.swapaxes(RF, 1, 2)
+        else:
+            B = JpR
+            J_arm = -(B @ skew(Rw)) @ Jr_arm[s] + B @ Jt_arm[s]
+            dq_dw = RF
+        J_nu = np.zeros((M, 2, self.n_nuisance + (1 if scale_column else 0)))
+        J_nu[:, :, 0:3] = Jp @ (skew(pc) @ _jr(np.asarray(nu[0:3], float)))
+        J_nu[:, :, 3:6] = Jp @ (-RX.T)
+        A = JpR @ dq_dw[s]  # d uv / d w
+        J_nu[:, :, 6:9] = A @ (-RY @ skew(self.P) @ _jr(np.asarray(nu[6:9], float)))
+        J_nu[:, :, 9:12] = A
+        if self.n_int:
+            J_nu[:, :, 12:12 + self.n_int] = Jint
+        if scale_column:
+            J_nu[:, :, -1] = np.einsum("mij,mj->mi", A, self.P @ RY.T)
+        return uv, J_arm, J_nu
+
+    def residuals(self, params: Array, nu: Array) -> Array:
+        """Predicted minus observed pixels ``(M, 2)``."""
+        return self.predict(params, nu)[0] - self.uv
+
+    def station_rms(self, r: Array) -> Array:
+        """RMS corner residual ``(n,)`` per station (px) of residuals `r` ``(M, 2)``."""
+        ss = np.bincount(self.sid, weights=np.sum(r * r, axis=1), minlength=self.n_stations)
+        return np.sqrt(ss / np.maximum(self.counts, 1))

@@ -1,0 +1,199 @@
+"""`calibrate_arm_camera`: the arm, X, the board pose (and the intrinsics) from corner pixels.
+
+The camera pixels are one residual block (`kinecal.calibration.camera.residual_block.
+CameraBlock`) of the stacked calibration of `kinecal.calibration.blocks`; this function is
+that calibration with the camera's own before/after figures and words around it:
+
+1. start: X and the board pose by a hand-eye closed form on the nominal flange poses and
+   the per-image board poses (`kinecal.calibration.camera.start`, the block's ``start``);
+2. hand-eye refinement with the arm at nominal (X, board, intrinsics on the pixels,
+   `kinecal.calibration.blocks.stack.fit_nuisance`): the "before" of the report;
+3. what the pixels identify, in words (`kinecal.calibration.camera.identify`);
+4. the stacked calibration (`kinecal.calibration.blocks.calibrate_blocks`): identifiable
+   free set, Levenberg-Marquardt on the arm and the nuisance, the corner noise estimated,
+   optional robust refit with outlier stations, covariance on the identifiable subspace.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal import diagnostics
+from kinecal.calibration.blocks.api import calibrate_blocks
+from kinecal.calibration.blocks.stack import fit_nuisance
+from kinecal.calibration.camera.block import PixelBlock
+from kinecal.calibration.camera.checks import check_camera_fit
+from kinecal.calibration.camera.identify import camera_identifiability
+from kinecal.calibration.camera.residual_block import CameraBlock
+from kinecal.calibration.camera.result import ArmCameraResult, Stations
+from kinecal.calibration.diagnostics import CODES
+from kinecal.calibration.serial.problem import candidate_names
+from kinecal.errors import InputError
+from kinecal.kinematics.serial.model import SerialModel
+from kinecal.optimize.lsq import LOSSES
+
+Array = NDArray[np.float64]
+
+__all__ = ["calibrate_arm_camera"]
+
+#: rank threshold of the arm's analysis (that of calibrate's free="identifiable")
+RANK_TOL = 1e-4
+
+
+def calibrate_arm_camera(
+    model: SerialModel,
+    stations: Stations,
+    K: Array,
+    dist: Array | None,
+    *,
+    setup: str = "eye-in-hand",
+    free: str | Sequence[str] = "identifiable",
+    refine_intrinsics: bool = False,
+    rational: bool = False,
+    loss: str = "linear",
+    f_scale: float | None = None,
+    validate: Stations | None = None,
+    X0: Array | None = None,
+    Y0: Array | None = None,
+    method: str = "park",
+    rank_tol: float = RANK_TOL,
+    extra: dict[str, Any] | None = None,
+) -> ArmCameraResult:
+    """Calibrate the arm's geometry, X and the board pose on the corner pixels.
+
+    Parameters
+    ----------
+    model : SerialModel
+        Nominal arm (length unit = the board's).
+    stations : Stations
+        Joints, detected corners and (for the start) PnP board poses of the used stations.
+    K, dist
+        Camera matrix and OpenCV distortion coefficients.
+    setup : {"eye-in-hand", "eye-to-hand"}
+    free : {"identifiable", "all"} or sequence of str
+        The arm's free parameters (as in `kinecal.calibrate`).
+    refine_intrinsics, rational : bool
+        Free ``fx, fy, cx, cy, k1, k2, p1, p2, k3`` (and ``k4..k6`` for the rational model).
+    loss : str
+        ``linear`` or a robust loss on each corner (`kinecal.calibration.camera.lm.LOSSES`);
+        robust: outlier stations left out of a final pass.
+    f_scale : float, optional
+        Robust loss scale (px); default 3x the median corner error with the arm at nominal.
+    validate : Stations, optional
+        Held-out stations: their reprojection before (arm nominal) and after.
+    X0, Y0 : ndarray, shape (4, 4), optional
+        Start of X and the board pose (default: the closed form).
+    method : str
+        Hand-eye closed form of the start.
+    rank_tol : float
+        Rank threshold of the identifiability analysis.
+    extra : dict, optional
+        Entries added to the result's JSON (image folder, board spec, rejected images).
+
+    Returns
+    -------
+    ArmCameraResult
+
+    Raises
+    ------
+    InputError
+        Bad arguments, fewer than 3 stations, motions that do not determine X, a board
+        behind the camera (joints that do not fit the images).
+    """
+    with diagnostics.collect(python_warnings=True) as found:
+        res = _calibrate(model, stations, K, dist, setup, free, refine_intrinsics, rational,
+                         loss, f_scale, validate, X0, Y0, method, rank_tol)
+    res.warnings = list(found)
+    res.extra.update(extra or {})
+    return res
+
+
+def _calibrate(model, st, K, dist, setup, free, refine_intrinsics, rational, loss, f_scale,
+               validate, X0, Y0, method, rank_tol) -> ArmCameraResult:
+    t0 = time.perf_counter()
+    if loss not in LOSSES:
+        raise InputError(f"loss: expected one of {', '.join(LOSSES)}, got {loss!r}",
+                         option="--loss")
+    if len(st.q) < 3:
+        raise InputError(f"{len(st.q)} usable stations: calibrating an arm from images needs "
+                         "at least 3 (many more in practice: 20-40)")
+    n_int = (12 if rational else 9) if refine_intrinsics else 0
+    block = CameraBlock(st, K, dist, setup, n_int, method=method,
+                        robust_start=loss != "linear")
+    p0 = model.nominal
+    if X0 is not None and Y0 is not None:
+        block.set_references(model, X0, Y0)
+    nu_he, r_he = fit_nuisance(block, model, p0, block.start(model, p0))
+    cands = candidate_names(model, free)
+    ident = camera_identifiability(block.pixels, p0, nu_he, cands, tol=rank_tol)
+    with diagnostics.expect(*CODES) as first:  # issued below unless a final fit follows
+        fit = calibrate_blocks(model, [block], free=free, loss=loss, f_scale=f_scale,
+                               rank_tol=rank_tol)
+    outliers = list(fit.outliers)
+    if loss != "linear" and outliers and len(st.q) - len(outliers) >= 3:
+        # robust: the outlier stations are left out of a final fit (a joint read a degree
+        # off moves its corners by pixels; down-weighted they still pull the arm)
+        fit = calibrate_blocks(model, [_without(block, model, outliers)], free=free,
+                               loss=loss, f_scale=f_scale, rank_tol=rank_tol)
+    else:
+        for d in first:
+            diagnostics.warn(d.code, d.message)
+    unknowns = {u["name"]: u for u in fit.extra["kinds"][0]["unknowns"]}
+    X = np.array(unknowns["X"]["matrix"])
+    Y = np.array(unknowns["board"]["matrix"])
+    Kf, df = block.pixels.K, block.pixels.d8
+    nstd = np.radians(unknowns["X"]["std_rotation_deg"]).tolist() + \
+        unknowns["X"]["std_translation"] + \
+        np.radians(unknowns["board"]["std_rotation_deg"]).tolist() + \
+        unknowns["board"]["std_translation"]
+    if n_int:
+        Kf, df = np.array(unknowns["intrinsics"]["K"]), np.array(unknowns["intrinsics"]["dist"])
+        nstd += unknowns["intrinsics"]["std"]
+    final = PixelBlock(model, st.q, st.points, st.pixels, setup, Kf, df, X, Y)
+    r = final.residuals(fit.params, np.zeros(12))
+    he = block.pixels.unpack(nu_he)
+    val = None
+    if validate is not None and len(validate.q):
+        vb = PixelBlock(model, validate.q, validate.points, validate.pixels, setup, he[2],
+                        he[3], he[0], he[1])
+        va = PixelBlock(model, validate.q, validate.points, validate.pixels, setup, Kf, df,
+                        X, Y)
+        val = (vb.station_rms(vb.residuals(p0, np.zeros(12))),
+               va.station_rms(va.residuals(fit.params, np.zeros(12))))
+    calibrated = fit.model
+    calibrated.description = (
+        f"{model.name} calibrated from {len(st.q)} camera images ({setup}); held at nominal, "
+        "not seen by a camera: " + ", ".join(n for n in cands if n not in set(fit.free)))
+    res = ArmCameraResult(
+        model=calibrated, nominal_model=model, setup=setup, free=list(fit.free),
+        params=fit.params, std=fit.std, X=X, board_pose=Y, X_handeye=he[0],
+        board_handeye=he[1], K=Kf, dist=df, nuisance_names=block.nuisance_names,
+        nuisance_std=np.array(nstd), identifiability=ident, uncertainty=fit.uncertainty,
+        station_names=list(st.names), before_px=block.observation_errors(r_he),
+        after_px=final.station_rms(r), outliers=outliers,
+        sigma_px=float(fit.extra["kinds"][0]["sigma"]), loss=loss,
+        val_before_px=None if val is None else val[0],
+        val_after_px=None if val is None else val[1],
+        residuals=np.split(-r, np.cumsum(final.counts)[:-1]), iterations=fit.iterations,
+        evaluations=fit.evaluations, history=list(fit.history), success=fit.success,
+        seconds=time.perf_counter() - t0)
+    check_camera_fit(res)
+    return res
+
+
+def _without(block: CameraBlock, model: SerialModel, drop: Sequence[int]) -> CameraBlock:
+    """`block` without the stations `drop`, with the same references."""
+    st = block.stations
+    keep = [i for i in range(len(st.q)) if i not in set(drop)]
+    sub = Stations(st.q[keep], [st.points[i] for i in keep], [st.pixels[i] for i in keep],
+                   None if st.target2cam is None else st.target2cam[keep],
+                   [st.names[i] for i in keep])
+    out = CameraBlock(sub, block.K, block.dist, block.setup, block.n_int, block.source,
+                      block.sigma, block.method)
+    out.set_references(model, block.pixels.X0, block.pixels.Y0)
+    return out

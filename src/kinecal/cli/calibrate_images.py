@@ -1,0 +1,135 @@
+"""``kinecal calibrate MODEL STATIONS.csv --images DIR --board SPEC``: the arm from camera
+images (called by `kinecal.cli.calibrate.calibrate` when ``--images`` is given; no command
+is registered here)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from kinecal.cli._common import (
+    check_paths,
+    echo_json,
+    load_model_arg,
+    progress,
+    warnings_scope,
+    with_warnings,
+    write_json,
+)
+from kinecal.errors import InputError
+
+__all__ = ["calibrate_images"]
+
+#: options of ``calibrate`` that measured positions use and images do not
+_POSITION_ONLY = {"error_model": "--error-model", "harmonics": "--harmonics",
+                  "folds": "--folds", "rotation_weight": "--rotation-weight",
+                  "sigma": "--sigma", "maxiter": "--maxiter", "target": "--target"}
+
+
+def _one(value: Any, option: str) -> str | None:
+    """The one file of an argument that may list several (``calibrate A.csv B.csv``)."""
+    if value is None or isinstance(value, str | Path):
+        return value
+    files = list(value)
+    if len(files) > 1:
+        raise InputError(f"--images takes one stations file, got {len(files)}: "
+                         f"{', '.join(files)}", option=option)
+    return files[0] if files else None
+
+
+def _match(folder: Path, path: Path, names: list[str], by_name: dict[str, Path]) -> None:
+    for row, name in enumerate(names, start=1):
+        if name not in by_name:
+            raise InputError(f"image {name!r} is not in {folder}: joints without an image",
+                             file=path, row=row)
+
+
+def calibrate_images(args: dict[str, Any]) -> None:
+    """Run the calibration from images (see `kinecal.vision.arm_images`) and write the
+    outputs; `args` are ``calibrate``'s arguments. Every argument is checked before any
+    work."""
+    from kinecal.cli._serial_common import free_option
+
+    given = [opt for key, opt in _POSITION_ONLY.items() if args.get(key) not in (None, [])]
+    if given:
+        raise InputError("applies to measured positions, not to --images", option=given[0])
+    data, validate = _one(args["data"], "STATIONS"), _one(args["validate"], "--validate")
+    _run(model=args["model"], base_link=args["base_link"], tip_link=args["tip_link"],
+         data=data, images=args["images"], board=args["board"],
+         intrinsics=args["intrinsics"], setup=args["setup"], method=args["method"],
+         validate=validate, free=free_option(args["free"]), loss=args["loss"],
+         out=args["out"], model_out=args["model_out"], report=args["report"],
+         json_out=args["json_out"], quiet=args["quiet"], strict=args["strict"])
+
+
+def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
+         images: Path, board: str | None, intrinsics: Path | None, setup: str, method: str,
+         validate: str | None, free: Any, loss: str, out: Path | None,
+         model_out: Path | None, report: Path | None, json_out: bool, quiet: bool,
+         strict: bool) -> None:
+    from kinecal.cli.handeye_images import IMAGE_SUFFIXES, list_images
+
+    if method != "lm":
+        raise InputError(f"--images calibrates by Levenberg-Marquardt on the pixels; got "
+                         f"{method!r}", option="--method")
+    if board is None:
+        raise InputError("--images needs the board: e.g. --board chessboard:9x6:25",
+                         option="--board")
+    if setup not in ("eye-in-hand", "eye-to-hand"):
+        raise InputError(f"unknown setup {setup!r}; expected eye-in-hand or eye-to-hand",
+                         option="--setup")
+    check_paths({"MODEL": model, "STATIONS": data, "--images": images,
+                 "--intrinsics": intrinsics, "--validate": validate},
+                {"--out": out, "--model-out": model_out, "--report": report},
+                reads={"--images": IMAGE_SUFFIXES})
+    if model_out is not None:
+        from kinecal.io.models import check_model_file_name
+
+        check_model_file_name(model_out, "--model-out")
+    with warnings_scope(strict) as found:
+        from kinecal.io.stations import read_stations
+        from kinecal.vision.arm_images import calibrate_arm_images
+        from kinecal.vision.boards import parse_board
+        from kinecal.vision.intrinsics import read_intrinsics
+
+        the_board = parse_board(board)
+        m = load_model_arg(model, base_link, tip_link)
+        names, q = read_stations(Path(data), m)
+        files = list_images(images)
+        by_name = {p.name: p for p in files}
+        _match(images, Path(data), names, by_name)
+        val = None
+        listed = set(names)
+        if validate is not None:
+            vnames, vq = read_stations(Path(validate), m)
+            _match(images, Path(validate), vnames, by_name)
+            listed |= set(vnames)
+            val = ([by_name[n] for n in vnames], vq, vnames)
+        unlisted = sorted(set(by_name) - listed)
+        if unlisted:
+            raise InputError(f"{len(unlisted)} image(s) in {images} without joints (no row in "
+                             f"{Path(data).name}{' or --validate' if validate else ''}): "
+                             f"{', '.join(unlisted[:5])}{', ...' if len(unlisted) > 5 else ''}",
+                             file=Path(data))
+        intr = read_intrinsics(intrinsics) if intrinsics is not None else None
+        with progress("detecting", len(names), quiet or json_out) as update:
+            res = calibrate_arm_images(m, [by_name[n] for n in names], q, the_board,
+                                       names=names, intrinsics=intr, setup=setup, free=free,
+                                       loss=loss, validate=val, progress=update)
+        res.warnings = list(found)
+        result = with_warnings({"images_dir": str(images), "stations": str(data),
+                                **res.to_dict()}, found)
+        if out is not None:
+            write_json(out, result)
+        if model_out is not None:
+            res.save_model(model_out)
+        if report is not None:
+            from kinecal.report.arm_images import arm_images_report
+
+            arm_images_report(res, report)
+    if json_out:
+        echo_json(result)
+    elif not quiet:
+        typer.echo(res.summary())

@@ -1,0 +1,173 @@
+"""From board images and joint readings to a calibrated arm: what ``kinecal calibrate MODEL
+STATIONS.csv --images DIR --board SPEC`` runs.
+
+1. detect the board in every image (`kinecal.vision.detect`, the checks of ``kinecal
+   handeye-images``); a station whose board is not found, or not trusted, is skipped with
+   its reason (warning ``station-skipped``);
+2. intrinsics from the user's file, or estimated from the accepted images (then refined
+   with the arm);
+3. the board pose of every accepted image by PnP (`kinecal.vision.pnp`), for the start;
+4. the bundle adjustment of the arm, X and the board pose on the corner pixels
+   (`kinecal.calibration.camera.calibrate_arm_camera`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal import diagnostics
+from kinecal.calibration.camera.result import ArmCameraResult, Stations
+from kinecal.calibration.camera.solve import calibrate_arm_camera
+from kinecal.errors import InputError
+from kinecal.kinematics.serial.model import SerialModel
+from kinecal.vision.boards import Board
+from kinecal.vision.detect import QualityLimits
+from kinecal.vision.intrinsics import CameraIntrinsics
+from kinecal.vision.pipeline import _detect_all, _intrinsics, _poses
+
+Array = NDArray[np.float64]
+
+__all__ = ["calibrate_arm_images", "detect_stations"]
+
+
+def detect_stations(images: Sequence[Any], q: Array, names: Sequence[str], board: Board,
+                    intrinsics: CameraIntrinsics | None, limits: QualityLimits | None = None,
+                    progress: Callable[..., None] | None = None, poses: bool = True
+                    ) -> tuple[Stations, CameraIntrinsics, list[dict[str, str]]]:
+    """Detected stations, the intrinsics, and the skipped images with their reasons.
+
+    Parameters
+    ----------
+    images : sequence of path or ndarray
+    q : ndarray, shape (n, n_joints)
+        Joint readings of every image (rad).
+    names : sequence of str
+    board : Board
+    intrinsics : CameraIntrinsics, optional
+        Default: estimated from the accepted images.
+    limits : QualityLimits, optional
+    progress : callable, optional
+    poses : bool
+        Compute each image's board pose (PnP; rejects too oblique views).
+
+    Returns
+    -------
+    stations : Stations
+        The usable stations.
+    intrinsics : CameraIntrinsics
+    skipped : list of dict
+        ``{"image", "reason"}`` per skipped image.
+    """
+    limits = limits or QualityLimits()
+    expected = None if intrinsics is None or not intrinsics.size else tuple(intrinsics.size)
+    records, size = _detect_all(images, names, board, limits, progress, expected)
+    intr = _intrinsics(records, board, size, intrinsics)
+    if poses:
+        _poses(records, board, intr, limits)
+    used = [k for k, r in enumerate(records) if r.status == "used"]
+    skipped = [{"image": r.name, "reason": r.reason} for r in records if r.status != "used"]
+    st = Stations(np.asarray(q, float)[used],
+                  [records[k].detection.object_points(board) for k in used],
+                  [records[k].detection.corners for k in used],
+                  np.array([records[k].pose.target2cam for k in used]) if poses and used
+                  else None, [records[k].name for k in used])
+    return st, intr, skipped
+
+
+def calibrate_arm_images(
+    model: SerialModel,
+    images: Sequence[Any],
+    q: Array,
+    board: Board,
+    *,
+    names: Sequence[str] | None = None,
+    intrinsics: CameraIntrinsics | None = None,
+    setup: str = "eye-in-hand",
+    free: str | Sequence[str] = "identifiable",
+    refine_intrinsics: bool | None = None,
+    loss: str = "linear",
+    validate: tuple[Sequence[Any], Array, Sequence[str]] | None = None,
+    limits: QualityLimits | None = None,
+    progress: Callable[..., None] | None = None,
+) -> ArmCameraResult:
+    """Calibrate an arm from board images and the joint readings of each.
+
+    Parameters
+    ----------
+    model : SerialModel
+        Nominal arm (its length unit is the board's).
+    images : sequence of path or ndarray
+        One image per station.
+    q : ndarray, shape (n, n_joints)
+        Joint readings per image (rad; prismatic: length unit).
+    board : Board
+    names : sequence of str, optional
+    intrinsics : CameraIntrinsics, optional
+        Default: estimated from the accepted images and refined with the arm.
+    setup : {"eye-in-hand", "eye-to-hand"}
+    free : {"identifiable", "all"} or sequence of str
+    refine_intrinsics : bool, optional
+        Default: when the intrinsics are estimated from the same images.
+    loss : str
+        ``linear`` or a robust loss per corner.
+    validate : (images, q, names), optional
+        Held-out stations: their reprojection before and after.
+    limits : QualityLimits, optional
+    progress : callable, optional
+
+    Returns
+    -------
+    ArmCameraResult
+
+    Raises
+    ------
+    InputError
+        Count mismatch, fewer than 3 usable stations (the reasons summarised).
+    """
+    q = np.atleast_2d(np.asarray(q, float))
+    if len(images) != len(q):
+        raise InputError(f"{len(images)} images but {len(q)} joint rows: expected one row "
+                         "per image")
+    names = list(names) if names is not None else [f"image_{i}" for i in range(len(q))]
+    with diagnostics.collect() as found:
+        st, intr, skipped = detect_stations(images, q, names, board, intrinsics, limits,
+                                            progress)
+        if len(st.q) < 3:
+            raise InputError(_too_few(len(images), len(st.q), skipped, board))
+        if skipped:
+            first = skipped[0]
+            diagnostics.warn("station-skipped",
+                             f"{len(skipped)} of {len(images)} stations skipped (e.g. "
+                             f"{first['image']}: {first['reason']})")
+        val = None
+        if validate is not None:
+            vimg, vq, vnames = validate
+            val, _, vskip = detect_stations(vimg, vq, vnames, board, intr, limits, poses=False)
+            skipped += [{**s, "validation": True} for s in vskip]
+        if refine_intrinsics is None:
+            refine_intrinsics = intrinsics is None
+        res = calibrate_arm_camera(
+            model, st, intr.K, intr.dist, setup=setup, free=free,
+            refine_intrinsics=refine_intrinsics, rational=intr.rational, loss=loss,
+            validate=val, extra={"board": board.spec, "intrinsics_source": intr.source,
+                                 "skipped": skipped, "n_images": len(images),
+                                 "n_used": len(st.q)})
+    res.val_names = [] if val is None else list(val.names)
+    res.warnings = list(found)
+    return res
+
+
+def _too_few(n: int, used: int, skipped: list[dict[str, str]], board: Board) -> str:
+    reasons: dict[str, int] = {}
+    for s in skipped:
+        key = s["reason"].split(":")[0].split(";")[0].split("(")[0].strip()
+        reasons[key] = reasons.get(key, 0) + 1
+    summary = ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items(), key=lambda kv: -kv[1]))
+    eg = f"; e.g. {skipped[0]['image']}: {skipped[0]['reason']}" if skipped else ""
+    return (f"{used} usable station(s) of {n}: the board {board.spec} was not found or not "
+            f"trusted in the others ({summary}{eg}); calibrating an arm needs at least 3 "
+            "(check the --board spec: chessboards count inner corners)")
