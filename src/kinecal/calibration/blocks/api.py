@@ -169,7 +169,7 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
                               prob.free, ana.report.confounded_with)
     r1 = prob.block_residuals(x)
     after = [b.observation_errors(r) for b, r in zip(blocks, r1, strict=True)]
-    flagged = check_fits(model, prob, x, r1, fit, loss)
+    check_fits(model, prob, x, r1, fit, loss)
     entries = []
     for i, b in enumerate(blocks):
         how = "stated" if fit.known[i] else (
@@ -185,19 +185,19 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
                        for b, e0, e1 in zip(val_blocks, vb, va, strict=True)]
         val_before, val_after = _length_errors(val_blocks, vb), _length_errors(val_blocks, va)
     return _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,
-                   val_before, val_after, flagged, blocks, val_blocks, t0, loss)
+                   val_before, val_after, blocks, val_blocks, t0, loss)
 
 
 def _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,
-            val_before, val_after, flagged, blocks, val_blocks, t0, loss):
+            val_before, val_after, blocks, val_blocks, t0, loss):
     res = fit.result
     names = prob.free
     report = ana.report
     std = np.zeros(model.n_params)
     std[prob.index] = unc.std
     offsets = np.cumsum([0, *[b.n_obs for b in blocks]])
-    outliers = [int(offsets[i] + j) for i, j in (fit.outliers or flagged)]
-    labels = [blocks[i].observation_labels()[j] for i, j in (fit.outliers or flagged)]
+    outliers = [int(offsets[i] + j) for i, j in fit.outliers]
+    labels = [blocks[i].observation_labels()[j] for i, j in fit.outliers]
     qs = [b.configurations() for b in blocks]
     q_all = np.concatenate([q for q, _ in qs])
     m_all = (np.concatenate([np.zeros(len(q), np.intp) if m is None else m for q, m in qs])
