@@ -224,7 +224,8 @@ def choices(*values: str) -> str:
 #: calibration methods (kinecal.calibration.serial.api.CALIBRATION_METHODS without the
 #: hybrids, which are hybrid- and a metaheuristic; tests/cli/test_cli_papercuts.py checks it)
 CALIBRATION_METHOD_CHOICES = ("lm", "householder", "ga", "pso", "afsa", "sa-iafsa", "gwo",
-                              "igwo", "dlh-gwo-de", "de", "hybrid-<metaheuristic>")
+                              "igwo", "dlh-gwo-de", "de", "ga-hu2005", "pso-liu2008",
+                              "de-storn1997", "hybrid-<metaheuristic>")
 
 
 #: the values of ``--unit`` (kinecal.metrology.units.DISPLAY_UNITS)
