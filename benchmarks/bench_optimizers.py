@@ -8,7 +8,8 @@ Run ``python benchmarks/bench_optimizers.py [--quick] [--out FILE.md]``.
    (each peer is skipped when not installed). Ratios are against pyswarms (and scipy DE).
 2. Quality: best cost reached by every method with its default budget on shifted 10-D and 25-D
    sphere, Rastrigin, Rosenbrock and Ackley functions, median over seeds, beside pyswarms and
-   scipy DE given the budget of kinecal's pso and de.
+   scipy DE given the budget of kinecal's pso-liu2008 and de-storn1997 (whose settings they
+   copy). Equal-budget medians against the peers' own defaults: ``bench_swarm.py``.
 """
 
 from __future__ import annotations
@@ -204,6 +205,12 @@ def overhead_table(quick: bool) -> list[str]:
             f"pop {p}: {ratio(v, b)}" for p, v, b in zip(pops, rows["de"], de, strict=True)
         ),
         "",
+        "kinecal de-storn1997 / scipy DE: "
+        + ", ".join(
+            f"pop {p}: {ratio(v, b)}"
+            for p, v, b in zip(pops, rows["de-storn1997"], de, strict=True)
+        ),
+        "",
         "AFSA and SA-IAFSA evaluate up to four batches per iteration (swarm centres, swarm and "
         "follow moves, prey tries, prey and random moves); IGWO two candidates and DLH-GWO-DE four "
         "per wolf in one batch.",
@@ -281,7 +288,7 @@ def quality_table(n: int, seeds: int) -> list[str]:
         "",
         "pyswarms: GlobalBestPSO, 80 particles, 500 iterations, c1 = c2 = 1.8, fixed w = 0.3 "
         "(the mean of the paper-004 schedule). scipy-de: rand1bin, F = 0.5, CR = 0.9, 10 n "
-        "individuals, the budget of kinecal's de, no polishing.",
+        "individuals, the budget of kinecal's de-storn1997, no polishing.",
     ]
     return lines
 

@@ -117,7 +117,8 @@ def test_same_seed_same_arm_across_methods_and_failed_job_is_reported(tmp_path):
 
 
 def _result(method, noise, identified, std, truth, n=30):
-    return {"method": method, "job": {"noise": noise}, "calibration": {"n": n},
+    return {"method": method, "job": {"noise": noise, "errors": "identifiable"},
+            "calibration": {"n": n},
             "truth": {f"p{k}": t for k, t in enumerate(truth)},
             "parameters": {f"p{k}": {"identified": v, "std": s, "free": True}
                            for k, (v, s) in enumerate(zip(identified, std, strict=True))}}
@@ -139,6 +140,10 @@ def test_coverage_table_counts_truths_inside_the_intervals():
     per = parameter_coverage([inside, outside, other])
     assert [(r["parameter"], r["runs"], r["coverage"]) for r in per] == [
         ("p0", 3, pytest.approx(2 / 3)), ("p1", 2, 1.0)]
+    # errors: random (the default) leaves confounded partners biased: not counted at all
+    random = {**outside, "job": {"noise": 0.01}}
+    assert coverage_table([random]) == [] and parameter_coverage([random]) == []
+    assert coverage_table([inside, random])[0]["runs"] == 1
 
 
 def test_study_table_medians_over_seeds_skip_failures():

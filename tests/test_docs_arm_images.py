@@ -1,4 +1,4 @@
-"""docs/arm-from-images.md, run literally: the walkthrough's ``$`` commands in a fresh
+"""docs/arm-from-images.md, run literally: the walkthrough's commands (its sh block) in a fresh
 folder (``kinecal ...`` in this process, ``mkdir`` through the shell), the pasted summary
 lines compared (numbers to 5 %: another BLAS or OpenCV build may move them a little), then
 the page's Python blocks in the same folder."""
@@ -36,9 +36,8 @@ def _same(line: str, want: str) -> bool:
 def test_the_walkthrough_runs_as_written(tmp_path, monkeypatch):
     text = PAGE.read_text(encoding="utf-8")
     section = text.split("## Walkthrough on a rendered arm", 1)[1].split("\n## ", 1)[0]
-    plain = _blocks(section, "")
-    commands = [ln[2:] for ln in plain[0].splitlines() if ln.startswith("$ ")]
-    pasted = [ln for ln in plain[1].splitlines() if ln.strip()]
+    commands = [ln for ln in _blocks(section, "sh")[0].splitlines() if ln.strip()]
+    pasted = [ln for ln in _blocks(section, "text")[0].splitlines() if ln.strip()]
     monkeypatch.chdir(tmp_path)
     out = ""
     for cmd in commands:

@@ -68,7 +68,7 @@ LATE_ALLOWED: dict[str, set[str]] = {
     "cli": {"batch", "calibration.blocks", "calibration.camera", "calibration.diagnostics",
             "calibration.handeye", "calibration.serial", "calibration.stewart",
             "compensation", "datasets", "io", "kinematics.serial", "kinematics.stewart",
-            "report", "vision", "metrology"},
+            "report", "vision", "metrology", "kinecal"},
 }
 #: below no kind of machine: compensation is the apply step on top of calibration results
 NEVER = [("calibration", "compensation"), ("io", "calibration"), ("kinematics", "calibration"),

@@ -16,6 +16,7 @@ _LAZY = {
     "load_model": "kinecal.io.models",
     "save_model": "kinecal.io.models",
     "read_measurements": "kinecal.io.measurements",
+    "load_result": "kinecal.io.results",
     "read_kind": "kinecal.io.kinds",
     "Measurements": "kinecal.data",
     "GaugeMeasurements": "kinecal.data",

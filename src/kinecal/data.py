@@ -21,7 +21,7 @@ __all__ = ["DISTANCE_KINDS", "GAUGE_KINDS", "GaugeMeasurements", "Measurements",
            "RepeatedPoses"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Measurements:
     """Joint readings with measured tool-point positions (and optionally orientations).
 
@@ -81,6 +81,12 @@ class Measurements:
         elif self.marker_names:
             raise InputError("marker_names without marker indices")
 
+    def __repr__(self) -> str:
+        what = "poses" + (" with orientations" if self.rotations is not None else "")
+        markers = f", markers {', '.join(self.marker_names)}" if self.marker_names else ""
+        src = f" from {self.source}" if self.source else ""
+        return f"<Measurements {len(self)} {what}, {np.shape(self.q)[1]} joints{markers}{src}>"
+
     def __len__(self) -> int:
         return int(np.shape(self.q)[0])
 
@@ -100,7 +106,7 @@ GAUGE_KINDS: dict[str, str] = {"ballbar": "pivot", "pair": "pair", "point": "poi
 DISTANCE_KINDS = ("ballbar", "pair")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class GaugeMeasurements:
     """Joint readings measured against a gauge: distances, fixed points, planes.
 
@@ -174,11 +180,16 @@ class GaugeMeasurements:
         elif self.marker_names:
             raise InputError("marker_names without marker indices")
 
+    def __repr__(self) -> str:
+        src = f" from {self.source}" if self.source else ""
+        return (f"<GaugeMeasurements {self.kind}: {len(self)} rows, {len(self.group_names)} "
+                f"groups{src}>")
+
     def __len__(self) -> int:
         return int(np.shape(self.q)[0])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class RepeatedPoses:
     """Measurements of P commanded poses, each measured once in each of n cycles.
 
@@ -234,6 +245,11 @@ class RepeatedPoses:
             raise InputError("pose labels repeat: expected one label per pose")
         if not (np.isfinite(m).all() and np.isfinite(self.commanded).all()):
             raise InputError("positions contain NaN or infinite values")
+
+    def __repr__(self) -> str:
+        src = f" from {self.source}" if self.source else ""
+        return (f"<RepeatedPoses {len(self.labels)} poses x {self.n_cycles} cycles "
+                f"({self.length_unit}){src}>")
 
     @property
     def n_cycles(self) -> int:

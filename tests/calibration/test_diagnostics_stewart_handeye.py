@@ -45,7 +45,9 @@ def test_stewart_clean_data_is_silent_and_reports_units(cmm):
     nominal, _, cal, val = cmm
     res, found = stewart(nominal, cal, validate=val)
     assert found == [] and res.bounded and np.isfinite(res.std).all()
-    assert " m " in res.summary() and "leg rms before" in res.summary()
+    # a geometry in metres: the summary in mm by default (--unit auto), in m on request
+    assert " mm " in res.summary() and "leg rms before" in res.summary()
+    assert " m " in res.summary("m") and " mm " not in res.summary("m")
     d = res.to_dict()
     assert d["warnings"] == [] and d["length_unit"] == "m"
     json.dumps(d)

@@ -8,9 +8,9 @@ import pinocchio as pin
 import pytest
 
 from kinecal.cli import main
-from kinecal.cli._serial_common import parameters_from_result
 from kinecal.io.measurements import read_measurements
 from kinecal.io.models import load_model
+from kinecal.io.result_values import parameters_from_result
 from kinecal.io.urdf import load_urdf
 
 IRB140 = resources.files("rtbdata") / "xacro" / "abb_irb140_description/urdf/irb140.urdf"

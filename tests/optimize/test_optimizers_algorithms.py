@@ -11,11 +11,11 @@ from kinecal.errors import InputError
 from kinecal.optimize import METHODS, get_method, methods, minimize, register
 from kinecal.optimize._common import Optimizer, distinct_others
 from kinecal.optimize.afsa import AFSA, SAIAFSA
-from kinecal.optimize.de import DE
-from kinecal.optimize.ga import GA, roulette_weights
+from kinecal.optimize.de import ClassicDE
+from kinecal.optimize.ga import ArithmeticGA, roulette_weights
 from kinecal.optimize.gwo import GWO, IGWO, dlh_candidates, gwo_candidates
 from kinecal.optimize.gwo_de import DLHGWODE, best1_bin
-from kinecal.optimize.pso import PSO
+from kinecal.optimize.pso import LinearInertiaPSO
 
 
 def sphere(X):
@@ -40,9 +40,9 @@ def test_distinct_others_valid_and_uniform(size, k):
     assert np.all(np.abs(off - expected) < 6 * np.sqrt(expected))  # every other index, evenly
 
 
-# -- PSO (papers/004) ---------------------------------------------------------------------------
+# -- pso-liu2008 (papers/004) ----------------------------------------------------------------------
 def test_pso_inertia_linear_schedule():
-    opt = PSO(3, rng=0, maxiter=500)
+    opt = LinearInertiaPSO(3, rng=0, maxiter=500)
     assert opt.inertia(0) == 0.5 and np.isclose(opt.inertia(500), 0.1)
     assert np.isclose(opt.inertia(250), 0.3)  # eq. 9
     assert opt.popsize == 80 and opt.c1 == opt.c2 == 1.8 and opt.vmax == 1.0
@@ -50,7 +50,9 @@ def test_pso_inertia_linear_schedule():
 
 def test_pso_without_learning_flies_straight():
     # papers/004 sec. 3.2: with c1 = c2 = 0 a particle keeps its velocity (w = 1)
-    opt = PSO(4, rng=1, options={"c1": 0.0, "c2": 0.0, "w_max": 1.0, "w_min": 1.0, "vmax": 0.01})
+    opt = LinearInertiaPSO(
+        4, rng=1, options={"c1": 0.0, "c2": 0.0, "w_max": 1.0, "w_min": 1.0, "vmax": 0.01}
+    )
     xs = []
     for _ in range(4):
         X = opt.ask().copy()
@@ -64,7 +66,7 @@ def test_pso_without_learning_flies_straight():
 
 
 def test_pso_velocity_limit():
-    opt = PSO(5, rng=2, options={"vmax": 0.05})
+    opt = LinearInertiaPSO(5, rng=2, options={"vmax": 0.05})
     X0 = opt.ask().copy()
     opt.tell(X0, sphere(X0))
     X1 = opt.ask()
@@ -164,7 +166,7 @@ def test_dlh_gwo_de_best_of_four_then_greedy():
     assert np.all(np.isfinite(opt.population))
 
 
-# -- GA (papers/000 sec. 4.2) -------------------------------------------------------------------
+# -- ga-hu2005 (papers/000 sec. 4.2) ---------------------------------------------------------------
 def test_roulette_fitness_and_pressure():
     s = np.array([0.0, 1.0, 3.0])
     assert np.allclose(roulette_weights(s), [1.0, 0.5, 0.25])  # f = 1 / (s + 1)
@@ -176,7 +178,7 @@ def test_ga_selection_schemes_prefer_better():
     f = np.linspace(0.0, 0.05, 30)  # similar small costs
     share = {}
     for sel in ("roulette", "rank", "tournament"):
-        ga = GA(2, rng=0, options={"selection": sel})
+        ga = ArithmeticGA(2, rng=0, options={"selection": sel})
         picks = np.concatenate([ga.select(f) for _ in range(300)])
         share[sel] = np.mean(picks < 10)  # how often the best third is chosen
     assert 0.32 < share["roulette"] < 0.36  # ~1/3: no pressure
@@ -184,7 +186,7 @@ def test_ga_selection_schemes_prefer_better():
 
 
 def test_ga_arithmetic_crossover_keeps_pair_sums_and_elite():
-    ga = GA(3, rng=7, options={"pc": 1.0, "pm": 0.0, "popsize": 10})
+    ga = ArithmeticGA(3, rng=7, options={"pc": 1.0, "pm": 0.0, "popsize": 10})
     X0 = ga.ask().copy()
     f0 = sphere(X0)
     ga.tell(X0, f0)
@@ -199,7 +201,7 @@ def test_ga_arithmetic_crossover_keeps_pair_sums_and_elite():
 
 
 def test_ga_mutation_rate():
-    ga = GA(50, rng=8, options={"pc": 0.0, "pm": 0.2, "popsize": 40})
+    ga = ArithmeticGA(50, rng=8, options={"pc": 0.0, "pm": 0.2, "popsize": 40})
     X0 = ga.ask().copy()
     ga.tell(X0, np.zeros(40))  # equal costs: uniform roulette, children = copies + mutation
     Y = ga.ask()
@@ -260,12 +262,12 @@ def test_afsa_swarm_and_follow_happen():
     assert np.allclose(centres, (X0.sum(axis=0) - X0) / 99)
 
 
-# -- DE -------------------------------------------------------------------------------------------
+# -- de-storn1997 ----------------------------------------------------------------------------------
 def test_de_strategies_and_selection():
-    assert DE(4, rng=0).popsize == 40
+    assert ClassicDE(4, rng=0).popsize == 40
     with pytest.raises(InputError, match="rand1bin, best1bin"):
-        DE(4, options={"strategy": "current-to-best"})
-    opt = DE(3, rng=1, options={"popsize": 10})
+        ClassicDE(4, options={"strategy": "current-to-best"})
+    opt = ClassicDE(3, rng=1, options={"popsize": 10})
     X0 = opt.ask().copy()
     opt.tell(X0, np.full(10, 5.0))
     U = opt.ask().copy()
@@ -276,7 +278,7 @@ def test_de_strategies_and_selection():
     assert np.array_equal(opt.population[keep], U[keep])
     assert np.array_equal(opt.population[~keep], X0[~keep])
     r = [
-        minimize(sphere, [(0, 1)] * 4, "de", rng=2, maxiter=30, options={"strategy": s})
+        minimize(sphere, [(0, 1)] * 4, "de-storn1997", rng=2, maxiter=30, options={"strategy": s})
         for s in ("rand1bin", "best1bin")
     ]
     assert r[1].fun < r[0].fun  # best/1 converges faster on a sphere

@@ -62,13 +62,17 @@ class JobRecord:
         self.warnings = warning_list(result.get("warnings"))
 
 
-@dataclass
+@dataclass(repr=False)
 class BatchResult:
     """Outcome of `run_batch`: the records (jobs file order) and the output paths."""
 
     records: list[JobRecord]
     out_dir: Path
     summary_path: Path
+
+    def __repr__(self) -> str:
+        counts = ", ".join(f"{n} {s}" for s, n in sorted(self.counts.items()))
+        return f"<BatchResult {len(self.records)} jobs in {self.out_dir}: {counts}>"
 
     @property
     def counts(self) -> dict[str, int]:

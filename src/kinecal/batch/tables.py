@@ -20,7 +20,8 @@ import numpy as np
 from kinecal._files import atomic_open
 from kinecal.batch.records import JobRecord, read_result
 
-__all__ = ["Z95", "coverage_table", "format_table", "load_results", "parameter_coverage",
+__all__ = ["COVERAGE_ERRORS", "Z95", "coverage_estimable", "coverage_table", "format_table",
+           "load_results", "parameter_coverage",
            "study_table", "write_table_csv"]
 
 #: two-sided 95 % quantile of the standard normal distribution
@@ -84,9 +85,23 @@ def _free_errors(result: dict[str, Any]) -> dict[str, tuple[float, float]]:
             for name, e in result["parameters"].items() if e.get("free")}
 
 
+#: a simulated job's ``errors`` under which its truth can be estimated: the deviations lie
+#: only on the parameters the calibration identifies (``zero``: none at all)
+COVERAGE_ERRORS = ("identifiable", "zero")
+
+
+def coverage_estimable(result: dict[str, Any]) -> bool:
+    """Whether a simulated job's result can check its standard errors against its truth:
+    with ``errors: random`` the parameters held at nominal are off too, their errors land
+    in confounded partners, and the identified values are biased by design."""
+    job = result.get("job") or {}
+    return bool(result.get("truth")) and job.get("errors", "random") in COVERAGE_ERRORS
+
+
 def _run_coverage(result: dict[str, Any], z: float) -> tuple[int, int, list[float]] | None:
-    """(covered, free parameters, normalised errors) of one run, None without truth."""
-    if not result.get("truth"):
+    """(covered, free parameters, normalised errors) of one run, None without truth or
+    when its truth cannot be estimated (`coverage_estimable`)."""
+    if not coverage_estimable(result):
         return None
     covered, n, zs = 0, 0, []
     for err, std in _free_errors(result).values():
@@ -110,7 +125,8 @@ def coverage_table(results: Iterable[dict[str, Any]], z: float = Z95) -> list[di
     Parameters
     ----------
     results : iterable of dict
-        Result JSONs of simulated jobs (with ``truth``); others are ignored.
+        Result JSONs of simulated jobs (with ``truth``); others, and those whose truth
+        cannot be estimated (``errors: random``, `coverage_estimable`), are ignored.
     z : float
         Interval half-width in standard errors (default: 95 %).
 
@@ -148,7 +164,8 @@ def coverage_table(results: Iterable[dict[str, Any]], z: float = Z95) -> list[di
 
 def parameter_coverage(results: Iterable[dict[str, Any]], z: float = Z95,
                        ) -> list[dict[str, Any]]:
-    """Coverage per free parameter over all runs with a truth (worst coverage first).
+    """Coverage per free parameter over all runs with an estimable truth
+    (`coverage_estimable`; worst coverage first).
 
     Returns
     -------
@@ -158,7 +175,7 @@ def parameter_coverage(results: Iterable[dict[str, Any]], z: float = Z95,
     """
     errs: dict[str, list[tuple[float, float]]] = {}
     for res in results:
-        if res.get("truth"):
+        if coverage_estimable(res):
             for name, pair in _free_errors(res).items():
                 errs.setdefault(name, []).append(pair)
     rows = []

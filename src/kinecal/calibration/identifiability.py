@@ -43,7 +43,7 @@ RANK_TOL = 1e-8
 TIE_TOL = 1e-9
 
 
-@dataclass
+@dataclass(repr=False)
 class IdentifiabilityReport:
     """Result of `analyse`.
 
@@ -77,6 +77,11 @@ class IdentifiabilityReport:
     condition_number: float = float("nan")
     singular_values: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     observability: dict[str, float] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return (f"<IdentifiabilityReport rank {self.rank} of {len(self.names)}, condition "
+                f"number {self.condition_number:.3g}, {len(self.unidentifiable)} "
+                "unidentifiable>")
 
     def to_dict(self) -> dict:
         """JSON-able dict (the ``kinecal identifiability --json`` contract)."""

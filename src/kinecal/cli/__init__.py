@@ -72,6 +72,7 @@ _COMMAND_MODULES = [
     "kinecal.cli.compensate",
     "kinecal.cli.import_cmd",
     "kinecal.cli.iso9283",
+    "kinecal.cli.datasets",
 ]
 
 
@@ -98,11 +99,14 @@ _COMMANDS = {
     "compensate": "kinecal.cli.compensate",
     "import": "kinecal.cli.import_cmd",
     "iso9283": "kinecal.cli.iso9283",
+    "datasets": "kinecal.cli.datasets",
 }
 
 
 def _load_commands(args: list[str] | None = None) -> None:
     """Import the command modules: the one of ``args[0]`` if known, else all of them."""
+    if args and args[0] == "--version":  # printed by the app's callback: no command needed
+        return
     module = _COMMANDS.get(args[0]) if args else None
     for name in [module] if module is not None else _COMMAND_MODULES:
         importlib.import_module(name)
@@ -183,6 +187,10 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         _drop_stdout()
         code = 0
+    except SystemExit as exc:  # typer ends a broken stdout pipe (`kinecal ... | head`) with 1
+        if type(sys.stdout).__name__ != "PacifyFlushWrapper":
+            raise
+        code = 0 if exc.code == 1 else exc.code
     except OSError as exc:
         if exc.errno in _DISK_ERRNOS:  # the disk, not kinecal nor the input: exit 1
             # files are named by their writer (kinecal._files.atomic_open): an unnamed

@@ -14,8 +14,19 @@ app = typer.Typer(
 )
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from kinecal import __version__
+
+        typer.echo(f"kinecal {__version__}")
+        raise typer.Exit(0)
+
+
 @app.callback()
-def _root() -> None:
+def _root(
+    version: bool = typer.Option(False, "--version", is_eager=True, callback=_print_version,
+                                 help="Print kinecal's version and exit."),
+) -> None:
     # A callback keeps every command a subcommand even when only one command module is
     # loaded (kinecal.cli loads just the module of the command it runs): typer would
     # otherwise make a lone command the whole program.

@@ -18,12 +18,15 @@ from kinecal.errors import InputError
 __all__ = [
     "base_link_option",
     "check_paths",
+    "check_unit",
+    "choices",
     "echo_json",
     "instrument_option",
     "load_model_arg",
     "note_option",
     "operator_option",
     "progress",
+    "progress_columns",
     "quiet_option",
     "report_option",
     "report_record",
@@ -32,6 +35,7 @@ __all__ = [
     "strict_option",
     "tip_link_option",
     "to_jsonable",
+    "unit_option",
     "warnings_scope",
     "with_warnings",
     "write_json",
@@ -82,7 +86,7 @@ def resolve_data_path(spec: str, option: str = "DATA") -> Path:
         return path
     if ":" in spec and not path.suffix:
         return bundled_csv(spec)
-    raise InputError(f"file not found: {spec}", option=option)
+    raise InputError("file not found", file=spec, option=option)
 
 
 def _same_file(a: Path, b: Path) -> bool:
@@ -206,6 +210,43 @@ def _check_in_folders(opt: str, path: Path, in_dirs: dict[str, Path],
             raise InputError(f"{path} would be a {real.suffix} file in the input folder {name} "
                              f"({folder}), which the command reads as input: write the output "
                              "outside it", option=opt)
+
+
+def choices(*values: str) -> str:
+    """The metavar of an option with a fixed set of values: ``[a|b|c]`` in ``--help``.
+
+    The command checks the value itself (one line naming the option and the valid values,
+    exit 2), so a metavar rather than a click type lists them.
+    """
+    return "[" + "|".join(values) + "]"
+
+
+#: calibration methods (kinecal.calibration.serial.api.CALIBRATION_METHODS without the
+#: hybrids, which are hybrid- and a metaheuristic; tests/cli/test_cli_papercuts.py checks it)
+CALIBRATION_METHOD_CHOICES = ("lm", "householder", "ga", "pso", "afsa", "sa-iafsa", "gwo",
+                              "igwo", "dlh-gwo-de", "de", "ga-hu2005", "pso-liu2008",
+                              "de-storn1997", "hybrid-<metaheuristic>")
+
+
+#: the values of ``--unit`` (kinecal.metrology.units.DISPLAY_UNITS)
+UNITS = ("auto", "mm", "um", "m")
+
+
+def unit_option() -> Any:
+    """The ``--unit`` option: the length unit of a command's printed summary."""
+    import typer
+
+    return typer.Option("auto", "--unit", metavar=choices(*UNITS), help="Length unit of the "
+                        "printed summary (auto: the model's, mm for a model in metres whose "
+                        "errors are below 1 m); files and JSON keep the model's unit.")
+
+
+def check_unit(unit: str) -> str | None:
+    """A ``--unit`` value for a summary (None for auto); `InputError` when unknown."""
+    if unit not in UNITS:
+        raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNITS)}",
+                         option="--unit")
+    return None if unit == "auto" else unit
 
 
 def seed_option(help: str = "Random seed (an integer >= 0).") -> Any:
@@ -375,6 +416,16 @@ def quiet_requested(quiet: bool) -> bool:
     return quiet or not sys.stderr.isatty()
 
 
+def progress_columns(total: int | None) -> list:
+    """The columns of a progress bar: ``done/total`` when the total is known, else the
+    count of steps done alone (an iteration count with no budget: never ``19/None``)."""
+    from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
+
+    count = "{task.completed}/{task.total}" if total is not None else "{task.completed} it."
+    return [TextColumn("[bold]{task.description}"), BarColumn(), TextColumn(count),
+            TextColumn("{task.fields[best]}"), TimeElapsedColumn()]
+
+
 @contextlib.contextmanager
 def progress(
     description: str, total: int | None, quiet: bool = False
@@ -387,16 +438,10 @@ def progress(
         yield lambda advance=1, best=None: None
         return
     from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import Progress
 
-    cols = [
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        TextColumn("{task.completed}/{task.total}"),
-        TextColumn("{task.fields[best]}"),
-        TimeElapsedColumn(),
-    ]
-    with Progress(*cols, console=Console(stderr=True), transient=True) as bar:
+    with Progress(*progress_columns(total), console=Console(stderr=True),
+                  transient=True) as bar:
         task = bar.add_task(description, total=total, best="")
 
         def update(advance: int = 1, best: float | None = None) -> None:

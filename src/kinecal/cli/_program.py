@@ -22,6 +22,7 @@ QUATERNION = ("qw", "qx", "qy", "qz")
 def program_columns(path: Path, model) -> tuple[list[str], list[str], list[str]]:
     """Header of a program CSV, checked, and its numeric columns: required and optional
     (the rows are read block by block, `kinecal.io.csvtable.read_blocks`)."""
+    from kinecal.io.csvtable import check_separator
     from kinecal.io.measurements import joint_columns
 
     try:
@@ -31,6 +32,7 @@ def program_columns(path: Path, model) -> tuple[list[str], list[str], list[str]]
         raise InputError(f"cannot read CSV: {exc}", file=path) from None
     if first is None:
         raise InputError("empty file; expected a header with q1..qn or x,y,z", file=path)
+    check_separator(first, path)
     header = [h.strip() for h in first]
     joints = joint_columns(header, model, path, required=False)  # q1..qn or joint names
     qcols = [c for c in header if c.startswith("q") and c[1:].isdigit()]

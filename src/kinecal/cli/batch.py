@@ -58,7 +58,8 @@ def _print_warnings(records) -> None:
 def batch(
     jobs_file: Path = typer.Argument(..., metavar="JOBS.yaml", help="Jobs file (YAML)."),
     out: Path = typer.Option(..., "--out", help="Output directory (results, summary.csv)."),
-    executor: str = typer.Option("local", "--executor", help="local (process pool) or dask."),
+    executor: str = typer.Option("local", "--executor", metavar="[local|dask]",
+                                 help="A local process pool or a Dask cluster."),
     scheduler: str | None = typer.Option(None, "--scheduler",
                                          help="Dask scheduler address (tcp://host:port)."),
     workers: int | None = typer.Option(None, "--workers",
@@ -140,6 +141,23 @@ def _run(jobs, jobs_file: Path, out: Path, executor: str, scheduler: str | None,
             raise typer.Exit(143 if isinstance(exc, Terminated) else 130) from None
 
 
+def _coverage_note(results: list[dict]) -> str | None:
+    """Why coverage.csv leaves out simulated jobs (``errors: random``: parameters held at
+    nominal are off too, their errors land in confounded partners, so the identified
+    values cannot check the standard errors), or None when it leaves none out."""
+    from kinecal.batch.tables import COVERAGE_ERRORS, coverage_estimable
+
+    left = [r for r in results if r.get("truth") and not coverage_estimable(r)]
+    if not left:
+        return None
+    what = ("no coverage table" if len(left) == len(results) else
+            f"the coverage table leaves out {len(left)} of {len(results)} jobs")
+    return (f"({what}: jobs with errors: {(left[0].get('job') or {}).get('errors', 'random')}"
+            " have errors on parameters the poses cannot identify, so their standard errors "
+            f"cannot be checked against the truth; a coverage study needs errors: "
+            f"{' or '.join(COVERAGE_ERRORS)}, docs/batch.md)")
+
+
 def _print_results(records, out: Path, quiet: bool) -> None:
     """The job table (failed jobs only beyond `MAX_PRINTED_ROWS`), and for simulated
     studies ``study.csv`` and ``coverage.csv`` with their tables."""
@@ -160,11 +178,16 @@ def _print_results(records, out: Path, quiet: bool) -> None:
     if simulated:
         rows = study_table(simulated)
         write_table_csv(out / "study.csv", rows)
-        cov = coverage_table(load_results(out, simulated))
-        write_table_csv(out / "coverage.csv", cov)
+        results = load_results(out, simulated)
+        cov = coverage_table(results)
+        if cov:
+            write_table_csv(out / "coverage.csv", cov)
         if not quiet:
             typer.echo("\nmedian over seeds (errors in the model's length unit, seconds per "
                        "job):\n" + format_table(rows))
             if cov:
                 typer.echo("\ncoverage of the 95 % intervals (identified +- 1.96 std):\n"
                            + format_table(cov))
+            note = _coverage_note(results)
+            if note is not None:
+                typer.echo(note)

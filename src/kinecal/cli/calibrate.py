@@ -12,9 +12,12 @@ from kinecal._limits import check_count, check_finite
 from kinecal.calibration.method_options import check_error_model_options, check_method_options
 from kinecal.cli._app import app
 from kinecal.cli._common import (
+    CALIBRATION_METHOD_CHOICES,
     MODEL_HELP,
     base_link_option,
     check_paths,
+    check_unit,
+    choices,
     echo_json,
     instrument_option,
     load_model_arg,
@@ -27,6 +30,7 @@ from kinecal.cli._common import (
     seed_option,
     strict_option,
     tip_link_option,
+    unit_option,
     warnings_scope,
     with_warnings,
     write_json,
@@ -40,6 +44,9 @@ from kinecal.cli.calibrate_kinds import (
 )
 from kinecal.errors import InputError
 
+#: --error-model values (and families joined by '+')
+ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto")
+
 
 @app.command()
 def identifiability(
@@ -47,19 +54,23 @@ def identifiability(
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     data: list[str] | None = typer.Option(
-        None, "--data", help="Measurement CSV of any kind (poses to analyse); repeat it for "
-        "a mix of kinds (docs/measurement-kinds.md)."),
+        None, "--data", help="CSV of the poses to analyse: measurements of any kind, or "
+        "joint values q1..qn alone (e.g. from select-poses); repeat it for a mix of kinds "
+        "(docs/measurement-kinds.md)."),
     poses: int | None = typer.Option(None, "--poses", help="Random poses when no --data is "
                                      "given (default 50)."),
-    free: str = typer.Option("all", "--free", help="all, identifiable or comma-separated names."),
+    free: str = typer.Option("all", "--free", metavar=choices("all", "identifiable", "NAMES"),
+                             help="All parameters, the identifiable ones or comma-separated "
+                             "names."),
     seed: int | None = typer.Option(None, "--seed", min=0, help="Random seed for the poses "
                                     "(without --data; default 0)."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON."),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
     error_model: str | None = typer.Option(
-        None, "--error-model", help="Also analyse joint-error terms: compliance, harmonic, "
-        "scale, full or families joined by '+' (default: the model file's joint_errors)."),
+        None, "--error-model", metavar=choices(*ERROR_MODELS[:-1]), help="Also analyse "
+        "joint-error terms, or families joined by '+' (default: the model file's "
+        "joint_errors)."),
     harmonics: int | None = typer.Option(None, "--harmonics",
                                          help="Harmonic order (default 2)."),
 ) -> None:
@@ -67,7 +78,6 @@ def identifiability(
     from kinecal.calibration.diagnostics.serial import check_pose_set
     from kinecal.calibration.serial.problem import resolve_free
     from kinecal.calibration.serial.simulate import simulate as run
-    from kinecal.io.measurements import read_measurements
     from kinecal.kinematics.serial.markers import model_for_markers
 
     for option, value in (("--poses", poses), ("--seed", seed)):
@@ -83,7 +93,7 @@ def identifiability(
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
         if data is not None:
-            meas = read_measurements(resolve_data_path(data, "--data"), m)
+            meas = _poses_to_analyse(m, resolve_data_path(data, "--data"))
         else:
             poses = check_count(50 if poses is None else poses, "--poses",
                                 bytes_per_item=POSE_BYTES * (m.n_joints + 10))
@@ -110,6 +120,22 @@ def identifiability(
                                              for k, v in report.observability.items()))
 
 
+def _poses_to_analyse(model, path):
+    """The `Measurements` of ``identifiability --data``: a measurement file as it is, or a
+    joints-only file (``q1..qn``, what ``select-poses`` writes) measured by the nominal
+    model (only the poses matter to the analysis)."""
+    from kinecal.calibration.serial.simulate import simulate as run
+    from kinecal.io.measurements import read_joints, read_markers, read_measurements
+    from kinecal.io.poses import first_csv_row
+
+    header = set(first_csv_row(path))
+    if header & {"x", "y", "z", "x_t"}:
+        return read_measurements(path, model)
+    q = read_joints(path, model)
+    marker, _ = read_markers(path, model)
+    return run(model, len(q), errors="zero", q=q, marker=marker).data
+
+
 @app.command()
 def calibrate(
     model: str = typer.Argument(..., help=MODEL_HELP),
@@ -118,29 +144,37 @@ def calibrate(
     data: list[str] = typer.Argument(..., help="Measurement CSV(s) or NAME:PART; several "
                                      "files of any kinds make one problem "
                                      "(docs/measurement-kinds.md)."),
-    method: str = typer.Option("lm", "--method", help="lm, householder, a metaheuristic "
-                               "(ga, pso, afsa, sa-iafsa, gwo, igwo, dlh-gwo-de, de) or hybrid-*."),
+    method: str = typer.Option("lm", "--method", metavar=choices(*CALIBRATION_METHOD_CHOICES),
+                               help="Levenberg-Marquardt, Householder Gauss-Newton, a "
+                               "metaheuristic, or least squares then a metaheuristic "
+                               "(hybrid-ga, ...). See docs/optimizers.md."),
     validate: list[str] | None = typer.Option(
         None, "--validate", help="Validation CSV or NAME:PART (any kind; repeatable)."),
     free: str = typer.Option("identifiable", "--free",
-                             help="identifiable, all or comma-separated names."),
+                             metavar=choices("identifiable", "all", "NAMES"),
+                             help="The identifiable parameters, all or comma-separated "
+                             "names."),
     seed: int = seed_option("Random seed (metaheuristics; an integer >= 0)."),
-    loss: str = typer.Option("linear", "--loss", help="linear, huber, soft_l1, cauchy, arctan."),
+    loss: str = typer.Option("linear", "--loss", metavar=choices(
+        "linear", "huber", "soft_l1", "cauchy", "arctan"), help="Loss of the residuals (robust "
+        "losses with lm only)."),
     maxiter: int | None = typer.Option(None, "--maxiter", help="Iteration budget."),
-    target: float | None = typer.Option(None, "--target", help="Stop at this mean error."),
+    target: float | None = typer.Option(None, "--target", help="Stop at this mean distance "
+                                        "error (model length unit; metaheuristics)."),
     out: Path | None = typer.Option(None, "--out", help="Result JSON to write."),
     model_out: Path | None = typer.Option(None, "--model-out", help="Calibrated model YAML."),
     report: Path | None = report_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
+    unit: str = unit_option(),
     quiet: bool = quiet_option(),
     strict: bool = strict_option(),
     rotation_weight: float | None = typer.Option(
         None, "--rotation-weight", help="With measured orientations: length units per rad of "
         "rotation error (default: the workspace's characteristic length)."),
     error_model: str | None = typer.Option(
-        None, "--error-model", help="geometric, compliance, harmonic, scale, full, auto "
-        "(chosen by cross-validation on the calibration poses) or families joined by '+' "
-        "(default: the model file's joint_errors, else geometric). See docs/error-models.md."),
+        None, "--error-model", metavar=choices(*ERROR_MODELS), help="auto: chosen by "
+        "cross-validation on the calibration poses; or families joined by '+' (default: the "
+        "model file's joint_errors, else geometric). See docs/error-models.md."),
     harmonics: int | None = typer.Option(
         None, "--harmonics", help="Harmonic order (default 2; auto tries 1..3)."),
     folds: int | None = typer.Option(None, "--folds", help="Cross-validation folds "
@@ -181,6 +215,7 @@ def calibrate(
     if method not in CALIBRATION_METHODS:
         raise InputError(f"unknown method {method!r}; expected one of "
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
+    shown = check_unit(unit)
     validate = validate or []
     if len(data) > 1 or len(validate) > 1 or any(
             file_kind(f, o) != "tracker" for f, o in [(data[0], "DATA")]
@@ -250,7 +285,7 @@ def calibrate(
     if json_out:
         echo_json(result)
     elif not quiet:
-        typer.echo(res.summary())
+        typer.echo(res.summary(shown))
 
 
 @app.command("select-poses")

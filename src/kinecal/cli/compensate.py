@@ -18,12 +18,15 @@ from kinecal.cli._app import app
 from kinecal.cli._common import (
     base_link_option,
     check_paths,
+    check_unit,
+    choices,
     echo_json,
     progress,
     quiet_option,
     resolve_data_path,
     strict_option,
     tip_link_option,
+    unit_option,
     warnings_scope,
     with_warnings,
 )
@@ -86,14 +89,11 @@ def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None
             raise InputError(f"{spec} is a bundled nominal model: expected the calibrated "
                              "model (calibrate --model-out) or result JSON (calibrate --out); "
                              "the nominal model goes to --nominal", option="CALIBRATED")
-        raise InputError(f"file not found: {spec}", option="CALIBRATED")
+        raise InputError("file not found", file=spec, option="CALIBRATED")
     if path.suffix.lower() == ".json":
         from kinecal._files import read_json
-        from kinecal.cli._serial_common import (
-            model_for_result,
-            parameters_from_result,
-            serial_result_parameters,
-        )
+        from kinecal.cli._serial_common import parameters_from_result
+        from kinecal.io.result_values import model_for_result, serial_result_parameters
 
         data = read_json(path)
         serial_result_parameters(data, path)
@@ -143,16 +143,19 @@ def compensate_cmd(
     position_only: bool = typer.Option(False, "--position-only", help="Compensate the tool "
                                        "point only (default: the full pose on arms with at "
                                        "least 6 joints, or when targets have orientations)."),
-    base: str = typer.Option("calibrated", "--base", help="calibrated (the program lives in "
+    base: str = typer.Option("calibrated", "--base", metavar=choices("calibrated", "nominal"),
+                             help="calibrated (the program lives in "
                              "the measured frame) or nominal (measured in an instrument's "
                              "frame: the base is registered onto the nominal arm)."),
-    tool: str = typer.Option("calibrated", "--tool", help="calibrated (the calibration "
+    tool: str = typer.Option("calibrated", "--tool", metavar=choices("calibrated", "nominal"),
+                             help="calibrated (the calibration "
                              "measured the program's tool) or nominal (it measured a target, "
                              "e.g. a tracker reflector: the nominal tool on the calibrated "
                              "arm)."),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the statistics as JSON."),
+    unit: str = unit_option(),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
 ) -> None:
@@ -161,6 +164,7 @@ def compensate_cmd(
     from kinecal.compensation.api import prepare_arms
     from kinecal.io.measurements import joint_columns
 
+    shown = check_unit(unit)
     check_paths({"CALIBRATED": calibrated, "PROGRAM": program, "--nominal": nominal},
                 {"--out": out})
     if base not in ("calibrated", "nominal"):
@@ -182,7 +186,7 @@ def compensate_cmd(
     if json_out:
         echo_json(with_warnings(stats, found))
     elif not quiet:
-        typer.echo(rows.summary())
+        typer.echo(rows.summary(shown))
         typer.echo(f"wrote {len(rows)} rows to {out}")
 
 

@@ -13,6 +13,7 @@ from kinecal.cli._app import app
 from kinecal.cli._common import (
     base_link_option,
     check_paths,
+    choices,
     load_model_arg,
     strict_option,
     tip_link_option,
@@ -74,11 +75,8 @@ def model_and_params(source: str, nominal: str | None, base_link: str | None,
     result the nominal model is `nominal`, or the bundled model the result names.
     """
     from kinecal._files import read_json
-    from kinecal.cli._serial_common import (
-        model_for_result,
-        parameters_from_result,
-        serial_result_parameters,
-    )
+    from kinecal.cli._serial_common import parameters_from_result
+    from kinecal.io.result_values import model_for_result, serial_result_parameters
 
     if not source.lower().endswith(".json"):
         if nominal is not None:
@@ -124,10 +122,10 @@ def export(
                                  "result JSON (kinecal calibrate --out) or, for ros-tf, a "
                                  "hand-eye result JSON (kinecal handeye --out)."),
     out: Path = typer.Option(..., "--out", help="File to write (.urdf, .yaml, .launch.py)."),
-    fmt: str | None = typer.Option(None, "--format", help="urdf, yaml, ur-kinematics "
-                                   "(ur_description's default_kinematics.yaml) or ros-tf "
-                                   "(a hand-eye result as a ROS 2 launch file; default: "
-                                   "from the --out suffix)."),
+    fmt: str | None = typer.Option(None, "--format", metavar=choices(*FORMATS),
+                                   help="ur-kinematics: ur_description's "
+                                   "default_kinematics.yaml; ros-tf: a hand-eye result as a "
+                                   "ROS 2 launch file (default: from the --out suffix)."),
     nominal: str | None = typer.Option(None, "--nominal", help="With a RESULT.json: the model "
                                        "it was calibrated from (default: the bundled model "
                                        "the result names)."),

@@ -20,7 +20,6 @@ from kinecal.cli._common import (
     tip_link_option,
     warnings_scope,
 )
-from kinecal.cli._serial_common import model_for_result, parameters_from_result
 
 
 @app.command()
@@ -77,7 +76,9 @@ def fk(
 ) -> None:
     """Forward kinematics: tool-point positions (CSV on stdout)."""
     from kinecal.calibration.diagnostics.serial import check_joint_limits, check_joint_units
+    from kinecal.cli._serial_common import parameters_from_result
     from kinecal.io.measurements import read_joints, read_markers
+    from kinecal.io.result_values import model_for_result
     from kinecal.spatial import quaternion_from_matrix
 
     with warnings_scope(strict):

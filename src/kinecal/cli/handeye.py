@@ -12,6 +12,7 @@ from kinecal._limits import check_count
 from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
+    choices,
     echo_json,
     instrument_option,
     note_option,
@@ -44,11 +45,8 @@ def resolve_pairs(spec: str) -> tuple[Path, str | None]:
     info = DATASETS.get(name)
     if info is not None and "pairs" in info["parts"] and part in ("", "pairs"):
         return dataset_dir(name) / info["parts"]["pairs"], _BUNDLED_SETUP.get(name)
-    raise InputError(
-        f"{spec}: no such file, and not a bundled hand-eye recording "
-        f"({', '.join(_BUNDLED_SETUP)})",
-        option="PAIRS",
-    )
+    raise InputError(f"file not found (nor a bundled hand-eye recording: "
+                     f"{', '.join(_BUNDLED_SETUP)})", file=spec, option="PAIRS")
 
 
 def _check_pairs_mode(method: str, refine: str, pairs_mode: str) -> None:
@@ -114,8 +112,12 @@ def one_axis_lines(one: dict | None, unit: str) -> list[str]:
             f"{length(one['board_height'])} ({one['board_height_is']}) along the axis"]
 
 
-_FORMAT_HELP = ("auto, quaternion, matrix (4x4), rotvec (UR), euler-zyx (KUKA A, B, C) or "
-                "rpy; append :deg for angles in degrees (e.g. euler-zyx:deg).")
+_FORMAT_HELP = ("matrix: 4x4, rotvec: UR, euler-zyx: KUKA A, B, C; append :deg for angles "
+                "in degrees (e.g. euler-zyx:deg).")
+#: the metavar of --robot-format and --target-format
+_FORMATS = choices("auto", "quaternion", "matrix", "rotvec", "euler-zyx", "rpy") + "[:deg]"
+#: the metavar of --method (kinecal.calibration.handeye.METHODS)
+HANDEYE_METHODS = ("tsai", "park", "horaud", "andreff", "daniilidis", "shah", "li")
 
 
 def read_pairs(pairs: str | None, robot_poses: Path | None, target_poses: Path | None,
@@ -154,25 +156,26 @@ def handeye(
     target_poses: Path | None = typer.Option(
         None, "--target-poses", help="Target poses in the camera (target2cam; cam2target "
         "with --invert-target), as --robot-poses, one per station in the same order."),
-    robot_format: str = typer.Option("auto", "--robot-format",
-                                     help="Rotation columns of the robot poses: " + _FORMAT_HELP),
-    target_format: str = typer.Option("auto", "--target-format",
-                                      help="Rotation columns of the target poses: "
+    robot_format: str = typer.Option("auto", "--robot-format", metavar=_FORMATS,
+                                     help="Rotation columns of the robot poses; " + _FORMAT_HELP),
+    target_format: str = typer.Option("auto", "--target-format", metavar=_FORMATS,
+                                      help="Rotation columns of the target poses; "
                                       + _FORMAT_HELP),
     invert_robot: bool = typer.Option(False, "--invert-robot", help="The robot poses are "
                                       "base2gripper (the base in the flange frame): invert."),
     invert_target: bool = typer.Option(False, "--invert-target", help="The target poses are "
                                        "cam2target: invert."),
     setup: str | None = typer.Option(
-        None, "--setup", help="eye-in-hand (default) or eye-to-hand (default of the bundled "
-        "camodocal recording)."
+        None, "--setup", metavar=choices("eye-in-hand", "eye-to-hand"), help="Camera on the "
+        "flange (default) or fixed (default of the bundled camodocal recording)."
     ),
-    method: str = typer.Option("park", "--method", help="tsai, park, horaud, andreff, "
-                               "daniilidis, shah or li."),
-    refine: str = typer.Option("lm", "--refine", help="none, lm (robust, default), igwo or "
-                               "dlh-gwo-de."),
-    pairs_mode: str = typer.Option("all", "--pairs", help="Motion pairs of the AX=XB closed "
-                                   "forms: all or consecutive."),
+    method: str = typer.Option("park", "--method", metavar=choices(*HANDEYE_METHODS),
+                               help="Closed-form solution."),
+    refine: str = typer.Option("lm", "--refine",
+                               metavar=choices("none", "lm", "igwo", "dlh-gwo-de"),
+                               help="Refinement of the closed form (lm: robust)."),
+    pairs_mode: str = typer.Option("all", "--pairs", metavar=choices("all", "consecutive"),
+                                   help="Motion pairs of the AX=XB closed forms."),
     seed: int = seed_option("Random seed (metaheuristic refiners; an integer >= 0)."),
     unit: str | None = typer.Option(None, "--unit", help="Length unit of the poses, for the "
                                     "output labels (default: the bundled recording's, else "
@@ -254,11 +257,13 @@ def handeye(
 @app.command("handeye-poses")
 def handeye_poses(
     distance: float = typer.Option(..., "--distance", help="|Pc|: camera height above the "
-                                   "target centre."),
-    radius: float = typer.Option(..., "--radius", help="Circumradius r of the star polygon."),
+                                   "target centre (length unit of the poses written)."),
+    radius: float = typer.Option(..., "--radius", help="Circumradius r of the star polygon "
+                                 "(length unit of the poses written)."),
     count: int = typer.Option(..., "--count", help="Number of poses N (>= 3)."),
-    scheme: str = typer.Option("star", "--scheme", help="star (Li, Xiao, Lai and Hu 2024, "
-                               "sec. 3) or random."),
+    scheme: str = typer.Option("star", "--scheme", metavar=choices("star", "random"),
+                               help="Star polygon (Li, Xiao, Lai and Hu 2024, sec. 3) or "
+                               "random poses."),
     seed: int = seed_option("Random seed (scheme random; an integer >= 0)."),
     out: Path = typer.Option(..., "--out", help="Output CSV: camera_* (cam2target) and "
                              "target_* (target2cam) poses."),

@@ -11,6 +11,7 @@ import typer
 from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
+    choices,
     echo_json,
     instrument_option,
     note_option,
@@ -93,14 +94,18 @@ def handeye_images(
     intrinsics: Path | None = typer.Option(None, "--intrinsics", help="Camera: ROS "
                                            "camera_calibration YAML, OpenCV FileStorage or "
                                            "JSON (default: estimated from the images)."),
-    setup: str = typer.Option("eye-in-hand", "--setup", help="eye-in-hand (camera on the "
-                              "flange) or eye-to-hand (camera fixed)."),
-    method: str = typer.Option("park", "--method", help="Closed form seeding the refinement."),
+    setup: str = typer.Option("eye-in-hand", "--setup",
+                              metavar=choices("eye-in-hand", "eye-to-hand"),
+                              help="Camera on the flange or fixed."),
+    method: str = typer.Option("park", "--method", metavar=choices(
+        "tsai", "park", "horaud", "andreff", "daniilidis", "shah", "li"),
+        help="Closed form seeding the refinement."),
     refine_intrinsics: bool | None = typer.Option(
         None, "--refine-intrinsics/--fix-intrinsics", help="Refine the intrinsics jointly "
         "with X (default: when estimated from the images, not when given)."),
-    robot_noise: str | None = typer.Option(None, "--robot-noise", help="ROT_DEG,TRANS: model "
-                                           "robot pose errors of this std (deg, length)."),
+    robot_noise: str | None = typer.Option(None, "--robot-noise", metavar="ROT_DEG,TRANS",
+                                           help="Model robot pose errors of this std (deg, "
+                                           "board length unit, e.g. 0.02,0.1)."),
     min_corners: int | None = typer.Option(None, "--min-corners", help="Fewest corners an "
                                            "image must show (ChArUco boards, seen in part; "
                                            "default 60 % of the board's corners, at least "

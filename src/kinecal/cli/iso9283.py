@@ -122,7 +122,8 @@ def iso9283_cmd(
         data = read_repeatability(path, m, length_unit)
         before = None
         if params is not None:
-            from kinecal.cli._serial_common import model_for_result, parameters_from_result
+            from kinecal.cli._serial_common import parameters_from_result
+            from kinecal.io.result_values import model_for_result
 
             m = model_for_result(m, params)
             before = iso9283(data, [])

@@ -9,6 +9,7 @@ import typer
 from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
+    choices,
     echo_json,
     instrument_option,
     note_option,
@@ -24,7 +25,7 @@ from kinecal.experiments import PAPERS, experiment_module
 
 @app.command()
 def reproduce(
-    paper: str = typer.Argument(..., help=f"Paper id: {', '.join(PAPERS)}."),
+    paper: str = typer.Argument(..., metavar=choices(*PAPERS), help="Paper id."),
     quick: bool = typer.Option(False, "--quick", help="Small version that runs in seconds."),
     json_out: bool = typer.Option(False, "--json", help="Print the table as JSON."),
     out: Path | None = typer.Option(None, "--out", help="Directory for result.json and figures."),

@@ -13,6 +13,7 @@ from kinecal.cli._common import (
     MODEL_HELP,
     base_link_option,
     check_paths,
+    choices,
     load_model_arg,
     quiet_option,
     seed_option,
@@ -29,10 +30,15 @@ def simulate(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
-    poses: int = typer.Option(..., "--poses", help="Number of random poses (a model with "
-                              "markers measures every marker at each: poses x markers rows); "
-                              "gauge kinds: rows per pivot, pairs, touches per point or plane."),
-    kind: str = typer.Option("tracker", "--kind", help="tracker (x,y,z), ballbar "
+    poses: int | None = typer.Option(None, "--poses", help="Number of random poses (a model "
+                                     "with markers measures every marker at each: poses x "
+                                     "markers rows); gauge kinds: rows per pivot, pairs, "
+                                     "touches per point or plane."),
+    joints: str | None = typer.Option(None, "--joints", help="Tracker: CSV of joint values "
+                                      "q1..qn (model angle unit; e.g. from select-poses) to "
+                                      "measure instead of random poses."),
+    kind: str = typer.Option("tracker", "--kind", metavar=choices(
+        "tracker", "ballbar", "pair", "point", "plane"), help="tracker (x,y,z), ballbar "
                              "(pivot,distance), pair (pair,distance), point or plane "
                              "(docs/measurement-kinds.md)."),
     pivot: list[str] | None = typer.Option(None, "--pivot", help="Ballbar pivot X,Y,Z "
@@ -49,8 +55,12 @@ def simulate(
                                       "pivots, points or planes (default 2, 4, 2)."),
     sigma_column: bool = typer.Option(False, "--sigma-column", help="Gauge kinds: write the "
                                       "noise as each row's sigma column."),
-    noise: float = typer.Option(0.0, "--noise", help="Gaussian noise sigma per coordinate."),
-    errors: str = typer.Option("random", "--errors", help="zero, random or TRUTH.json."),
+    noise: float = typer.Option(0.0, "--noise", help="Gaussian noise sigma per coordinate "
+                                "(model length unit, e.g. mm)."),
+    errors: str = typer.Option("random", "--errors", metavar=choices("zero", "random",
+                                                                     "TRUTH.json"),
+                               help="True errors: none, random within the model's tolerances, "
+                               "or those of a truth file (simulate --truth-out)."),
     seed: int = seed_option(),
     out: Path = typer.Option(..., "--out", help="Measurement CSV to write."),
     truth_out: Path | None = typer.Option(None, "--truth-out", help="Truth JSON to write."),
@@ -77,6 +87,11 @@ def simulate(
 ) -> None:
     """Simulate measurements of a model with true errors and noise (any measurement kind;
     with --images, rendered board images of its stations)."""
+    if (poses is None) == (joints is None):
+        raise InputError("expected --poses N (random poses) or --joints FILE (given poses), "
+                         "one of them", option="--joints" if joints is not None else "--poses")
+    if joints is not None and (images is not None or kind != "tracker"):
+        raise InputError("applies to tracker measurements (x,y,z) only", option="--joints")
     if images is not None:  # rendered stations of the arm: its own module
         from kinecal.cli.simulate_images import simulate_images
 
@@ -86,12 +101,16 @@ def simulate(
     from kinecal.calibration.serial.simulate import simulate as run
     from kinecal.io.measurements import write_measurements
 
-    check_paths({"MODEL": model, "--errors": None if errors in ("zero", "random") else errors},
-                {"--out": out, "--truth-out": truth_out})
+    check_paths({"MODEL": model, "--errors": None if errors in ("zero", "random") else errors,
+                 "--joints": joints}, {"--out": out, "--truth-out": truth_out})
     check_finite(noise, "--noise")
     check_finite(angle_noise, "--angle-noise")
     with warnings_scope(strict):
         m = load_model_arg(model, base_link, tip_link)
+        q = marker = None
+        if joints is not None:
+            q, marker = _read_joints(m, joints)
+            poses = len(q)
         check_count(poses, "--poses", bytes_per_item=POSE_BYTES * (m.n_joints + 10))
         if errors in ("zero", "random"):
             err: object = errors
@@ -115,7 +134,7 @@ def simulate(
         check_angle_noise(angle_noise * to_rad, "--angle-noise", f"{angle_noise:g} "
                           f"{m.angle_unit}")  # in the unit given (simulate checks the rest)
         sim = run(m, poses, errors=err, noise=noise, rng=seed, orientation=orientation,
-                  angle_noise=angle_noise * to_rad)
+                  angle_noise=angle_noise * to_rad, q=q, marker=marker)
         write_measurements(out, sim.data, m)
         if truth_out is not None:
             write_truth(truth_out, m, sim.true_params)
@@ -123,3 +142,17 @@ def simulate(
         typer.echo(f"wrote {poses} poses to {out}"
                    + (f", truth to {truth_out}" if truth_out else ""), err=True)
 
+
+def _read_joints(model, spec: str):
+    """Joint values ``(N, n)`` (rad) of a ``--joints`` CSV and its marker column (the marker
+    index per row, or None: every row measured at every marker of the model)."""
+    from kinecal.cli._common import resolve_data_path
+    from kinecal.io.measurements import read_joints, read_markers
+
+    path = resolve_data_path(spec, "--joints")
+    q = read_joints(path, model)
+    marker, names = read_markers(path, model)
+    if marker is not None and tuple(names) != tuple(model.marker_names):
+        raise InputError("a marker column needs a model with markers (its names)",
+                         file=path)
+    return q, marker

@@ -17,6 +17,8 @@ from kinecal._limits import check_count
 from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
+    check_unit,
+    choices,
     echo_json,
     instrument_option,
     note_option,
@@ -27,6 +29,7 @@ from kinecal.cli._common import (
     resolve_data_path,
     seed_option,
     strict_option,
+    unit_option,
     warnings_scope,
     with_warnings,
     write_json,
@@ -116,7 +119,8 @@ def ik(
 def fk(
     geometry: str = typer.Argument(..., help="Bundled geometry name or YAML path."),
     legs: str = typer.Argument(..., help="CSV with l1..l6."),
-    method: str = typer.Option("newton", "--method", help="newton or pso (Liu, Liu, Wei 2008)."),
+    method: str = typer.Option("newton", "--method", metavar=choices("newton", "pso"),
+                               help="Exact Newton solver or the PSO of Liu, Liu, Wei 2008."),
     all_modes: bool = typer.Option(False, "--all", help="Every real assembly mode, one row each."),
     seed: int = seed_option("Random seed (pso, --all; an integer >= 0)."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON instead of CSV."),
@@ -247,14 +251,15 @@ def simulate(
     geometry: str = typer.Argument(..., help="Nominal geometry (bundled name or YAML path)."),
     poses: int = typer.Option(60, "--poses", help="Number of random workspace poses."),
     errors: str = typer.Option(
-        "1e-3", "--errors", help="Amplitude of uniform geometry errors, or a TRUE.yaml geometry."
+        "1e-3", "--errors", metavar="AMPLITUDE|TRUE.yaml", help="Amplitude of uniform "
+        "geometry errors (geometry length unit), or a TRUE.yaml geometry."
     ),
     noise_position: float = typer.Option(1e-6, "--noise-position", help="Tip position std "
-                                         "(at most the machine's size)."),
+                                         "(geometry length unit; at most the machine's size)."),
     noise_rotation: float = typer.Option(1.0, "--noise-rotation", help="Orientation std, "
                                          "arcsec (at most 1 rad = 206265 arcsec)."),
-    noise_legs: float = typer.Option(1e-6, "--noise-legs", help="Leg reading std (at most "
-                                     "the machine's size)."),
+    noise_legs: float = typer.Option(1e-6, "--noise-legs", help="Leg reading std (geometry "
+                                     "length unit; at most the machine's size)."),
     seed: int = seed_option(),
     out: Path = typer.Option(..., "--out", help="DATA.csv: x..gamma (deg) and l1..l6."),
     truth_out: Path | None = typer.Option(None, "--truth-out", help="Write the true geometry."),
@@ -340,6 +345,7 @@ def calibrate(
     ),
     report: Path | None = report_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
+    unit: str = unit_option(),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
     instrument: str | None = instrument_option(),
@@ -350,6 +356,7 @@ def calibrate(
     from kinecal.calibration.stewart.calibrate import StewartData, calibrate_stewart
     from kinecal.io.geometry import save_geometry
 
+    shown = check_unit(unit)
     check_paths({"GEOMETRY": geometry, "DATA": data, "--validate": validate},
                 {"--out": out, "--geometry-out": geometry_out, "--report": report})
     record = report_record(report, {"GEOMETRY": geometry, "DATA": data, "--validate": validate},
@@ -382,4 +389,4 @@ def calibrate(
     if json_out:
         echo_json(result)
     elif not quiet:
-        typer.echo(res.summary())
+        typer.echo(res.summary(shown))

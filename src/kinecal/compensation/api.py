@@ -90,13 +90,15 @@ def compensate(
 
     Parameters
     ----------
-    calibrated : SerialModel, CalibrationResult, Arms or array_like (n_params,)
+    calibrated : SerialModel, CalibrationResult, str, Path, Arms or array_like (n_params,)
         The calibrated arm: a model (e.g. ``load_model("calibrated.yaml")``), a calibration
-        result (its nominal model is used when `nominal` is None), the calibrated
-        parameter vector of `nominal`, or both models already checked (`prepare_arms`;
-        `nominal`, `base` and `tool` are then ignored).
-    nominal : SerialModel, optional
-        The model the controller runs (required unless `calibrated` is a result).
+        result (its nominal model is used when `nominal` is None; also one read by
+        `kinecal.load_result`), a path of either (a model file, or a result JSON), the
+        calibrated parameter vector of `nominal`, or both models already checked
+        (`prepare_arms`; `nominal`, `base` and `tool` are then ignored).
+    nominal : SerialModel, str or Path, optional
+        The model the controller runs (required unless `calibrated` is a result); a bundled
+        name or a model file path is loaded.
     joints : array_like, shape (N, n_joints), optional
         A joint program (rad; prismatic joints in the length unit).
     targets : array_like, shape (N, 3), (N, 7) or (N, 4, 4), optional

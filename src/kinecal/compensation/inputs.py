@@ -4,12 +4,12 @@ joints and Cartesian targets, and the calibrated base frame's distance from nomi
 from __future__ import annotations
 
 import dataclasses
-from os import PathLike
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kinecal.calibration.serial.inputs import as_calibrated, as_model, is_path
 from kinecal.compensation.findings import outside_limits_message
 from kinecal.compensation.same_arm import Registration, in_length_unit
 from kinecal.errors import InputError
@@ -102,7 +102,12 @@ def with_nominal_tool(calibrated: SerialModel, nominal: SerialModel) -> SerialMo
 
 
 def program_models(calibrated: Any, nominal: SerialModel | None) -> tuple[SerialModel, SerialModel]:
-    """(nominal, calibrated) from a model, a CalibrationResult or a parameter vector."""
+    """(nominal, calibrated) from a model, a CalibrationResult or a parameter vector; a
+    model file, a result JSON or a bundled name given as a path is loaded (`as_calibrated`,
+    `as_model`)."""
+    if nominal is not None:
+        nominal = as_model(nominal, "nominal")
+    calibrated = as_calibrated(calibrated, nominal)
     if hasattr(calibrated, "nominal_model") and hasattr(calibrated, "model"):  # a result
         nom = calibrated.nominal_model if nominal is None else nominal
         cal = calibrated.model
@@ -111,10 +116,10 @@ def program_models(calibrated: Any, nominal: SerialModel | None) -> tuple[Serial
             raise InputError("compensate needs the nominal model (what the controller runs) "
                              "beside a calibrated model", option="--nominal")
         nom, cal = nominal, calibrated
-    elif isinstance(calibrated, (str, bytes, PathLike)):
-        raise InputError(f"calibrated: got the path or name {str(calibrated)!r}; expected a "
-                         "SerialModel (kinecal.load_model(path)), a CalibrationResult or a "
-                         "parameter vector")
+    elif isinstance(calibrated, dict) or np.asarray(calibrated).dtype.kind not in "biuf":
+        raise TypeError(f"calibrated: expected a SerialModel, a CalibrationResult (or "
+                        "kinecal.load_result), a model or result file path or a parameter "
+                        f"vector, got {type(calibrated).__name__}")
     else:
         if nominal is None:
             raise InputError("a calibrated parameter vector needs its nominal model",
@@ -132,6 +137,9 @@ def program_models(calibrated: Any, nominal: SerialModel | None) -> tuple[Serial
 
 def program_targets(targets: ArrayLike) -> Array:
     """(N, 3) points, (N, 7) x,y,z,qw,qx,qy,qz or (N, 4, 4) frames -> (N, 3) / (N, 4, 4)."""
+    if is_path(targets):
+        raise TypeError("targets: expected an array (N, 3), (N, 7) or (N, 4, 4); read a "
+                        "targets CSV with kinecal.io.csvtable.read_table")
     t = np.asarray(targets, dtype=float)
     if t.ndim == 2 and t.shape[1] == 7:
         q = t[:, 3:]
@@ -154,6 +162,9 @@ def program_targets(targets: ArrayLike) -> Array:
 def program_joints(model: SerialModel, q: ArrayLike, what: str, warn: Any) -> Array:
     """Joint values `q` ``(N, n_joints)`` (or one row) of `what` (program joints, seed
     joints), finite; rows outside the joint limits warn (``joints-outside-limits``)."""
+    if is_path(q):
+        raise TypeError(f"{what}: expected an array (N, {model.n_joints}) in radians; read a "
+                        "joints CSV with kinecal.io.measurements.read_joints(path, model)")
     a = np.asarray(q, dtype=float)
     if a.ndim == 1 and a.size == model.n_joints:
         a = a[None]

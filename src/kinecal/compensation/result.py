@@ -10,13 +10,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.kinematics.serial.ik import STATUS, IKResult
+from kinecal.metrology.units import display_unit
 
 __all__ = ["CompensationResult", "ProgramRows"]
 
 Array = NDArray[np.float64]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class CompensationResult:
     """Outcome of `compensate`, one row per program line.
 
@@ -88,9 +89,21 @@ class CompensationResult:
                            self.converged, self.status, self.dq, self.length_unit,
                            self.prismatic)
 
-    def summary(self) -> str:
-        """A few lines: rows, convergence, size of the corrections and of the residuals."""
-        return self.rows().summary()
+    def __repr__(self) -> str:
+        ok = self.converged
+        text = (f"<CompensationResult {len(self)} {self.kind} ({self.outputs}): "
+                f"{int(ok.sum())} converged")
+        if ok.any():
+            u, f = (display_unit(self.length_unit, None, self.correction[ok])
+                    if self.length_unit else ("length unit", 1.0))
+            text += f", correction max {self.correction[ok].max() * f:.4g} {u}"
+        return text + ">"
+
+    def summary(self, unit: str | None = None) -> str:
+        """A few lines: rows, convergence, size of the corrections and of the residuals;
+        lengths in `unit` (``mm``, ``um``, ``m``; by default the model's, millimetres for a
+        model in metres: `kinecal.metrology.units.display_unit`)."""
+        return self.rows().summary(unit)
 
     def joint_motion(self) -> tuple[Array, Array]:
         """Largest joint change per row ``(N,)``: over the revolute joints (rad) and over
@@ -138,24 +151,30 @@ class ProgramRows:
         """Rows per IK status (`kinecal.kinematics.serial.ik.STATUS`, zeros included)."""
         return {s: int(np.count_nonzero(self.status == s)) for s in STATUS}
 
-    def summary(self) -> str:
-        """A few lines: rows, convergence, size of the corrections and of the residuals."""
-        n, unit = len(self), self.length_unit or "length unit"
+    def summary(self, unit: str | None = None) -> str:
+        """A few lines: rows, convergence, size of the corrections and of the residuals;
+        lengths in `unit` (see `CompensationResult.summary`)."""
+        n = len(self)
+        if self.length_unit:
+            unit, f = display_unit(self.length_unit, unit, self.correction[self.converged])
+        else:
+            unit, f = "length unit", 1.0
         ok = self.converged
         lines = [f"compensated {n} {'joint-program rows' if self.kind == 'joints' else 'targets'}"
                  f" ({self.outputs}): {int(ok.sum())} converged"]
         rows = self._statistics_rows()
         which = " (converged rows)" if not ok.all() else ""
         if n and ok.any():
-            c = self.correction[rows]
+            c = self.correction[rows] * f
             lines.append(f"correction{which}: mean {c.mean():.4g} {unit}, max {c.max():.4g} "
-                         f"{unit}; " + self._joint_motion(unit, rows))
+                         f"{unit}; " + self._joint_motion((unit, f), rows))
             if self.outputs == "pose":
                 a = np.degrees(self.correction_rotation[rows])
                 lines.append(f"correction angle{which}: mean {a.mean():.4g} deg, max "
                              f"{a.max():.4g} deg")
             if ok.any():
-                lines.append(f"residual (converged rows): max {self.residual[ok].max():.3g} {unit}"
+                lines.append(f"residual (converged rows): max {self.residual[ok].max() * f:.3g} "
+                             f"{unit}"
                              + (f", {self.residual_rotation[ok].max():.3g} rad"
                                 if self.outputs == "pose" else ""))
         for s, k in self.counts().items():
@@ -184,16 +203,17 @@ class ProgramRows:
         lin = dq[:, pris].max(axis=1) if pris.any() else np.zeros(n)
         return rev, lin
 
-    def _joint_motion(self, unit: str, rows: NDArray[np.bool_]) -> str:
-        """``joints up to 0.8 deg`` (revolute in degrees, prismatic in the length unit) over
-        `rows`."""
+    def _joint_motion(self, shown: tuple[str, float], rows: NDArray[np.bool_]) -> str:
+        """``joints up to 0.8 deg`` (revolute in degrees, prismatic in the length unit
+        `shown`, ``(name, factor)``) over `rows`."""
+        unit, f = shown
         pris = self._prismatic()
         rev, lin = (m[rows] for m in self.joint_motion())
         parts = []
         if (~pris).any():
             parts.append(f"{np.degrees(rev.max()):.4g} deg")
         if pris.any():
-            parts.append(f"{lin.max():.4g} {unit} (prismatic)")
+            parts.append(f"{lin.max() * f:.4g} {unit} (prismatic)")
         return "joints up to " + ", ".join(parts)
 
     def stats(self) -> dict[str, Any]:

@@ -1,6 +1,8 @@
-"""Bundled real measurement data, each folder with its upstream LICENSE.
+"""Bundled real measurement data and the example files of the docs, each folder with its
+LICENSE.
 
-Addressed as ``NAME:PART`` wherever a CSV path is accepted (``ur5-laser-tracker:grid``).
+Addressed as ``NAME:PART`` wherever a CSV path is accepted (``ur5-laser-tracker:grid``);
+``kinecal datasets NAME`` writes a set's files into a folder (`files`).
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ from pathlib import Path
 
 from kinecal.errors import InputError
 
-__all__ = ["DATASETS", "bundled_csv", "dataset_dir"]
+__all__ = ["DATASETS", "bundled_csv", "dataset_dir", "files"]
 
 #: name -> description, license, the model it belongs to and its parts (file names)
 DATASETS: dict[str, dict] = {
@@ -48,6 +50,27 @@ DATASETS: dict[str, dict] = {
         "parts": {"pairs": "pairs.csv", "robot": "robot_cali.txt", "camera": "cali.txt",
                   "reference": "transformations.txt"},
     },
+    "kr16-urdf": {
+        "description": (
+            "KUKA KR 16-2 URDF of ROS-Industrial's kuka_experimental (meshes not included): "
+            "the robot of the URDF walkthrough (docs/urdf.md)."
+        ),
+        "source": "ros-industrial/kuka_experimental kuka_kr16_support, via rtb-data 2.0.0",
+        "license": "BSD",
+        "model": None,
+        "parts": {"urdf": "kr16_2.urdf"},
+    },
+    "handeye-formats": {
+        "description": (
+            "One synthetic, noise-free eye-in-hand recording of 9 stations in the formats "
+            "robots and cameras write: base2gripper 4x4 rows, KUKA X,Y,Z,A,B,C (deg), board "
+            "poses as tvec + rvec (docs/handeye.md)."
+        ),
+        "source": "kinecal (synthetic)",
+        "license": "MIT",
+        "model": None,
+        "parts": {"base2gripper": "base2gripper.csv", "kuka": "kuka.csv", "board": "board.csv"},
+    },
 }
 
 
@@ -56,6 +79,12 @@ def dataset_dir(name: str) -> Path:
     if name not in DATASETS:
         raise InputError(f"unknown dataset {name!r}; bundled: {', '.join(DATASETS)}")
     return Path(str(resources.files("kinecal") / "datasets" / name))
+
+
+def files(name: str) -> list[Path]:
+    """The files of a bundled set: its parts and its LICENSE."""
+    folder = dataset_dir(name)
+    return [folder / f for f in DATASETS[name]["parts"].values()] + [folder / "LICENSE"]
 
 
 def bundled_csv(spec: str) -> Path:

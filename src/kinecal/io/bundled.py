@@ -70,7 +70,7 @@ def resolve_machine_file(name_or_path: str | Path, kind: str, option: str | None
         if path.is_dir():
             raise InputError(f"is a directory, expected a {label} file (YAML)", file=path)
         if not path.is_file():
-            raise InputError(f"{label} file not found", file=path)
+            raise InputError("file not found", file=path)
         return path
     if bundled_index().get(str(name_or_path)) == kind:
         return robots_dir() / f"{name_or_path}.yaml"

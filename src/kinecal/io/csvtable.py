@@ -33,7 +33,8 @@ from numpy.typing import NDArray
 from kinecal._files import atomic_open
 from kinecal.errors import InputError
 
-__all__ = ["MAX_CELL", "read_blocks", "read_column", "read_table", "write_table"]
+__all__ = ["MAX_CELL", "check_separator", "read_blocks", "read_column", "read_table",
+           "write_table"]
 
 #: lines per block of the checked (second) reading pass
 BLOCK_LINES = 65536
@@ -119,10 +120,33 @@ def _header(path: Path, required: Sequence[str]) -> tuple[list[str], int]:
             for n, line in enumerate(fh, start=1):
                 row = next(csv.reader([line]), [])
                 if row and any(c.strip() for c in row):
+                    check_separator(row, path)
                     return [h.strip() for h in row], n
         except (OSError, UnicodeDecodeError, csv.Error) as exc:
             raise InputError(f"cannot read CSV: {exc}", file=path) from None
     raise InputError(f"empty file; expected a header with {', '.join(required)}", file=path)
+
+
+#: separators of CSV exports that are not commas (spreadsheets in locales with decimal
+#: commas write ";"), by the name a message gives them
+_SEPARATORS = {";": "semicolons (;)", "\t": "tabs", "|": "vertical bars (|)"}
+
+
+def check_separator(header: Sequence[str], path: str | Path | None = None) -> None:
+    """Refuse a header that did not split at commas because another separator was used.
+
+    A one-cell header holding ``;``, tabs or ``|`` between names (``q1;q2;...;z``, what a
+    spreadsheet in a locale with decimal commas exports) would otherwise be reported as
+    missing every column. Raises `InputError` naming the separator seen.
+    """
+    cells = [c for c in header if c.strip()]
+    if len(cells) != 1:
+        return
+    for sep, name in _SEPARATORS.items():
+        if sep in cells[0] and len([p for p in cells[0].split(sep) if p.strip()]) > 1:
+            raise InputError(f"the header is one column separated by {name}, not commas: "
+                             "kinecal reads comma-separated CSV with decimal points; save the "
+                             "file comma-separated", file=path)
 
 
 def _parse(lines, skip: int = 0, usecols: list[int] | None = None) -> NDArray[np.float64]:

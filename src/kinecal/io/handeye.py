@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
-from kinecal.io.csvtable import write_table
+from kinecal.io.csvtable import check_separator, write_table
 from kinecal.io.matrices import (
     load_filestorage,
     matrix_entry,
@@ -253,6 +253,7 @@ def read_robot_poses(path: str | Path,
     wanted = [IMAGE_COLUMN, *FLANGE_COLUMNS]
     if not rows:
         raise InputError(f"empty file; expected a header with {', '.join(wanted)}", file=path)
+    check_separator(rows[0], path)
     header = [h.strip().lower() for h in rows[0]]
     if IMAGE_COLUMN not in header:
         raise InputError(f"missing column {IMAGE_COLUMN} (the image file name of each row); "

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from kinecal import diagnostics
 from kinecal.data import Measurements
 from kinecal.errors import InputError
-from kinecal.io.csvtable import read_column, read_table, write_table
+from kinecal.io.csvtable import check_separator, read_column, read_table, write_table
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
@@ -105,11 +105,25 @@ def csv_header(path: Path) -> list[str]:
     """The header cells of a CSV file (InputError naming the file when unreadable)."""
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
-            return [h.strip() for h in next(csv.reader(fh), [])]
+            header = next(csv.reader(fh), [])
     except FileNotFoundError:
         raise InputError("file not found", file=path) from None
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"cannot read CSV: {exc}", file=path) from None
+    check_separator(header, path)
+    return [h.strip() for h in header]
+
+
+def _as_model(model: SerialModel | str | Path) -> SerialModel:
+    """`model`, or the model a bundled name or a model file path names."""
+    if isinstance(model, SerialModel):
+        return model
+    if isinstance(model, str | Path):
+        from kinecal.io.models import load_model
+
+        return load_model(model)
+    raise TypeError(f"model: expected a SerialModel, a bundled model name or a model file "
+                    f"path, got {type(model).__name__}")
 
 
 def resolve_csv(path: str | Path) -> Path:
@@ -166,6 +180,7 @@ def read_joints(path: str | Path, model: SerialModel) -> NDArray[np.float64]:
     """Joint values ``(N, n_joints)`` (rad; prismatic: length unit) from a CSV with
     ``q1..qn`` or the model's joint names (model angle unit; other columns ignored) or a
     laser-tracker export (``joint_1..``, degrees)."""
+    model = _as_model(model)
     path = resolve_csv(path)
     header = csv_header(path)
     if "joint_1" in header and "x_t" in header:
@@ -180,11 +195,14 @@ def read_joints(path: str | Path, model: SerialModel) -> NDArray[np.float64]:
 def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
     """Read a measurement CSV for `model` (a path or a bundled ``NAME:PART``).
 
+    `model` may also be a bundled name or a model file path (loaded).
+
     Raises
     ------
     InputError
         Missing columns, wrong joint count, NaN or non-numeric cells (with the row).
     """
+    model = _as_model(model)
     path = resolve_csv(path)
     header = csv_header(path)
     n = model.n_joints

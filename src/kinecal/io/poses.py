@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.errors import InputError
-from kinecal.io.csvtable import read_table
+from kinecal.io.csvtable import check_separator, read_table
 from kinecal.io.matrices import check_matrices, read_matrix_lists
 from kinecal.spatial import (
     invert_transform,
@@ -205,6 +205,7 @@ def first_csv_row(path: Path) -> list[str]:
         raise InputError("file not found", file=path) from None
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"cannot read CSV: {exc}", file=path) from None
+    check_separator(first, path)
     return [c.strip() for c in first]
 
 

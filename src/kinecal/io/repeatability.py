@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from kinecal.data import RepeatedPoses
 from kinecal.errors import InputError
-from kinecal.io.csvtable import read_column, read_table
+from kinecal.io.csvtable import check_separator, read_column, read_table
 from kinecal.spatial import matrix_from_quaternion
 
 __all__ = ["read_repeatability"]
@@ -40,6 +40,7 @@ def _header(path: Path) -> list[str]:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             for row in csv.reader(fh):
                 if row and any(c.strip() for c in row):
+                    check_separator(row, path)
                     return [h.strip() for h in row]
     except FileNotFoundError:
         raise InputError("file not found", file=path) from None

@@ -189,7 +189,7 @@ def distance_figures(data: RepeatedPoses, first: int, second: int) -> dict[str, 
     return out
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Iso9283Result:
     """ISO 9283 figures of a test (`iso9283`).
 
@@ -211,6 +211,13 @@ class Iso9283Result:
     poses: dict[str, Array]
     pairs: list[tuple[int, int]] = field(default_factory=list)
     distances: list[dict[str, float]] = field(default_factory=list)
+
+    def __repr__(self) -> str:
+        d = self.data
+        return (f"<Iso9283Result {len(d.labels)} poses x {d.n_cycles} cycles: AP max "
+                f"{float(np.max(self.poses['AP'])):.4g}, RP max "
+                f"{float(np.max(self.poses['RP'])):.4g} {d.length_unit}, "
+                f"{len(self.distances)} distance pairs>")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict: ``standard, cycles, length_unit, angle_unit ("deg"), poses:

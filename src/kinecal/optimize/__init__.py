@@ -6,9 +6,13 @@
 >>> bool(res.fun < 1e-8)
 True
 
-Methods (:data:`METHODS`): ``ga`` (papers/000), ``pso`` (papers/004), ``afsa`` and ``sa-iafsa``
-(papers/002), ``gwo`` (Mirjalili 2014), ``igwo`` (Nadimi-Shahraki et al. 2021), ``dlh-gwo-de``
-(papers/001) and ``de`` (Storn and Price 1997). More can be added with :func:`register`.
+Methods (:data:`METHODS`): ``ga`` (Deb's SBX GA) and ``ga-hu2005`` (papers/000), ``pso``
+(Clerc and Kennedy's constriction PSO) and ``pso-liu2008`` (papers/004), ``afsa`` and
+``sa-iafsa`` (papers/002), ``gwo`` (Mirjalili 2014), ``igwo`` (Nadimi-Shahraki et al. 2021),
+``dlh-gwo-de`` (papers/001), ``de`` (JADE, Zhang and Sanderson 2009) and ``de-storn1997``
+(Storn and Price 1997). ``ga``, ``pso`` and ``de`` are the variants that search best at an
+equal budget; the ``-<paper>`` variants keep the papers' algorithms and settings
+(``benchmarks/bench_swarm.py``). More can be added with :func:`register`.
 """
 
 from __future__ import annotations
@@ -31,11 +35,11 @@ from kinecal.optimize._common import (
     seed_points,
 )
 from kinecal.optimize.afsa import AFSA, SAIAFSA
-from kinecal.optimize.de import DE
-from kinecal.optimize.ga import GA
+from kinecal.optimize.de import AdaptiveDE, ClassicDE
+from kinecal.optimize.ga import SBXGA, ArithmeticGA
 from kinecal.optimize.gwo import GWO, IGWO
 from kinecal.optimize.gwo_de import DLHGWODE
-from kinecal.optimize.pso import PSO
+from kinecal.optimize.pso import ConstrictionPSO, LinearInertiaPSO
 
 __all__ = [
     "METHODS",
@@ -88,7 +92,19 @@ def get_method(name: str) -> type[Optimizer]:
     return _REGISTRY[key]
 
 
-for _cls in (GA, PSO, AFSA, SAIAFSA, GWO, IGWO, DLHGWODE, DE):
+for _cls in (
+    SBXGA,
+    ConstrictionPSO,
+    AFSA,
+    SAIAFSA,
+    GWO,
+    IGWO,
+    DLHGWODE,
+    AdaptiveDE,
+    ArithmeticGA,
+    LinearInertiaPSO,
+    ClassicDE,
+):
     register(_cls.name, _cls)
 
 #: Built-in method names.

@@ -5,7 +5,9 @@ Gauss-Newton) gives a sub-optimal solution quickly; (2) the GA's gene ranges are
 on that solution and each parameter's range is shrunk to 1/3 of its tolerance range; the
 GA then refines it. Here any metaheuristic of `kinecal.optimize` can be the second stage
 (``hybrid-ga``, ``hybrid-sa-iafsa``, ``hybrid-pso``, ...), the shrink factor is an option,
-and the least-squares solution is also seeded into the initial population.
+and the least-squares solution is also seeded into the initial population. The paper's own GA
+is ``ga-hu2005`` (``hybrid-ga-hu2005``, what ``kinecal reproduce hu2005`` runs); ``ga`` is
+Deb's SBX GA.
 """
 
 from __future__ import annotations

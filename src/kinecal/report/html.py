@@ -52,24 +52,26 @@ __all__ = [
 ]
 
 # --------------------------------------------------------------------- calibration
-def _calibration_sections(result: Any, pngs: dict[str, bytes],
-                          provenance: Provenance | None = None,
-                          validation: Any = None) -> list[str]:
+def _model_and_data(result: Any) -> str:
+    """The "Model and data" table: model, units, method, pose counts, solver figures."""
     nom = result.nominal_model
-    unit = nom.length_unit
     angle = "deg" if nom.angle_unit == "deg" else "rad"
-    rep = result.identifiability
     n_val = None if result.val_before is None else int(result.val_before.size)
     data_src = result.extra.get("data") if isinstance(result.extra, dict) else None
-    summary = kv([
+    return kv([
         ("model", nom.name), ("convention", nom.convention), ("joints", nom.n_joints),
-        ("parameters", nom.n_params), ("units", f"{unit}, {angle}"),
+        ("parameters", nom.n_params), ("units", f"{nom.length_unit}, {angle}"),
         ("method", result.method), ("seed", result.seed),
         ("calibration poses", int(result.errors_before.size)), ("validation poses", n_val),
         *([("data", data_src)] if data_src else []),
         ("iterations", int(result.iterations)), ("evaluations", int(result.evaluations)),
         ("time [s]", float(result.seconds)), ("solver message", result.message or "-"),
     ])
+
+
+def _identifiability(result: Any) -> str:
+    """Rank, condition number, observability and what is confounded with what."""
+    rep = result.identifiability
     confounded = confounded_rows(result)
     ident = kv([
         ("rank", f"{rep.rank} of {len(rep.names)}"),
@@ -78,27 +80,38 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes],
         *[(k, float(v)) for k, v in rep.observability.items()],
     ])
     if confounded:
-        ident += ("<p>Not identifiable from these poses (held at nominal; when freed "
-                  "explicitly, free with an arbitrary value), with the identifiable "
-                  "parameters each is a combination of:</p>"
-                  + table(["parameter", "combination of"], confounded, left=2))
-    else:
-        ident += "<p>Every candidate parameter is identifiable from these poses.</p>"
+        return ident + ("<p>Not identifiable from these poses (held at nominal; when freed "
+                        "explicitly, free with an arbitrary value), with the identifiable "
+                        "parameters each is a combination of:</p>"
+                        + table(["parameter", "combination of"], confounded, left=2))
+    return ident + "<p>Every candidate parameter is identifiable from these poses.</p>"
+
+
+def _parameters(result: Any) -> str:
+    """Nominal, identified, delta, u (1 sigma) and U (k = 2) of every parameter."""
+    nom = result.nominal_model
+    angle = "deg" if nom.angle_unit == "deg" else "rad"
     ptab = result.parameter_table()
-    names = list(ptab)
     is_angle = dict(zip(nom.parameter_names, nom.is_angle(), strict=True))
+
     def u(e: dict, k: float) -> Any:
         if not e["free"]:
             return None
         return k * e["std"] if math.isfinite(e["std"]) else "not identifiable"
 
-    prow = [(n, angle if is_angle[n] else unit, e["nominal"], e["identified"],
+    prow = [(n, angle if is_angle[n] else nom.length_unit, e["nominal"], e["identified"],
              e["identified"] - e["nominal"], u(e, 1.0), u(e, COVERAGE_K),
              "free" if e["free"] else "fixed") for n, e in ptab.items()]
-    params = table(["parameter", "unit", "nominal", "identified", "delta",
-                    "std. error u (1 sigma)", "U (k = 2)", "status"], prow, left=2,
-                   row_classes=["" if ptab[n]["free"] else "fixed" for n in names])
-    params += expanded_note()
+    return table(["parameter", "unit", "nominal", "identified", "delta",
+                  "std. error u (1 sigma)", "U (k = 2)", "status"], prow, left=2,
+                 row_classes=["" if e["free"] else "fixed" for e in ptab.values()]
+                 ) + expanded_note()
+
+
+def _errors(result: Any) -> str:
+    """Position (and orientation) error statistics before and after, the uncertainty left
+    in the model and, with a stated noise, its test."""
+    unit = result.nominal_model.length_unit
     rows = [(f"{label}, {when}", st["n"], st["mean"], st["rms"], st["std"], st.get("p95"),
              st["max"]) for label, when, st in stat_rows(result.position_groups())]
     errors = (table(["poses", "n", f"mean [{unit}]", f"rms [{unit}]", f"std [{unit}]",
@@ -127,33 +140,41 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes],
         from kinecal.calibration.diagnostics.noise import noise_lines
 
         errors += "".join(f"<p>{html.escape(line)}.</p>" for line in noise_lines(result))
-    captions = {
-        "errors": "Per-pose position error on the calibration poses in file order (pose 1 "
-                  "is the first data row), before (grey) and after (blue) calibration.",
-        "validation": "Per-pose position error on the held-out validation poses, in file "
-                      "order.",
-        "sorted": "The same errors sorted by size (calibration solid, validation dashed), "
-                  "before (grey) and after (blue).",
-        "histogram": "Distribution of the calibration errors (log-spaced bins).",
-        "convergence": "Mean position error after each solver iteration.",
-    }
-    figs = "".join(image_tag(png, f"{kind} figure", captions[kind], f"fig-{kind}")
-                   for kind, png in pngs.items())
+    return errors
+
+
+#: figure captions of the calibration report, by figure kind
+CAPTIONS = {
+    "errors": "Per-pose position error on the calibration poses in file order (pose 1 "
+              "is the first data row), before (grey) and after (blue) calibration.",
+    "validation": "Per-pose position error on the held-out validation poses, in file order.",
+    "sorted": "The same errors sorted by size (calibration solid, validation dashed), "
+              "before (grey) and after (blue).",
+    "histogram": "Distribution of the calibration errors (log-spaced bins).",
+    "convergence": "Mean position error after each solver iteration.",
+}
+
+
+def _calibration_sections(result: Any, pngs: dict[str, bytes],
+                          provenance: Provenance | None = None,
+                          validation: Any = None) -> list[str]:
     from kinecal.report.compensation import compensation_section
     from kinecal.report.iso9283 import validation_iso9283_section
     from kinecal.report.kinds import kinds_section
     from kinecal.report.residual_maps import error_model_section
 
+    figs = "".join(image_tag(png, f"{kind} figure", CAPTIONS[kind], f"fig-{kind}")
+                   for kind, png in pngs.items())
     return [
         calibration_summary(result),
         warnings_section(getattr(result, "warnings", None)),
         provenance_section(provenance),
-        section("summary", "Model and data", summary),
-        section("errors", "Position error before and after", errors),
+        section("summary", "Model and data", _model_and_data(result)),
+        section("errors", "Position error before and after", _errors(result)),
         kinds_section(result),
         validation_iso9283_section(result, validation),
-        section("identifiability", "Identifiability", ident),
-        section("parameters", "Parameters", params),
+        section("identifiability", "Identifiability", _identifiability(result)),
+        section("parameters", "Parameters", _parameters(result)),
         compensation_section(result),
         section("figures", "Figures", figs),
         axis_section(result, table),

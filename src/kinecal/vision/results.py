@@ -79,7 +79,7 @@ class ImageRecord:
         }
 
 
-@dataclass
+@dataclass(repr=False)
 class ImageHandEyeResult:
     """Result of `calibrate_handeye_images`.
 
@@ -121,6 +121,13 @@ class ImageHandEyeResult:
     warnings: list[dict[str, str]] = field(default_factory=list)
     seconds: float = 0.0
     one_axis: dict[str, Any] | None = None
+
+    def __repr__(self) -> str:
+        t = self.X[:3, 3]
+        return (f"<ImageHandEyeResult {self.setup}, board {self.board.spec}: "
+                f"{len(self.records)} images, {len(self.used)} used, X translation "
+                f"({t[0]:.4g}, {t[1]:.4g}, {t[2]:.4g}) mm, reprojection RMS "
+                f"{self.refinement.rms_px:.3g} px>")
 
     @property
     def used(self) -> list[ImageRecord]:

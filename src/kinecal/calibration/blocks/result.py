@@ -60,7 +60,7 @@ def kind_lines(entries: list[dict], length_unit: str, title: str) -> list[str]:
     return lines
 
 
-@dataclass
+@dataclass(repr=False)
 class KindsCalibrationResult(CalibrationResult):
     """Outcome of a calibration from several measurement kinds (module docstring).
 
@@ -72,8 +72,8 @@ class KindsCalibrationResult(CalibrationResult):
 
     def summary(self) -> str:
         """The tracker summary with the per-kind table and the motions not seen."""
-        text = super().summary().split("\n")
         unit = self.nominal_model.length_unit
+        text = super().summary(unit).split("\n")  # the kinds' table is in the model's unit
         extra = [line for line in kind_lines(self.extra.get("kinds", []), unit,
                                              f"per measurement set (rms, max: error per "
                                              f"observation, {unit})")]

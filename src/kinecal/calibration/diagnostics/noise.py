@@ -208,26 +208,28 @@ def noise_entry(result) -> dict[str, Any] | None:
     return {**entry, "predicted_error": _predicted_known(result, entry)}
 
 
-def noise_lines(result) -> list[str]:
-    """Summary lines on the stated noise ([] without one)."""
+def noise_lines(result, shown: tuple[str, float] | None = None) -> list[str]:
+    """Summary lines on the stated noise ([] without one); lengths in the model's unit, or
+    in `shown` (``(unit name, factor)``, `kinecal.metrology.units.display_unit`)."""
     entry = noise_entry(result)
     if entry is None:
         return []
-    unit = result.nominal_model.length_unit
-    S = entry["stated_sigma"]
+    unit, f = shown if shown is not None else (result.nominal_model.length_unit, 1.0)
+    S = entry["stated_sigma"] * f
     if entry["ratio"] is None:
         return [f"stated noise {S:.3g} {unit} per coordinate: no residual degrees of freedom "
                 "to test it"]
     verdict = {"consistent": "consistent with it", "above": "ABOVE it: see the warning",
                "below": "below it: the stated noise looks pessimistic, and so do the "
                         "standard errors with it"}[entry["verdict"]]
-    lines = [f"stated noise {S:.3g} {unit} per coordinate: residual {entry['residual_sigma']:.3g}"
+    lines = [f"stated noise {S:.3g} {unit} per coordinate: residual "
+             f"{entry['residual_sigma'] * f:.3g}"
              f" {unit} ({entry['ratio']:.3g} times; chi-square p = {entry['p_value']:.2g}, "
              f"{verdict})"]
     pred = entry["predicted_error"]
     if result.bounded and pred.get("calibration_mean") is not None:
         def size(v: float | None) -> str:
-            return f"{v:.3g} {unit}" if v is not None and np.isfinite(v) else "not bounded"
+            return f"{v * f:.3g} {unit}" if v is not None and np.isfinite(v) else "not bounded"
 
         where = f"{size(pred['calibration_mean'])} on the calibration poses"
         if pred.get("validation_mean") is not None:

@@ -17,6 +17,7 @@ the axis taken from ``camera_height`` or ``board_contact``.
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -51,7 +52,7 @@ _META_OPTIONS = {"popsize", "maxiter", "rotation_box", "translation_box", "maxfe
                  "method_options"}
 
 
-@dataclass
+@dataclass(repr=False)
 class HandEyeResult:
     """Result of `calibrate_handeye`.
 
@@ -110,6 +111,14 @@ class HandEyeResult:
     def translation_rms(self) -> float:
         """Rms of the station translation residuals (length unit)."""
         return rms(self.translation)
+
+    def __repr__(self) -> str:
+        t = self.X[:3, 3]
+        return (f"<HandEyeResult {self.setup}, {self.method}+{self.refine}: "
+                f"{len(self.rotation_deg)} stations, X translation ({t[0]:.4g}, {t[1]:.4g}, "
+                f"{t[2]:.4g}), residual rms "
+                f"{self.rotation_rms_deg:.3g} deg / {self.translation_rms:.3g}, "
+                f"{len(self.outliers)} outliers>")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able dict with the keys of the ``kinecal handeye`` contract (DESIGN sec. 4)."""
@@ -245,6 +254,8 @@ def calibrate_handeye(
     InputError
         Bad shapes, non-rigid transforms, unknown names, fewer than 3 distinct stations or
         degenerate motions (pure translations, or rotations about one line only).
+    TypeError
+        A path or name where poses are expected.
 
     Notes
     -----
@@ -253,6 +264,12 @@ def calibrate_handeye(
     axes too close to parallel for the noise); their findings are in ``warnings`` and are
     issued as `kinecal.diagnostics.KinecalWarning` unless an outer collector takes them.
     """
+    for name, poses in (("flange2base", flange2base), ("target2cam", target2cam)):
+        if isinstance(poses, str | bytes | os.PathLike):
+            raise TypeError(f"{name}: expected an array (n, 4, 4) of poses, got the path or name "
+                            f"{os.fsdecode(poses)!r}; read a pairs file with "
+                            "kinecal.io.handeye.read_handeye_pairs(path) (or "
+                            "read_handeye_files(robot, target))")
     with diagnostics.collect(python_warnings=True) as found:
         res = _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, seed,
                                  robust, rotation_weight, options,

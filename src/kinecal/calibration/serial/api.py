@@ -27,6 +27,7 @@ from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stat
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
+from kinecal.calibration.serial.inputs import as_measurements, as_model
 from kinecal.calibration.serial.polish import check_local_polish
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
@@ -141,21 +142,23 @@ def calibrate(
 
     Parameters
     ----------
-    model : SerialModel
-        Nominal model.
-    data : Measurements or sequence
+    model : SerialModel, str or Path
+        Nominal model (a bundled name or a model file / URDF path is loaded).
+    data : Measurements, str, Path or sequence
         Calibration poses (joint angles, measured tool positions); or several data sets of
         any measurement kinds (`kinecal.io.kinds.read_kind`: tracker points / poses,
         ballbar and pair distances, fixed points, planes), calibrated as one problem
         (`kinecal.calibration.blocks.calibrate_blocks`; tracker-only sets are merged and
-        take this function's path).
+        take this function's path). A CSV path or a bundled ``NAME:PART`` (also in a
+        sequence) is read for `model`, its kind from its columns.
     method : str
         One of `CALIBRATION_METHODS` (see module docstring).
     free : {"identifiable", "all"} or sequence of str
         Free parameters: the identifiable subset of the model's calibratable parameters
         (default), all of them, or explicit names.
-    validate : Measurements or sequence, optional
-        Held-out poses (or data sets of any kinds) for before/after validation statistics.
+    validate : Measurements, str, Path or sequence, optional
+        Held-out poses (or data sets of any kinds) for before/after validation statistics
+        (paths are read as `data`).
     rng : int or Generator, optional
         Randomness of the metaheuristics (an int is recorded as the result's seed).
     loss : str
@@ -197,7 +200,11 @@ def calibrate(
     ------
     InputError
         Bad arguments, or data that cannot give an answer (too few distinct poses).
+    TypeError
+        `model` or `data` of another type than those above.
     """
+    model = as_model(model)
+    data, validate = as_measurements(data, model), as_measurements(validate, model, "validate")
     if not isinstance(data, Measurements) or not (validate is None or isinstance(
             validate, Measurements)):
         return _several(model, data, method, free=free, validate=validate, loss=loss,

@@ -49,6 +49,7 @@ from kinecal.calibration.serial.error_model_spec import (
     candidates,
     parse_error_model,
 )
+from kinecal.calibration.serial.inputs import as_measurements, as_model
 from kinecal.calibration.serial.joint_identifiability import CoefficientAnalysis, correlated_with
 from kinecal.calibration.serial.result import CalibrationResult
 from kinecal.data import Measurements
@@ -101,11 +102,12 @@ def calibrate_error_model(
 
     Parameters
     ----------
-    model : SerialModel
+    model : SerialModel, str or Path
         Nominal model (any joint-error terms it has are replaced by the chosen ones; their
-        values are the starting point).
-    data : Measurements
-        Calibration poses (the only poses the choice sees).
+        values are the starting point); a bundled name or a path is loaded.
+    data : Measurements, str or Path
+        Calibration poses (the only poses the choice sees); a CSV path or ``NAME:PART`` is
+        read.
     error_model : str
         One of `ERROR_MODELS` or families joined by ``+`` (module docstring).
     method : {"lm", "householder"}
@@ -134,6 +136,8 @@ def calibrate_error_model(
         (``auto``) the cross-validation table, ``extra["joint_errors"]`` the terms and what
         each unidentifiable coefficient is confounded with.
     """
+    model = as_model(model)
+    data, validate = as_measurements(data, model), as_measurements(validate, model, "validate")
     families = parse_error_model(error_model)
     if error_model == "model" and model.joint_errors is None:
         families = ()  # the model has no joint-error terms: a geometric calibration

@@ -18,7 +18,7 @@ from kinecal.data import Measurements
 __all__ = ["ErrorModelResult", "error_model_text"]
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(repr=False)
 class ErrorModelResult(CalibrationResult):
     """A `CalibrationResult` with joint-error terms, which also keeps what the report's
     residual maps need (`kinecal.report.residual_maps`).
@@ -41,20 +41,20 @@ class ErrorModelResult(CalibrationResult):
         fields = {f.name: getattr(result, f.name) for f in dataclasses.fields(result)}
         return cls(**fields, geometric=geometric, measured_xyz=np.asarray(data.xyz))
 
-    def summary(self) -> str:
+    def summary(self, unit: str | None = None) -> str:
         """`CalibrationResult.summary` and the error model: the choice, its
         cross-validation table (``auto``), the step from the geometric calibration."""
-        return super().summary() + error_model_text(self)
+        return super().summary(unit) + error_model_text(self, unit)
 
 
-def error_model_text(result: CalibrationResult) -> str:
+def error_model_text(result: CalibrationResult, unit: str | None = None) -> str:
     """Plain-text lines on the error model of `result` ("" for a plain calibration): the
     cross-validation table (``auto``), the step from the geometric calibration and the
-    coefficients that are not identifiable."""
+    coefficients that are not identifiable; lengths in `result.display_unit(unit)`."""
     info = result.extra.get("error_model")
     if not info:
         return ""
-    unit = result.nominal_model.length_unit
+    unit, f = result.display_unit(unit)
     lines = ["", "", f"error model: {info['requested']} -> {info['selected']}"]
     if info.get("candidates"):
         lines[-1] += (f" ({info['folds']}-fold cross-validation on the calibration poses, "
@@ -66,16 +66,16 @@ def error_model_text(result: CalibrationResult) -> str:
                 lines.append(f"{row['model']:34s} {row['parameters']:6d} {'-':>10s} "
                              f"{'-':>9s}  (too many parameters for these poses)")
                 continue
-            lines.append(f"{row['model']:34s} {row['parameters']:6d} {row['cv_mean']:10.5g} "
-                         f"{row['cv_se']:9.2g}{mark}")
+            lines.append(f"{row['model']:34s} {row['parameters']:6d} "
+                         f"{row['cv_mean'] * f:10.5g} {row['cv_se'] * f:9.2g}{mark}")
         lines.append(f"(cv: mean held-out distance error [{unit}])")
     geo = info.get("geometric", {})
     if "validation_mean" in geo and result.val_after is not None:
-        lines.append(f"validation mean: geometric {geo['validation_mean']:.4g} {unit} -> "
-                     f"{info['selected']} {float(np.mean(result.val_after)):.4g} {unit}")
+        lines.append(f"validation mean: geometric {geo['validation_mean'] * f:.4g} {unit} -> "
+                     f"{info['selected']} {float(np.mean(result.val_after)) * f:.4g} {unit}")
     else:
-        lines.append(f"calibration mean: geometric {geo['calibration_mean']:.4g} {unit} -> "
-                     f"{info['selected']} {float(np.mean(result.errors_after)):.4g} {unit}")
+        lines.append(f"calibration mean: geometric {geo['calibration_mean'] * f:.4g} {unit} -> "
+                     f"{info['selected']} {float(np.mean(result.errors_after)) * f:.4g} {unit}")
     terms = result.extra.get("joint_errors")
     if terms:
         lines.append(f"joint-error coefficients: {len(terms['identifiable'])} identifiable, "

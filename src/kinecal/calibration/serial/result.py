@@ -16,6 +16,7 @@ from kinecal.calibration.uncertainty import Uncertainty
 from kinecal.diagnostics import Diagnostic
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.metrology.stats import error_stats, stat_rows
+from kinecal.metrology.units import DisplayUnit, display_unit
 
 __all__ = ["CalibrationResult"]
 
@@ -33,7 +34,7 @@ def _finite(obj: Any) -> Any:
     return obj
 
 
-@dataclass
+@dataclass(repr=False)
 class CalibrationResult:
     """Outcome of `kinecal.calibrate`.
 
@@ -286,9 +287,21 @@ class CalibrationResult:
         save_model(self.model, path)
 
     # ------------------------------------------------------------------ text
-    def summary(self) -> str:
-        """Plain-text summary: identifiability, before/after table, largest corrections."""
-        unit = self.nominal_model.length_unit
+    def display_unit(self, unit: str | None = None) -> DisplayUnit:
+        """The unit `summary` shows lengths in (`kinecal.metrology.units.display_unit`):
+        `unit`, or by default the model's (millimetres for a model in metres whose errors
+        stay below 1 m)."""
+        largest = [s["before"]["max"] for s in self.position_groups().values()]
+        return display_unit(self.nominal_model.length_unit, unit, largest)
+
+    def summary(self, unit: str | None = None) -> str:
+        """Plain-text summary: identifiability, before/after table, largest corrections.
+
+        `unit` (``mm``, ``um``, ``m``, or ``auto``/None: `display_unit`) is the length unit
+        of the text only; the result's numbers stay in the model's unit.
+        """
+        shown = self.display_unit(unit)
+        unit, f = shown.name, shown.factor
         rep = self.identifiability
         lines = [
             f"model {self.nominal_model.name} ({self.nominal_model.convention}), method "
@@ -307,11 +320,12 @@ class CalibrationResult:
         tables = [(f"position error [{unit}]", self.position_groups())]
         if self.rotation_groups():
             tables.append(("orientation error [deg]", self.rotation_groups()))
-        for title, groups in tables:
+        for k, (title, groups) in enumerate(tables):
             lines += ["", title, head]
+            g = f if k == 0 else 1.0  # orientation errors stay in degrees
             for label, when, s in stat_rows(groups):
-                lines.append(f"{label[:3] + '. ' + when:12s} {s['n']:5d} {s['mean']:10.4g} "
-                             f"{s['rms']:10.4g} {s['std']:10.4g} {s['max']:10.4g}")
+                lines.append(f"{label[:3] + '. ' + when:12s} {s['n']:5d} {s['mean'] * g:10.4g} "
+                             f"{s['rms'] * g:10.4g} {s['std'] * g:10.4g} {s['max'] * g:10.4g}")
         lines.append(f"improvement of the mean error: {self.improvement_percent:.2f} %")
         pred = self.predicted_error_summary()
         if not self.bounded:
@@ -319,7 +333,7 @@ class CalibrationResult:
                          + ", ".join(self.lost) + ")")
         elif pred["calibration_mean"] is not None:
             def size(v: float) -> str:
-                return f"{v:.3g} {unit}" if np.isfinite(v) else "not bounded"
+                return f"{v * f:.3g} {unit}" if np.isfinite(v) else "not bounded"
 
             where = f"{size(pred['calibration_mean'])} on the calibration poses"
             if pred["validation_mean"] is not None:
@@ -328,7 +342,7 @@ class CalibrationResult:
         if "noise" in self.extra:
             from kinecal.calibration.diagnostics.noise import noise_lines
 
-            lines += noise_lines(self)
+            lines += noise_lines(self, shown)
         lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations, "
                      f"{self.seconds:.3g} s")
         if self.outliers:
@@ -342,6 +356,15 @@ class CalibrationResult:
 
     def __str__(self) -> str:
         return self.summary()
+
+    def __repr__(self) -> str:
+        shown = self.display_unit()
+        s = self.validation_stats or self.calibration_stats
+        where = "validation" if self.validation_stats is not None else "calibration"
+        return (f"<{type(self).__name__} {self.nominal_model.name} ({self.method}): "
+                f"{len(self.free)} free parameters, {where} mean "
+                f"{s['before']['mean'] * shown.factor:.4g} -> "
+                f"{s['after']['mean'] * shown.factor:.4g} {shown.name}>")
 
     # ------------------------------------------------------------------ figures
     def plot(self, kind: str = "errors", ax: Any = None) -> Any:

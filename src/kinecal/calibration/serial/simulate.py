@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal._files import read_json, write_text_atomic
+from kinecal.calibration.serial.inputs import as_model
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
@@ -36,7 +37,7 @@ __all__ = [
 Array = NDArray[np.float64]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Simulation:
     """Synthetic data with its truth.
 
@@ -53,6 +54,9 @@ class Simulation:
     data: Measurements
     true_params: Array
     exact_xyz: Array
+
+    def __repr__(self) -> str:
+        return f"<Simulation {len(self.data.q)} poses, {self.true_params.size} true parameters>"
 
 
 def random_configurations(
@@ -100,8 +104,8 @@ def simulate(
 
     Parameters
     ----------
-    model : SerialModel
-        Nominal model.
+    model : SerialModel, str or Path
+        Nominal model (a bundled name or a model file / URDF path is loaded).
     n_poses : int
         Number of poses (ignored when `q` is given).
     errors : {"zero", "random"} or ndarray (n_params,) or dict
@@ -127,6 +131,7 @@ def simulate(
         configuration is measured at every marker (``N * M`` rows, markers in turn), as a
         tracker measures all reflectors on the flange.
     """
+    model = as_model(model)
     gen = np.random.default_rng(rng)
     if q is None:
         if n_poses < 1:

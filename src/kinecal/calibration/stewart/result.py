@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 from kinecal.calibration.stewart.data import ARCSEC
 from kinecal.diagnostics import Diagnostic
 from kinecal.kinematics.stewart.platform import N_PARAMETERS, PARAMETER_NAMES, StewartPlatform
+from kinecal.metrology.units import display_unit
 from kinecal.spatial import matrix_from_rpy, pose_errors, transform_from
 
 __all__ = ["StewartCalibrationResult", "abs_stats", "pose_prediction_errors"]
@@ -48,7 +49,7 @@ def pose_prediction_errors(
     return {"position": abs_stats(pos), "rotation_arcsec": abs_stats(rot / ARCSEC)}
 
 
-@dataclass
+@dataclass(repr=False)
 class StewartCalibrationResult:
     """Identified geometry and error statistics (JSON via `to_dict`).
 
@@ -142,10 +143,21 @@ class StewartCalibrationResult:
             "warnings": [d.to_dict() for d in self.warnings],
         }
 
-    def summary(self) -> str:
-        """Text table of the before/after leg-reading errors (geometry length unit), the
-        undetermined parameters and the warnings."""
-        u = self.length_unit
+    def __repr__(self) -> str:
+        part = self.validation if self.validation is not None else self.calibration
+        u, f = display_unit(self.length_unit, None, [part["before"]["rms"]])
+        where = "validation" if self.validation is not None else "calibration"
+        return (f"<StewartCalibrationResult {self.nominal.name}: rank {self.rank}/"
+                f"{N_PARAMETERS}, {where} leg rms {part['before']['rms'] * f:.4g} -> "
+                f"{part['after']['rms'] * f:.4g} {u}>")
+
+    def summary(self, unit: str | None = None) -> str:
+        """Text table of the before/after leg-reading errors, the undetermined parameters
+        and the warnings. `unit`: the length unit of the text (``mm``, ``um``, ``m``; by
+        default the geometry's, millimetres for one in metres with errors below 1 m;
+        `kinecal.metrology.units.display_unit`)."""
+        parts = [p for p in (self.calibration, self.validation) if p is not None]
+        u, f = display_unit(self.length_unit, unit, [p["before"]["rms"] for p in parts])
         lines = [f"rank {self.rank}/{N_PARAMETERS}, condition {self.condition_number:.3g}"]
         loose = [n for n, s in zip(PARAMETER_NAMES, self.std, strict=True) if not np.isfinite(s)]
         if loose:
@@ -155,8 +167,8 @@ class StewartCalibrationResult:
             if part is None:
                 continue
             b, a = part["before"]["rms"], part["after"]["rms"]
-            lines.append(f"{label:12s} n={part['n']:4d}  leg rms before {b:.4g} {u}  "
-                         f"after {a:.4g} {u}")
+            lines.append(f"{label:12s} n={part['n']:4d}  leg rms before {b * f:.4g} {u}  "
+                         f"after {a * f:.4g} {u}")
         if self.outliers:
             lines.append(f"outlier poses (0-based): {self.outliers}")
         if self.warnings:

@@ -89,7 +89,7 @@ STATUS = {
 }
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class IKResult:
     """Outcome of `solve_ik`, one entry per target.
 
@@ -131,6 +131,10 @@ class IKResult:
     outputs: str
     restarts: NDArray[np.int_] = field(default_factory=lambda: np.zeros(0, dtype=int))
     length_unit: str = ""
+
+    def __repr__(self) -> str:
+        return (f"<IKResult {self.q.shape[0]} {self.outputs} targets: "
+                f"{int(np.count_nonzero(self.converged))} converged>")
 
     def __len__(self) -> int:
         return int(self.q.shape[0])

@@ -73,7 +73,7 @@ __all__ = [
 Array = NDArray[np.float64]
 
 
-@dataclass
+@dataclass(repr=False)
 class SerialModel(SerialKinematics):
     """Kinematic model of a serial arm: revolute and prismatic joints, fixed frames.
 
@@ -134,6 +134,13 @@ class SerialModel(SerialKinematics):
     joint_errors: JointErrors | None = None
     markers: dict | None = None
     motions: list[Motion] = field(init=False, repr=False)
+
+    def __repr__(self) -> str:
+        extra = f", markers {', '.join(self.marker_names)}" if self.marker_names else ""
+        if self.joint_errors is not None:
+            extra += ", joint errors"
+        return (f"<SerialModel {self.name} ({self.convention}): {self.n_joints} joints, "
+                f"{self.n_params} parameters, {self.length_unit}/{self.angle_unit}{extra}>")
 
     def __post_init__(self) -> None:
         if self.angle_unit not in ("rad", "deg"):

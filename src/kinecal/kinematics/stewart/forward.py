@@ -63,7 +63,7 @@ class StewartGeometry(Protocol):
 #: rows per Newton block in `forward_newton` (cache-sized temporaries)
 CHUNK = 4096
 
-@dataclass
+@dataclass(repr=False)
 class ForwardResult:
     """Result of a batch forward-kinematics solve.
 
@@ -95,6 +95,10 @@ class ForwardResult:
     method: str
     nfev: NDArray[np.int64]
     history: list[Array] | None = None
+
+    def __repr__(self) -> str:
+        return (f"<ForwardResult {self.method}: {len(self.converged)} rows, "
+                f"{int(np.count_nonzero(self.converged))} converged, {self.elapsed:.3g} s>")
 
 
 def expmap(w: Array) -> Array:

@@ -84,7 +84,7 @@ def _as_joints(value: ArrayLike, name: str) -> Array:
     return a.copy()
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class StewartPlatform:
     """Geometry and kinematics of a 6-6 Stewart platform measuring machine (papers/004).
 
@@ -111,6 +111,11 @@ class StewartPlatform:
     leg_range: tuple[float, float] = (0.0, np.inf)
     leg_offsets: Array = field(default_factory=lambda: np.zeros(6))
     name: str | None = None
+
+    def __repr__(self) -> str:
+        lo, hi = self.leg_range
+        return (f"<StewartPlatform {self.name or '(unnamed)'}: probe offset "
+                f"{self.probe_offset:.4g}, leg range {lo:.4g}-{hi:.4g}>")
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "base_joints", _as_joints(self.base_joints, "base_joints"))

@@ -114,7 +114,7 @@ def forward_pso(
         out = minimize(
             cost,
             box,
-            method="pso",
+            method="pso-liu2008",  # the paper's PSO (kinecal's "pso" is the constriction PSO)
             rng=gen,
             maxiter=int(cfg["maxiter"]),
             target=float(cfg["target"]),
