@@ -162,3 +162,17 @@ def test_flag_outliers_are_the_robust_refinements_outliers():
             assert flag_outliers(G, C, X, Y) == want
             flagged += len(want)
     assert flagged >= 30  # the corrupted stations (36 of them) are among those compared
+
+
+def test_unrefined_closed_form_without_outlier_flags_keeps_every_other_number():
+    """refine="none", robust=False: no outlier flags (the image pipeline's seed, whose
+    pixel refinement judges them), the same X and station residuals bit for bit."""
+    G, C = stations(seed=1, corrupt=(3, 11))
+    flagged = calibrate_handeye(G, C, refine="none")
+    plain = calibrate_handeye(G, C, refine="none", robust=False)
+    assert {3, 11} <= set(flagged.outliers) and plain.outliers == []
+    assert np.array_equal(plain.X, flagged.X) and np.array_equal(plain.target, flagged.target)
+    assert np.array_equal(plain.rotation_deg, flagged.rotation_deg)
+    assert np.array_equal(plain.axxb_translation, flagged.axxb_translation)
+    with pytest.raises(Exception, match="robust applies to refine lm and none"):
+        calibrate_handeye(G, C, refine="igwo", robust=False)

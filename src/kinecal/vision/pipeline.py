@@ -218,7 +218,11 @@ def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
     # after its pose-level refinement, which is then the seed
     G = F if setup == "eye-in-hand" else invert_transform(F)
     first = "none" if detect_one_axis(G, setup) is None else "lm"
-    seed = calibrate_handeye(F, C, setup=setup, method=method, refine=first, **axis)
+    # the refinement on the pixels judges the outlier stations: the closed form's own
+    # flags (a robust pose-level refinement, `robust=True` with refine "none") would be
+    # that work twice; its other checks run
+    seed = calibrate_handeye(F, C, setup=setup, method=method, refine=first,
+                             robust=first == "lm", **axis)
     one = _one_axis(seed, F, setup, axis["camera_height"], axis["board_contact"])
     ref = refine(seed)
     if robust and ref.outliers and first == "none":

@@ -233,7 +233,10 @@ def calibrate_handeye(
     seed : int or Generator, optional
         Random seed of the metaheuristic refiners.
     robust : bool
-        ``lm`` only: Cauchy reweighting and outlier flagging.
+        ``lm``: Cauchy reweighting and outlier flagging. ``none``: outlier stations judged
+        at a robust refinement from the closed form (`refine.flag_outliers`; its X is not
+        kept); False: no outlier flags (for a caller whose own refinement judges them, as
+        the image pipeline's on the pixels), every other check unchanged.
     rotation_weight : float, optional
         ``lm`` only: length units per radian (default: from the residual scales).
     options : dict, optional
@@ -348,7 +351,7 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
         # one evaluation of the camera residuals and their Jacobian serves the outlier flags,
         # the station residuals (|log| and |t| of the same mismatch) and the uncertainty
         shared = residuals_and_jacobian(G, C, X, Y, np.zeros(12))
-        outliers = flag_outliers(G, C, X, Y)
+        outliers = flag_outliers(G, C, X, Y) if robust else []
         rot = np.degrees(np.linalg.norm(shared[0], axis=1))
         tr = np.linalg.norm(shared[1], axis=1)
     else:
