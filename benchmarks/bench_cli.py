@@ -9,7 +9,10 @@ run, the median the typical one):
   against ``python -c "import numpy, scipy.linalg"``;
 * ``kinecal stewart fk liu2008-cmm LEGS.csv`` on 10^5 leg readings (the CSV written
   first, from random workspace poses) against the API's throughput: the same solve,
-  ``StewartPlatform.forward`` on the in-memory readings, timed in this process.
+  ``StewartPlatform.forward`` on the in-memory readings, timed in this process;
+* ``kinecal calibrate ur5 DATA.csv`` on 10^4 and 10^5 simulated poses: peak resident
+  memory of the process, per pose beyond the smaller run;
+* ``kinecal compensate`` of a 10^6-row joint program: time and peak memory.
 
 ``kinecal`` is run as ``python -m kinecal`` with this interpreter (what the console script
 does: import ``kinecal.cli`` and call ``main``).
@@ -81,10 +84,79 @@ def stewart(n: int, repeat: int) -> None:
           "(median/median)")
 
 
+# VmHWM: the process's own peak resident set (getrusage's ru_maxrss keeps the parent's
+# peak across fork and exec)
+_PEAK = ("import sys\nfrom kinecal.cli import main\nrc = main(sys.argv[1:])\n"
+         "hwm = [ln.split()[1] for ln in open('/proc/self/status') if ln.startswith('VmHWM')]\n"
+         "sys.stderr.write(f'MAXRSS {hwm[0]}\\n')\nsys.exit(rc)")
+
+
+def peak_kb(args: list[str]) -> int:
+    """Peak resident memory (kB, ``VmHWM``) of one ``kinecal ARGS`` process (Linux)."""
+    out = subprocess.run([sys.executable, "-c", _PEAK, *args], capture_output=True, text=True,
+                         check=True)
+    return int(out.stderr.rsplit("MAXRSS ", 1)[1].split()[0])
+
+
+def calibrate_memory(sizes: tuple[int, ...], repeat: int) -> None:
+    """``kinecal calibrate ur5 DATA.csv`` on simulated poses: peak memory per pose beyond
+    the smallest size (the command without --out or --json builds no result dictionary)."""
+    from kinecal.calibration.serial.simulate import simulate
+    from kinecal.io.measurements import write_measurements
+    from kinecal.io.models import load_model
+
+    model = load_model("ur5")
+    with tempfile.TemporaryDirectory(prefix="kinecal-bench-") as tmp:
+        peaks = {}
+        for n in sizes:
+            path = Path(tmp) / f"meas{n}.csv"
+            sim = simulate(model, n, errors="random", noise=0.01, rng=1)
+            write_measurements(path, sim.data, model)
+            peaks[n] = min(peak_kb(["calibrate", "ur5", str(path), "--quiet"])
+                           for _ in range(repeat))
+    n0 = sizes[0]
+    for n in sizes[1:]:
+        per = (peaks[n] - peaks[n0]) * 1024 / (n - n0)
+        print(f"kinecal calibrate ur5, {n} poses: peak {peaks[n] / 1024:.0f} MB ({n0} poses: "
+              f"{peaks[n0] / 1024:.0f} MB): {per:.0f} B per pose beyond {n0}")
+
+
+def compensate_big(n: int) -> None:
+    """``kinecal compensate`` of an n-row UR5 joint program (random configurations within
+    70 % of the joint ranges) with a calibrated model: wall time and peak memory of the
+    process (the program is streamed a block of rows at a time)."""
+    from kinecal.calibration.serial.simulate import random_configurations
+    from kinecal.cli import main as cli
+    from kinecal.io.models import load_model
+
+    model = load_model("ur5")
+    with tempfile.TemporaryDirectory(prefix="kinecal-bench-") as tmp:
+        d = Path(tmp)
+        cli(["simulate", "ur5", "--poses", "60", "--noise", "0.01", "--seed", "1", "--out",
+             str(d / "meas.csv"), "--quiet"])
+        cli(["calibrate", "ur5", str(d / "meas.csv"), "--model-out", str(d / "cal.yaml"),
+             "--quiet"])
+        rng = np.random.default_rng(3)
+        prog = d / "program.csv"
+        with open(prog, "w") as fh:
+            fh.write("q1,q2,q3,q4,q5,q6\n")
+            for s in range(0, n, 100_000):
+                q = np.degrees(random_configurations(model, min(100_000, n - s), rng) * 0.7)
+                fh.write("\n".join(",".join(repr(v) for v in row) for row in q.tolist()) + "\n")
+        t0 = time.perf_counter()
+        kb = peak_kb(["compensate", str(d / "cal.yaml"), str(prog), "--out",
+                      str(d / "out.csv"), "--quiet"])
+        t = time.perf_counter() - t0
+    print(f"kinecal compensate, {n} joint-program rows: {t:.0f} s ({n / t:.0f} rows/s), peak "
+          f"{kb / 1024:.0f} MB ({kb * 1024 / n:.0f} B per row)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer repeats, 10^4 Stewart rows")
     ap.add_argument("--repeat", type=int, default=None)
+    ap.add_argument("--compensate-rows", type=int, default=None,
+                    help="rows of the compensated program (default 10^6, quick 2 x 10^4)")
     args = ap.parse_args()
     repeat = args.repeat or (3 if args.quick else 9)
     py = [sys.executable, "-c"]
@@ -96,6 +168,8 @@ def main() -> None:
             'python -c "import numpy, scipy.linalg"', [*py, "import numpy, scipy.linalg"],
             repeat)
     stewart(10_000 if args.quick else 100_000, max(3, repeat // 2))
+    calibrate_memory((10_000, 100_000) if not args.quick else (2_000, 20_000), 2)
+    compensate_big(args.compensate_rows or (20_000 if args.quick else 1_000_000))
 
 
 if __name__ == "__main__":

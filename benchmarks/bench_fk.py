@@ -1,5 +1,6 @@
 """Forward-kinematics throughput: kinecal's chunked batch FK against roboticstoolbox's C
-path, the numpy sine + cosine floor and a naive loop, at 10^3 .. 10^6 configurations.
+path, the numpy tangent floor and a naive loop, at 10^3 .. 10^6 configurations; and one
+configuration at a time against a hand-written numpy D-H product.
 
 Peers, measured in the same process on the same joint angles, rounds interleaved, best
 of each:
@@ -8,9 +9,16 @@ of each:
   in one ``(N, 6)`` array: its fastest batch path (the C ``ETS_fkine`` loops over the
   rows; ``ets().fkine(q)`` wraps the same loop in SE3 objects, and ``eval`` per row costs
   a Python call each -- both are timed once at 10^4 to show it);
-* the floor: ``np.sin(q)`` and ``np.cos(q)`` of the same ``(N, 6)`` angles, the least any
-  numpy FK that evaluates each joint's rotation must spend;
-* a naive per-configuration loop of 4x4 matrix products (extrapolated from a sample).
+* the floor: ``np.tan(q)`` of the same ``(N, 6)`` angles, one vectorised transcendental
+  per joint angle, the least any numpy FK that evaluates each joint's rotation must spend
+  (kinecal's kernels take one tangent of the half angle per joint; ``np.sin(q)`` and
+  ``np.cos(q)`` are printed beside it: numpy evaluates the float64 sine and cosine element
+  by element, many times the tangent's cost, so they are no floor);
+* a naive per-configuration loop of 4x4 matrix products (extrapolated from a sample);
+* one configuration per call (a controller asking for one pose): ``model.fk(q)`` with
+  ``q`` of shape ``(6,)`` against a hand-written numpy product of six D-H matrices, as a
+  user writes it (``np.cos`` / ``np.sin`` and ``np.array`` per joint) and tightened
+  (``math.cos`` / ``math.sin``, the alpha terms precomputed).
 
 kinecal runs the same D-H robot (roboticstoolbox's UR5 parameters in mm, no tool):
 ``positions`` (tool point only) and ``fk`` (4x4 poses, like ``eval``). Also a population
@@ -23,6 +31,7 @@ Run: ``python benchmarks/bench_fk.py [--quick]``.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import time
 
@@ -65,6 +74,49 @@ def naive_positions(model, q):
     return out
 
 
+def dh_product(model):
+    """Hand-written one-configuration D-H forward kinematics of `model` (no base or tool):
+    as a user writes it, and tightened; both return the 4x4 tool frame."""
+    p = model.nominal
+    joints = [tuple(p[model.index([f"theta{i}", f"d{i}", f"a{i}", f"alpha{i}"])])
+              for i in range(1, model.n_joints + 1)]
+    tight = [(th, d, a, math.cos(al), math.sin(al)) for th, d, a, al in joints]
+
+    def plain(q):
+        T = np.eye(4)
+        for (th, d, a, al), qi in zip(joints, q, strict=True):
+            ct, st, ca, sa = np.cos(th + qi), np.sin(th + qi), np.cos(al), np.sin(al)
+            T = T @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st],
+                              [0.0, sa, ca, d], [0.0, 0.0, 0.0, 1.0]])
+        return T
+
+    def tightened(q):
+        T = np.eye(4)
+        for (th, d, a, ca, sa), qi in zip(tight, q, strict=True):
+            ct, st = math.cos(th + qi), math.sin(th + qi)
+            T = T @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st],
+                              [0.0, sa, ca, d], [0.0, 0.0, 0.0, 1.0]])
+        return T
+
+    return plain, tightened
+
+
+def one_at_a_time(model, q: np.ndarray, rounds: int) -> None:
+    """`model.fk` of one configuration per call against the hand-written D-H products."""
+    plain, tightened = dh_product(model)
+    for k in range(20):
+        np.testing.assert_allclose(model.fk(q[k])[0], plain(q[k]), atol=1e-9)
+    m = len(q)
+    t = interleaved({"fk": lambda: [model.fk(r) for r in q],
+                     "plain": lambda: [plain(r) for r in q],
+                     "tight": lambda: [tightened(r) for r in q]}, rounds)
+    us = {k: v / m * 1e6 for k, v in t.items()}
+    print(f"one configuration per call ({m} calls, best of {rounds} interleaved rounds): "
+          f"kinecal fk {us['fk']:.1f} us, hand-written numpy D-H product {us['plain']:.1f} us "
+          f"(tightened: {us['tight']:.1f} us); kinecal / hand-written {t['fk'] / t['plain']:.2f}x, "
+          f"/ tightened {t['fk'] / t['tight']:.2f}x")
+
+
 def interleaved(fns: dict, rounds: int) -> dict:
     """Best time of each function over `rounds` interleaved rounds."""
     best = dict.fromkeys(fns, np.inf)
@@ -91,8 +143,9 @@ def main() -> None:
     np.testing.assert_allclose(model.fk(q_all[:200])[:, :3, :3], T_rtb[:, :3, :3], atol=1e-12)
     np.testing.assert_allclose(model.positions(q_all[:200]), 1e3 * T_rtb[:, :3, 3], atol=1e-9)
 
+    one_at_a_time(model, q_all[:2000], 3 if args.quick else 7)
     print("UR5 forward kinematics, ns per configuration (best of interleaved rounds)")
-    print(f"{'N':>9} {'positions':>10} {'fk 4x4':>8} {'rtb eval':>9} {'sin+cos':>8} "
+    print(f"{'N':>9} {'positions':>10} {'fk 4x4':>8} {'rtb eval':>9} {'tan':>8} {'sin+cos':>8} "
           f"{'rtb/pos':>8} {'rtb/fk':>7} {'pos/floor':>9} {'fk/floor':>8}")
     for n in sizes:
         q = q_all[:n]
@@ -101,11 +154,12 @@ def main() -> None:
             "positions": lambda q=q: model.positions(q),
             "fk": lambda q=q: model.fk(q),
             "rtb": lambda q=q: ets.eval(q),
-            "floor": lambda q=q: (np.sin(q), np.cos(q)),
+            "floor": lambda q=q: np.tan(q),
+            "sincos": lambda q=q: (np.sin(q), np.cos(q)),
         }, rounds)
         ns = {k: v / n * 1e9 for k, v in t.items()}
         print(f"{n:>9} {ns['positions']:>10.0f} {ns['fk']:>8.0f} {ns['rtb']:>9.0f} "
-              f"{ns['floor']:>8.0f} {t['rtb'] / t['positions']:>7.2f}x "
+              f"{ns['floor']:>8.0f} {ns['sincos']:>8.0f} {t['rtb'] / t['positions']:>7.2f}x "
               f"{t['rtb'] / t['fk']:>6.2f}x {t['positions'] / t['floor']:>8.2f}x "
               f"{t['fk'] / t['floor']:>7.2f}x")
 

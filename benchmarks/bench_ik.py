@@ -161,6 +161,17 @@ def main() -> None:
     res = solve_ik(model, T, q0)
     print("  kinecal: " + res.summary().replace("\n", "\n  "))
 
+    # one target per call (a controller asking for one corrected target): roboticstoolbox's
+    # ik_LM is always called per target; kinecal's solve_ik with one target
+    n_one = 300 if args.quick else 1000
+
+    def one_by_one():
+        return np.array([solve_ik(model, T[k], q0[k]).q[0] for k in range(n_one)])
+
+    t_o, q_o = best_of(one_by_one, args.repeat)
+    rows[f"kinecal solve_ik one target per call ({n_one}, extrapolated)"] = (t_o * n / n_one,
+                                                                             q_o)
+
     chain = ikpy_chain(model)
     fk_ikpy = chain.forward_kinematics(np.r_[0.0, q[0], 0.0])
     np.testing.assert_allclose(fk_ikpy[:3, 3] * 1e3, T[0, :3, 3], atol=1e-9)

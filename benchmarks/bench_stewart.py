@@ -5,7 +5,9 @@ Speeds are printed as ratios against peers timed in the same process:
 
 * batch Newton FK (`StewartPlatform.forward`, vectorized over readings) vs per-row loops of
   ``scipy.optimize.least_squares`` and ``scipy.optimize.fsolve`` (MINPACK hybrd, the
-  faster of the two), both with the analytic Jacobian and the same neutral start;
+  faster of the two), both with the same neutral start and a residual and analytic
+  Jacobian of their own in plain numpy (`plain_residual`: the geometry's numbers, no
+  kinecal function inside the solve);
 * the paper's PSO (`method="pso"`, Table 1 settings) vs Newton on the Table 3 legs;
 * every assembly mode (`forward_all`) on the Table 3 legs.
 """
@@ -28,6 +30,41 @@ from kinecal.kinematics.stewart.platform import StewartPlatform  # noqa: E402
 TABLE3_LEGS = np.array([0.750, 0.780, 0.800, 0.900, 0.870, 0.850])
 
 
+def plain_residual(geom: StewartPlatform):
+    """The peer's own residual and Jacobian, plain numpy as a scipy user writes them from
+    the paper (eq. 4-5): only the geometry's numbers come from kinecal (joint positions,
+    leg offsets), no kinecal function is called inside the solve."""
+    base = geom.base_joints.copy()  # (6, 3), base frame
+    tip = geom.tip_joints.copy()  # (6, 3), platform frame relative to the probe tip
+    off = geom.leg_offsets.copy()
+
+    def rotation(x):
+        ca, sa, cb, sb = np.cos(x[3]), np.sin(x[3]), np.cos(x[4]), np.sin(x[4])
+        cg, sg = np.cos(x[5]), np.sin(x[5])
+        return np.array([[cg * cb, cg * sb * sa - sg * ca, cg * sb * ca + sg * sa],
+                         [sg * cb, sg * sb * sa + cg * ca, sg * sb * ca - cg * sa],
+                         [-sb, cb * sa, cb * ca]])  # Rz(gamma) Ry(beta) Rx(alpha)
+
+    def residual(x, measured):
+        legs = tip @ rotation(x).T + x[:3] - base
+        return np.sqrt(np.einsum("ij,ij->i", legs, legs)) - off - measured
+
+    def jac(x, measured):
+        R = rotation(x)
+        rq = tip @ R.T
+        legs = rq + x[:3] - base
+        u = legs / np.sqrt(np.einsum("ij,ij->i", legs, legs))[:, None]
+        # d|l| / d(x, y, z) = u; by a small rotation w about the tip: (R q) x u . w, and
+        # w = E (alpha, beta, gamma)' for the Rz Ry Rx angles
+        _, b, g = x[3:]
+        E = np.array([[np.cos(g) * np.cos(b), -np.sin(g), 0.0],
+                      [np.sin(g) * np.cos(b), np.cos(g), 0.0],
+                      [-np.sin(b), 0.0, 1.0]])
+        return np.concatenate([u, np.cross(rq, u) @ E], axis=1)
+
+    return residual, jac
+
+
 def bench_batch(geom: StewartPlatform, n: int, n_peer: int, repeat: int) -> dict:
     poses = geom.random_poses(n, rng=1)
     legs = geom.inverse(poses)
@@ -41,35 +78,20 @@ def bench_batch(geom: StewartPlatform, n: int, n_peer: int, repeat: int) -> dict
     err_ours = float(np.abs(res.poses[:, :3] - poses[:, :3]).max())
 
     x0 = geom.neutral_pose()
-
-    def jac(x: np.ndarray) -> np.ndarray:
-        # leg-length derivative by (x, y, z, alpha, beta, gamma): twist Jacobian times the
-        # map from Euler-angle rates to the angular velocity
-        _, b, g = x[3:]
-        E = np.array(
-            [
-                [np.cos(g) * np.cos(b), -np.sin(g), 0.0],
-                [np.sin(g) * np.cos(b), np.cos(g), 0.0],
-                [-np.sin(b), 0.0, 1.0],
-            ]
-        )
-        J = geom.pose_jacobian(x)
-        return np.concatenate([J[:, :3], J[:, 3:] @ E], axis=1)
+    residual, jac = plain_residual(geom)
+    np.testing.assert_allclose(residual(poses[0], legs[0]), 0.0, atol=1e-12)
 
     peer_poses = np.empty((n_peer, 6))
     t0 = time.perf_counter()
-    for i in range(n_peer):  # the peer: one scipy solve per reading
-        sol = least_squares(
-            lambda x, i=i: geom.inverse(x) - legs[i], x0, jac=jac, xtol=1e-15, ftol=1e-15
-        )
+    for i in range(n_peer):  # the peer: one scipy solve per reading, its own residual
+        sol = least_squares(residual, x0, jac=jac, args=(legs[i],), xtol=1e-15, ftol=1e-15)
         peer_poses[i] = sol.x
     peer = n_peer / (time.perf_counter() - t0)
     err_peer = float(np.abs(peer_poses[:, :3] - poses[:n_peer, :3]).max())
     fs_poses = np.empty((n_peer, 6))
     t0 = time.perf_counter()
     for i in range(n_peer):  # the fastest scipy per-row solver: MINPACK hybrd
-        fs_poses[i] = fsolve(lambda x, i=i: geom.inverse(x) - legs[i], x0, fprime=jac,
-                             xtol=1e-13)
+        fs_poses[i] = fsolve(residual, x0, args=(legs[i],), fprime=jac, xtol=1e-13)
     fs = n_peer / (time.perf_counter() - t0)
     err_fs = float(np.abs(fs_poses[:, :3] - poses[:n_peer, :3]).max())
     return {

@@ -175,41 +175,41 @@ def matrix_from_quaternion(q: ArrayLike) -> Array:
 def quaternion_from_matrix(R: ArrayLike) -> Array:
     """Quaternions ``(..., 4)`` (w, x, y, z), ``w >= 0``, from rotations ``(..., 3, 3)``.
 
-    Uses the numerically stable branch (largest diagonal element) per matrix.
+    Uses the numerically stable branch (largest diagonal element) per matrix: the largest
+    component first, ``s = 2 sqrt(1 + 2 q_k^2 - 1)``, the others from off-diagonal sums or
+    differences over ``s``. Branch-free (every matrix picks its components from one table),
+    so that small stacks cost a fixed, small number of numpy calls.
     """
     R = np.asarray(R, dtype=float)
     shape = R.shape[:-2]
     M = R.reshape(-1, 3, 3)
+    m00, m01, m02 = M[:, 0, 0], M[:, 0, 1], M[:, 0, 2]
+    m10, m11, m12 = M[:, 1, 0], M[:, 1, 1], M[:, 1, 2]
+    m20, m21, m22 = M[:, 2, 0], M[:, 2, 1], M[:, 2, 2]
     tr = np.trace(M, axis1=1, axis2=2)
-    d = np.stack([tr, M[:, 0, 0], M[:, 1, 1], M[:, 2, 2]], axis=1)
-    k = np.argmax(d, axis=1)
-    q = np.empty((M.shape[0], 4))
-    # Each branch computes the largest component first, then the others from off-diagonals.
-    for branch in range(4):
-        idx = k == branch
-        if not idx.any():
-            continue
-        m = M[idx]
-        if branch == 0:
-            s = 2.0 * np.sqrt(np.maximum(1.0 + tr[idx], 0.0))
-            qb = [0.25 * s, (m[:, 2, 1] - m[:, 1, 2]) / s, (m[:, 0, 2] - m[:, 2, 0]) / s,
-                  (m[:, 1, 0] - m[:, 0, 1]) / s]
-        elif branch == 1:
-            s = 2.0 * np.sqrt(np.maximum(1.0 + m[:, 0, 0] - m[:, 1, 1] - m[:, 2, 2], 0.0))
-            qb = [(m[:, 2, 1] - m[:, 1, 2]) / s, 0.25 * s, (m[:, 0, 1] + m[:, 1, 0]) / s,
-                  (m[:, 0, 2] + m[:, 2, 0]) / s]
-        elif branch == 2:
-            s = 2.0 * np.sqrt(np.maximum(1.0 + m[:, 1, 1] - m[:, 0, 0] - m[:, 2, 2], 0.0))
-            qb = [(m[:, 0, 2] - m[:, 2, 0]) / s, (m[:, 0, 1] + m[:, 1, 0]) / s, 0.25 * s,
-                  (m[:, 1, 2] + m[:, 2, 1]) / s]
-        else:
-            s = 2.0 * np.sqrt(np.maximum(1.0 + m[:, 2, 2] - m[:, 0, 0] - m[:, 1, 1], 0.0))
-            qb = [(m[:, 1, 0] - m[:, 0, 1]) / s, (m[:, 0, 2] + m[:, 2, 0]) / s,
-                  (m[:, 1, 2] + m[:, 2, 1]) / s, 0.25 * s]
-        q[idx] = np.stack(qb, axis=1)
+    k = np.argmax(np.stack([tr, m00, m11, m22], axis=1), axis=1)
+    # 1 + 2 q_k^2 - 1 for each branch k (w, x, y, z largest), the chosen one per matrix
+    diag = np.stack([1.0 + tr, 1.0 + m00 - m11 - m22, 1.0 + m11 - m00 - m22,
+                     1.0 + m22 - m00 - m11], axis=1)
+    rows = np.arange(M.shape[0])
+    s = 2.0 * np.sqrt(np.maximum(diag[rows, k], 0.0))
+    W = np.empty((M.shape[0], 7))
+    W[:, 0] = m21 - m12
+    W[:, 1] = m02 - m20
+    W[:, 2] = m10 - m01
+    W[:, 3] = m01 + m10
+    W[:, 4] = m02 + m20
+    W[:, 5] = m12 + m21
+    W[:, :6] /= s[:, None]
+    W[:, 6] = 0.25 * s
+    q = W[rows[:, None], _QUAT_TABLE[k]]
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     q[q[:, 0] < 0] *= -1.0
     return q.reshape(shape + (4,))
+
+
+#: columns of W (see `quaternion_from_matrix`) that make (w, x, y, z) in each branch
+_QUAT_TABLE = np.array([[6, 0, 1, 2], [0, 6, 3, 4], [1, 3, 6, 5], [2, 4, 5, 6]])
 
 
 def matrix_from_axis_angle(rotvec: ArrayLike) -> Array:
@@ -229,7 +229,12 @@ def axis_angle_from_matrix(R: ArrayLike) -> Array:
 
     Goes through the quaternion, which stays accurate near 0 and near pi.
     """
-    q = quaternion_from_matrix(R)
+    return axis_angle_from_quaternion(quaternion_from_matrix(R))
+
+
+def axis_angle_from_quaternion(q: ArrayLike) -> Array:
+    """Rotation vectors ``(..., 3)`` (rad) of unit quaternions ``(..., 4)`` (w, x, y, z)."""
+    q = np.asarray(q, dtype=float)
     w = np.clip(q[..., 0], -1.0, 1.0)
     vn = np.linalg.norm(q[..., 1:], axis=-1)
     angle = 2.0 * np.arctan2(vn, w)

@@ -145,3 +145,34 @@ def test_lm_jacobian_matches_finite_differences():
     Jn = np.stack([(f(p + h * e) - f(p - h * e)) / (2 * h) for e in np.eye(12)], axis=-1)
     assert J.shape == (6, 6, 12)
     assert np.abs(J - Jn).max() < 1e-6 * max(1.0, np.abs(Jn).max())
+
+
+def test_flag_outliers_are_the_robust_refinements_outliers():
+    """`flag_outliers` stops `lm` before its last pass: the same stations, clean sets and
+    sets with 1-3 corrupted ones."""
+    from kinecal.calibration.handeye import solve
+    from kinecal.calibration.handeye.refine import flag_outliers, lm
+
+    flagged = 0
+    for seed in range(12):
+        G, C = stations(seed=seed, corrupt=tuple(range(0, 3 * (seed % 4), 3)))
+        for method in ("park", "andreff"):
+            X, Y = solve(G, C, method)
+            want = lm(G, C, X, Y, robust=True).outliers
+            assert flag_outliers(G, C, X, Y) == want
+            flagged += len(want)
+    assert flagged >= 30  # the corrupted stations (36 of them) are among those compared
+
+
+def test_unrefined_closed_form_without_outlier_flags_keeps_every_other_number():
+    """refine="none", robust=False: no outlier flags (the image pipeline's seed, whose
+    pixel refinement judges them), the same X and station residuals bit for bit."""
+    G, C = stations(seed=1, corrupt=(3, 11))
+    flagged = calibrate_handeye(G, C, refine="none")
+    plain = calibrate_handeye(G, C, refine="none", robust=False)
+    assert {3, 11} <= set(flagged.outliers) and plain.outliers == []
+    assert np.array_equal(plain.X, flagged.X) and np.array_equal(plain.target, flagged.target)
+    assert np.array_equal(plain.rotation_deg, flagged.rotation_deg)
+    assert np.array_equal(plain.axxb_translation, flagged.axxb_translation)
+    with pytest.raises(Exception, match="robust applies to refine lm and none"):
+        calibrate_handeye(G, C, refine="igwo", robust=False)

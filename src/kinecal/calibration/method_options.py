@@ -105,14 +105,15 @@ def check_refine_options(refine: str, *, robust: bool = True,
                          options: dict[str, Any] | None = None) -> None:
     """Refuse hand-eye refinement options the chosen `refine` would not use.
 
-    ``robust=False`` and ``rotation_weight`` belong to the ``lm`` refinement, ``options``
-    (popsize, maxiter, boxes) to the metaheuristic refiners ``igwo`` and ``dlh-gwo-de``.
+    ``rotation_weight`` belongs to the ``lm`` refinement, ``robust=False`` to ``lm`` and
+    ``none`` (no outlier flags), ``options`` (popsize, maxiter, boxes) to the metaheuristic
+    refiners ``igwo`` and ``dlh-gwo-de``.
     """
     if refine != "lm" and rotation_weight is not None:
         raise InputError(f"rotation_weight applies to refine lm, not to refine {refine}",
                          option="rotation_weight")
-    if refine != "lm" and robust is False:
-        raise InputError(f"robust applies to refine lm, not to refine {refine}",
+    if refine not in ("lm", "none") and robust is False:
+        raise InputError(f"robust applies to refine lm and none, not to refine {refine}",
                          option="robust")
     if options and refine not in ("igwo", "dlh-gwo-de"):
         raise InputError(f"options apply to the metaheuristic refiners (igwo, dlh-gwo-de), "

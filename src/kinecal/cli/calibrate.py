@@ -271,7 +271,9 @@ def calibrate(
                                             harmonics=harmonics, **kw,
                                             **({} if folds is None else {"folds": folds}))
         res.warnings = list(found)  # the readers' warnings as well as the calibration's
-        result = with_warnings(res.to_dict(), found)
+        # the result dictionary (per-pose lists of Python floats: a kilobyte or two per
+        # pose) only when it is written
+        result = with_warnings(res.to_dict(), found) if out is not None or json_out else None
         if out is not None:
             write_json(out, result)
         if model_out is not None:

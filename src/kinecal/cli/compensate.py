@@ -9,7 +9,6 @@ by the compensation columns (see ``docs/compensate.md``).
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +32,6 @@ from kinecal.cli._common import (
 )
 from kinecal.errors import InputError
 
-QUATERNION = ("qw", "qx", "qy", "qz")
 _SUFFIX = "-calibrated"
 
 
@@ -131,82 +129,6 @@ def load_calibrated(spec: str, nominal: str | None, base_link: str | None = None
     return nom, cal
 
 
-def read_program(path: Path, model) -> tuple[list[str], list[list[str]], dict]:
-    """Header, raw cells and the numeric columns of a program CSV (validated)."""
-    from kinecal.io.csvtable import check_separator, read_table
-    from kinecal.io.measurements import joint_columns
-
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"cannot read CSV: {exc}", file=path) from None
-    if not rows:
-        raise InputError("empty file; expected a header with q1..qn or x,y,z", file=path)
-    check_separator(rows[0], path)
-    header = [h.strip() for h in rows[0]]
-    joints = joint_columns(header, model, path, required=False)  # q1..qn or joint names
-    qcols = [c for c in header if c.startswith("q") and c[1:].isdigit()]
-    if qcols and sorted(qcols) != sorted(joints):
-        raise InputError(f"joint columns {', '.join(qcols)}: the model has {len(joints)} joints, "
-                         f"expected {', '.join(joints)}", file=path)
-    written = ["converged", "correction", "correction_angle", "residual", "residual_angle",
-               "status", *(f"filtered_{c}" for c in ("x", "y", "z", *QUATERNION)),
-               *(f"d{c}" for c in joints)]
-    clash = [c for c in header if c in written]
-    if clash:  # found before any work (a compensated program given back, say)
-        raise InputError(f"column(s) {', '.join(clash)} are written by compensate (is this "
-                         "an output of kinecal compensate? give the original program); "
-                         "rename them", file=path)
-    quat = [c for c in QUATERNION if c in header]
-    if quat and len(quat) != 4:
-        raise InputError(f"orientation columns {', '.join(quat)} without the others: expected "
-                         "all of qw, qx, qy, qz or none", file=path)
-    if all(c in header for c in "xyz"):
-        required = ["x", "y", "z", *quat]
-        optional = joints
-    elif any(c in header for c in "xyz"):
-        raise InputError("expected all of x, y, z (Cartesian targets) or none (a joint "
-                         "program)", file=path)
-    else:
-        if joints[0] not in header:
-            raise InputError(f"expected joint columns {', '.join(joints)} or target columns "
-                             "x, y, z", file=path)
-        required, optional = joints, []
-    table = read_table(path, required, optional)
-    return header, [[c.strip() for c in r] for r in rows[1:]], table
-
-
-def _fmt(v: float) -> str:
-    return repr(float(v))
-
-
-def write_program(path: Path, header: list[str], cells: list[list[str]], replace: dict,
-                  extra: dict) -> None:
-    """Original cells with `replace` columns overwritten (or appended), then `extra`."""
-    from kinecal._files import atomic_open
-
-    clash = [c for c in extra if c in header]
-    if clash:
-        raise InputError(f"program column(s) {', '.join(clash)} are written by compensate; "
-                         "rename them", option="PROGRAM")
-    cols = list(header) + [c for c in replace if c not in header] + list(extra)
-    with atomic_open(path, "w") as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(cols)
-        for r, row in enumerate(cells):
-            values = dict(zip(header, row, strict=False))
-            for c, v in replace.items():
-                values[c] = _fmt(v[r])
-            for c, v in extra.items():
-                values[c] = v[r] if isinstance(v[r], str) else _fmt(v[r])
-            w.writerow([values.get(c, "") for c in cols])
-
-
-def _bool(v: np.ndarray) -> list[str]:
-    return ["true" if b else "false" for b in v]
-
-
 @app.command("compensate")
 def compensate_cmd(
     calibrated: str = typer.Argument(..., help="Calibrated model (YAML from calibrate "
@@ -238,8 +160,8 @@ def compensate_cmd(
     quiet: bool = quiet_option(),
 ) -> None:
     """Rewrite a joint program or Cartesian targets for the calibrated arm."""
-    from kinecal.calibration.diagnostics.serial import check_joint_units
-    from kinecal.compensation.api import compensate
+    from kinecal.cli._program import count_rows, program_columns, stream
+    from kinecal.compensation.api import prepare_arms
     from kinecal.io.measurements import joint_columns
 
     shown = check_unit(unit)
@@ -252,74 +174,20 @@ def compensate_cmd(
     with warnings_scope(strict) as found:
         nom, cal = load_calibrated(calibrated, nominal, base_link, tip_link, tool)
         path = resolve_data_path(program, "PROGRAM")
-        header, cells, table = read_program(path, nom)
-        scale = nom.joint_scale()  # file units -> API units per joint
+        header, required, optional = program_columns(path, nom)
         joints = joint_columns(header, nom, path, required=False)
-        outputs = "position" if position_only else None
-        q_file = np.column_stack([table[c] for c in joints]) if joints[0] in table else None
-        if q_file is not None:  # radians left in a degree program, as fk and calibrate warn
-            check_joint_units(nom, q_file * scale,
-                              "seed joints" if "x" in table else "program joints", min_rows=1)
-        with progress(f"compensate {len(cells)} rows", len(cells), quiet or json_out) as bar:
-            done = [0]
-
-            def step(rows: int, total: int) -> None:
-                bar(rows - done[0])
-                done[0] = rows
-
-            try:
-                if "x" in table:
-                    xyz = np.column_stack([table[c] for c in "xyz"])
-                    targets = (np.column_stack([xyz] + [table[c] for c in QUATERNION])
-                               if "qw" in table else xyz)
-                    seeds = None if q_file is None else q_file * scale
-                    res = compensate(cal, nom, targets=targets, seeds=seeds, outputs=outputs,
-                                     base=base, tool=tool, progress=step)
-                else:
-                    res = compensate(cal, nom, joints=q_file * scale, outputs=outputs,
-                                     base=base, tool=tool, progress=step)
-            except InputError as exc:  # a row of the program: name the file
-                if exc.row is None or exc.file is not None:
-                    raise
-                raise InputError(exc.message, file=path, row=exc.row) from None
-        extra = _columns(res, nom, joints)
-        write_program(out, header, cells, {c: res.q[:, k] / scale[k]
-                                           for k, c in enumerate(joints)}, extra)
+        arms = prepare_arms(cal, nom, base=base, tool=tool)
+        total = count_rows(path)
+        with progress(f"compensate {total} rows", total, quiet or json_out) as bar:
+            rows = stream(path, out, header, required, optional, joints, arms,
+                           "position" if position_only else None, bar)
     stats = {"program": str(program), "out": str(out), "model": nom.name,
-             "base": base, "tool": tool, **res.stats()}
+             "base": base, "tool": tool, **rows.stats()}
     if json_out:
         echo_json(with_warnings(stats, found))
     elif not quiet:
-        typer.echo(res.summary(shown))
-        typer.echo(f"wrote {len(res)} rows to {out}")
-
-
-def _columns(res, nom, joints: list[str]) -> dict:
-    """The compensation columns, in the model file's units."""
-    from kinecal.spatial import pq_from_transform
-
-    extra: dict = {}
-    deg = nom.angle_unit == "deg"
-    angle = (lambda a: np.degrees(a)) if deg else (lambda a: a)
-    if res.kind == "targets":
-        f = res.filtered
-        if f.ndim == 3:
-            pq = pq_from_transform(f)
-            names = ["x", "y", "z", *QUATERNION]
-        else:
-            pq, names = f, ["x", "y", "z"]
-        extra.update({f"filtered_{c}": pq[:, k] for k, c in enumerate(names)})
-    scale = nom.joint_scale()
-    extra.update({f"d{c}": res.dq[:, k] / scale[k] for k, c in enumerate(joints)})
-    extra["correction"] = res.correction
-    if res.outputs == "pose":
-        extra["correction_angle"] = angle(res.correction_rotation)
-    extra["converged"] = _bool(res.converged)
-    extra["residual"] = res.residual
-    if res.outputs == "pose":
-        extra["residual_angle"] = angle(res.residual_rotation)
-    extra["status"] = [str(s) for s in res.status]
-    return extra
+        typer.echo(rows.summary(shown))
+        typer.echo(f"wrote {len(rows)} rows to {out}")
 
 
 def demo_compensation(result, out: Path, label: str) -> tuple[object, Path, str]:
@@ -328,6 +196,7 @@ def demo_compensation(result, out: Path, label: str) -> tuple[object, Path, str]
     Writes ``compensated.csv`` (``pose, q1..qn`` and the compensation columns) into `out`
     and returns the `CompensationResult`, its path and a short text for the terminal.
     """
+    from kinecal.cli._program import fmt_float, program_output_columns, write_program
     from kinecal.compensation.api import compensate
 
     nom = result.nominal_model
@@ -335,9 +204,9 @@ def demo_compensation(result, out: Path, label: str) -> tuple[object, Path, str]
     res = compensate(result, joints=q)
     joints = [f"q{i}" for i in range(1, nom.n_joints + 1)]
     scale = nom.joint_scale()
-    cells = [[str(k + 1), *(_fmt(v) for v in row / scale)] for k, row in enumerate(q)]
+    cells = [[str(k + 1), *(fmt_float(v) for v in row / scale)] for k, row in enumerate(q)]
     path = out / "compensated.csv"
-    write_program(path, ["pose", *joints], cells, {}, _columns(res, nom, joints))
+    write_program(path, ["pose", *joints], cells, {}, program_output_columns(res, nom, joints))
     unit = nom.length_unit
     dq = np.degrees(res.joint_motion()[0])  # revolute joints (prismatic: a length)
     lines = [f"compensation of the {len(res)} held-out poses as a joint program ({label}):",

@@ -81,12 +81,21 @@ def _write_csv(header: list[str], rows: list[list]) -> None:
 def _write_columns(header: list[str], columns: list) -> None:
     """CSV on stdout from columns (float arrays, or lists of text), 15 significant digits;
     one format string per row, written a block of rows at a time."""
+    sys.stdout.write(",".join(header) + "\n")
+    n = len(columns[0])
+    for s in range(0, n, 16384):
+        sys.stdout.write(_format_rows([c[s:s + 16384] for c in columns]))
+
+
+def _format_rows(columns: list) -> str:
+    """The CSV lines of columns (float arrays, or lists of text), 15 significant digits."""
     fmt = ",".join("%s" if isinstance(c, list) else "%.15g" for c in columns)
     cells = [c if isinstance(c, list) else np.asarray(c, dtype=float).tolist() for c in columns]
-    rows = list(zip(*cells, strict=True))
-    sys.stdout.write(",".join(header) + "\n")
-    for s in range(0, len(rows), 16384):
-        sys.stdout.write("".join([fmt % r + "\n" for r in rows[s:s + 16384]]))
+    return "".join([fmt % r + "\n" for r in zip(*cells, strict=True)])
+
+
+#: rows per block of ``stewart fk``: one block solves while the one before is formatted
+FK_BLOCK = 16384
 
 
 @stewart_app.command("ik")
@@ -130,6 +139,9 @@ def fk(
     if all_modes:
         _fk_all(geom, L, path, seed, json_out)
         return
+    if method == "newton" and not json_out:
+        _fk_blocks(geom, L, path)
+        return
     # a row without any real solution is an input error, whatever the method
     newton = geom.forward(L, on_failure="flag")
     if not newton.converged.all():
@@ -152,6 +164,44 @@ def fk(
         return
     _write_columns([*POSE_COLUMNS, "converged", "residual"],
                    [*deg.T, np.where(res.converged, "true", "false").tolist(), res.residual])
+
+
+def _fk_blocks(geom, L: np.ndarray, path: str) -> None:
+    """Newton forward kinematics as CSV, a block of `FK_BLOCK` rows at a time: a worker
+    thread solves the next block while this one formats the last (the solver's numpy work
+    runs without the GIL, the float formatting needs it), so that the command's throughput
+    approaches the API's. The whole CSV is written only once every row has converged (a
+    row without a real solution is an input error; nothing is half-written). The tolerance
+    is the one a single call takes over all rows."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from kinecal.kinematics.stewart.forward import default_tol
+    from kinecal.kinematics.stewart.platform import radians_to_degrees
+
+    tol = default_tol(L + geom.leg_offsets)
+    blocks = [slice(s, min(s + FK_BLOCK, len(L))) for s in range(0, len(L), FK_BLOCK)]
+
+    def solve(b: slice):
+        return geom.forward(L[b], on_failure="flag", options={"tol": tol})
+
+    text = []
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        pending = pool.submit(solve, blocks[0]) if blocks else None
+        for k, b in enumerate(blocks):
+            res = pending.result()
+            pending = pool.submit(solve, blocks[k + 1]) if k + 1 < len(blocks) else None
+            if not res.converged.all():
+                i = int(np.argmin(res.converged))
+                if pending is not None:
+                    pending.cancel()
+                raise InputError(
+                    f"leg lengths {np.array2string(L[b][i], precision=6)} have no real "
+                    f"assembly (closest residual {res.residual[i]:.3g})",
+                    file=path, row=b.start + i + 1)
+            deg = radians_to_degrees(res.poses)
+            text.append(_format_rows([*deg.T, ["true"] * len(deg), res.residual]))
+    sys.stdout.write(",".join([*POSE_COLUMNS, "converged", "residual"]) + "\n")
+    sys.stdout.write("".join(text))
 
 
 def _fk_all(geom, L: np.ndarray, path: str, seed: int, json_out: bool) -> None:

@@ -30,7 +30,7 @@ poses do not live.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinecal import diagnostics
 from kinecal.calibration.diagnostics.program import check_target_units
+from kinecal.compensation.findings import RowFindings
 from kinecal.compensation.inputs import (
     check_base,
     check_tool,
@@ -46,14 +47,14 @@ from kinecal.compensation.inputs import (
     program_targets,
     with_nominal_tool,
 )
-from kinecal.compensation.moves import JOINT_MOVE_GAIN, mark_large_moves
+from kinecal.compensation.moves import mark_large_moves
 from kinecal.compensation.result import CompensationResult
 from kinecal.compensation.same_arm import check_same_arm, with_registered_base
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.ik import IKResult, pose_error, solve_ik
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["CompensationResult", "compensate"]
+__all__ = ["Arms", "CompensationResult", "RowFindings", "compensate", "prepare_arms"]
 
 Array = NDArray[np.float64]
 
@@ -82,17 +83,19 @@ def compensate(
     rng: int | np.random.Generator | None = 0,
     diagnose: bool = True,
     progress: Any = None,
+    findings: RowFindings | None = None,
     **ik_options: Any,
 ) -> CompensationResult:
     """Compensate a joint program or Cartesian targets with a calibrated model.
 
     Parameters
     ----------
-    calibrated : SerialModel, CalibrationResult, str, Path or array_like (n_params,)
+    calibrated : SerialModel, CalibrationResult, str, Path, Arms or array_like (n_params,)
         The calibrated arm: a model (e.g. ``load_model("calibrated.yaml")``), a calibration
         result (its nominal model is used when `nominal` is None; also one read by
-        `kinecal.load_result`), a path of either (a model file, or a result JSON), or the
-        calibrated parameter vector of `nominal`.
+        `kinecal.load_result`), a path of either (a model file, or a result JSON), the
+        calibrated parameter vector of `nominal`, or both models already checked
+        (`prepare_arms`; `nominal`, `base` and `tool` are then ignored).
     nominal : SerialModel, str or Path, optional
         The model the controller runs (required unless `calibrated` is a result); a bundled
         name or a model file path is loaded.
@@ -130,6 +133,10 @@ def compensate(
         ``progress(rows_done, rows_total)`` after every block of `BLOCK` rows (long
         programs are solved block by block; every row's answer is the same as in one
         batch).
+    findings : RowFindings, optional
+        Gathers the per-row warnings (rows outside the limits, not converged, near a
+        singularity) instead of issuing them, for a program compensated block by block
+        (its ``offset`` numbers the block's rows; `RowFindings.warn` at the end).
     **ik_options
         Passed to `kinecal.kinematics.serial.ik.solve_ik` (``tol_position``, ``tol_rotation``,
         ``max_iterations``, ``singular_threshold``, ``rotation_weight``).
@@ -145,22 +152,11 @@ def compensate(
         model of another arm.
     """
     warn = diagnostics.warn if diagnose else _silent
-    if base not in ("calibrated", "nominal"):
-        raise InputError(f"base: expected 'calibrated' or 'nominal', got {base!r}",
-                         option="--base")
-    if tool not in ("calibrated", "nominal"):
-        raise InputError(f"tool: expected 'calibrated' or 'nominal', got {tool!r}",
-                         option="--tool")
-    nom, cal = program_models(calibrated, nominal)
-    if tool == "nominal":
-        cal = with_nominal_tool(cal, nom)
-    else:
-        check_tool(nom, cal, warn)
-    reg = check_same_arm(nom, cal)
-    if base == "calibrated":
-        check_base(nom, reg, warn)
-    else:
-        cal = with_registered_base(cal, reg)
+    arms = calibrated if isinstance(calibrated, Arms) else \
+        prepare_arms(calibrated, nominal, base=base, tool=tool, diagnose=diagnose)
+    nom, cal = arms.nominal, arms.calibrated
+    # row findings: issued below, or gathered over the blocks of a program by `findings`
+    row_warn = _silent if findings is not None else warn
     if (joints is None) == (targets is None):
         raise InputError("give either a joint program (joints=) or Cartesian targets "
                          "(targets=)")
@@ -170,7 +166,8 @@ def compensate(
         if seeds is not None:
             raise InputError("seeds apply to Cartesian targets; a joint program seeds itself")
         kind = "joints"
-        q_nom = program_joints(nom, joints, "program joints", warn)
+        q_nom = program_joints(nom, joints, "program joints", row_warn)
+        _outside(findings, nom, q_nom, "program joints")
         outputs = outputs or ("pose" if nom.n_joints >= 6 else "position")
         T = nom.fk(q_nom)
         intended = T if outputs == "pose" else T[:, :3, 3]
@@ -192,7 +189,8 @@ def compensate(
             first = _blocks(nom, intended, None, None, dict(ik_options, restarts=restarts,
                                                             rng=rng))
         else:
-            q0 = program_joints(nom, seeds, "seed joints", warn)
+            q0 = program_joints(nom, seeds, "seed joints", row_warn)
+            _outside(findings, nom, q0, "seed joints")
             if q0.shape[0] != intended.shape[0]:
                 raise InputError(f"{q0.shape[0]} seed rows for {intended.shape[0]} targets")
             first = _blocks(nom, intended, q0, None, ik_options)
@@ -210,9 +208,59 @@ def compensate(
         status=mark_large_moves(nom, res.status, res.q - q_nom, corr, corr_rot),
         nominal_converged=nominal_ok, ik=res, length_unit=nom.length_unit,
         prismatic=nom.is_prismatic())
-    if diagnose:
+    if findings is not None:
+        findings.add("compensation-not-converged", ~out.converged, first_status=out.status)
+        findings.add("nominal-ik-not-converged", ~out.nominal_converged)
+        findings.add("near-singular", out.status == "near-singular")
+        findings.rows += len(out)
+    elif diagnose:
         _warn_rows(out)
     return out
+
+
+@dataclass(frozen=True)
+class Arms:
+    """The nominal model and the calibrated one a program is compensated with, checked
+    (`prepare_arms`): pass it to `compensate` as `calibrated` to compensate a program block
+    by block without checking the models again."""
+
+    nominal: SerialModel
+    calibrated: SerialModel
+
+
+def prepare_arms(calibrated: Any, nominal: SerialModel | None = None, *,
+                 base: str = "calibrated", tool: str = "calibrated",
+                 diagnose: bool = True) -> Arms:
+    """The models of `compensate` (its `calibrated`, `nominal`, `base` and `tool`), checked
+    once: the same arm, the tool point and the base frame (warnings unless `diagnose` is
+    False)."""
+    warn = diagnostics.warn if diagnose else _silent
+    if base not in ("calibrated", "nominal"):
+        raise InputError(f"base: expected 'calibrated' or 'nominal', got {base!r}",
+                         option="--base")
+    if tool not in ("calibrated", "nominal"):
+        raise InputError(f"tool: expected 'calibrated' or 'nominal', got {tool!r}",
+                         option="--tool")
+    nom, cal = program_models(calibrated, nominal)
+    if tool == "nominal":
+        cal = with_nominal_tool(cal, nom)
+    else:
+        check_tool(nom, cal, warn)
+    reg = check_same_arm(nom, cal)
+    if base == "calibrated":
+        check_base(nom, reg, warn)
+    else:
+        cal = with_registered_base(cal, reg)
+    return Arms(nom, cal)
+
+
+def _outside(findings: RowFindings | None, model: SerialModel, q: Array, what: str) -> None:
+    """Rows of `q` outside the joint limits into `findings` (`program_joints` warns
+    itself when there are none)."""
+    if findings is not None:
+        lim = model.joint_limits
+        findings.add("joints-outside-limits", ((q < lim[:, 0]) | (q > lim[:, 1])).any(axis=1),
+                     what)
 
 
 def _blocks(model: SerialModel, targets: Array, q0: Array | None, progress: Any,
@@ -242,27 +290,10 @@ def _silent(code: str, message: str) -> None:
 
 
 def _warn_rows(res: CompensationResult) -> None:
-    n = len(res)
-    bad = int(np.count_nonzero(~res.converged))
-    if bad:
-        first = int(np.argmax(~res.converged)) + 1
-        diagnostics.warn(
-            "compensation-not-converged",
-            f"{bad} of {n} rows did not converge (first: row {first}, "
-            f"{res.status[first - 1]}): the calibrated arm does not reach them from the program's "
-            "configuration (near a singularity, a joint limit or out of reach); they are kept "
-            "with converged=false")
-    nom_bad = int(np.count_nonzero(~res.nominal_converged))
-    if nom_bad:
-        diagnostics.warn(
-            "nominal-ik-not-converged",
-            f"{nom_bad} of {n} targets are out of reach of the nominal model: check the "
-            "targets' frame and units")
-    sing = int(np.count_nonzero(res.status == "near-singular"))
-    if sing:
-        diagnostics.warn(
-            "near-singular",
-            f"{sing} of {n} rows are close to a singularity (condition number above 1e3, or "
-            f"joints moving over {JOINT_MOVE_GAIN:.0f} times what the correction needs): "
-            "their joint corrections are large and sensitive to the calibration; move such "
-            "points away from it if you can")
+    """The per-row warnings of one compensated program (`RowFindings` over one block)."""
+    found = RowFindings()
+    found.add("compensation-not-converged", ~res.converged, first_status=res.status)
+    found.add("nominal-ik-not-converged", ~res.nominal_converged)
+    found.add("near-singular", res.status == "near-singular")
+    found.rows = len(res)
+    found.warn()

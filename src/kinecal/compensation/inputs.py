@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal.calibration.serial.inputs import as_calibrated, as_model, is_path
+from kinecal.compensation.findings import outside_limits_message
 from kinecal.compensation.same_arm import Registration, in_length_unit
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.chain import TOOL_NAMES
@@ -177,9 +178,6 @@ def program_joints(model: SerialModel, q: ArrayLike, what: str, warn: Any) -> Ar
     out = (a < lim[:, 0]) | (a > lim[:, 1])
     if out.any():
         rows = np.flatnonzero(out.any(axis=1))
-        warn(
-            "joints-outside-limits",
-            f"{rows.size} row(s) of {what} (first: row {rows[0] + 1}) lie outside the model's "
-            "joint limits; the compensated joints are kept within them")
+        warn("joints-outside-limits", outside_limits_message(rows.size, rows[0] + 1, what))
     return a
 

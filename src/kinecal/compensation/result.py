@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.kinematics.serial.ik import IKResult
+from kinecal.kinematics.serial.ik import STATUS, IKResult
 from kinecal.metrology.units import display_unit
 
-__all__ = ["CompensationResult"]
+__all__ = ["CompensationResult", "ProgramRows"]
 
 Array = NDArray[np.float64]
 
@@ -81,6 +82,13 @@ class CompensationResult:
     def __len__(self) -> int:
         return int(self.q.shape[0])
 
+    def rows(self) -> ProgramRows:
+        """The per-row numbers the statistics and the summary read (`ProgramRows`)."""
+        return ProgramRows(self.kind, self.outputs, self.correction, self.correction_rotation,
+                           self.error_before, self.residual, self.residual_rotation,
+                           self.converged, self.status, self.dq, self.length_unit,
+                           self.prismatic)
+
     def __repr__(self) -> str:
         ok = self.converged
         text = (f"<CompensationResult {len(self)} {self.kind} ({self.outputs}): "
@@ -95,6 +103,57 @@ class CompensationResult:
         """A few lines: rows, convergence, size of the corrections and of the residuals;
         lengths in `unit` (``mm``, ``um``, ``m``; by default the model's, millimetres for a
         model in metres: `kinecal.metrology.units.display_unit`)."""
+        return self.rows().summary(unit)
+
+    def joint_motion(self) -> tuple[Array, Array]:
+        """Largest joint change per row ``(N,)``: over the revolute joints (rad) and over
+        the prismatic ones (length unit); zeros where the arm has none of that kind."""
+        return self.rows().joint_motion()
+
+    def stats(self) -> dict[str, Any]:
+        """JSON-ready statistics: counts, corrections, residuals."""
+        return self.rows().stats()
+
+
+@dataclass(frozen=True)
+class ProgramRows:
+    """Per-row numbers of a compensated program (see `CompensationResult`), without the
+    poses: what its statistics and summary read, a few numbers per row. A program
+    compensated block by block (``kinecal compensate``) keeps these for every block and
+    concatenates them (`concatenate`); the statistics are then those of one call."""
+
+    kind: str
+    outputs: str
+    correction: Array
+    correction_rotation: Array
+    error_before: Array
+    residual: Array
+    residual_rotation: Array
+    converged: NDArray[np.bool_]
+    status: NDArray[np.str_]
+    dq: Array
+    length_unit: str = ""
+    prismatic: NDArray[np.bool_] | None = None
+
+    @classmethod
+    def concatenate(cls, parts: list[ProgramRows]) -> ProgramRows:
+        """The rows of consecutive blocks of one program, in order (at least one)."""
+        first = parts[0]
+        arrays = {f: np.concatenate([getattr(p, f) for p in parts]) for f in (
+            "correction", "correction_rotation", "error_before", "residual",
+            "residual_rotation", "converged", "status", "dq")}
+        return dataclasses.replace(first, **arrays)
+
+    def __len__(self) -> int:
+        return int(self.converged.shape[0])
+
+    def counts(self) -> dict[str, int]:
+        """Rows per IK status (`kinecal.kinematics.serial.ik.STATUS`, zeros included)."""
+        return {s: int(np.count_nonzero(self.status == s)) for s in STATUS}
+
+    def summary(self, unit: str | None = None) -> str:
+        """A few lines: rows, convergence, size of the corrections and of the residuals;
+        lengths in `unit` (see `CompensationResult.summary`)."""
         n = len(self)
         if self.length_unit:
             unit, f = display_unit(self.length_unit, unit, self.correction[self.converged])
@@ -118,7 +177,7 @@ class CompensationResult:
                              f"{unit}"
                              + (f", {self.residual_rotation[ok].max():.3g} rad"
                                 if self.outputs == "pose" else ""))
-        for s, k in self.ik.counts().items():
+        for s, k in self.counts().items():
             if k and s != "converged":
                 lines.append(f"  {s}: {k} rows")
         return "\n".join(lines)
@@ -169,7 +228,7 @@ class CompensationResult:
         rows = self._statistics_rows()
         rev, lin = self.joint_motion()
         return {"kind": self.kind, "outputs": self.outputs, "rows": len(self),
-                "converged": int(self.converged.sum()), "status": self.ik.counts(),
+                "converged": int(self.converged.sum()), "status": self.counts(),
                 "length_unit": self.length_unit,
                 # like the summary: corrections over the converged rows when some failed
                 "correction_rows": "all" if rows.all() else "converged",
@@ -180,4 +239,3 @@ class CompensationResult:
                 "joint_correction_rad": s(rev[rows]) if len(self) else None,
                 **({"joint_correction_length": s(lin[rows]) if len(self) else None}
                    if self._prismatic().any() else {})}
-

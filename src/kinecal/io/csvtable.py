@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import csv
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from itertools import islice
 from pathlib import Path
 
@@ -33,7 +33,8 @@ from numpy.typing import NDArray
 from kinecal._files import atomic_open
 from kinecal.errors import InputError
 
-__all__ = ["MAX_CELL", "check_separator", "read_column", "read_table", "write_table"]
+__all__ = ["MAX_CELL", "check_separator", "read_blocks", "read_column", "read_table",
+           "write_table"]
 
 #: lines per block of the checked (second) reading pass
 BLOCK_LINES = 65536
@@ -268,6 +269,66 @@ def _cells(lines: Iterable[str], row: int, header: list[str], wanted: list[str],
             values.append(value)
         out.append(values)
     return np.array(out, dtype=float).reshape(-1, len(wanted))
+
+
+def read_blocks(path: str | Path, required: Sequence[str], optional: Sequence[str] = (),
+                rows: int = BLOCK_LINES, max_abs: float = MAX_CELL
+                ) -> Iterator[tuple[int, list[list[str]], dict[str, NDArray[np.float64]]]]:
+    """`read_table` a block of rows at a time, with the rows' cells as text.
+
+    For files too long to hold as Python strings (a program of a million lines): memory
+    stays that of one block. Checks and error messages are `read_table`'s (rows numbered
+    in the whole file).
+
+    Parameters
+    ----------
+    path : str or Path
+    required, optional : sequence of str
+        As in `read_table`.
+    rows : int
+        Lines per block (blank lines count, but are not returned).
+    max_abs : float
+        Largest magnitude of a cell (default `MAX_CELL`).
+
+    Yields
+    ------
+    first : int
+        Data rows before the block (0-based index of its first row).
+    cells : list of list of str
+        The block's non-blank rows, every cell stripped.
+    columns : dict of str to ndarray, shape (n,)
+        The block's numeric columns.
+    """
+    path = Path(path)
+    header, skip = _header(path, required)
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise InputError(
+            f"missing column(s) {', '.join(missing)}; expected {', '.join(required)} "
+            f"(found {', '.join(header) or 'nothing'})", file=path)
+    wanted = list(required) + [c for c in optional if c in header]
+    twice = next((c for c in wanted if header.count(c) > 1), None)
+    if twice is not None:
+        where = [k + 1 for k, h in enumerate(header) if h == twice]
+        raise InputError(f"column {twice} appears {len(where)} times (columns "
+                         f"{', '.join(map(str, where))}): expected each column once",
+                         file=path)
+    cols = [header.index(c) for c in wanted]
+    row = 0
+    with _open(path) as fh:
+        try:
+            for _ in range(skip):
+                next(fh)
+            while lines := list(islice(fh, rows)):
+                b = _block(lines, len(header), cols, max_abs)
+                if b is None:  # cell by cell: raises at the first bad cell
+                    b = _cells(lines, row, header, wanted, cols, path, max_abs)
+                cells = [[c.strip() for c in r] for r in csv.reader(lines)
+                         if r and any(c.strip() for c in r)]
+                yield row, cells, {name: b[:, k] for k, name in enumerate(wanted)}
+                row += b.shape[0]
+        except (OSError, UnicodeDecodeError, csv.Error) as exc:
+            raise InputError(f"cannot read CSV: {exc}", file=path) from None
 
 
 def read_column(path: str | Path, name: str) -> list[str] | None:

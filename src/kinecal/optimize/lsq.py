@@ -26,6 +26,9 @@ Jacobian = Callable[[Array], Array]
 #: ``normal_equations(x) -> (r, J^T J, J^T r)``
 NormalEquations = Callable[[Array], tuple[Array, Array, Array]]
 
+#: ``linear_solver(A, damp, g) -> h`` with ``(A + diag(damp)) h = -g``
+LinearSolver = Callable[[Array, Array, Array], Array]
+
 #: robust losses of `levenberg_marquardt` (scipy names)
 LOSSES = ("linear", "huber", "soft_l1", "cauchy", "arctan")
 
@@ -148,6 +151,7 @@ def levenberg_marquardt(
     normal_equations: NormalEquations | None = None,
     start: tuple[Array, Array, Array] | None = None,
     damping: float | tuple[float, float] = 1e-3,
+    linear_solver: LinearSolver | None = None,
 ) -> OptimizeResult:
     """Levenberg-Marquardt with the analytic Jacobian.
 
@@ -183,6 +187,11 @@ def levenberg_marquardt(
         of one evaluation. With weakly identifiable directions (condition ``c``) each
         accepted step divides ``mu`` by at most 3: a large ``mu`` costs about
         ``log3(c^2 mu)`` iterations before those directions move.
+    linear_solver : callable, optional
+        ``linear_solver(A, damp, g) -> h`` solving ``(A + diag(damp)) h = -g`` for the
+        kinecal solver's steps (raising `numpy.linalg.LinAlgError` when the matrix is not
+        positive definite), for normal matrices with structure (e.g. a Schur complement);
+        default: dense Cholesky.
 
     Returns
     -------
@@ -219,7 +228,8 @@ def levenberg_marquardt(
                                     max_nfev=max_nfev or 200 * (np.size(x0) + 1),
                                     ftol=1e-12 if ftol is None else ftol,
                                     xtol=1e-12 if xtol is None else xtol,
-                                    gtol=1e-12 if gtol is None else gtol, monitor=monitor)
+                                    gtol=1e-12 if gtol is None else gtol, monitor=monitor,
+                                    linear_solver=linear_solver or _cholesky_step)
     ftol, xtol, gtol = (1e-15 if v is None else v for v in (ftol, xtol, gtol))
     history: list[float] = []
 
@@ -241,6 +251,12 @@ def levenberg_marquardt(
         status=int(out.status), message=str(out.message), history=history, elapsed=elapsed,
         njev=njev, residual=out.fun, jac=out.jac,
     )
+
+
+def _cholesky_step(A: Array, damp: Array, g: Array) -> Array:
+    """``h`` with ``(A + diag(damp)) h = -g`` by dense Cholesky."""
+    c = scipy.linalg.cho_factor(A + np.diag(damp), check_finite=False)
+    return -scipy.linalg.cho_solve(c, g, check_finite=False)
 
 
 def _plain_normal_equations(residual: Residual, jacobian: Jacobian):
@@ -276,6 +292,7 @@ def _lm_normal_equations(
     xtol: float, gtol: float, monitor: Callable[[Array], float],
     start: tuple[Array, Array, Array] | None = None,
     damping: float | tuple[float, float] = 1e-3,
+    linear_solver: LinearSolver = _cholesky_step,
 ) -> OptimizeResult:
     """Levenberg-Marquardt on the normal equations (see `levenberg_marquardt`).
 
@@ -307,8 +324,7 @@ def _lm_normal_equations(
         d = np.diag(A).copy()
         d = np.maximum(d, 1e-12 * max(d.max(), 1e-300))  # Marquardt scaling, kept positive
         try:
-            c = scipy.linalg.cho_factor(A + mu * np.diag(d), check_finite=False)
-            h = -scipy.linalg.cho_solve(c, g, check_finite=False)
+            h = linear_solver(A, mu * d, g)
         except np.linalg.LinAlgError:
             mu *= nu
             nu *= 2.0

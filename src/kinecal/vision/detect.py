@@ -42,6 +42,7 @@ from kinecal.vision.boards import Board, Charuco, Chessboard
 from kinecal.vision.circle_grids import CircleGrid
 from kinecal.vision.detect_circles import detect_circle_grid
 from kinecal.vision.detection import Detection, QualityLimits, edge_width, orientation_ambiguous
+from kinecal.vision.pixels import blurred_around, hull_polygon
 
 Array = NDArray[np.float64]
 
@@ -50,12 +51,24 @@ __all__ = ["Detection", "QualityLimits", "detect", "edge_width", "orientation_am
 
 def _hull_mask(shape: tuple[int, int], pts: Array, grow: float) -> NDArray[np.bool_]:
     cv2 = require_cv2()
-    hull = cv2.convexHull(pts.astype(np.float32)).reshape(-1, 2)
-    c = hull.mean(axis=0)
-    hull = c + (hull - c) * grow
     mask = np.zeros(shape, np.uint8)
-    cv2.fillConvexPoly(mask, np.round(hull).astype(np.int32), 1)
+    cv2.fillConvexPoly(mask, hull_polygon(pts, grow), 1)
     return mask.astype(bool)
+
+
+def _board_edge_width(gray: NDArray[np.uint8], pts: Array, grow: float) -> float:
+    """`edge_width` within the grown hull of `pts`, on the hull's bounding box plus 2 px
+    (the Sobel gradient needs one; same pixels, same values as on the whole image)."""
+    cv2 = require_cv2()
+    poly = hull_polygon(pts, grow)
+    h, w = gray.shape
+    x0, y0 = np.maximum(poly.min(axis=0) - 2, 0)
+    x1, y1 = np.minimum(poly.max(axis=0) + 3, (w, h))
+    if x1 <= x0 or y1 <= y0:
+        return float("nan")
+    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    cv2.fillConvexPoly(mask, poly - np.array([x0, y0], np.int32), 1)
+    return edge_width(gray[y0:y1, x0:x1], mask.view(bool))
 
 
 def _spacing(corners: Array, cols: int) -> float:
@@ -72,7 +85,7 @@ def _subpix(gray: NDArray[np.uint8], corners: Array, spacing: float) -> Array:
     cv2 = require_cv2()
     half = int(np.clip(np.floor(0.45 * spacing), 2, 15))
     sigma = min(1.5, spacing / 12.0)
-    img = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), sigma) if sigma >= 0.3 else gray
+    img = blurred_around(gray, corners, sigma, 2 * half + 3) if sigma >= 0.3 else gray
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
     c = corners.astype(np.float32).reshape(-1, 1, 2)
     return cv2.cornerSubPix(img, c, (half, half), (-1, -1), crit).reshape(-1, 2).astype(float)
@@ -213,7 +226,7 @@ def _refine_charuco(gray: NDArray[np.uint8], c: Array, board: Charuco) -> Array:
     half = int(np.clip(round(gap), 2, 15))
     sigma = 1.0 if half >= 3 else 0.7
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
-    smooth = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), sigma)
+    smooth = blurred_around(gray, c, sigma, 2 * half + 3)  # the blur only where read
     return cv2.cornerSubPix(smooth, c.astype(np.float32).reshape(-1, 1, 2), (half, half),
                             (-1, -1), crit).reshape(-1, 2).astype(float)
 
@@ -265,7 +278,7 @@ def detect(image: NDArray[Any], board: Board,
         return det.reject(f"board partly visible: a corner {max(near.min(), 0):.1f} px from "
                           f"the image border (< {limits.border:g} px)")
     if len(c) >= 3:
-        det.edge_width = edge_width(gray, _hull_mask(gray.shape, c, 1.15))
+        det.edge_width = _board_edge_width(gray, c, 1.15)
         if np.isfinite(det.edge_width) and det.edge_width > limits.max_edge_width:
             return det.reject(f"blurred: edge width {det.edge_width:.1f} px > "
                               f"{limits.max_edge_width:g} px")

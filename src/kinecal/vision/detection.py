@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from kinecal.vision import require_cv2
 from kinecal.vision.board_base import Board
+from kinecal.vision.pixels import percentiles_of_levels, upper_percentile
 
 Array = NDArray[np.float64]
 
@@ -122,18 +123,27 @@ def edge_width(gray: NDArray[np.uint8], mask: NDArray[np.bool_] | None = None) -
     magnitude; NaN when the region has no contrast.
     """
     cv2 = require_cv2()
-    g = gray.astype(np.float32)
-    gx = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3) / 8.0
-    gy = cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3) / 8.0
-    mag = np.sqrt(gx * gx + gy * gy)
-    if mask is not None:
-        vals, mags = g[mask], mag[mask]
-    else:
-        vals, mags = g.ravel(), mag.ravel()
-    if vals.size < 16:
+    g = gray if gray.dtype == np.uint8 else gray.astype(np.float32)
+    n = gray.size if mask is None else int(np.count_nonzero(mask))
+    if n < 16:
         return float("nan")
-    lo, hi = np.percentile(vals, [2.0, 98.0])
-    peak = float(np.percentile(mags, 99.5))
-    if hi - lo < 10.0 or peak <= 0:
+    if gray.dtype == np.uint8:  # grey levels: the percentiles from their histogram
+        m8 = None if mask is None else mask.view(np.uint8)
+        counts = cv2.calcHist([g], [0], m8, [256], [0, 256]).ravel()
+        lo, hi = percentiles_of_levels(counts, (2.0, 98.0))
+    else:
+        lo, hi = np.percentile(g[mask] if mask is not None else g, [2.0, 98.0])
+    if hi - lo < 10.0:
+        return float("nan")
+    # the 3x3 Sobel / 8 (an exact scaling), its magnitude where the mask is
+    gx = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
+    gy = cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
+    if mask is not None:
+        gx, gy = gx[mask], gy[mask]
+    gx *= gx
+    gy *= gy
+    gx += gy
+    peak = upper_percentile(np.sqrt(gx, out=gx).ravel(), 99.5)
+    if peak <= 0:
         return float("nan")
     return float(0.78 * (hi - lo) / peak)

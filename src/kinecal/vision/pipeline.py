@@ -2,17 +2,19 @@
 
 `calibrate_handeye_images` is what ``kinecal handeye-images`` runs:
 
-1. detect the board in every image (`kinecal.vision.detect`); rejected images keep their
-   reason and are never used;
+1. detect the board in every image (`kinecal.vision.detect`), the images in parallel on a
+   thread pool sized to the CPUs; rejected images keep their reason and are never used;
 2. camera intrinsics from the user's file, or estimated from the accepted images
    (``cv2.calibrateCamera``, reprojection RMS reported);
 3. the board pose of every accepted image by PnP with its covariance
    (`kinecal.vision.pnp`); views tilted beyond the limit are rejected as too oblique;
-4. a closed form on the poses with the robust pose-level refinement
+4. a closed form on the poses and its plausibility checks
    (`kinecal.calibration.handeye.calibrate_handeye`), the seed;
 5. the refinement on the reprojection error of every corner
    (`kinecal.calibration.handeye.images.refine_reprojection`): X and the board pose
-   jointly, intrinsics and robot-pose errors optionally, robust, outlier stations flagged.
+   jointly, intrinsics and robot-pose errors optionally, robust, outlier stations flagged;
+   when it flags stations, it runs again from the robust pose-level solution (RANSAC
+   start, reweighted LM), which the outliers cannot pull.
 
 The result types (`ImageRecord`, `ImageHandEyeResult`, re-exported here) are in
 `kinecal.vision.results`.
@@ -20,8 +22,10 @@ The result types (`ImageRecord`, `ImageHandEyeResult`, re-exported here) are in
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -134,7 +138,11 @@ def calibrate_handeye_images(
             _warn_symmetric(board)
         expected = None if intrinsics is None or not intrinsics.size else \
             tuple(intrinsics.size)
-        records, size = _detect_all(images, names, board, limits, progress, expected)
+        # with the intrinsics given, each image's board pose is taken in its detection
+        # worker too (OpenCV's PnP releases the GIL as its detectors do)
+        pose_of = None if intrinsics is None else \
+            (lambda r: _pose_of(r, board, intrinsics, limits))
+        records, size = _detect_all(images, names, board, limits, progress, expected, pose_of)
         intr = _intrinsics(records, board, size, intrinsics)
         if refine_intrinsics is None:
             refine_intrinsics = intrinsics is None
@@ -147,15 +155,11 @@ def calibrate_handeye_images(
         if orientation_ambiguous(board) and _turn_flipped(records, used, board, F[idx], C,
                                                           setup, method):
             C = np.array([records[k].pose.target2cam for k in used])
-        seed = calibrate_handeye(F[idx], C, setup=setup, method=method, refine="lm",
-                                 camera_height=camera_height, board_contact=board_contact)
-        one = _one_axis(seed, F[idx], setup, camera_height, board_contact)
         obj = [records[k].detection.object_points(board) for k in used]
         pix = [records[k].detection.corners for k in used]
-        ref = refine_reprojection(F[idx], obj, pix, intr.K, intr.dist, seed.X, seed.target,
-                                  setup=setup, refine_intrinsics=refine_intrinsics,
-                                  rational=intr.rational, robot_noise=robot_noise,
-                                  robust=robust, one_axis=one)
+        axis = {"camera_height": camera_height, "board_contact": board_contact}
+        seed, ref, one = _seed_and_refine(F[idx], C, obj, pix, intr, setup, method,
+                                          refine_intrinsics, robot_noise, robust, axis)
         for j, k in enumerate(used):
             records[k].residuals = ref.residuals[j]
         for j in ref.outliers:
@@ -192,33 +196,77 @@ def _one_axis(seed: Any, F: Array, setup: str, camera_height: float | None,
     return detect_one_axis(G, setup), AxisHeight.from_options(camera_height, board_contact)
 
 
+def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
+                     intr: CameraIntrinsics, setup: str, method: str, refine_intrinsics: bool,
+                     robot_noise: tuple[float, float] | None, robust: bool,
+                     axis: dict[str, Any]) -> tuple[Any, ReprojectionRefinement, Any]:
+    """The closed form (with the pose-level checks) seeds the refinement on the pixels,
+    which is robust itself. When that refinement flags stations, it runs again from the
+    robust pose-level solution (RANSAC start, reweighted LM), which outlier stations
+    cannot pull, and that run is the result. `axis`: ``camera_height`` and
+    ``board_contact`` for one-axis robots; also returns their (axis, height) or None."""
+    def refine(seed: Any) -> ReprojectionRefinement:
+        return refine_reprojection(F, obj, pix, intr.K, intr.dist, seed.X, seed.target,
+                                   setup=setup, refine_intrinsics=refine_intrinsics,
+                                   rational=intr.rational, robot_noise=robot_noise,
+                                   robust=robust, one_axis=one)
+
+    from kinecal.calibration.handeye.scara import detect_one_axis
+    from kinecal.spatial import invert_transform
+
+    # one-axis robots (SCARA): Ulrich and Steger's closed form is judged (conditioning)
+    # after its pose-level refinement, which is then the seed
+    G = F if setup == "eye-in-hand" else invert_transform(F)
+    first = "none" if detect_one_axis(G, setup) is None else "lm"
+    # the refinement on the pixels judges the outlier stations: the closed form's own
+    # flags (a robust pose-level refinement, `robust=True` with refine "none") would be
+    # that work twice; its other checks run
+    seed = calibrate_handeye(F, C, setup=setup, method=method, refine=first,
+                             robust=first == "lm", **axis)
+    one = _one_axis(seed, F, setup, axis["camera_height"], axis["board_contact"])
+    ref = refine(seed)
+    if robust and ref.outliers and first == "none":
+        seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm", **axis)
+        ref = refine(seed)
+    return seed, ref, one
+
+
 def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
                 limits: QualityLimits, progress: Callable[..., None] | None,
-                expected: tuple[int, int] | None = None
+                expected: tuple[int, int] | None = None,
+                pose_of: Callable[[ImageRecord], None] | None = None
                 ) -> tuple[list[ImageRecord], tuple[int, int] | None]:
     """Detect the board in every readable image; the session's image size is the size of
     most images (ties: the first image's), or `expected` (the intrinsics' size) when images
     have it, so one odd image, first or not, is the one rejected."""
-    records: list[ImageRecord] = []
-    sizes: list[tuple[int, int] | None] = []
-    for name, im in zip(names, images, strict=True):
+    def one(item: tuple[str, Any]) -> tuple[ImageRecord, tuple[int, int] | None]:
+        name, im = item
         try:
             gray = load_gray(im) if isinstance(im, str | Path) else np.asarray(im)
         except InputError as exc:  # too large to decode: rejected from its header
-            gray, reason = None, exc.message
-        else:
-            reason = "cannot read the image file"
+            return ImageRecord(str(name), "rejected", exc.message), None
         if gray is None or gray.size == 0:
-            records.append(ImageRecord(str(name), "rejected", reason))
-            sizes.append(None)
-        else:
-            h, w = gray.shape[:2]
-            sizes.append((w, h))
-            det = detect(gray, board, limits)
-            records.append(ImageRecord(str(name), "used" if det.ok else "rejected",
-                                       det.reason, det))
-        if progress is not None:
-            progress()
+            return ImageRecord(str(name), "rejected", "cannot read the image file"), None
+        h, w = gray.shape[:2]
+        det = detect(gray, board, limits)
+        record = ImageRecord(str(name), "used" if det.ok else "rejected", det.reason, det)
+        if pose_of is not None and det.ok:
+            pose_of(record)
+        return record, (w, h)
+
+    records: list[ImageRecord] = []
+    sizes: list[tuple[int, int] | None] = []
+    # images in parallel: OpenCV's detectors, blurs and numpy's large-array work release
+    # the GIL; results come back in input order
+    workers = min(len(images), _cpu_count())
+    with ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
+        done = pool.map(one, zip(names, images, strict=True)) if workers > 1 else \
+            map(one, zip(names, images, strict=True))
+        for record, size in done:
+            records.append(record)
+            sizes.append(size)
+            if progress is not None:
+                progress()
     seen = [z for z in sizes if z is not None]
     if not seen:
         return records, None
@@ -228,10 +276,18 @@ def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
         size = max(dict.fromkeys(seen), key=seen.count)  # most frequent, first on ties
     for r, z in zip(records, sizes, strict=True):
         if z is not None and z != size:
-            r.status, r.detection = "rejected", None
+            r.status, r.detection, r.pose = "rejected", None, None
             r.reason = (f"image size {z[0]}x{z[1]} differs from the other images' "
                         f"{size[0]}x{size[1]}")
     return records, size  # type: ignore[return-value]
+
+
+def _cpu_count() -> int:
+    """CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return os.cpu_count() or 1
 
 
 def _intrinsics(records: list[ImageRecord], board: Board, size: tuple[int, int] | None,
@@ -262,16 +318,8 @@ def _poses(records: list[ImageRecord], board: Board, intr: CameraIntrinsics,
            limits: QualityLimits) -> None:
     ok = [r for r in records if r.status == "used"]
     for r in ok:
-        try:
-            r.pose = board_pose(r.detection.object_points(board), r.detection.corners,
-                                intr.K, intr.dist)
-        except InputError as exc:
-            r.status, r.reason = "rejected", f"no board pose: {exc.message}"
-            continue
-        if r.pose.tilt_deg > limits.max_tilt_deg:
-            r.status = "rejected"
-            r.reason = (f"too oblique: board tilted {r.pose.tilt_deg:.0f} deg from facing the "
-                        f"camera (> {limits.max_tilt_deg:g} deg)")
+        if r.pose is None:  # not yet taken in the detection worker
+            _pose_of(r, board, intr, limits)
     with_pose = [r for r in ok if r.pose is not None and r.status == "used"]
     if not with_pose:
         return
@@ -285,6 +333,21 @@ def _poses(records: list[ImageRecord], board: Board, intr: CameraIntrinsics,
             r.status = "rejected"
             r.reason = (f"corners do not fit a board pose ({r.pose.rms_px:.2f} px RMS): "
                         "mis-detected or mis-ordered corners")
+
+
+def _pose_of(r: ImageRecord, board: Board, intr: CameraIntrinsics,
+             limits: QualityLimits) -> None:
+    """The board pose of one accepted image; rejected when PnP fails or too oblique."""
+    try:
+        r.pose = board_pose(r.detection.object_points(board), r.detection.corners,
+                            intr.K, intr.dist)
+    except InputError as exc:
+        r.status, r.reason = "rejected", f"no board pose: {exc.message}"
+        return
+    if r.pose.tilt_deg > limits.max_tilt_deg:
+        r.status = "rejected"
+        r.reason = (f"too oblique: board tilted {r.pose.tilt_deg:.0f} deg from facing the "
+                    f"camera (> {limits.max_tilt_deg:g} deg)")
 
 
 def _warn_symmetric(board: Board) -> None:

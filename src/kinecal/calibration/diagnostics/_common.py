@@ -77,12 +77,22 @@ def repeat_groups(*columns: Array, resolution: float = JOINT_RESOLUTION) -> tupl
         np.divide(X, resolution, out=X)
         np.round(X, out=X)
     key += 0.0  # -0.0 and 0.0 are one value (and one bit pattern below)
-    # Linear in the rows: one 64-bit hash per row, grouped by a 1-D sort; the rows of
-    # groups with several members are compared with their group's first row, and only a
-    # hash collision falls back to sorting whole rows.
-    _, first, inverse = np.unique(_row_hash(key), return_index=True, return_inverse=True)
-    inverse = inverse.ravel()
-    shared = np.flatnonzero(np.bincount(inverse)[inverse] > 1)
+    if X.shape[0] <= 64 and np.isfinite(key).all():  # a few rows: sorted whole at once
+        order = np.lexsort(key.T[::-1])  # stable: equal rows keep their order
+        srt = key[order]
+        new = np.ones(len(order), dtype=bool)
+        new[1:] = np.any(srt[1:] != srt[:-1], axis=1)
+        inverse = np.empty(len(order), dtype=np.intp)
+        inverse[order] = np.cumsum(new) - 1
+        first = order[new]  # each group's first row
+        shared = first[:0]
+    else:
+        # Linear in the rows: one 64-bit hash per row, grouped by a 1-D sort; the rows of
+        # groups with several members are compared with their group's first row, and only
+        # a hash collision falls back to sorting whole rows.
+        _, first, inverse = np.unique(_row_hash(key), return_index=True, return_inverse=True)
+        inverse = inverse.ravel()
+        shared = np.flatnonzero(np.bincount(inverse)[inverse] > 1)
     if not np.array_equal(key[shared], key[first[inverse[shared]]]):
         _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
         inverse = inverse.ravel()

@@ -194,25 +194,29 @@ def _spread_units(G: Array, C: Array, what: str) -> bool:
 
 
 def handeye_uncertainty(G: Array, C: Array, X: Array, Y: Array,
-                        inliers: Array | None = None) -> XUncertainty | None:
+                        inliers: Array | None = None,
+                        residuals: tuple[Array, Array, Array] | None = None
+                        ) -> XUncertainty | None:
     """First-order uncertainty of X at the solution (see the module docstring).
 
+    `residuals`: ``residuals_and_jacobian(G, C, X, Y, 0)`` of all stations
+    (`kinecal.calibration.handeye.refine`), when the caller has them (no `inliers` then).
     None when it cannot be estimated (noise-free data, no degrees of freedom).
     """
-    from kinecal.calibration.handeye.refine import camera_residuals, residual_jacobian
+    from kinecal.calibration.handeye.refine import residuals_and_jacobian
 
     if inliers is not None:
         G, C = G[inliers], C[inliers]
     n = len(G)
     if 6 * n <= UNKNOWNS:
         return None
-    rot, tr = camera_residuals(G, C, X, Y)
+    rot, tr, J = residuals_and_jacobian(G, C, X, Y, np.zeros(UNKNOWNS)) if residuals is None \
+        else residuals
     sr = float(np.sqrt(np.mean(rot**2)))
     st = float(np.sqrt(np.mean(tr**2)))
     L = float(np.sqrt(np.mean(np.sum(C[:, :3, 3] ** 2, axis=1))))
     if not (sr > 1e-12 and st > 1e-12 * max(L, 1e-300)):
         return None
-    J = residual_jacobian(G, C, X, Y, np.zeros(UNKNOWNS))
     scale = np.r_[[1.0 / sr] * 3, [1.0 / st] * 3]
     Js = (J * scale[None, :, None]).reshape(-1, UNKNOWNS)
     r = np.concatenate([rot / sr, tr / st], axis=1).ravel()

@@ -25,11 +25,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.diagnostics import warn
-from kinecal.errors import InputError
-from kinecal.spatial import invert_transform, matrix_from_quaternion, quaternion_from_matrix
+from kinecal.spatial import (
+    invert_transform,
+    matrix_from_quaternion,
+    project_to_rotation,
+    quaternion_from_matrix,
+)
 
 __all__ = ["ROTATION_LIMIT_DEG", "TRANSLATION_LIMIT", "Inconsistency", "consistency_scores",
-           "find_inconsistency", "warn_inconsistent"]
+           "find_inconsistency", "screen_scores", "station_scores", "warn_inconsistent"]
 
 Array = NDArray[np.float64]
 
@@ -47,16 +51,22 @@ def consistency_scores(G: Array, C: Array, X: Array, Y: Array) -> tuple[float, f
     the RMS camera-target distance (unitless)."""
     from kinecal.calibration.handeye.errors import station_residuals
 
-    rot, tr = station_residuals(G, X, C, Y)
+    return station_scores(*station_residuals(G, X, C, Y), C)
+
+
+def station_scores(rot: Array, tr: Array, C: Array) -> tuple[float, float]:
+    """`consistency_scores` from the station residuals ``(n,)`` (deg, length) and the
+    ``target2cam`` poses ``(n, 4, 4)``."""
     dist = float(np.sqrt(np.mean(np.sum(C[:, :3, 3] ** 2, axis=1))))
     return float(np.median(rot)), float(np.median(tr)) / max(dist, 1e-300)
 
 
 def _xyzw(T: Array) -> Array:
-    """Poses whose quaternion was stored (x, y, z, w) and read as (w, x, y, z), put right."""
-    q = quaternion_from_matrix(T[:, :3, :3])
+    """Poses ``(..., 4, 4)`` whose quaternion was stored (x, y, z, w) and read as
+    (w, x, y, z), put right."""
+    q = quaternion_from_matrix(T[..., :3, :3])
     out = T.copy()
-    out[:, :3, :3] = matrix_from_quaternion(q[:, [3, 0, 1, 2]])
+    out[..., :3, :3] = matrix_from_quaternion(q[..., [3, 0, 1, 2]])
     return out
 
 
@@ -76,10 +86,14 @@ class Inconsistency:
 
 
 def find_inconsistency(F: Array, C: Array, setup: str, X: Array, Y: Array,
-                       method: str = "park") -> Inconsistency | None:
+                       method: str = "park", *,
+                       scores: tuple[float, float] | None = None) -> Inconsistency | None:
     """None when the median station fits ``G_i X C_i = Y`` within `ROTATION_LIMIT_DEG`
     and `TRANSLATION_LIMIT` of the camera distance; else how far it is, and which of the
     usual mix-ups (poses inverted, quaternion order) makes the stations fit.
+
+    Every reading (the poses as given and the six mix-ups) is screened by a closed form
+    and the mean target pose, all readings in one vectorised pass (`screen_scores`).
 
     Parameters
     ----------
@@ -91,56 +105,155 @@ def find_inconsistency(F: Array, C: Array, setup: str, X: Array, Y: Array,
     X, Y : ndarray, shape (4, 4)
         The solution (hand-eye transform, target pose).
     method : str
-        Closed form used to try the alternatives.
+        Closed form of the solution (the screens always use Shah's, see `screen_scores`).
+    scores : (float, float), optional
+        `consistency_scores` of the solution, when the caller has them.
     """
-    from kinecal.calibration.handeye._motions import check_motions, motion_pairs
-    from kinecal.calibration.handeye.axxb import SOLVERS
-    from kinecal.calibration.handeye.errors import mean_target_pose
-
-    def solve(G: Array, Ca: Array) -> tuple[Array, Array]:
-        """Park's closed form and the mean target pose (`calibration.handeye.solve`)."""
-        check_motions(invert_transform(G[:1]) @ G[1:], "robot motions")
-        check_motions(Ca[:1] @ invert_transform(Ca[1:]), "camera motions")
-        Xa = SOLVERS["park"](*motion_pairs(G, Ca, "all"))
-        return Xa, mean_target_pose(G, Xa, Ca)
-
     def robot(Fa: Array) -> Array:
         return Fa if setup == "eye-in-hand" else invert_transform(Fa)
-
-    def screen(Fa: Array, Ca: Array) -> tuple[float, float] | None:
-        """Scores of Park's closed form (fast, the same for every reading)."""
-        try:
-            Xa, Ya = solve(robot(Fa), Ca)
-        except InputError:
-            return None
-        return consistency_scores(robot(Fa), Ca, Xa, Ya)
 
     def size(rt: tuple[float, float]) -> float:
         return rt[0] / ROTATION_LIMIT_DEG + rt[1] / TRANSLATION_LIMIT
 
-    r, t = consistency_scores(robot(F), C, X, Y)
+    r, t = consistency_scores(robot(F), C, X, Y) if scores is None else scores
     other = "eye-to-hand" if setup == "eye-in-hand" else "eye-in-hand"
+    Fi, Ci = invert_transform(F), invert_transform(C)
+    Fq, Cq = _xyzw(np.stack([F, C]))
     tries = [
         (f"with the robot poses inverted (base2flange, not flange2base: --invert-robot, or "
-         f"--setup {other})", invert_transform(F), C),
+         f"--setup {other})", Fi, C),
         ("with the target poses inverted (cam2target, not target2cam: --invert-target)",
-         F, invert_transform(C)),
-        ("with both pose lists inverted (--invert-robot --invert-target)",
-         invert_transform(F), invert_transform(C)),
-        ("with the robot quaternions read in (x, y, z, w) order", _xyzw(F), C),
-        ("with the target quaternions read in (x, y, z, w) order", F, _xyzw(C)),
-        ("with both quaternions read in (x, y, z, w) order", _xyzw(F), _xyzw(C)),
+         F, Ci),
+        ("with both pose lists inverted (--invert-robot --invert-target)", Fi, Ci),
+        ("with the robot quaternions read in (x, y, z, w) order", Fq, C),
+        ("with the target quaternions read in (x, y, z, w) order", F, Cq),
+        ("with both quaternions read in (x, y, z, w) order", Fq, Cq),
     ]
+    Gs = np.stack([robot(F)] + [robot(Fa) for _, Fa, _ in tries])
+    Cs = np.stack([C] + [Ca for _, _, Ca in tries])
+    screened = screen_scores(Gs, Cs, ROTATION_LIMIT_DEG, FAR_BETTER)
     found = Inconsistency(r, t)
-    as_is = screen(F, C)
-    best = np.inf if as_is is None else size(as_is) / FAR_BETTER
-    for label, Fa, Ca in tries:
-        sa = screen(Fa, Ca)
-        if sa is not None and _fits(*sa) and size(sa) < best:
-            best, found.fits_with, found.fit = size(sa), label, sa
+    as_is = screened[0]
+    best = np.inf if np.isnan(as_is[0]) else size(as_is) / FAR_BETTER
+    for (label, _, _), sa in zip(tries, screened[1:], strict=True):
+        if not np.isnan(sa[0]) and _fits(*sa) and size(sa) < best:
+            best, found.fits_with, found.fit = size(sa), label, (float(sa[0]), float(sa[1]))
     if found.fits_with is None and _fits(r, t):
         return None
     return found
+
+
+def screen_scores(G: Array, C: Array, rotation_limit: float | None = None,
+                  far_better: float | None = None) -> Array:
+    """`consistency_scores` of a closed form for stacks of readings, all in one pass.
+
+    The closed form is Shah's (2013) on the absolute poses (``sum R_C (x) R_G^T``, its
+    leading singular vectors, `calibration.handeye.axzb.shah`): its cost grows with the
+    stations, not with their pairs as Park's does, and for a screen of mix-ups (scores of
+    degrees and per cent) any consistent closed form serves. ``t_X`` and ``t_Y`` follow by
+    least squares from the translation rows of ``G_i X C_i = Y``; the target pose is then
+    the mean one (`calibration.handeye.errors.mean_target_pose`).
+
+    Parameters
+    ----------
+    G, C : ndarray, shape (r, n, 4, 4)
+        Robot poses (``flange2base`` eye-in-hand, ``base2flange`` eye-to-hand) and
+        ``target2cam`` of r readings of the same n stations.
+
+    rotation_limit : float, optional
+        Readings after the first whose rotation score exceeds this (deg) get no
+        translation score (inf): they cannot fit anyway, and the translation part is half
+        the work.
+    far_better : float, optional
+        With `rotation_limit`: also readings after the first whose rotation score alone,
+        in units of `rotation_limit`, is already at least the first reading's score
+        (`find_inconsistency`'s size) over `far_better`: they cannot fit that much better.
+
+    Returns
+    -------
+    ndarray, shape (r, 2)
+        Median station rotation residual (deg) and translation residual over the RMS
+        camera-target distance; NaN where the robot or camera motions are degenerate
+        (`calibration.handeye.solve` raises there).
+    """
+    from kinecal.calibration.handeye._motions import degenerate_motions
+
+    r, n = G.shape[:2]
+    RG, RC = G[..., :3, :3], C[..., :3, :3]
+    RGt = np.swapaxes(RG, -1, -2)
+    bad = degenerate_motions(np.stack([RGt[:, :1] @ RG[:, 1:],
+                                       RC[:, :1] @ np.swapaxes(RC[:, 1:], -1, -2)])).any(axis=0)
+    # R_C,i R_Y^-1-part: (R_C (x) R_G^T) vec(R_Y^T R_...) -> Shah's K; R_X^T = R_Z' (left)
+    K = (np.swapaxes(RC.reshape(r, n, 9), 1, 2) @ RGt.reshape(r, n, 9))  # sum vec vec^T
+    K = K.reshape(r, 3, 3, 3, 3).transpose(0, 1, 3, 2, 4).reshape(r, 9, 9)  # -> Kronecker
+    U = np.linalg.eigh(K @ np.swapaxes(K, 1, 2))[1]  # left singular vectors of K
+    RX = np.swapaxes(_signed_rotations(U[:, :, -1]), 1, 2)
+    # the rotation score: the mean target rotation and every station's angle from it
+    RGX = RG @ RX[:, None]
+    RP = RGX @ RC
+    RY = project_to_rotation(RP.mean(axis=1))
+    out = np.full((r, 2), np.inf)
+    out[:, 0] = np.median(np.degrees(_angles(np.swapaxes(RY, 1, 2)[:, None] @ RP)), axis=1)
+    need = ~bad & (True if rotation_limit is None else out[:, 0] <= rotation_limit)
+    need[0] = not bad[0]
+    solvable = np.ones(r, bool)
+    if rotation_limit is not None and far_better is not None and need[0]:
+        out[0, 1], solvable[0] = (v[0] for v in _translation_scores(G[:1], C[:1], RX[:1]))
+        first = out[0, 0] / rotation_limit + out[0, 1] / TRANSLATION_LIMIT
+        if solvable[0] and np.isfinite(first):
+            need &= out[:, 0] / rotation_limit < first / far_better
+        need[0] = False
+    if need.any():
+        out[need, 1], solvable[need] = _translation_scores(G[need], C[need], RX[need])
+    out[bad | ~solvable] = np.nan
+    return out
+
+
+def _translation_scores(G: Array, C: Array, RX: Array) -> tuple[Array, NDArray[np.bool_]]:
+    """Median station translation residual over the RMS camera-target distance ``(r,)`` of
+    readings ``(r, n, 4, 4)`` with hand-eye rotations `RX` ``(r, 3, 3)`` (``t_X, t_Y`` by
+    least squares on ``R_G t_X - t_Y = -t_G - R_G R_X t_C``, then the mean target
+    position), and which readings had a solvable system ``(r,)``."""
+    r, n = G.shape[:2]
+    RG, tG, tC = G[..., :3, :3], G[..., :3, 3], C[..., :3, 3]
+    RGt = np.swapaxes(RG, -1, -2)
+    RGX = RG @ RX[:, None]
+    rhs = -tG - np.einsum("rnij,rnj->rni", RGX, tC)
+    N = np.zeros((r, 6, 6))
+    N[:, :3, :3] = n * np.eye(3)  # sum R_G^T R_G
+    N[:, :3, 3:] = -RGt.sum(axis=1)
+    N[:, 3:, :3] = -RG.sum(axis=1)
+    N[:, 3:, 3:] = n * np.eye(3)
+    b = np.concatenate([np.einsum("rnji,rnj->ri", RG, rhs), -rhs.sum(axis=1)], axis=1)
+    solvable = np.abs(np.linalg.det(N)) > 1e-9 * n**6
+    tX = np.zeros((r, 3))
+    if solvable.any():
+        tX[solvable] = np.linalg.solve(N[solvable], b[solvable][..., None])[:, :3, 0]
+    tP = np.einsum("rnij,rnj->rni", RGX, tC) + np.einsum("rnij,rj->rni", RG, tX) + tG
+    tr = np.linalg.norm(tP - tP.mean(axis=1)[:, None], axis=2)
+    dist = np.sqrt(np.mean(np.sum(tC**2, axis=2), axis=1))
+    return np.median(tr, axis=1) / np.maximum(dist, 1e-300), solvable
+
+
+def _angles(R: Array) -> Array:
+    """Rotation angles (rad) of ``(..., 3, 3)`` by ``atan2(|axial part|, (trace - 1) / 2)``
+    (accurate in absolute terms at any angle; no quaternion per matrix)."""
+    ax = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
+                   R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    return np.arctan2(0.5 * np.linalg.norm(ax, axis=-1),
+                      0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0))
+
+
+def _signed_rotations(v: Array) -> Array:
+    """Rotations ``(r, 3, 3)`` proportional to row-major 9-vectors ``(r, 9)`` (det > 0)."""
+    R = v.reshape(-1, 3, 3)
+    det = np.linalg.det(R)
+    # a rotation scaled to a unit 9-vector has |det| = 3^-1.5; a (near-)singular one (the
+    # null vector of a degenerate, e.g. one-axis, system) keeps its sign, scale 1
+    mag = np.cbrt(np.abs(det))
+    mag = np.where(np.isfinite(mag) & (mag > 1e-3), mag, 1.0)
+    R = R / (np.where(det < 0, -1.0, 1.0) * mag)[:, None, None]
+    return project_to_rotation(np.nan_to_num(R))
 
 
 def warn_inconsistent(inc: Inconsistency) -> None:

@@ -173,6 +173,12 @@ def solve(G: Array, C: Array, method: str = "tsai", pairs: str = "all") -> tuple
     X, Y : ndarray, shape (4, 4)
     """
     _choice(method, METHODS, "method")
+    return _solve(G, C, method, pairs)[:2]
+
+
+def _solve(G: Array, C: Array, method: str, pairs: str
+           ) -> tuple[Array, Array, Array | None, Array | None]:
+    """`solve`, and the motion pairs ``A, B`` it used (None for the AX = ZB methods)."""
     # motions relative to station 0 suffice to detect degeneracy: if all of them turn about
     # one axis, so does every pair
     A0 = invert_transform(G[:1]) @ G[1:]
@@ -182,10 +188,10 @@ def solve(G: Array, C: Array, method: str = "tsai", pairs: str = "all") -> tuple
     if method in axxb.SOLVERS:
         A, B = motion_pairs(G, C, pairs)
         X = axxb.SOLVERS[method](A, B)
-        return X, mean_target_pose(G, X, C)
+        return X, mean_target_pose(G, X, C), A, B
     # A_i X' = Z' B_i with A_i = C_i, B_i = G_i^-1, X' = Y^-1, Z' = X^-1
     Xp, Zp = axzb.SOLVERS[method](C, invert_transform(G))
-    return invert_transform(Zp), invert_transform(Xp)
+    return invert_transform(Zp), invert_transform(Xp), None, None
 
 
 def calibrate_handeye(
@@ -227,7 +233,10 @@ def calibrate_handeye(
     seed : int or Generator, optional
         Random seed of the metaheuristic refiners.
     robust : bool
-        ``lm`` only: Cauchy reweighting and outlier flagging.
+        ``lm``: Cauchy reweighting and outlier flagging. ``none``: outlier stations judged
+        at a robust refinement from the closed form (`refine.flag_outliers`; its X is not
+        kept); False: no outlier flags (for a caller whose own refinement judges them, as
+        the image pipeline's on the pixels), every other check unchanged.
     rotation_weight : float, optional
         ``lm`` only: length units per radian (default: from the residual scales).
     options : dict, optional
@@ -282,6 +291,7 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
     )
     from kinecal.calibration.diagnostics.handeye_consistency import (
         find_inconsistency,
+        station_scores,
         warn_inconsistent,
     )
 
@@ -312,7 +322,7 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
                             s.outliers, s.history, s.nfev, time.perf_counter() - t0)
         res.x_uncertainty, res.one_axis = s.uncertainty, s.summary
         return res
-    X, Y = solve(G, C, method, pairs)
+    X, Y, A, B = _solve(G, C, method, pairs)
     X0 = X
     if height.given:
         from kinecal.calibration.handeye.one_axis import warn_height_unused
@@ -334,18 +344,30 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
         res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **_meta_options(options))
         X, history, nfev = res.X, res.history, res.nfev
         Y = mean_target_pose(G, X, C)
+    shared = None
     if refine != "lm":
-        from kinecal.calibration.handeye.refine import flag_outliers
+        from kinecal.calibration.handeye.refine import flag_outliers, residuals_and_jacobian
 
-        outliers = flag_outliers(G, C, X, Y)
-    rot, tr = station_residuals(G, X, C, Y)
-    arot, atr = axxb_station_rms(G, C, X)
-    inliers = np.setdiff1d(np.arange(len(G)), outliers)
-    unc = handeye_uncertainty(G, C, X, Y, inliers if len(inliers) >= 3 else None)
-    check_handeye_conditioning(unc, G[inliers] if len(inliers) >= 3 else G)
+        # one evaluation of the camera residuals and their Jacobian serves the outlier flags,
+        # the station residuals (|log| and |t| of the same mismatch) and the uncertainty
+        shared = residuals_and_jacobian(G, C, X, Y, np.zeros(12))
+        outliers = flag_outliers(G, C, X, Y) if robust else []
+        rot = np.degrees(np.linalg.norm(shared[0], axis=1))
+        tr = np.linalg.norm(shared[1], axis=1)
+    else:
+        rot, tr = station_residuals(G, X, C, Y)
+    # the motion pairs of the closed form serve the A X - X B residuals (no second copy)
+    arot, atr = axxb_station_rms(G, C, X, motions=(A, B) if pairs == "all" and A is not None
+                                 else None)
+    inliers = np.setdiff1d(np.arange(len(G)), outliers) if outliers else None
+    if inliers is not None and len(inliers) < 3:
+        inliers = None
+    unc = handeye_uncertainty(G, C, X, Y, inliers,
+                              residuals=shared if inliers is None else None)
+    check_handeye_conditioning(unc, G if inliers is None else G[inliers])
     # stations that fit no X: a mix-up that makes them fit is named first; else a unit
     # factor between robot and target (`scale-mismatch`); else the generic warning
-    inc = find_inconsistency(F, C, setup, X, Y, method)
+    inc = find_inconsistency(F, C, setup, X, Y, method, scores=station_scores(rot, tr, C))
     if inc is not None and inc.fits_with is not None:
         warn_inconsistent(inc)
     elif not check_handeye_units(G, C, X0) and inc is not None:

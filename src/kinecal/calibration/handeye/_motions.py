@@ -10,6 +10,8 @@ the robot reports (eye-in-hand: ``flange2base``; eye-to-hand: ``base2flange``), 
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -25,6 +27,7 @@ Array = NDArray[np.float64]
 
 __all__ = [
     "check_motions",
+    "degenerate_motions",
     "finish",
     "length_scale",
     "motion_pairs",
@@ -38,14 +41,25 @@ MIN_ANGLE = 1e-6
 
 
 def pair_indices(n: int, pairs: str) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """Station index pairs ``(i, j)``: ``"all"`` i < j (OpenCV), ``"consecutive"`` (j = i + 1)."""
+    """Station index pairs ``(i, j)``: ``"all"`` i < j (OpenCV), ``"consecutive"`` (j = i + 1).
+
+    The arrays are cached per ``(n, pairs)`` and read-only."""
+    if pairs not in ("all", "consecutive"):
+        raise InputError(f"unknown pairs {pairs!r}; expected 'all' or 'consecutive'",
+                         option="pairs")
+    return _pair_indices(int(n), pairs)
+
+
+@lru_cache(maxsize=64)
+def _pair_indices(n: int, pairs: str) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     if pairs == "all":
         i, j = np.triu_indices(n, k=1)
-        return i, j
-    if pairs == "consecutive":
+    else:
         i = np.arange(n - 1)
-        return i, i + 1
-    raise InputError(f"unknown pairs {pairs!r}; expected 'all' or 'consecutive'", option="pairs")
+        j = i + 1
+    i.flags.writeable = False
+    j.flags.writeable = False
+    return i, j
 
 
 def motion_pairs(G: Array, C: Array, pairs: str = "all") -> tuple[Array, Array]:
@@ -66,8 +80,8 @@ def motion_pairs(G: Array, C: Array, pairs: str = "all") -> tuple[Array, Array]:
         Motions with ``A X = X B``.
     """
     i, j = pair_indices(G.shape[0], pairs)
-    A = invert_transform(G[j]) @ G[i]
-    B = C[j] @ invert_transform(C[i])
+    A = invert_transform(G)[j] @ G[i]  # each pose inverted once, not once per pair
+    B = C[j] @ invert_transform(C)[i]
     return A, B
 
 
@@ -85,10 +99,8 @@ def check_motions(A: Array, what: str = "robot motions") -> None:
     what : str
         Name used in the message.
     """
-    R = A[:, :3, :3]
-    M = 2.0 * len(R) * np.eye(3) - (R.sum(axis=0) + R.sum(axis=0).T)
-    lam = np.linalg.eigvalsh(M)  # ascending, = squared singular values of the stack
-    if lam[-1] <= len(R) * MIN_ANGLE**2:
+    lam = motion_spectrum(A[None, :, :3, :3])[0]
+    if lam[-1] <= A.shape[0] * MIN_ANGLE**2:
         raise InputError(
             f"degenerate {what}: pure translations (no rotation between stations); the "
             "hand-eye rotation is unobservable, expected rotations about >= 2 non-parallel axes"
@@ -98,6 +110,21 @@ def check_motions(A: Array, what: str = "robot motions") -> None:
             f"degenerate {what}: all rotations are about one axis; expected rotations about "
             ">= 2 non-parallel axes (the translation along that axis is unobservable)"
         )
+
+
+def motion_spectrum(R: Array) -> Array:
+    """Eigenvalues ``(..., 3)`` (ascending) of ``sum_k (2 I - R_k - R_k^T)`` for stacks of
+    rotations ``(..., m, 3, 3)`` (see `check_motions`)."""
+    S = R.sum(axis=-3)
+    M = 2.0 * R.shape[-3] * np.eye(3) - (S + np.swapaxes(S, -1, -2))
+    return np.linalg.eigvalsh(M)
+
+
+def degenerate_motions(R: Array) -> NDArray[np.bool_]:
+    """`check_motions`'s test for stacks ``(..., m, 3, 3)``: True where the rotations do not
+    turn about two non-parallel axes."""
+    lam = motion_spectrum(R)
+    return (lam[..., -1] <= R.shape[-3] * MIN_ANGLE**2) | (lam[..., 0] <= 1e-12 * lam[..., -1])
 
 
 def length_scale(*translations: Array) -> float:
@@ -137,30 +164,24 @@ def finish(R: Array, t: Array) -> Array:
 
 def qmat_left(q: Array) -> Array:
     """Matrices ``(..., 4, 4)`` with ``qmat_left(p) @ q == p * q`` (Hamilton product, w first)."""
-    w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
-    return np.stack(
-        [
-            np.stack([w, -x, -y, -z], -1),
-            np.stack([x, w, -z, y], -1),
-            np.stack([y, z, w, -x], -1),
-            np.stack([z, -y, x, w], -1),
-        ],
-        -2,
-    )
+    return np.multiply(np.asarray(q, dtype=float)[..., _QMAT_INDEX], _QMAT_LEFT_SIGN,
+                       order="C")
 
 
 def qmat_right(q: Array) -> Array:
     """Matrices ``(..., 4, 4)`` with ``qmat_right(p) @ q == q * p`` (Hamilton product, w first)."""
-    w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
-    return np.stack(
-        [
-            np.stack([w, -x, -y, -z], -1),
-            np.stack([x, w, z, -y], -1),
-            np.stack([y, -z, w, x], -1),
-            np.stack([z, y, -x, w], -1),
-        ],
-        -2,
-    )
+    return np.multiply(np.asarray(q, dtype=float)[..., _QMAT_INDEX], _QMAT_RIGHT_SIGN,
+                       order="C")
+
+
+# entry (r, c) of both product matrices is +-q[_QMAT_INDEX[r, c]]: left rows (w, -x, -y, -z),
+# (x, w, -z, y), (y, z, w, -x), (z, -y, x, w); right rows (w, -x, -y, -z), (x, w, z, -y),
+# (y, -z, w, x), (z, y, -x, w)
+_QMAT_INDEX = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
+_QMAT_LEFT_SIGN = np.array([[1.0, -1.0, -1.0, -1.0], [1.0, 1.0, -1.0, 1.0],
+                            [1.0, 1.0, 1.0, -1.0], [1.0, -1.0, 1.0, 1.0]])
+_QMAT_RIGHT_SIGN = np.array([[1.0, -1.0, -1.0, -1.0], [1.0, 1.0, 1.0, -1.0],
+                             [1.0, -1.0, 1.0, 1.0], [1.0, 1.0, -1.0, 1.0]])
 
 
 def motion_quaternions(A: Array, B: Array) -> tuple[Array, Array]:

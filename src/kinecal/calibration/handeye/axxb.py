@@ -28,8 +28,9 @@ from kinecal.calibration.handeye._motions import (
 from kinecal.errors import InputError
 from kinecal.spatial import (
     axis_angle_from_matrix,
+    axis_angle_from_quaternion,
     matrix_from_quaternion,
-    rotation_angle,
+    project_to_rotation,
     skew,
 )
 
@@ -232,9 +233,11 @@ def daniilidis(A: Array, B: Array) -> Array:
     ndarray, shape (4, 4)
         X, translation in L.
     """
-    L = _length_per_radian(A, B)
     qa, qb = motion_quaternions(A, B)
-    qb = align_signs(qa, qb, horaud(A, B)[:3, :3])  # a0 = b0 needs matching signs
+    L = _length_per_radian(A, B, qa, qb)
+    R = _horaud_rotation(qa, qb)  # Horaud's rotation (as `horaud`) for the signs
+    R = project_to_rotation(_horaud_rotation(qa, align_signs(qa, qb, R)))
+    qb = align_signs(qa, qb, R)  # a0 = b0 needs matching signs
     ta = np.concatenate([np.zeros((len(A), 1)), A[:, :3, 3] / L], axis=1)
     tb = np.concatenate([np.zeros((len(B), 1)), B[:, :3, 3] / L], axis=1)
     da = 0.5 * np.einsum("kij,kj->ki", qmat_left(ta), qa)  # q' = 1/2 t q
@@ -271,10 +274,14 @@ def daniilidis(A: Array, B: Array) -> Array:
     return finish(matrix_from_quaternion(q), t)
 
 
-def _length_per_radian(A: Array, B: Array) -> float:
-    """``rms|t| / rms(2 sin(theta/2))`` over the motions of A and B (see `daniilidis`)."""
+def _length_per_radian(A: Array, B: Array, qa: Array | None = None,
+                       qb: Array | None = None) -> float:
+    """``rms|t| / rms(2 sin(theta/2))`` over the motions of A and B (see `daniilidis`),
+    the angles from their quaternions ``qa, qb`` ``(m, 4)`` (computed when not given)."""
+    if qa is None or qb is None:
+        qa, qb = motion_quaternions(A, B)
     t = np.concatenate([A[:, :3, 3], B[:, :3, 3]])
-    theta = rotation_angle(np.concatenate([A[:, :3, :3], B[:, :3, :3]]))
+    theta = np.linalg.norm(axis_angle_from_quaternion(np.concatenate([qa, qb])), axis=-1)
     rot = float(np.sqrt(np.mean(4.0 * np.sin(0.5 * theta) ** 2)))
     L = length_scale(t) / rot if rot > 0 else length_scale(t)
     return L if np.isfinite(L) and L > 0 else 1.0

@@ -115,8 +115,8 @@ def project(K: ArrayLike, dist: ArrayLike | None, P: ArrayLike) -> Array:
 
 
 def project_jacobian(
-    K: Array, dist8: Array, P: Array, rational: bool = False
-) -> tuple[Array, Array, Array]:
+    K: Array, dist8: Array, P: Array, rational: bool = False, jacobians: bool = True
+) -> tuple[Array, Array | None, Array | None]:
     """Projection of points ``(N, 3)`` and its Jacobians.
 
     Parameters
@@ -128,6 +128,8 @@ def project_jacobian(
         Camera-frame points, Z > 0.
     rational : bool
         Include ``k4, k5, k6`` in the intrinsic Jacobian (12 columns instead of 9).
+    jacobians : bool
+        False: the pixels only (both Jacobians None).
 
     Returns
     -------
@@ -144,6 +146,8 @@ def project_jacobian(
     x, y = P[:, 0] / Z, P[:, 1] / Z
     xd, yd, r2, num, den, f = _distort(x, y, dist8)
     uv = np.stack([fx * xd + s * yd + K[0, 2], fy * yd + K[1, 2]], axis=-1)
+    if not jacobians:
+        return uv, None, None
     # d f / d r2
     dnum = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)
     dden = k4 + r2 * (2.0 * k5 + 3.0 * k6 * r2)

@@ -107,7 +107,8 @@ def axxb_residuals(A: Array, B: Array, X: Array) -> tuple[Array, Array]:
     return np.degrees(r), t
 
 
-def axxb_station_rms(G: Array, C: Array, X: Array) -> tuple[Array, Array]:
+def axxb_station_rms(G: Array, C: Array, X: Array,
+                     motions: tuple[Array, Array] | None = None) -> tuple[Array, Array]:
     """Per-station rms of the ``A X - X B`` mismatch over all pairs (i, j) containing it.
 
     Parameters
@@ -118,6 +119,8 @@ def axxb_station_rms(G: Array, C: Array, X: Array) -> tuple[Array, Array]:
         ``target2cam``.
     X : ndarray, shape (4, 4)
         Hand-eye transform.
+    motions : (ndarray, ndarray), optional
+        ``motion_pairs(G, C, "all")`` when the caller has them.
 
     Returns
     -------
@@ -128,12 +131,11 @@ def axxb_station_rms(G: Array, C: Array, X: Array) -> tuple[Array, Array]:
 
     n = len(G)
     i, j = pair_indices(n, "all")
-    A, B = motion_pairs(G, C, "all")
+    A, B = motion_pairs(G, C, "all") if motions is None else motions
     rot, tr = axxb_residuals(A, B, X)
-    sr, st = np.zeros(n), np.zeros(n)
-    for idx in (i, j):
-        np.add.at(sr, idx, rot**2)
-        np.add.at(st, idx, tr**2)
+    ij = np.concatenate([i, j])  # each pair counts for both of its stations
+    sr = np.bincount(ij, weights=np.concatenate([rot**2, rot**2]), minlength=n)
+    st = np.bincount(ij, weights=np.concatenate([tr**2, tr**2]), minlength=n)
     return np.sqrt(sr / (n - 1)), np.sqrt(st / (n - 1))
 
 

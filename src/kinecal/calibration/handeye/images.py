@@ -20,32 +20,37 @@ stations whose RMS exceeds both the chi-square bound of pure corner noise and th
 spread of the station RMS values (and three times their median, and the median + 0.25 px)
 are flagged as outliers and left out of a final pass.
 
-Every pass is scipy's trust-region least squares with the analytic Jacobian (right
-Jacobians of SO(3); tested against finite differences). The covariance of the parameters
-is ``s^2 (J^T J)^-1`` from the final pass.
+Every pass is kinecal's Levenberg-Marquardt (`kinecal.optimize.lsq.levenberg_marquardt`) on
+the structured normal equations of `kinecal.calibration.handeye.bundle` (Huber's loss as
+reweighted normal equations; the robot-pose corrections eliminated by the Schur complement)
+with the analytic Jacobian (right Jacobians of SO(3); tested against finite differences).
+The covariance of the parameters is ``s^2 (J^T J)^-1`` from the final pass (the Jacobian
+scaled as scipy scales it for a robust loss: corners beyond Huber's threshold count
+``eps``).
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 from scipy.special import chdtri
 
+from kinecal.calibration.handeye.bundle import normal_equations, robust_residuals, schur_solve
 from kinecal.calibration.handeye.camera import check_camera
 from kinecal.calibration.handeye.reprojection import (
     ReprojectionProblem,
     parameter_names,
+    predict_blocks,
     predict_corners,
     predict_pixels,
     unpack,
 )
 from kinecal.calibration.handeye.scara import AxisHeight, OneAxis
 from kinecal.errors import InputError
+from kinecal.optimize.lsq import levenberg_marquardt
 
 Array = NDArray[np.float64]
 
@@ -186,6 +191,53 @@ def refine_reprojection(
     ReprojectionRefinement
     """
     t0 = time.perf_counter()
+    K, d8, F, counts = _check_inputs(flange2base, points, pixels, K, dist, setup, robot_noise)
+    n = len(F)
+    sid = np.repeat(np.arange(n), counts).astype(np.intp)
+    P = np.concatenate([np.asarray(p, float).reshape(-1, 3) for p in points])
+    uv = np.concatenate([np.asarray(p, float).reshape(-1, 2) for p in pixels])
+    n_int = (12 if rational else 9) if refine_intrinsics else 0
+    pr = ReprojectionProblem(F, P, uv, sid, setup == "eye-in-hand", K, d8, np.asarray(X0, float),
+                             np.asarray(Y0, float), n_int, robot_noise)
+    fit = _Fit(pr, counts)
+    p = np.zeros(pr.n_params)
+    history: list[float] = []
+    r, srms = fit.residual_stats(p)
+    inlier = np.ones(n, bool)
+    if robust:
+        p, r, srms, sigma = _reweighted_passes(fit, p, r, max_outer, history)
+        inlier = ~_outlier_stations(srms, counts, sigma, outlier_level)
+        if inlier.sum() < 3:
+            inlier = np.ones(n, bool)
+        sigma = fit.sigma_of(r, inlier)
+    else:
+        sigma = max(float(np.sqrt(np.mean(r**2))), 1e-6)
+    # final pass: inliers, unit weights; sigma from their residuals
+    p, cost, A_cov, raw = fit.solve(p, inlier.astype(float), sigma,
+                                    "huber" if robust else "linear", final=True)
+    history.append(cost)
+    r, srms = fit.residual_stats(p)
+    if not robust:
+        sigma = max(float(np.sqrt(np.sum(r**2) / max(r.size - pr.n_params, 1))), 1e-12)
+    row = None
+    if one_axis is not None:  # eq. (8) of `scara`: move along the null direction, constrain
+        p, row = _place_on_axis(pr, p, *one_axis)
+        r, srms = fit.residual_stats(p)
+    # covariance: the normal matrix of the final pass at the solution, residual variance
+    s2 = float(raw @ raw) / max(raw.size - pr.n_params + (row is not None), 1)
+    cov = _covariance(A_cov, s2, row)
+    X, Y, Kf, df, E = unpack(pr, p)
+    res = np.split(-r, np.cumsum(counts)[:-1])
+    outliers = [int(i) for i in np.flatnonzero(~inlier)]
+    return ReprojectionRefinement(X, Y, Kf, df, None if E is None else E.copy(), res, srms,
+                                  outliers, float(sigma), cov, parameter_names(pr), fit.nfev,
+                                  history, time.perf_counter() - t0)
+
+
+def _check_inputs(flange2base: Array, points: list[Array], pixels: list[Array], K: Array,
+                  dist: Array | None, setup: str, robot_noise: tuple[float, float] | None
+                  ) -> tuple[Array, Array, Array, NDArray[np.intp]]:
+    """Validated camera ``(K, d8)``, robot poses and the corner count per station."""
     if setup not in ("eye-in-hand", "eye-to-hand"):
         raise InputError(f"unknown setup {setup!r}; expected eye-in-hand or eye-to-hand",
                          option="setup")
@@ -200,100 +252,119 @@ def refine_reprojection(
         raise InputError(f"robot_noise {robot_noise}: expected two positive standard "
                          "deviations (rad, length)", option="robot_noise")
     counts = np.array([len(p) for p in points])
-    sid = np.repeat(np.arange(n), counts).astype(np.intp)
-    P = np.concatenate([np.asarray(p, float).reshape(-1, 3) for p in points])
-    uv = np.concatenate([np.asarray(p, float).reshape(-1, 2) for p in pixels])
-    n_int = (12 if rational else 9) if refine_intrinsics else 0
-    pr = ReprojectionProblem(F, P, uv, sid, setup == "eye-in-hand", K, d8, np.asarray(X0, float),
-                  np.asarray(Y0, float), n_int, robot_noise)
-    p = np.zeros(pr.n_params)
-    nfev = 0
-    history: list[float] = []
+    if np.any(counts == 0):
+        raise InputError(f"station {int(np.argmin(counts))} has no corners")
+    return K, d8, F, counts
 
-    def residual_stats(p: Array) -> tuple[Array, Array]:
-        pred, _ = predict_pixels(pr, p, False)
-        r = pred - uv
-        ss = np.bincount(sid, weights=np.sum(r * r, axis=1), minlength=n)
-        return r, np.sqrt(ss / np.maximum(counts, 1))
 
-    def sigma_of(r: Array, mask: Array) -> float:
-        sel = r[mask[sid]].ravel()
+def _reweighted_passes(fit: _Fit, p: Array, r: Array, max_outer: int, history: list[float]
+                       ) -> tuple[Array, Array, Array, float]:
+    """Huber passes with Cauchy station weights on the station RMS relative to the median
+    station (until the weights settle); returns p, residuals, station RMS and sigma."""
+    n = fit.pr.n
+    w = np.ones(n)
+    sigma = fit.sigma_of(r, np.ones(n, bool))
+    srms = np.zeros(n)
+    for _ in range(max_outer):
+        p, cost, _, _ = fit.solve(p, w, sigma, "huber")
+        history.append(cost)
+        r, srms = fit.residual_stats(p)
+        sigma = fit.sigma_of(r, w > 0.5)
+        med = float(np.median(srms))
+        w_new = 1.0 / (1.0 + (srms / (_CAUCHY * max(med, sigma))) ** 2)
+        done = np.max(np.abs(w_new - w)) < 1e-3
+        w = w_new
+        if done:
+            break
+    return p, r, srms, sigma
+
+
+class _Fit:
+    """The reprojection problem's passes: residual statistics, robust scale, and one
+    weighted (robust) least-squares solve on the structured normal equations."""
+
+    def __init__(self, pr: ReprojectionProblem, counts: NDArray[np.intp]) -> None:
+        self.pr = pr
+        self.counts = counts
+        self.starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.intp)
+        self.g = 12 + pr.n_int
+        self.prior = (np.r_[[1.0 / pr.robot[0]] * 3, [1.0 / pr.robot[1]] * 3]
+                      if pr.robot else None)
+        self.nfev = 0
+        self._last: tuple[Array, tuple] | None = None
+
+    def blocks(self, p: Array) -> tuple[Array, Array, Array | None]:
+        """`predict_blocks` at `p`, kept for the next call at the same point (the end of
+        one pass is where the next starts and where the statistics are taken)."""
+        if self._last is None or not np.array_equal(self._last[0], p):
+            self._last = (p.copy(), predict_blocks(self.pr, p))
+        return self._last[1]
+
+    def residual_stats(self, p: Array) -> tuple[Array, Array]:
+        """Residuals ``(M, 2)`` (predicted minus observed, px) and station RMS ``(n,)``."""
+        pred = self.blocks(p)[0] if self._last is not None and \
+            np.array_equal(self._last[0], p) else predict_pixels(self.pr, p, False)[0]
+        r = pred - self.pr.uv
+        ss = np.bincount(self.pr.sid, weights=np.sum(r * r, axis=1), minlength=self.pr.n)
+        return r, np.sqrt(ss / np.maximum(self.counts, 1))
+
+    def sigma_of(self, r: Array, mask: Array) -> float:
+        """Robust corner noise (px per axis) over the stations in `mask`."""
+        sel = r[mask[self.pr.sid]].ravel()
         s = 1.4826 * float(np.median(np.abs(sel))) if sel.size else 1.0
         return max(s, 1e-6)
 
-    def solve(p: Array, w: Array, sigma: float, loss: str) -> tuple[Array, float, Any]:
-        nonlocal nfev
-        keep = w[sid] > 0
-        sw = np.sqrt(w[sid][keep])[:, None]
-        npix = 2 * int(keep.sum())
-        prior = (np.r_[[1.0 / robot_noise[0]] * 3, [1.0 / robot_noise[1]] * 3]
-                 if robot_noise else None)
+    def solve(self, p: Array, w: Array, sigma: float, loss: str, final: bool = False
+              ) -> tuple[Array, float, Array | None, Array | None]:
+        """Minimise ``sum rho(r^2)`` over corners weighted by station weights `w` ``(n,)``
+        (residuals in units of `sigma`, Huber threshold `_HUBER`) and the robot prior.
 
-        def fun(q: Array) -> Array:
-            pred, _ = predict_pixels(pr, q, False)
-            r = (sw * (pred[keep] - uv[keep]) / sigma).ravel()
-            if prior is not None:
-                r = np.concatenate([r, (q[12 + n_int:].reshape(-1, 6) * prior).ravel()])
-            return r
+        Returns p, the cost (twice scipy's ``0.5 sum rho``) and, for the `final` pass, the
+        normal matrix with scipy's robust scaling of the Jacobian (for the covariance) and
+        the raw residuals of the weighted rows (zero-weight stations left out)."""
+        pr, g, prior = self.pr, self.g, self.prior
+        scale = (np.sqrt(w) / sigma)[pr.sid]  # (M,) per corner
 
-        def jacobian(q: Array) -> Array:
-            _, J = predict_pixels(pr, q, True)
-            Jk = (J[keep] * (sw[:, :, None] / sigma)).reshape(npix, -1)
-            if prior is not None:
-                Jp = np.zeros((6 * n, pr.n_params))
-                Jp[:, 12 + n_int:] = np.diag(np.tile(prior, n))
-                Jk = np.vstack([Jk, Jp])
-            return Jk
+        def rows(q: Array) -> tuple[Array, Array, Array | None, Array | None]:
+            pred, Jg, Je = self.blocks(q)
+            res = (pred - pr.uv) * scale[:, None]
+            Jg = Jg * scale[:, None, None]
+            if Je is not None:
+                Je = Je * scale[:, None, None]
+            rp = None if prior is None else q[g:].reshape(-1, 6) * prior
+            return res, Jg, Je, rp
 
-        sol = least_squares(fun, p, jac=jacobian, method="trf", loss=loss,
-                            f_scale=_HUBER, x_scale="jac", xtol=1e-12, ftol=1e-12,
-                            gtol=1e-12, max_nfev=200)
-        nfev += int(sol.nfev)
-        return sol.x, float(2.0 * sol.cost), sol
+        def equations(q: Array) -> tuple[Array, Array, Array]:
+            res, Jg, Je, rp = rows(q)
+            pseudo, wr, _ = robust_residuals(res, loss, _HUBER)
+            pri = None
+            out = [pseudo.ravel()]
+            if rp is not None:
+                pp, wp, _ = robust_residuals(rp, loss, _HUBER)
+                pri = (np.broadcast_to(prior, rp.shape), wp, rp)
+                out.append(pp.ravel())
+            A, b = normal_equations(Jg, Je, wr, res, self.starts, pri)
+            return np.concatenate(out), A, b
 
-    w = np.ones(n)
-    r, srms = residual_stats(p)
-    inlier = np.ones(n, bool)
-    if robust:
-        sigma = sigma_of(r, np.ones(n, bool))
-        for _ in range(max_outer):
-            p, cost, _ = solve(p, w, sigma, "huber")
-            history.append(cost)
-            r, srms = residual_stats(p)
-            sigma = sigma_of(r, w > 0.5)
-            med = float(np.median(srms))
-            w_new = 1.0 / (1.0 + (srms / (_CAUCHY * max(med, sigma))) ** 2)
-            done = np.max(np.abs(w_new - w)) < 1e-3
-            w = w_new
-            if done:
-                break
-        inlier = ~_outlier_stations(srms, counts, sigma, outlier_level)
-        if inlier.sum() < 3:
-            inlier = np.ones(n, bool)
-    else:
-        sigma = max(float(np.sqrt(np.mean(r**2))), 1e-6)
-    # final pass: inliers, unit weights; sigma from their residuals
-    sigma = sigma_of(r, inlier) if robust else sigma
-    p, cost, sol = solve(p, inlier.astype(float), sigma, "huber" if robust else "linear")
-    history.append(cost)
-    r, srms = residual_stats(p)
-    if not robust:
-        sigma = max(float(np.sqrt(np.sum(r**2) / max(r.size - pr.n_params, 1))), 1e-12)
-    # covariance: the Jacobian of the final pass at the solution, residual variance
-    J = sol.jac
-    m = J.shape[0]
-    row = None
-    if one_axis is not None:  # eq. (8) of `scara`: move along the null direction, constrain
-        p, row = _place_on_axis(pr, p, *one_axis)
-        r, srms = residual_stats(p)
-    s2 = float(np.sum(sol.fun**2)) / max(m - pr.n_params + (row is not None), 1)
-    cov = _covariance(J, s2, row)
-    X, Y, Kf, df, E = unpack(pr, p)
-    res = np.split(-r, np.cumsum(counts)[:-1])
-    outliers = [int(i) for i in np.flatnonzero(~inlier)]
-    return ReprojectionRefinement(X, Y, Kf, df, None if E is None else E.copy(), res, srms,
-                                  outliers, float(sigma), cov, parameter_names(pr), nfev,
-                                  history, time.perf_counter() - t0)
+        # the passes before the last only set the station weights: 1e-9 suffices there
+        tol = 1e-12 if final else 1e-9
+        sol = levenberg_marquardt(None, None, p, normal_equations=equations,
+                                  linear_solver=lambda A, d, b: schur_solve(A, d, b, g),
+                                  ftol=tol, xtol=tol, gtol=tol, max_nfev=200,
+                                  damping=(1e-9, 1e-3))
+        self.nfev += int(sol.nfev)
+        q = sol.x
+        if not final:
+            return q, float(2.0 * sol.fun), None, None
+        res, Jg, Je, rp = rows(q)
+        _, _, c = robust_residuals(res, loss, _HUBER)
+        pri = None
+        raw = res[w[pr.sid] > 0].ravel()
+        if rp is not None:
+            pri = (np.broadcast_to(prior, rp.shape), robust_residuals(rp, loss, _HUBER)[2], rp)
+            raw = np.concatenate([raw, rp.ravel()])
+        A_cov, _ = normal_equations(Jg, Je, c, res, self.starts, pri)
+        return q, float(2.0 * sol.fun), A_cov, raw
 
 
 def _place_on_axis(pr: ReprojectionProblem, p: Array, axis: OneAxis,
@@ -316,15 +387,15 @@ def _place_on_axis(pr: ReprojectionProblem, p: Array, axis: OneAxis,
     return q, row
 
 
-def _covariance(J: Array, s2: float, row: Array | None) -> Array:
-    """``s2 (J^T J)^-1``, restricted to ``row . p = 0`` when a row is given (a constrained
-    direction that J does not see)."""
-    n = J.shape[1]
+def _covariance(A: Array, s2: float, row: Array | None) -> Array:
+    """``s2 A^-1`` for the normal matrix ``A = J^T J`` ``(n_params, n_params)``, restricted
+    to ``row . p = 0`` when a row is given (a constrained direction that J does not see)."""
+    n = A.shape[0]
     try:
         if row is None:
-            return s2 * np.linalg.inv(J.T @ J)
+            return s2 * np.linalg.inv(A)
         N = np.linalg.svd(row.reshape(1, -1))[2][1:].T
-        return s2 * N @ np.linalg.inv(N.T @ (J.T @ J) @ N) @ N.T
+        return s2 * N @ np.linalg.inv(N.T @ A @ N) @ N.T
     except np.linalg.LinAlgError:
         return np.full((n, n), np.inf)
 

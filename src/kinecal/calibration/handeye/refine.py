@@ -25,6 +25,7 @@ differences in the tests.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -41,7 +42,8 @@ from kinecal.spatial import (
 
 Array = NDArray[np.float64]
 
-__all__ = ["LMRefinement", "camera_residuals", "flag_outliers", "lm", "residual_jacobian"]
+__all__ = ["LMRefinement", "camera_residuals", "flag_outliers", "lm", "residual_jacobian",
+           "residuals_and_jacobian"]
 
 #: Median of the chi distribution with 3 degrees of freedom (scale of |3-vector| of N(0, s)).
 _CHI3_MEDIAN = float(np.sqrt(chdtri(3, 0.5)))
@@ -83,7 +85,8 @@ def _update(T0: Array, p: Array) -> Array:
     return transform_from(T0[:3, :3] @ matrix_from_axis_angle(p[:3]), T0[:3, 3] + p[3:])
 
 
-def camera_residuals(G: Array, C: Array, X: Array, Y: Array) -> tuple[Array, Array]:
+def camera_residuals(G: Array, C: Array, X: Array, Y: Array, Ginv: Array | None = None
+                     ) -> tuple[Array, Array]:
     """Rotation (rad, rotation vectors) and translation residuals per station.
 
     Parameters
@@ -93,7 +96,10 @@ def camera_residuals(G: Array, C: Array, X: Array, Y: Array) -> tuple[Array, Arr
     C : ndarray, shape (n, 4, 4)
         ``target2cam`` measurements.
     X, Y : ndarray, shape (4, 4)
-        Hand-eye transform and target pose.
+        Hand-eye transform and target pose (stacks broadcast: e.g. ``(h, 1, 4, 4)``
+        against ``(1, n, 4, 4)`` poses give ``(h, n, 3)`` residuals).
+    Ginv : ndarray, shape (n, 4, 4), optional
+        ``invert_transform(G)`` when the caller has it (repeated evaluations).
 
     Returns
     -------
@@ -102,9 +108,9 @@ def camera_residuals(G: Array, C: Array, X: Array, Y: Array) -> tuple[Array, Arr
     trans : ndarray, shape (n, 3)
         ``t_Ci - t^_i`` (length unit).
     """
-    pred = invert_transform(X) @ invert_transform(G) @ Y
-    rot = axis_angle_from_matrix(np.swapaxes(pred[:, :3, :3], 1, 2) @ C[:, :3, :3])
-    return rot, C[:, :3, 3] - pred[:, :3, 3]
+    pred = invert_transform(X) @ (invert_transform(G) if Ginv is None else Ginv) @ Y
+    rot = axis_angle_from_matrix(np.swapaxes(pred[..., :3, :3], -1, -2) @ C[..., :3, :3])
+    return rot, C[..., :3, 3] - pred[..., :3, 3]
 
 
 def _jr(w: Array) -> Array:
@@ -141,19 +147,34 @@ def residual_jacobian(G: Array, C: Array, X0: Array, Y0: Array, p: Array) -> Arr
     - ``d t / d omega_X = -[t^]x J_r(omega_X)``, ``d t / d v_X = R_X^T``,
       ``d t / d v_Y = -R_X^T R_G^T`` for the translation residual ``t = t_C - t^``.
     """
+    return residuals_and_jacobian(G, C, X0, Y0, p)[2]
+
+
+def residuals_and_jacobian(G: Array, C: Array, X0: Array, Y0: Array, p: Array,
+                           Ginv: Array | None = None) -> tuple[Array, Array, Array]:
+    """`camera_residuals` ``(n, 3)`` twice at ``p`` and `residual_jacobian` ``(n, 6, 12)``
+    there, sharing the work (`Ginv`: ``invert_transform(G)`` when the caller has it)."""
     X = _update(X0, p[:6])
     Y = _update(Y0, p[6:])
-    rot, tr = camera_residuals(G, C, X, Y)
+    rot, tr = camera_residuals(G, C, X, Y, Ginv)
+    return rot, tr, _jacobian(G, C, X, Y, rot, tr, p)
+
+
+def _jacobian(G: Array, C: Array, X: Array, Y: Array, rot: Array, tr: Array, p: Array
+              ) -> Array:
+    """`residual_jacobian` ``(n, 6, 12)`` at ``p`` from X, Y there and their
+    `camera_residuals`."""
     pred_t = C[:, :3, 3] - tr
     RX, RY = X[:3, :3], Y[:3, :3]
     RC = C[:, :3, :3]
     E = RY.T @ G[:, :3, :3] @ RX @ RC
     Jinv = _jr_inv(rot)
+    JX = _jr(p[0:3])
     n = len(G)
     J = np.zeros((n, 6, 12))
-    J[:, :3, 0:3] = Jinv @ np.swapaxes(RC, 1, 2) @ _jr(p[0:3])
+    J[:, :3, 0:3] = Jinv @ np.swapaxes(RC, 1, 2) @ JX
     J[:, :3, 6:9] = -Jinv @ np.swapaxes(E, 1, 2) @ _jr(p[6:9])
-    J[:, 3:, 0:3] = -skew(pred_t) @ _jr(p[0:3])
+    J[:, 3:, 0:3] = -skew(pred_t) @ JX
     J[:, 3:, 3:6] = RX.T
     J[:, 3:, 9:12] = -RX.T @ np.swapaxes(G[:, :3, :3], 1, 2)
     return J
@@ -207,74 +228,103 @@ def lm(
     -------
     LMRefinement
     """
-    n = len(G)
-    L = max(float(np.sqrt(np.mean(np.sum(C[:, :3, 3] ** 2, axis=1)))), 1e-300)
-    X, Y = X0.copy(), Y0.copy()
-    w = np.ones(n)
-    nfev = 0
-    history: list[float] = []
+    fit = _Passes(G, C, rotation_weight)
+    X, Y, inlier = fit.reweighted(X0.copy(), Y0.copy(), robust, outlier_level, max_outer,
+                                  start_inliers)
+    # final plain least squares on the inliers, scales re-estimated from them (rms)
+    rot, tr = camera_residuals(G[inlier], C[inlier], X, Y, fit.Ginv[inlier])
+    sr = max(float(np.sqrt(np.mean(np.sum(rot**2, 1)) / 3.0)), 1e-13)
+    st = max(float(np.sqrt(np.mean(np.sum(tr**2, 1)) / 3.0)), 1e-13 * fit.L)
+    if rotation_weight is not None:
+        sr = st / rotation_weight
+    X, Y = fit.solve(X, Y, inlier.astype(float), sr, st)
+    d = _distances(G, C, X, Y, sr, st, fit.Ginv)
+    outliers = [int(i) for i in np.flatnonzero(~inlier)]
+    return LMRefinement(X, Y, outliers, d, (sr, st), fit.nfev, fit.history)
 
-    def solve(X: Array, Y: Array, w: Array, sr: float, st: float) -> tuple[Array, Array, float]:
-        nonlocal nfev
+
+class _Passes:
+    """The weighted Levenberg-Marquardt passes of `lm` on stations (G, C)."""
+
+    def __init__(self, G: Array, C: Array, rotation_weight: float | None) -> None:
+        self.G, self.C, self.rotation_weight = G, C, rotation_weight
+        self.Ginv = invert_transform(G)  # every evaluation's, computed once
+        self.L = max(float(np.sqrt(np.mean(np.sum(C[:, :3, 3] ** 2, axis=1)))), 1e-300)
+        self.nfev = 0
+        self.history: list[float] = []
+
+    def solve(self, X: Array, Y: Array, w: Array, sr: float, st: float) -> tuple[Array, Array]:
+        """Minimise the station residuals weighted by `w` ``(n,)`` and the scales (MINPACK's
+        Levenberg-Marquardt with the analytic Jacobian)."""
+        G, C, Gi = self.G, self.C, self.Ginv
         sw = np.sqrt(w)[:, None]
-
         scale = np.r_[[1.0 / sr] * 3, [1.0 / st] * 3]
 
+        last: list[tuple[Array, ...]] = []  # MINPACK asks the Jacobian where it last
+        # evaluated the residuals: their poses and residuals are reused there
+
         def fun(p: Array) -> Array:
-            rot, tr = camera_residuals(G, C, _update(X, p[:6]), _update(Y, p[6:]))
+            Xp, Yp = _update(X, p[:6]), _update(Y, p[6:])
+            rot, tr = camera_residuals(G, C, Xp, Yp, Gi)
+            last[:] = [(p.copy(), Xp, Yp, rot, tr)]
             return np.concatenate([sw * rot / sr, sw * tr / st], axis=1).ravel()
 
         def jac(p: Array) -> Array:
-            J = residual_jacobian(G, C, X, Y, p)  # (n, 6, 12)
+            if last and np.array_equal(last[0][0], p):
+                J = _jacobian(G, C, *last[0][1:], p)
+            else:
+                J = residuals_and_jacobian(G, C, X, Y, p, Gi)[2]  # (n, 6, 12)
             return (J * (scale[None, :, None] * sw[:, :, None])).reshape(-1, 12)
 
         sol = least_squares(fun, np.zeros(12), jac=jac, method="lm", x_scale="jac")
-        nfev += int(sol.nfev)
-        return _update(X, sol.x[:6]), _update(Y, sol.x[6:]), float(2.0 * sol.cost)
+        self.nfev += int(sol.nfev)
+        self.history.append(float(2.0 * sol.cost))
+        return _update(X, sol.x[:6]), _update(Y, sol.x[6:])
 
-    def scales(mask: Array) -> tuple[float, float]:
-        rot, tr = camera_residuals(G[mask], C[mask], X, Y)
-        sr, st = _scales(rot, tr, L)
-        if rotation_weight is not None:
-            sr = st / rotation_weight
+    def scales(self, X: Array, Y: Array, mask: Array) -> tuple[float, float]:
+        """Robust residual scales of the stations in `mask` ``(n,)``."""
+        rot, tr = camera_residuals(self.G[mask], self.C[mask], X, Y, self.Ginv[mask])
+        sr, st = _scales(rot, tr, self.L)
+        if self.rotation_weight is not None:
+            sr = st / self.rotation_weight
         return sr, st
 
-    trusted = np.ones(n, bool)
-    if robust and start_inliers is not None and len(start_inliers) >= 3:
-        trusted = np.zeros(n, bool)
-        trusted[np.asarray(start_inliers, dtype=np.intp)] = True
-        w = trusted.astype(float)
-    sr, st = scales(trusted)
-    if robust:
+    def reweighted(self, X: Array, Y: Array, robust: bool, outlier_level: float,
+                   max_outer: int, start_inliers: Array | None
+                   ) -> tuple[Array, Array, NDArray[np.bool_]]:
+        """Cauchy-reweighted passes (robust) and the inlier mask ``(n,)`` they leave
+        (all stations when fewer than 3 remain, or not robust)."""
+        G, C = self.G, self.C
+        n = len(G)
+        w = np.ones(n)
+        trusted = np.ones(n, bool)
+        if robust and start_inliers is not None and len(start_inliers) >= 3:
+            trusted = np.zeros(n, bool)
+            trusted[np.asarray(start_inliers, dtype=np.intp)] = True
+            w = trusted.astype(float)
+        sr, st = self.scales(X, Y, trusted)
+        if not robust:
+            return X, Y, np.ones(n, bool)
         for _ in range(max_outer):
-            X, Y, cost = solve(X, Y, w, sr, st)
-            history.append(cost)
-            sr, st = scales(w > 0.5 if start_inliers is not None else np.ones(n, bool))
-            d = _distances(G, C, X, Y, sr, st)
+            X, Y = self.solve(X, Y, w, sr, st)
+            sr, st = self.scales(X, Y, w > 0.5 if start_inliers is not None
+                                 else np.ones(n, bool))
+            d = _distances(G, C, X, Y, sr, st, self.Ginv)
             w_new = 1.0 / (1.0 + (d / (np.sqrt(6.0) * _CAUCHY_C)) ** 2)
             done = np.max(np.abs(w_new - w)) < 1e-3
             w = w_new
             if done:
                 break
-    d = _distances(G, C, X, Y, sr, st)
-    inlier = d**2 <= chdtri(6, 1.0 - outlier_level) if robust else np.ones(n, bool)
-    if inlier.sum() < 3:
-        inlier = np.ones(n, bool)
-    # final plain least squares on the inliers, scales re-estimated from them (rms)
-    rot, tr = camera_residuals(G[inlier], C[inlier], X, Y)
-    sr = max(float(np.sqrt(np.mean(np.sum(rot**2, 1)) / 3.0)), 1e-13)
-    st = max(float(np.sqrt(np.mean(np.sum(tr**2, 1)) / 3.0)), 1e-13 * L)
-    if rotation_weight is not None:
-        sr = st / rotation_weight
-    X, Y, cost = solve(X, Y, inlier.astype(float), sr, st)
-    history.append(cost)
-    d = _distances(G, C, X, Y, sr, st)
-    outliers = [int(i) for i in np.flatnonzero(~inlier)]
-    return LMRefinement(X, Y, outliers, d, (sr, st), nfev, history)
+        d = _distances(G, C, X, Y, sr, st, self.Ginv)
+        inlier = d**2 <= _chi2_isf6(1.0 - outlier_level)
+        if inlier.sum() < 3:
+            inlier = np.ones(n, bool)
+        return X, Y, inlier
 
 
-def _distances(G: Array, C: Array, X: Array, Y: Array, sr: float, st: float) -> Array:
-    rot, tr = camera_residuals(G, C, X, Y)
+def _distances(G: Array, C: Array, X: Array, Y: Array, sr: float, st: float,
+               Ginv: Array | None = None) -> Array:
+    rot, tr = camera_residuals(G, C, X, Y, Ginv)
     return np.sqrt(np.sum((rot / sr) ** 2, 1) + np.sum((tr / st) ** 2, 1))
 
 
@@ -301,4 +351,14 @@ def flag_outliers(G: Array, C: Array, X: Array, Y: Array, level: float = 0.999) 
     list of int
         0-based station indices.
     """
-    return lm(G, C, X, Y, robust=True, outlier_level=level).outliers
+    # `lm`'s robust passes decide its outliers before its last (plain) pass: stop there
+    # (converged as tightly as `lm`'s: without rotation noise the rotation scale is at
+    # round-off, and looser passes flag stations that `lm` does not)
+    _, _, inlier = _Passes(G, C, None).reweighted(X, Y, True, level, 10, None)
+    return [int(i) for i in np.flatnonzero(~inlier)]
+
+
+@lru_cache(maxsize=8)
+def _chi2_isf6(alpha: float) -> float:
+    """The chi-square(6) quantile exceeded with probability `alpha` (cached)."""
+    return float(chdtri(6, alpha))

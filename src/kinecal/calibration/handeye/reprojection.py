@@ -31,8 +31,8 @@ from kinecal.spatial import matrix_from_axis_angle, skew, transform_from
 
 Array = NDArray[np.float64]
 
-__all__ = ["ReprojectionProblem", "parameter_names", "predict_corners", "predict_pixels",
-           "unpack"]
+__all__ = ["ReprojectionProblem", "parameter_names", "predict_blocks", "predict_corners",
+           "predict_pixels", "unpack"]
 
 
 @dataclass
@@ -78,7 +78,67 @@ def unpack(pr: ReprojectionProblem, p: Array
 
 
 def predict_pixels(pr: ReprojectionProblem, p: Array, jac: bool) -> tuple[Array, Array | None]:
-    """Predicted pixels ``(M, 2)`` and (optionally) their Jacobian ``(M, 2, n_params)``."""
+    """Predicted pixels ``(M, 2)`` and (optionally) their Jacobian ``(M, 2, n_params)``.
+
+    The dense Jacobian is put together from `predict_blocks` (for tests and small
+    problems; the refinement uses the blocks)."""
+    if not jac:
+        return _predict(pr, p)[0], None
+    uv, Jg, Je = predict_blocks(pr, p)
+    if Je is None:
+        return uv, Jg
+    M, g = len(uv), Jg.shape[2]
+    J = np.zeros((M, 2, pr.n_params))
+    J[:, :, :g] = Jg
+    cols = g + 6 * pr.sid[:, None] + np.arange(6)  # (M, 6): the corner's station columns
+    J[np.arange(M)[:, None, None], np.arange(2)[None, :, None], cols[:, None, :]] = Je
+    return uv, J
+
+
+def predict_blocks(pr: ReprojectionProblem, p: Array) -> tuple[Array, Array, Array | None]:
+    """Predicted pixels and the Jacobian in blocks (the corners' structure).
+
+    Returns
+    -------
+    uv : ndarray, shape (M, 2)
+    Jg : ndarray, shape (M, 2, 12 + n_int)
+        With respect to the shared unknowns (X, Y, intrinsics).
+    Je : ndarray, shape (M, 2, 6) or None
+        With respect to the corner's own station correction (None when not modelled).
+    """
+    uv, (X, Y, E, pc, q, w, RE, dq_dw, Jp, Jint) = _predict(pr, p, blocks=True)
+    s = pr.sid
+    RF = pr.F[:, :3, :3]
+    RY, RX = Y[:3, :3], X[:3, :3]
+    M = len(pc)
+    Jg = np.empty((M, 2, 12 + pr.n_int))
+
+    def times(B: Array, R: Array) -> Array:  # (M, 2, 3) @ (3, 3) as one matrix product
+        return (B.reshape(-1, 3) @ R).reshape(M, 2, 3)
+
+    Jg[:, :, 0:3] = times(Jp @ skew(pc), _jr(p[0:3]))
+    Jg[:, :, 3:6] = times(Jp, -RX.T)
+    JpR = times(Jp, RX.T)  # d uv / d q
+    A = JpR @ dq_dw[s]  # d uv / d w
+    Jg[:, :, 6:9] = times(times(A, -RY) @ skew(pr.P), _jr(p[6:9]))
+    Jg[:, :, 9:12] = A
+    if pr.n_int:
+        Jg[:, :, 12:12 + pr.n_int] = Jint
+    if E is None:
+        return uv, Jg, None
+    jr = _jr(E[:, :3])  # (n, 3, 3)
+    Je = np.empty((M, 2, 6))
+    if pr.eye_in_hand:
+        Je[:, :, :3] = JpR @ (skew(q) @ jr[s])
+        Je[:, :, 3:] = JpR @ (-np.swapaxes(RE, 1, 2)[s])
+    else:
+        Je[:, :, :3] = JpR @ (-(RF @ RE)[s] @ skew(w) @ jr[s])
+        Je[:, :, 3:] = JpR @ RF[s]
+    return uv, Jg, Je
+
+
+def _predict(pr: ReprojectionProblem, p: Array, blocks: bool = False) -> tuple[Array, tuple]:
+    """Pixels ``(M, 2)`` and, with `blocks`, the intermediate values their Jacobian uses."""
     X, Y, K, d, E = unpack(pr, p)
     s = pr.sid
     RF, tF = pr.F[:, :3, :3], pr.F[:, :3, 3]
@@ -92,46 +152,21 @@ def predict_pixels(pr: ReprojectionProblem, p: Array, jac: bool) -> tuple[Array,
         tE = np.zeros((pr.n, 3))
     if pr.eye_in_hand:  # q = E^-1 F^-1 w
         z = np.einsum("mji,mj->mi", RF[s], w - tF[s])
-        q = np.einsum("mji,mj->mi", RE[s], z - tE[s])
-        dq_dw = np.swapaxes(RE, 1, 2) @ np.swapaxes(RF, 1, 2)  # per station
+        q = np.einsum("mji,mj->mi", RE[s], z - tE[s]) if E is not None else z
+        dq_dw = np.swapaxes(RE, 1, 2) @ np.swapaxes(RF, 1, 2) if blocks else None
     else:  # q = F E w
-        ew = np.einsum("mij,mj->mi", RE[s], w) + tE[s]
+        ew = np.einsum("mij,mj->mi", RE[s], w) + tE[s] if E is not None else w
         q = np.einsum("mij,mj->mi", RF[s], ew) + tF[s]
-        dq_dw = RF @ RE
+        dq_dw = RF @ RE if blocks else None
     pc = (q - tX) @ RX  # R_X^T (q - t_X)
     if np.any(pc[:, 2] <= 0):
         bad = int(s[np.argmax(pc[:, 2] <= 0)])
         raise InputError(f"station {bad}: board behind the camera for the current X; the "
                          "robot poses do not fit the images (wrong setup or pose convention?)")
+    if not blocks:
+        return project_jacobian(K, d, pc, rational=pr.n_int == 12, jacobians=False)[0], ()
     uv, Jp, Jint = project_jacobian(K, d, pc, rational=pr.n_int == 12)
-    if not jac:
-        return uv, None
-    M = len(pc)
-    J = np.zeros((M, 2, pr.n_params))
-    J[:, :, 0:3] = Jp @ (skew(pc) @ _jr(p[0:3]))
-    J[:, :, 3:6] = Jp @ (-RX.T)
-    JpR = Jp @ RX.T  # d uv / d q
-    A = JpR @ dq_dw[s]  # d uv / d w
-    J[:, :, 6:9] = A @ (-RY @ skew(pr.P) @ _jr(p[6:9]))
-    J[:, :, 9:12] = A
-    if pr.n_int:
-        J[:, :, 12:12 + pr.n_int] = Jint
-    if E is not None:
-        c0 = 12 + pr.n_int
-        jr = _jr(E[:, :3])  # (n, 3, 3)
-        if pr.eye_in_hand:
-            dq_de = -np.swapaxes(RE, 1, 2)[s]
-            dq_deps = skew(q) @ jr[s]
-        else:
-            dq_de = RF[s]
-            dq_deps = -(RF @ RE)[s] @ skew(w) @ jr[s]
-        blk_rot = JpR @ dq_deps  # (M, 2, 3)
-        blk_tr = JpR @ dq_de
-        rows = np.arange(M)
-        for k in range(3):
-            J[rows, :, c0 + 6 * s + k] = blk_rot[:, :, k]
-            J[rows, :, c0 + 6 * s + 3 + k] = blk_tr[:, :, k]
-    return uv, J
+    return uv, (X, Y, E, pc, q, w, RE, dq_dw, Jp, Jint)
 
 
 def predict_corners(flange2base: Array, points: list[Array], K: Array, dist: Array | None,

@@ -50,7 +50,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
-from kinecal.kinematics.serial.ik_lm import CONVERGED, Problem, condition_numbers, pose_error, run
+from kinecal.kinematics.serial.ik_lm import (
+    CONVERGED,
+    Problem,
+    condition_numbers,
+    pose_error,
+    run,
+    run_one,
+)
 from kinecal.spatial import check_transform
 
 if TYPE_CHECKING:
@@ -177,8 +184,12 @@ def characteristic_length(model: SerialModel, params: ArrayLike | None = None) -
 def default_tol_position(model: SerialModel, params: ArrayLike | None = None) -> float:
     """Default position tolerance: 1e-9 mm in the model's unit, or 64 round-off units of
     the arm's `characteristic_length` when that is larger (very large machines)."""
+    return _tol_of_length(model, characteristic_length(model, params))
+
+
+def _tol_of_length(model: SerialModel, length: float) -> float:
     nm = 1e-9 if model.length_unit == "mm" else 1e-12  # 1e-9 mm
-    return max(nm, 64.0 * np.finfo(float).eps * characteristic_length(model, params))
+    return max(nm, 64.0 * np.finfo(float).eps * length)
 
 
 def _check_targets(targets: ArrayLike) -> Array:
@@ -282,7 +293,7 @@ def solve_ik(
             raise InputError(f"params: expected one finite parameter vector ({model.n_params},), "
                              f"got shape {p.shape}")
     length = characteristic_length(model, p)
-    tol_p = default_tol_position(model, p) if tol_position is None else float(tol_position)
+    tol_p = _tol_of_length(model, length) if tol_position is None else float(tol_position)
     if not tol_p > 0:
         raise InputError(f"tol_position: expected > 0, got {tol_position}")
     if not tol_rotation > 0:
@@ -298,7 +309,10 @@ def solve_ik(
     tol_r = float(tol_rotation) if pose else np.inf
     prob = Problem(model, p, t, w, length)
     q = prob.project(q)
-    q, pos, rot, iters, status = run(prob, q, tol_p, tol_r, int(max_iterations))
+    # one target: the same iterations on plain floats and the single-pose chain
+    got = run_one(prob, q, tol_p, tol_r, int(max_iterations)) if N == 1 else None
+    q, pos, rot, iters, status = got if got is not None else \
+        run(prob, q, tol_p, tol_r, int(max_iterations))
     tries = np.zeros(N, dtype=int)
     bad = np.flatnonzero(~np.isin(status, CONVERGED))
     R = int(restarts)

@@ -18,7 +18,7 @@ from kinecal.spatial import axis_angle_from_matrix
 if TYPE_CHECKING:
     from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["CONVERGED", "Problem", "condition_numbers", "pose_error", "run"]
+__all__ = ["CONVERGED", "Problem", "condition_numbers", "pose_error", "run", "run_one"]
 
 Array = NDArray[np.float64]
 
@@ -128,7 +128,14 @@ class Problem:
         """
         outputs = "pose" if self.pose else "position"
         sweep = getattr(self.model, "sweep", None)
-        if sweep is None:
+        # a problem of one target (not one row of a batch: a target's answer must not
+        # depend on the other targets) evaluates the folded chain, no per-call set-up
+        single = getattr(self.model, "single_pose", None) if len(self.targets) == 1 else None
+        one = single(q[0], self.params, outputs) if single and q.shape[0] == 1 else None
+        if one is not None:
+            T, J = one[0][None], one[1][None].copy()
+            P, R = T[:, :3, 3], T[:, :3, :3]
+        elif sweep is None:
             T = self.model.fk(q, self.params)
             P, R = T[:, :3, 3], T[:, :3, :3]
             J = self.model.joint_jacobian(q, self.params, outputs)
@@ -257,6 +264,73 @@ def run(prob: Problem, q: Array, tol_p: float, tol_r: float, max_iter: int
         status[a[stuck]] = "unreachable"
         active = a[~(ok | stuck)]
     return q, pos, rot, iters, status
+
+
+def run_one(prob: Problem, q: Array, tol_p: float, tol_r: float, max_iter: int
+            ) -> tuple[Array, Array, Array, NDArray[np.int_], NDArray[np.str_]] | None:
+    """`run` for a problem of one target, without the batch's bookkeeping: the same
+    steps, damping, acceptance and stopping on plain floats and the model's single-pose
+    chain (`SerialModel.single_pose`). None when the model has no single-pose chain for
+    this call (then use `run`)."""
+    one = _evaluate_one(prob, q[0])
+    if one is None:
+        return None
+    e, pos, rot, J = one
+    q = q[0].copy()
+    cost = float(e @ e)
+    status, it = "max-iterations", 0
+    mu, nu, stall = np.float64(_MU0), 2.0, 0
+    if pos <= tol_p and rot <= tol_r:
+        status = "converged"
+        max_iter = 0
+    for _ in range(max_iter):
+        lam = mu * np.sqrt(cost) * prob.length
+        ds = _bounded_step(prob, J[None], e[None], np.array([lam]), q[None])[0]
+        qt = prob.project((q + ds * prob.col)[None])[0]
+        dsp = np.where(prob.wrap, ds, (qt - q) / prob.col)
+        lin = e - J @ dsp
+        pred = cost - float(lin @ lin)
+        et, post, rott, Jt = _evaluate_one(prob, qt)
+        ct = float(et @ et)
+        it += 1
+        gain = cost - ct
+        rho = np.float64(gain / pred) if pred > 0 else np.float64(-1.0)
+        accept = bool(gain > 0 and rho > 1e-4)
+        if accept:  # Nielsen's update, as in `run`
+            mu = np.maximum(mu * np.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), _MU_MIN)
+            nu = 2.0
+        else:
+            mu, nu = mu * nu, nu * 2.0
+        stall = 0 if accept and gain > _FTOL * cost else stall + 1
+        if accept:
+            q, e, cost, pos, rot, J = qt, et, ct, post, rott, Jt
+        if accept and post <= tol_p and rott <= tol_r:
+            status = "converged"
+            break
+        if stall >= _STALL or mu > _MU_MAX:
+            status = "unreachable"
+            break
+    return (q[None], np.array([pos]), np.array([rot]), np.array([it]),
+            np.array([status], dtype="<U14"))
+
+
+def _evaluate_one(prob: Problem, q: Array) -> tuple[Array, float, float, Array] | None:
+    """`Problem.evaluate` of the one target at joints `q` ``(n,)``: the weighted error
+    ``(rows,)``, position and rotation errors, the scaled joint Jacobian ``(rows, n)``."""
+    single = getattr(prob.model, "single_pose", None)
+    one = single(q, prob.params, "pose" if prob.pose else "position") if single else None
+    if one is None:
+        return None
+    T, J = one
+    if prob.pose:
+        J[3:] *= prob.w
+    if prob.scaled:
+        J *= prob.col
+    dp, dr = pose_error(prob.targets, T[None, :3, 3], T[None, :3, :3])
+    pos = float(np.sqrt(dp[0] @ dp[0]))
+    if dr is None:
+        return dp[0], pos, 0.0, J
+    return np.concatenate([dp[0], prob.w * dr[0]]), pos, float(np.sqrt(dr[0] @ dr[0])), J
 
 
 def condition_numbers(J: Array) -> Array:

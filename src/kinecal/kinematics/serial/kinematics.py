@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.compose import chunks, frame_chain, positions, transforms
 from kinecal.kinematics.serial.markers import check_marker
+from kinecal.kinematics.serial.single import SingleChain
 from kinecal.kinematics.serial.sweep import Sweep, chunked_jacobian_t
 
 __all__ = ["SerialKinematics"]
@@ -87,6 +88,9 @@ class SerialKinematics:
         ndarray, shape (N, 4, 4) or (P, N, 4, 4)
             ``tool2base`` transforms (lengths in the model unit).
         """
+        one = self._single(q, params, marker)
+        if one is not None:  # one configuration: the folded chain (`single`)
+            return one[0].transform(one[1])[None]
         q, p = self._check_q(q), self._check_params(params)
         if self._joint_terms is not None and p.ndim == 2:  # corrections differ per vector
             return np.stack([self.fk(q, row, marker) for row in p])
@@ -99,6 +103,9 @@ class SerialKinematics:
 
         Composed from the tool point backwards, chunk by chunk: no rotation stacks.
         """
+        one = self._single(q, params, marker)
+        if one is not None:
+            return one[0].transform(one[1])[None, :3, 3].copy()
         q, p = self._check_q(q), self._check_params(params)
         if self._joint_terms is not None and p.ndim == 2:  # corrections differ per vector
             return np.stack([self.positions(q, row, marker) for row in p])
@@ -171,6 +178,55 @@ class SerialKinematics:
         if self._joint_terms is not None:  # through the corrections q + dq(q)
             Jt = self._joint_terms.through_corrections(Jt, q, p[self._n_geometric:])
         return np.ascontiguousarray(Jt.transpose(2, 1, 0))
+
+    def single_pose(self, q: ArrayLike, params: ArrayLike | None = None,
+                    outputs: str = "pose") -> tuple[Array, Array] | None:
+        """Tool frame ``(4, 4)`` and joint Jacobian ``(6 or 3, n_joints)`` (see
+        `joint_jacobian`) at one configuration `q` ``(n_joints,)``, from the folded chain
+        (`kinecal.kinematics.serial.single`): for callers that ask one pose at a time
+        (an IK iteration, an online correction). None where the folded chain does not
+        apply (markers, joint errors, a parameter vector seen for the first time): then
+        use `fk` and `joint_jacobian`."""
+        one = self._single(q, params, None)
+        if one is None:
+            return None
+        if outputs not in ("position", "pose"):
+            raise InputError(f"outputs: expected 'position' or 'pose', got {outputs!r}")
+        return one[0].transform_and_jacobian(one[1], outputs)
+
+    def _single(self, q: ArrayLike, params: ArrayLike | None, marker: ArrayLike | None
+                ) -> tuple[SingleChain, Array] | None:
+        """The folded chain (`kinecal.kinematics.serial.single`) and the checked joint
+        values when `q` is one configuration ``(n_joints,)`` (a 1-D vector: a batch of one,
+        ``(1, n_joints)``, stays on the batch path and gives the batch's bits) of a model
+        without markers or joint errors, and the parameter vector is the nominal one or one
+        seen before (its chain is then cached; a vector seen once takes the batch path, so a
+        loop over changing vectors builds nothing); None otherwise."""
+        if marker is not None or self._joint_terms is not None or self._marker_set is not None:
+            return None
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.n_joints,):
+            return None
+        if params is None:
+            key = b""
+        else:
+            p = np.asarray(params, dtype=float)
+            if p.shape != (self.n_params,):
+                return None
+            key = p.tobytes()
+        cache = self.__dict__.setdefault("_single_chains", {})
+        chain = cache.get(key)
+        if chain is None:
+            if key and key not in cache:  # first sight of this vector: remember it only
+                if len(cache) > 8:
+                    cache.clear()
+                cache[key] = None
+                return None
+            chain = cache[key] = SingleChain(self.motions, self._motion_index, self.n_joints,
+                                             self._nominal if not key else p)
+        if not np.isfinite(q).all():
+            raise InputError("joint values contain NaN or infinite entries")
+        return chain, q
 
     def _corrected(self, q: Array, p: Array) -> Array:
         """The joint values the chain composes: ``q + dq(q, c)`` with joint errors
