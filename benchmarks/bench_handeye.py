@@ -110,8 +110,9 @@ def run_scenario(spread, corrupt, trials, meta_trials, seed):
 
 def timing(reps, seed=0, rounds=7):
     """Per method: kinecal's closed form (`solve`), the whole `calibrate_handeye` with
-    ``refine="none"`` (validation, the closed form, residuals, outlier flags, uncertainty
-    and the plausibility checks) and OpenCV, in ms; `rounds` interleaved rounds of `reps`
+    ``refine="none"`` (validation, the closed form, residuals, uncertainty and the
+    plausibility checks), the same with ``robust=True`` (outlier flags judged at a robust
+    pass) and OpenCV, in ms; `rounds` interleaved rounds of `reps`
     calls each, the best round of each kept."""
     rng = np.random.default_rng(seed)
     G, C = stations(rng, SPREADS["moderate"])
@@ -128,6 +129,8 @@ def timing(reps, seed=0, rounds=7):
     for m in (*CV_METHODS, "shah", "li"):
         fns = {"solve": lambda m=m: solve(G, C, m),
                "none": lambda m=m: calibrate_handeye(G, C, method=m, refine="none"),
+               "flags": lambda m=m: calibrate_handeye(G, C, method=m, refine="none",
+                                                      robust=True),
                "cv": opencv(m)}
         best = dict.fromkeys(fns, np.inf)
         for _ in range(rounds):
@@ -136,8 +139,9 @@ def timing(reps, seed=0, rounds=7):
                 for _ in range(reps):
                     fn()
                 best[k] = min(best[k], (time.perf_counter() - t0) / reps)
-        out[m] = (best["solve"] * 1e3, best["none"] * 1e3, best["cv"] * 1e3,
-                  best["solve"] / best["cv"], best["none"] / best["cv"])
+        out[m] = (best["solve"] * 1e3, best["none"] * 1e3, best["flags"] * 1e3,
+                  best["cv"] * 1e3, best["solve"] / best["cv"], best["none"] / best["cv"],
+                  best["flags"] / best["cv"])
     return out
 
 
@@ -193,11 +197,13 @@ def main() -> None:
     if cv2 is not None:
         print("\n## speed (20 stations, all 190 pairs; ratio = kinecal / OpenCV, same process, "
               "best of interleaved rounds)\n")
-        print("| method | closed form (ms) | calibrate_handeye refine=none (ms) | OpenCV (ms) "
-              "| closed form / OpenCV | refine=none / OpenCV |")
-        print("|---|---|---|---|---|---|")
-        for m, (tk, tn, tc, r, rn) in timing(10 if args.quick else 50).items():
-            print(f"| {m} | {tk:.3f} | {tn:.3f} | {tc:.3f} | {r:.2f} | {rn:.2f} |")
+        print("| method | closed form (ms) | calibrate_handeye refine=none (ms) | the same, "
+              "robust=True (ms) | OpenCV (ms) | closed form / OpenCV | refine=none / OpenCV "
+              "| robust=True / OpenCV |")
+        print("|---|---|---|---|---|---|---|---|")
+        for m, (tk, tn, tf, tc, r, rn, rf) in timing(10 if args.quick else 50).items():
+            print(f"| {m} | {tk:.3f} | {tn:.3f} | {tf:.3f} | {tc:.3f} | {r:.2f} | {rn:.2f} "
+                  f"| {rf:.2f} |")
         print("\n## ANDREFF, noise-free, millimetres: translation error (mm)\n")
         print("| spread | OpenCV median | OpenCV max | kinecal max |")
         print("|---|---|---|---|")

@@ -165,12 +165,14 @@ def test_flag_outliers_are_the_robust_refinements_outliers():
 
 
 def test_unrefined_closed_form_without_outlier_flags_keeps_every_other_number():
-    """refine="none", robust=False: no outlier flags (the image pipeline's seed, whose
-    pixel refinement judges them), the same X and station residuals bit for bit."""
+    """refine="none" without robust (the default; the image pipeline's seed, whose pixel
+    refinement judges them): no outlier flags, the same X and station residuals bit for
+    bit as with them (robust=True)."""
     G, C = stations(seed=1, corrupt=(3, 11))
-    flagged = calibrate_handeye(G, C, refine="none")
-    plain = calibrate_handeye(G, C, refine="none", robust=False)
+    flagged = calibrate_handeye(G, C, refine="none", robust=True)
+    plain = calibrate_handeye(G, C, refine="none")
     assert {3, 11} <= set(flagged.outliers) and plain.outliers == []
+    assert calibrate_handeye(G, C, refine="none", robust=False).outliers == []
     assert np.array_equal(plain.X, flagged.X) and np.array_equal(plain.target, flagged.target)
     assert np.array_equal(plain.rotation_deg, flagged.rotation_deg)
     assert np.array_equal(plain.axxb_translation, flagged.axxb_translation)

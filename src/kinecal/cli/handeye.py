@@ -208,9 +208,11 @@ def handeye(
                                                  robot_format, target_format, invert_robot,
                                                  invert_target)
         setup = setup or default_setup or "eye-in-hand"
+        # the command line judges outlier stations whatever the refinement (a process
+        # start costs more than the robust pass that --refine none needs for it)
         res = calibrate_handeye(F, C, setup=setup, method=method, refine=refine,
-                                pairs=pairs_mode, seed=seed, camera_height=camera_height,
-                                board_contact=contact)
+                                pairs=pairs_mode, seed=seed, robust=True,
+                                camera_height=camera_height, board_contact=contact)
     if unit is not None and not unit.strip():
         raise InputError("expected a unit name such as mm or m", option="--unit")
     length_unit = unit or (_BUNDLED_UNIT.get(str(pairs).partition(":")[0]) if pairs

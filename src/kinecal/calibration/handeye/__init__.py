@@ -203,7 +203,7 @@ def calibrate_handeye(
     refine: str = "lm",
     pairs: str = "all",
     seed: int | np.random.Generator | None = None,
-    robust: bool = True,
+    robust: bool | None = None,
     rotation_weight: float | None = None,
     options: dict[str, Any] | None = None,
     camera_height: float | None = None,
@@ -232,11 +232,12 @@ def calibrate_handeye(
         stations (paper 001, eq. (2)).
     seed : int or Generator, optional
         Random seed of the metaheuristic refiners.
-    robust : bool
-        ``lm``: Cauchy reweighting and outlier flagging. ``none``: outlier stations judged
-        at a robust refinement from the closed form (`refine.flag_outliers`; its X is not
-        kept); False: no outlier flags (for a caller whose own refinement judges them, as
-        the image pipeline's on the pixels), every other check unchanged.
+    robust : bool, optional
+        ``lm``: Cauchy reweighting and outlier flagging (default True). ``none``: True
+        judges outlier stations at a robust refinement from the closed form
+        (`refine.flag_outliers`; its X is not kept); the default (False) is the closed
+        form alone, as fast as OpenCV's, with no outlier flags; every other check runs
+        either way. False with ``lm``: plain least squares, no outlier flags.
     rotation_weight : float, optional
         ``lm`` only: length units per radian (default: from the residual scales).
     options : dict, optional
@@ -298,6 +299,8 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
     t0 = time.perf_counter()
     _choice(setup, SETUPS, "setup")
     _choice(method, METHODS, "method")
+    if robust is None:  # outlier stations are judged by a refinement: none for "none"
+        robust = refine != "none"
     _choice(refine, REFINERS, "refine")
     check_refine_options(refine, robust=robust, rotation_weight=rotation_weight,
                          options=options)
