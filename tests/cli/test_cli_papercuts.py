@@ -114,7 +114,7 @@ def test_help_choices_are_the_valid_values(capsys, monkeypatch):
     """The lists in --help are the sets the code accepts (no drift)."""
     from kinecal.calibration.handeye import METHODS
     from kinecal.calibration.serial.api import CALIBRATION_METHODS
-    from kinecal.cli._common import CALIBRATION_METHOD_CHOICES, UNITS
+    from kinecal.cli._options import CALIBRATION_METHOD_CHOICES, UNITS
     from kinecal.cli.export import FORMATS
     from kinecal.cli.handeye import HANDEYE_METHODS
     from kinecal.experiments import PAPERS

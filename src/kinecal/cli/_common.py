@@ -16,26 +16,13 @@ from kinecal._files import check_input_file, probe_writable, write_text_atomic
 from kinecal.errors import InputError
 
 __all__ = [
-    "base_link_option",
     "check_paths",
-    "check_unit",
-    "choices",
     "echo_json",
-    "instrument_option",
-    "load_model_arg",
-    "note_option",
-    "operator_option",
     "progress",
     "progress_columns",
-    "quiet_option",
-    "report_option",
     "report_record",
     "resolve_data_path",
-    "seed_option",
-    "strict_option",
-    "tip_link_option",
     "to_jsonable",
-    "unit_option",
     "warnings_scope",
     "with_warnings",
     "write_json",
@@ -212,116 +199,8 @@ def _check_in_folders(opt: str, path: Path, in_dirs: dict[str, Path],
                              "outside it", option=opt)
 
 
-def choices(*values: str) -> str:
-    """The metavar of an option with a fixed set of values: ``[a|b|c]`` in ``--help``.
-
-    The command checks the value itself (one line naming the option and the valid values,
-    exit 2), so a metavar rather than a click type lists them.
-    """
-    return "[" + "|".join(values) + "]"
-
-
-#: calibration methods (kinecal.calibration.serial.api.CALIBRATION_METHODS without the
-#: hybrids, which are hybrid- and a metaheuristic; tests/cli/test_cli_papercuts.py checks it)
-CALIBRATION_METHOD_CHOICES = ("lm", "householder", "ga", "pso", "afsa", "sa-iafsa", "gwo",
-                              "igwo", "dlh-gwo-de", "de", "ga-hu2005", "pso-liu2008",
-                              "de-storn1997", "hybrid-<metaheuristic>")
-
-
-#: the values of ``--unit`` (kinecal.metrology.units.DISPLAY_UNITS)
-UNITS = ("auto", "mm", "um", "m")
-
-
-def unit_option() -> Any:
-    """The ``--unit`` option: the length unit of a command's printed summary."""
-    import typer
-
-    return typer.Option("auto", "--unit", metavar=choices(*UNITS), help="Length unit of the "
-                        "printed summary (auto: the model's, mm for a model in metres whose "
-                        "errors are below 1 m); files and JSON keep the model's unit.")
-
-
-def check_unit(unit: str) -> str | None:
-    """A ``--unit`` value for a summary (None for auto); `InputError` when unknown."""
-    if unit not in UNITS:
-        raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNITS)}",
-                         option="--unit")
-    return None if unit == "auto" else unit
-
-
-def seed_option(help: str = "Random seed (an integer >= 0).") -> Any:
-    """The ``--seed`` option: any integer >= 0 (negative seeds are refused, exit 2).
-
-    The same seed gives the same result bit for bit; numpy's `SeedSequence` takes any
-    non-negative integer, however large.
-    """
-    import typer
-
-    return typer.Option(0, "--seed", min=0, help=help)
-
-
-#: help text of a MODEL argument of every command that takes a serial-arm model
-MODEL_HELP = "Bundled model name, model YAML or URDF file (see --base-link, --tip-link)."
-
-
-def base_link_option() -> Any:
-    """The ``--base-link`` option of commands that take a MODEL (URDF models only)."""
-    import typer
-
-    return typer.Option(None, "--base-link", help="URDF model: first link of the chain "
-                        "(default: the root link).")
-
-
-def tip_link_option() -> Any:
-    """The ``--tip-link`` option of commands that take a MODEL (URDF models only)."""
-    import typer
-
-    return typer.Option(None, "--tip-link", help="URDF model: last link of the chain "
-                        "(default: the end of the one branch with moving joints).")
-
-
-def load_model_arg(model: str, base_link: str | None = None, tip_link: str | None = None):
-    """Load a MODEL argument: bundled name, model YAML, or URDF with its chain ends
-    (`base_link_option`, `tip_link_option`; an error when given for a non-URDF model)."""
-    from kinecal.io.models import load_model
-
-    return load_model(model, base_link=base_link, tip_link=tip_link)
-
-
 #: the command line of the running command (set by `kinecal.cli.main`), for report records
 COMMAND_LINE: list[str] | None = None
-
-
-def instrument_option() -> Any:
-    """The ``--instrument`` option of commands that write a report (its record)."""
-    import typer
-
-    return typer.Option(None, "--instrument", help="Measuring instrument (make, model, serial "
-                        "number), recorded in the --report.")
-
-
-def operator_option() -> Any:
-    """The ``--operator`` option of commands that write a report (its record)."""
-    import typer
-
-    return typer.Option(None, "--operator", help="Who measured and calibrated, recorded in "
-                        "the --report.")
-
-
-def note_option() -> Any:
-    """The ``--note`` option of commands that write a report (its record)."""
-    import typer
-
-    return typer.Option(None, "--note", help="Free text recorded in the --report (site, "
-                        "temperature, job number...).")
-
-
-def report_option() -> Any:
-    """The ``--report`` option: an HTML report, or PDF when the name ends in ``.pdf``."""
-    import typer
-
-    return typer.Option(None, "--report", help="Report to write: HTML, or PDF for a .pdf "
-                        "name (needs the pdf extra). See docs/report.md.")
 
 
 def report_record(report: str | Path | None, inputs: dict[str, str | Path | None],
@@ -357,22 +236,6 @@ def report_record(report: str | Path | None, inputs: dict[str, str | Path | None
             files[f"{name} ({spec}, bundled)"] = path
     return collect(files, command=COMMAND_LINE, instrument=instrument, operator=operator,
                    note=note, suffixes=suffixes)
-
-
-def strict_option() -> Any:
-    """The ``--strict`` option every command that can warn shares."""
-    import typer
-
-    return typer.Option(False, "--strict",
-                        help="Treat every plausibility warning as an error (exit 2).")
-
-
-def quiet_option() -> Any:
-    """The ``--quiet`` option: no progress and no summary text; warnings still print."""
-    import typer
-
-    return typer.Option(False, "--quiet",
-                        help="No progress bar or summary (warnings are still printed).")
 
 
 @contextlib.contextmanager

@@ -12,28 +12,30 @@ from kinecal._limits import check_count, check_finite
 from kinecal.calibration.method_options import check_error_model_options, check_method_options
 from kinecal.cli._app import app
 from kinecal.cli._common import (
+    check_paths,
+    echo_json,
+    report_record,
+    resolve_data_path,
+    warnings_scope,
+    with_warnings,
+    write_json,
+)
+from kinecal.cli._options import (
     CALIBRATION_METHOD_CHOICES,
     MODEL_HELP,
     base_link_option,
-    check_paths,
     check_unit,
     choices,
-    echo_json,
     instrument_option,
     load_model_arg,
     note_option,
     operator_option,
     quiet_option,
     report_option,
-    report_record,
-    resolve_data_path,
     seed_option,
     strict_option,
     tip_link_option,
     unit_option,
-    warnings_scope,
-    with_warnings,
-    write_json,
 )
 from kinecal.cli._serial_common import POSE_BYTES, free_option
 from kinecal.cli.calibrate_kinds import (

@@ -12,12 +12,12 @@ import typer
 from kinecal.cli._common import (
     check_paths,
     echo_json,
-    load_model_arg,
     progress,
     warnings_scope,
     with_warnings,
     write_json,
 )
+from kinecal.cli._options import load_model_arg
 from kinecal.errors import InputError
 
 __all__ = ["calibrate_images"]

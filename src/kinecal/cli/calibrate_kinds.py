@@ -21,13 +21,13 @@ from kinecal._limits import check_finite
 from kinecal.cli._common import (
     check_paths,
     echo_json,
-    load_model_arg,
     report_record,
     resolve_data_path,
     warnings_scope,
     with_warnings,
     write_json,
 )
+from kinecal.cli._options import load_model_arg
 from kinecal.errors import InputError
 
 __all__ = ["calibrate_files", "file_kind", "identifiability_files", "parse_sigma",

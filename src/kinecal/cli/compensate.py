@@ -16,19 +16,21 @@ import typer
 
 from kinecal.cli._app import app
 from kinecal.cli._common import (
-    base_link_option,
     check_paths,
-    check_unit,
-    choices,
     echo_json,
     progress,
-    quiet_option,
     resolve_data_path,
+    warnings_scope,
+    with_warnings,
+)
+from kinecal.cli._options import (
+    base_link_option,
+    check_unit,
+    choices,
+    quiet_option,
     strict_option,
     tip_link_option,
     unit_option,
-    warnings_scope,
-    with_warnings,
 )
 from kinecal.errors import InputError
 

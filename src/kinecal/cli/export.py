@@ -10,14 +10,13 @@ import numpy as np
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import (
+from kinecal.cli._common import check_paths, warnings_scope
+from kinecal.cli._options import (
     base_link_option,
-    check_paths,
     choices,
     load_model_arg,
     strict_option,
     tip_link_option,
-    warnings_scope,
 )
 from kinecal.errors import InputError
 

@@ -9,16 +9,14 @@ import numpy as np
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import (
+from kinecal.cli._common import echo_json, resolve_data_path, warnings_scope
+from kinecal.cli._options import (
     MODEL_HELP,
     base_link_option,
-    echo_json,
     load_model_arg,
     quiet_option,
-    resolve_data_path,
     strict_option,
     tip_link_option,
-    warnings_scope,
 )
 
 

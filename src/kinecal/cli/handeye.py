@@ -12,19 +12,21 @@ from kinecal._limits import check_count
 from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
-    choices,
     echo_json,
+    report_record,
+    warnings_scope,
+    with_warnings,
+    write_json,
+)
+from kinecal.cli._options import (
+    choices,
     instrument_option,
     note_option,
     operator_option,
     quiet_option,
     report_option,
-    report_record,
     seed_option,
     strict_option,
-    warnings_scope,
-    with_warnings,
-    write_json,
 )
 from kinecal.errors import InputError
 

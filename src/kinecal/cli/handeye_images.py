@@ -11,19 +11,21 @@ import typer
 from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
-    choices,
     echo_json,
-    instrument_option,
-    note_option,
-    operator_option,
     progress,
-    quiet_option,
-    report_option,
     report_record,
-    strict_option,
     warnings_scope,
     with_warnings,
     write_json,
+)
+from kinecal.cli._options import (
+    choices,
+    instrument_option,
+    note_option,
+    operator_option,
+    quiet_option,
+    report_option,
+    strict_option,
 )
 from kinecal.cli.handeye import (
     board_contact_option,

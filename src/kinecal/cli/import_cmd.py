@@ -14,7 +14,8 @@ import numpy as np
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import MODEL_HELP, check_paths, load_model_arg, quiet_option
+from kinecal.cli._common import check_paths
+from kinecal.cli._options import MODEL_HELP, load_model_arg, quiet_option
 from kinecal.errors import InputError
 
 #: files written into --out DIR with --images (the image files are named dwell_NNN.*)

@@ -11,22 +11,24 @@ import typer
 
 from kinecal.cli._app import app
 from kinecal.cli._common import (
-    MODEL_HELP,
-    base_link_option,
     check_paths,
     echo_json,
+    report_record,
+    resolve_data_path,
+    warnings_scope,
+    with_warnings,
+)
+from kinecal.cli._options import (
+    MODEL_HELP,
+    base_link_option,
     instrument_option,
     load_model_arg,
     note_option,
     operator_option,
     quiet_option,
     report_option,
-    report_record,
-    resolve_data_path,
     strict_option,
     tip_link_option,
-    warnings_scope,
-    with_warnings,
 )
 from kinecal.errors import InputError
 

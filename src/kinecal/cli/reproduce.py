@@ -7,18 +7,14 @@ from pathlib import Path
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import (
-    check_paths,
+from kinecal.cli._common import check_paths, echo_json, quiet_requested, report_record, write_json
+from kinecal.cli._options import (
     choices,
-    echo_json,
     instrument_option,
     note_option,
     operator_option,
-    quiet_requested,
     report_option,
-    report_record,
     seed_option,
-    write_json,
 )
 from kinecal.experiments import PAPERS, experiment_module
 

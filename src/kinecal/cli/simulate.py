@@ -9,17 +9,16 @@ import typer
 
 from kinecal._limits import check_count, check_finite
 from kinecal.cli._app import app
-from kinecal.cli._common import (
+from kinecal.cli._common import check_paths, warnings_scope
+from kinecal.cli._options import (
     MODEL_HELP,
     base_link_option,
-    check_paths,
     choices,
     load_model_arg,
     quiet_option,
     seed_option,
     strict_option,
     tip_link_option,
-    warnings_scope,
 )
 from kinecal.cli._serial_common import POSE_BYTES
 from kinecal.errors import InputError

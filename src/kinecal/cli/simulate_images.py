@@ -11,7 +11,8 @@ import numpy as np
 import typer
 
 from kinecal._limits import check_count, check_finite
-from kinecal.cli._common import check_paths, load_model_arg, warnings_scope
+from kinecal.cli._common import check_paths, warnings_scope
+from kinecal.cli._options import load_model_arg
 from kinecal.errors import InputError
 
 __all__ = ["DEFAULT_CAMERA", "simulate_images"]

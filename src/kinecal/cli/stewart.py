@@ -17,22 +17,24 @@ from kinecal._limits import check_count
 from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
+    echo_json,
+    report_record,
+    resolve_data_path,
+    warnings_scope,
+    with_warnings,
+    write_json,
+)
+from kinecal.cli._options import (
     check_unit,
     choices,
-    echo_json,
     instrument_option,
     note_option,
     operator_option,
     quiet_option,
     report_option,
-    report_record,
-    resolve_data_path,
     seed_option,
     strict_option,
     unit_option,
-    warnings_scope,
-    with_warnings,
-    write_json,
 )
 from kinecal.errors import InputError
 

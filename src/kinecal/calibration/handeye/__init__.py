@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -31,9 +30,9 @@ from kinecal.calibration.handeye._motions import as_transforms, check_motions, m
 from kinecal.calibration.handeye.errors import (
     axxb_station_rms,
     mean_target_pose,
-    rms,
     station_residuals,
 )
+from kinecal.calibration.handeye.result import HandEyeResult
 from kinecal.calibration.handeye.scara import AxisHeight, detect_one_axis
 from kinecal.calibration.method_options import check_refine_options
 from kinecal.errors import InputError
@@ -50,101 +49,6 @@ REFINERS: tuple[str, ...] = ("none", "lm", "igwo", "dlh-gwo-de")
 SETUPS: tuple[str, ...] = ("eye-in-hand", "eye-to-hand")
 _META_OPTIONS = {"popsize", "maxiter", "rotation_box", "translation_box", "maxfev", "length",
                  "method_options"}
-
-
-@dataclass(repr=False)
-class HandEyeResult:
-    """Result of `calibrate_handeye`.
-
-    Attributes
-    ----------
-    X : ndarray, shape (4, 4)
-        ``cam2flange`` (eye-in-hand) or ``cam2base`` (eye-to-hand), length unit of the input.
-    target : ndarray, shape (4, 4)
-        Fixed target pose ``Y``: ``target2base`` (eye-in-hand) or ``target2flange``.
-    setup, method, refine : str
-        What was run.
-    rotation_deg, translation : ndarray, shape (n,)
-        Per-station residual of ``G_i X C_i`` against ``Y`` (deg, length unit).
-    axxb_rotation_deg, axxb_translation : ndarray, shape (n,)
-        Per-station rms of the ``A X - X B`` mismatch over all pairs with that station.
-    outliers : list of int
-        0-based indices of stations flagged as outliers.
-    history : list of float
-        Cost after each iteration of the refinement (empty for closed forms).
-    nfev : int
-        Cost evaluations of the refinement.
-    seconds : float
-        Wall time.
-    warnings : list of Diagnostic
-        Plausibility diagnostics (`kinecal.calibration.diagnostics.handeye`).
-    x_uncertainty : XUncertainty or None
-        First-order uncertainty of X from the residuals (None for noise-free data).
-    one_axis : dict or None
-        One-axis stations (SCARA): the axis, where X's height along it came from and the
-        heights (`kinecal.calibration.handeye.one_axis.one_axis_summary`); None otherwise.
-    """
-
-    X: Array
-    target: Array
-    setup: str
-    method: str
-    refine: str
-    rotation_deg: Array
-    translation: Array
-    axxb_rotation_deg: Array
-    axxb_translation: Array
-    outliers: list[int] = field(default_factory=list)
-    history: list[float] = field(default_factory=list)
-    nfev: int = 0
-    seconds: float = 0.0
-    warnings: list = field(default_factory=list)
-    x_uncertainty: Any = None
-    one_axis: dict[str, Any] | None = None
-
-    @property
-    def rotation_rms_deg(self) -> float:
-        """Rms of the station rotation residuals (deg)."""
-        return rms(self.rotation_deg)
-
-    @property
-    def translation_rms(self) -> float:
-        """Rms of the station translation residuals (length unit)."""
-        return rms(self.translation)
-
-    def __repr__(self) -> str:
-        t = self.X[:3, 3]
-        return (f"<HandEyeResult {self.setup}, {self.method}+{self.refine}: "
-                f"{len(self.rotation_deg)} stations, X translation ({t[0]:.4g}, {t[1]:.4g}, "
-                f"{t[2]:.4g}), residual rms "
-                f"{self.rotation_rms_deg:.3g} deg / {self.translation_rms:.3g}, "
-                f"{len(self.outliers)} outliers>")
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able dict with the keys of the ``kinecal handeye`` contract (DESIGN sec. 4)."""
-        return {
-            "X": self.X.tolist(),
-            "target": self.target.tolist(),
-            "setup": self.setup,
-            "method": self.method,
-            "refine": self.refine,
-            "rotation_rms_deg": self.rotation_rms_deg,
-            "translation_rms": self.translation_rms,
-            "stations": [
-                {"rotation_deg": float(r), "translation": float(t)}
-                for r, t in zip(self.rotation_deg, self.translation, strict=True)
-            ],
-            "axxb_stations": [
-                {"rotation_deg": float(r), "translation": float(t)}
-                for r, t in zip(self.axxb_rotation_deg, self.axxb_translation, strict=True)
-            ],
-            "outliers": list(self.outliers),
-            "nfev": self.nfev,
-            "seconds": self.seconds,
-            "x_uncertainty": None if self.x_uncertainty is None else self.x_uncertainty.to_dict(),
-            "one_axis": self.one_axis,
-            "warnings": [d.to_dict() for d in self.warnings],
-        }
 
 
 def _choice(value: str, valid: tuple[str, ...], option: str) -> str:
@@ -284,23 +188,41 @@ def calibrate_handeye(
 
 def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, seed, robust,
                        rotation_weight, options, height) -> HandEyeResult:
-    from kinecal.calibration.diagnostics.handeye import (
-        check_handeye_conditioning,
-        check_handeye_stations,
-        check_handeye_units,
-        handeye_uncertainty,
-    )
-    from kinecal.calibration.diagnostics.handeye_consistency import (
-        find_inconsistency,
-        station_scores,
-        warn_inconsistent,
-    )
-
     t0 = time.perf_counter()
-    _choice(setup, SETUPS, "setup")
-    _choice(method, METHODS, "method")
     if robust is None:  # outlier stations are judged by a refinement: none for "none"
         robust = refine != "none"
+    F, C = _checked_inputs(flange2base, target2cam, setup, method, refine, robust,
+                           rotation_weight, options)
+    G = F if setup == "eye-in-hand" else invert_transform(F)
+    axis = detect_one_axis(G, setup)
+    if axis is not None:  # SCARA: Ulrich & Steger, the height from the caller
+        from kinecal.calibration.handeye.one_axis import calibrate_one_axis
+
+        s = calibrate_one_axis(F, C, G, setup, axis, height, refine, robust, rotation_weight,
+                               seed, pairs, _meta_options(options))
+        res = HandEyeResult(s.X, s.Y, setup, "ulrich-steger", refine, *s.residuals,
+                            s.outliers, s.history, s.nfev, time.perf_counter() - t0)
+        res.x_uncertainty, res.one_axis = s.uncertainty, s.summary
+        return res
+    X0, Y0, A, B = _solve(G, C, method, pairs)
+    if height.given:
+        from kinecal.calibration.handeye.one_axis import warn_height_unused
+
+        warn_height_unused(height, G)
+    X, Y, outliers, history, nfev = _refined(G, C, X0, Y0, refine, robust, rotation_weight,
+                                             seed, pairs, options)
+    res = _judged(F, C, G, X, Y, X0, A, B, setup, method, refine, pairs, robust, outliers)
+    res.history, res.nfev, res.seconds = history, nfev, time.perf_counter() - t0
+    return res
+
+
+def _checked_inputs(flange2base, target2cam, setup, method, refine, robust, rotation_weight,
+                    options) -> tuple[Array, Array]:
+    """Every argument checked before any work; the poses as ``(n, 4, 4)`` transforms."""
+    from kinecal.calibration.diagnostics.handeye import check_handeye_stations
+
+    _choice(setup, SETUPS, "setup")
+    _choice(method, METHODS, "method")
     _choice(refine, REFINERS, "refine")
     check_refine_options(refine, robust=robust, rotation_weight=rotation_weight,
                          options=options)
@@ -314,39 +236,42 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
     if rotation_weight is not None and not (np.isfinite(rotation_weight) and rotation_weight > 0):
         raise InputError(f"rotation_weight {rotation_weight}: expected a positive length per "
                          "radian", option="rotation_weight")
-    G = F if setup == "eye-in-hand" else invert_transform(F)
-    axis = detect_one_axis(G, setup)
-    if axis is not None:  # SCARA: Ulrich & Steger, the height from the caller
-        from kinecal.calibration.handeye.one_axis import calibrate_one_axis
+    return F, C
 
-        s = calibrate_one_axis(F, C, G, setup, axis, height, refine, robust, rotation_weight,
-                               seed, pairs, _meta_options(options))
-        res = HandEyeResult(s.X, s.Y, setup, "ulrich-steger", refine, *s.residuals,
-                            s.outliers, s.history, s.nfev, time.perf_counter() - t0)
-        res.x_uncertainty, res.one_axis = s.uncertainty, s.summary
-        return res
-    X, Y, A, B = _solve(G, C, method, pairs)
-    X0 = X
-    if height.given:
-        from kinecal.calibration.handeye.one_axis import warn_height_unused
 
-        warn_height_unused(height, G)
-    history: list[float] = []
-    nfev = 0
-    outliers: list[int] = []
+def _refined(G, C, X, Y, refine, robust, rotation_weight, seed, pairs, options):
+    """The refinement of the closed form (X, Y): ``(X, Y, outliers, history, nfev)``; the
+    outliers of ``lm`` (others are judged in `_judged`)."""
     if refine == "lm":
         from kinecal.calibration.handeye.refine import lm
 
         res = lm(G, C, X, Y, robust=robust, rotation_weight=rotation_weight)
         if robust:
             res = _consensus_refinement(G, C, res, seed, rotation_weight)
-        X, Y, outliers, history, nfev = res.X, res.Y, res.outliers, res.history, res.nfev
-    elif refine in ("igwo", "dlh-gwo-de"):
+        return res.X, res.Y, res.outliers, res.history, res.nfev
+    if refine in ("igwo", "dlh-gwo-de"):
         from kinecal.calibration.handeye.refine_meta import metaheuristic
 
         res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **_meta_options(options))
-        X, history, nfev = res.X, res.history, res.nfev
-        Y = mean_target_pose(G, X, C)
+        return res.X, mean_target_pose(G, res.X, C), [], res.history, res.nfev
+    return X, Y, [], [], 0
+
+
+def _judged(F, C, G, X, Y, X0, A, B, setup, method, refine, pairs, robust,
+            outliers) -> HandEyeResult:
+    """Station residuals, outliers of results not refined by ``lm`` (``robust``), the
+    uncertainty of X, conditioning, and stations that fit no X (a mix-up, a unit factor)."""
+    from kinecal.calibration.diagnostics.handeye import (
+        check_handeye_conditioning,
+        check_handeye_units,
+        handeye_uncertainty,
+    )
+    from kinecal.calibration.diagnostics.handeye_consistency import (
+        find_inconsistency,
+        station_scores,
+        warn_inconsistent,
+    )
+
     shared = None
     if refine != "lm":
         from kinecal.calibration.handeye.refine import flag_outliers, residuals_and_jacobian
@@ -375,8 +300,7 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
         warn_inconsistent(inc)
     elif not check_handeye_units(G, C, X0) and inc is not None:
         warn_inconsistent(inc)
-    res = HandEyeResult(X, Y, setup, method, refine, rot, tr, arot, atr, outliers, history,
-                        nfev, time.perf_counter() - t0)
+    res = HandEyeResult(X, Y, setup, method, refine, rot, tr, arot, atr, outliers, [], 0)
     res.x_uncertainty = unc
     return res
 
