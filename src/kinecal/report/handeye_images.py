@@ -173,7 +173,7 @@ def handeye_images_report(result: Any, path: str | Path,
 
 
 def _thumbnails(result: Any, images: Sequence[Any]) -> str:
-    from kinecal.vision.pipeline import load_gray
+    from kinecal.vision.stages import load_gray
 
     parts = ["<p>Green circles: detected corners; red crosses: corners predicted by X, the "
              "board pose and the robot pose.</p><div class=\"thumbs\">"]

@@ -27,7 +27,7 @@ from kinecal.kinematics.serial.model import SerialModel
 from kinecal.vision.boards import Board
 from kinecal.vision.detect import QualityLimits
 from kinecal.vision.intrinsics import CameraIntrinsics
-from kinecal.vision.pipeline import _detect_all, _intrinsics, _poses
+from kinecal.vision.stages import board_poses, camera_intrinsics, detect_all
 
 Array = NDArray[np.float64]
 
@@ -64,10 +64,10 @@ def detect_stations(images: Sequence[Any], q: Array, names: Sequence[str], board
     """
     limits = limits or QualityLimits()
     expected = None if intrinsics is None or not intrinsics.size else tuple(intrinsics.size)
-    records, size = _detect_all(images, names, board, limits, progress, expected)
-    intr = _intrinsics(records, board, size, intrinsics)
+    records, size = detect_all(images, names, board, limits, progress, expected)
+    intr = camera_intrinsics(records, board, size, intrinsics)
     if poses:
-        _poses(records, board, intr, limits)
+        board_poses(records, board, intr, limits)
     used = [k for k, r in enumerate(records) if r.status == "used"]
     skipped = [{"image": r.name, "reason": r.reason} for r in records if r.status != "used"]
     st = Stations(np.asarray(q, float)[used],

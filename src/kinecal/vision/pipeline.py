@@ -22,10 +22,8 @@ The result types (`ImageRecord`, `ImageHandEyeResult`, re-exported here) are in
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -36,29 +34,22 @@ from kinecal import diagnostics
 from kinecal.calibration.handeye import calibrate_handeye
 from kinecal.calibration.handeye.images import ReprojectionRefinement, refine_reprojection
 from kinecal.errors import InputError
-from kinecal.vision import require_cv2
 from kinecal.vision.boards import Board
-from kinecal.vision.detect import QualityLimits, detect, orientation_ambiguous
-from kinecal.vision.image_files import check_image_size
-from kinecal.vision.intrinsics import CameraIntrinsics, estimate_intrinsics
-from kinecal.vision.pnp import board_pose
+from kinecal.vision.detect import QualityLimits, orientation_ambiguous
+from kinecal.vision.intrinsics import CameraIntrinsics
 from kinecal.vision.results import ImageHandEyeResult, ImageRecord
+from kinecal.vision.stages import (
+    board_poses,
+    camera_intrinsics,
+    detect_all,
+    take_board_pose,
+    too_few,
+)
+from kinecal.vision.turns import turn_flipped, warn_symmetric
 
 Array = NDArray[np.float64]
 
-__all__ = ["ImageHandEyeResult", "ImageRecord", "calibrate_handeye_images", "load_gray"]
-
-
-def load_gray(path: str | Path) -> NDArray[np.uint8] | None:
-    """8-bit grey image from a file (None when OpenCV cannot read it).
-
-    Raises `InputError` for an image too large to be a camera's, judged from its header
-    before decoding (`kinecal.vision.image_files.check_image_size`).
-    """
-    cv2 = require_cv2()
-    check_image_size(path)
-    img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-    return None if img is None else np.asarray(img)
+__all__ = ["ImageHandEyeResult", "ImageRecord", "calibrate_handeye_images"]
 
 
 def calibrate_handeye_images(
@@ -135,24 +126,24 @@ def calibrate_handeye_images(
                  for i, im in enumerate(images)]
     with diagnostics.collect() as found:
         if orientation_ambiguous(board):
-            _warn_symmetric(board)
+            warn_symmetric(board)
         expected = None if intrinsics is None or not intrinsics.size else \
             tuple(intrinsics.size)
         # with the intrinsics given, each image's board pose is taken in its detection
         # worker too (OpenCV's PnP releases the GIL as its detectors do)
         pose_of = None if intrinsics is None else \
-            (lambda r: _pose_of(r, board, intrinsics, limits))
-        records, size = _detect_all(images, names, board, limits, progress, expected, pose_of)
-        intr = _intrinsics(records, board, size, intrinsics)
+            (lambda r: take_board_pose(r, board, intrinsics, limits))
+        records, size = detect_all(images, names, board, limits, progress, expected, pose_of)
+        intr = camera_intrinsics(records, board, size, intrinsics)
         if refine_intrinsics is None:
             refine_intrinsics = intrinsics is None
-        _poses(records, board, intr, limits)
+        board_poses(records, board, intr, limits)
         used = [k for k, r in enumerate(records) if r.status == "used"]
         if len(used) < 3:
-            raise InputError(_too_few(records))
+            raise InputError(too_few(records))
         idx = np.array(used)
         C = np.array([records[k].pose.target2cam for k in used])
-        if orientation_ambiguous(board) and _turn_flipped(records, used, board, F[idx], C,
+        if orientation_ambiguous(board) and turn_flipped(records, used, board, F[idx], C,
                                                           setup, method):
             C = np.array([records[k].pose.target2cam for k in used])
         obj = [records[k].detection.object_points(board) for k in used]
@@ -229,196 +220,6 @@ def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
         seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm", **axis)
         ref = refine(seed)
     return seed, ref, one
-
-
-def _detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
-                limits: QualityLimits, progress: Callable[..., None] | None,
-                expected: tuple[int, int] | None = None,
-                pose_of: Callable[[ImageRecord], None] | None = None
-                ) -> tuple[list[ImageRecord], tuple[int, int] | None]:
-    """Detect the board in every readable image; the session's image size is the size of
-    most images (ties: the first image's), or `expected` (the intrinsics' size) when images
-    have it, so one odd image, first or not, is the one rejected."""
-    def one(item: tuple[str, Any]) -> tuple[ImageRecord, tuple[int, int] | None]:
-        name, im = item
-        try:
-            gray = load_gray(im) if isinstance(im, str | Path) else np.asarray(im)
-        except InputError as exc:  # too large to decode: rejected from its header
-            return ImageRecord(str(name), "rejected", exc.message), None
-        if gray is None or gray.size == 0:
-            return ImageRecord(str(name), "rejected", "cannot read the image file"), None
-        h, w = gray.shape[:2]
-        det = detect(gray, board, limits)
-        record = ImageRecord(str(name), "used" if det.ok else "rejected", det.reason, det)
-        if pose_of is not None and det.ok:
-            pose_of(record)
-        return record, (w, h)
-
-    records: list[ImageRecord] = []
-    sizes: list[tuple[int, int] | None] = []
-    # images in parallel: OpenCV's detectors, blurs and numpy's large-array work release
-    # the GIL; results come back in input order
-    workers = min(len(images), _cpu_count())
-    with ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
-        done = pool.map(one, zip(names, images, strict=True)) if workers > 1 else \
-            map(one, zip(names, images, strict=True))
-        for record, size in done:
-            records.append(record)
-            sizes.append(size)
-            if progress is not None:
-                progress()
-    seen = [z for z in sizes if z is not None]
-    if not seen:
-        return records, None
-    if expected is not None and tuple(expected) in seen:
-        size = tuple(expected)
-    else:
-        size = max(dict.fromkeys(seen), key=seen.count)  # most frequent, first on ties
-    for r, z in zip(records, sizes, strict=True):
-        if z is not None and z != size:
-            r.status, r.detection, r.pose = "rejected", None, None
-            r.reason = (f"image size {z[0]}x{z[1]} differs from the other images' "
-                        f"{size[0]}x{size[1]}")
-    return records, size  # type: ignore[return-value]
-
-
-def _cpu_count() -> int:
-    """CPUs this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not on Linux
-        return os.cpu_count() or 1
-
-
-def _intrinsics(records: list[ImageRecord], board: Board, size: tuple[int, int] | None,
-                given: CameraIntrinsics | None) -> CameraIntrinsics:
-    ok = [r for r in records if r.status == "used"]
-    if given is not None:
-        if given.size is not None and size is not None and tuple(given.size) != size \
-                and given.size != (0, 0):
-            diagnostics.warn("intrinsics-size",
-                             f"the intrinsics are for {given.size[0]}x{given.size[1]} images "
-                             f"but the images are {size[0]}x{size[1]}: wrong camera file or "
-                             "resized images")
-        return given
-    if len(ok) < 3:
-        raise InputError(_too_few(records) + "; estimating the intrinsics needs at least 3 "
-                         "(or pass --intrinsics)")
-    intr = estimate_intrinsics([r.detection.object_points(board) for r in ok],
-                               [r.detection.corners for r in ok], size)
-    if intr.rms_px is not None and intr.rms_px > 1.0:
-        diagnostics.warn("intrinsics-rms",
-                         f"the camera calibration from the images leaves {intr.rms_px:.2f} px "
-                         "RMS: blur, a wrong board size or too few views; pass --intrinsics "
-                         "from a dedicated calibration")
-    return intr
-
-
-def _poses(records: list[ImageRecord], board: Board, intr: CameraIntrinsics,
-           limits: QualityLimits) -> None:
-    ok = [r for r in records if r.status == "used"]
-    for r in ok:
-        if r.pose is None:  # not yet taken in the detection worker
-            _pose_of(r, board, intr, limits)
-    with_pose = [r for r in ok if r.pose is not None and r.status == "used"]
-    if not with_pose:
-        return
-    med = float(np.median([r.pose.rms_px for r in with_pose]))
-    if med > limits.max_pnp_rms:
-        diagnostics.warn("pnp-rms", f"the board poses fit the corners to {med:.2f} px RMS "
-                         "(median): the intrinsics or the board size are probably wrong")
-        return
-    for r in with_pose:
-        if r.pose.rms_px > max(limits.max_pnp_rms, 5.0 * med):
-            r.status = "rejected"
-            r.reason = (f"corners do not fit a board pose ({r.pose.rms_px:.2f} px RMS): "
-                        "mis-detected or mis-ordered corners")
-
-
-def _pose_of(r: ImageRecord, board: Board, intr: CameraIntrinsics,
-             limits: QualityLimits) -> None:
-    """The board pose of one accepted image; rejected when PnP fails or too oblique."""
-    try:
-        r.pose = board_pose(r.detection.object_points(board), r.detection.corners,
-                            intr.K, intr.dist)
-    except InputError as exc:
-        r.status, r.reason = "rejected", f"no board pose: {exc.message}"
-        return
-    if r.pose.tilt_deg > limits.max_tilt_deg:
-        r.status = "rejected"
-        r.reason = (f"too oblique: board tilted {r.pose.tilt_deg:.0f} deg from facing the "
-                    f"camera (> {limits.max_tilt_deg:g} deg)")
-
-
-def _warn_symmetric(board: Board) -> None:
-    turns = sorted({round(float(np.degrees(np.arctan2(T[1, 0], T[0, 0]))) % 360)
-                    for T, _ in board.symmetries()})
-    what = " and ".join(f"{a} deg" for a in turns)
-    advice = ("use a board with one even and one odd count, or ChArUco"
-              if board.kind == "chessboard" else
-              "use a modcircles board (its origin dot fixes the frame), acircles or ChArUco")
-    diagnostics.warn("board-symmetric",
-                     f"{board.spec} looks the same turned by {what}: its frame can turn "
-                     f"between images and is then put back from the robot poses; {advice}")
-
-
-def _turn_flipped(records: list[ImageRecord], used: list[int], board: Board, F: Array,
-                  C: Array, setup: str, method: str) -> int:
-    """Symmetric boards: put back the stations whose corners were listed turned (board
-    frame turned by one of `Board.symmetries`, e.g. 180 deg about the board centre), judged
-    by the pose the robot and a robust solution (RANSAC start: tolerates about half the
-    stations turned) predict. Returns how many were turned."""
-    from kinecal.calibration.handeye import robust_solve
-    from kinecal.spatial import invert_transform, rotation_angle
-
-    G = F if setup == "eye-in-hand" else invert_transform(F)
-    try:
-        X, Y = robust_solve(G, C, method)
-    except InputError:  # degenerate motions: calibrate_handeye reports them next
-        return 0
-    pred = invert_transform(X) @ invert_transform(G) @ Y  # target2cam
-    sym = board.symmetries()
-    step = min(rotation_angle(T[:3, :3]) for T, _ in sym)  # smallest turn (pi or pi / 2)
-    turned = 0
-    for j, k in enumerate(used):
-        r = records[k]
-        T = r.pose.target2cam
-        errs = [rotation_angle(pred[j, :3, :3].T @ (T @ invert_transform(turn))[:3, :3])
-                for turn, _ in sym]
-        best = int(np.argmin(errs))
-        e0 = rotation_angle(pred[j, :3, :3].T @ T[:3, :3])
-        if e0 > step / 2 and errs[best] < step / 4:
-            turn, perm = sym[best]
-            fixed = np.empty_like(r.detection.corners)
-            fixed[perm] = r.detection.corners
-            r.detection.corners = fixed
-            r.pose.target2cam = T @ invert_transform(turn)
-            res = np.empty_like(r.pose.residuals)
-            res[perm] = r.pose.residuals
-            r.pose.residuals = res
-            turned += 1
-    if turned:
-        diagnostics.warn("board-turned",
-                         f"{turned} image(s) of the symmetric board {board.spec} were listed "
-                         "turned; their frame was turned back to agree with the robot poses "
-                         "(use an asymmetric board to avoid the guess)")
-    return turned
-
-
-def _too_few(records: list[ImageRecord]) -> str:
-    used = sum(r.status == "used" for r in records)
-    reasons: dict[str, int] = {}
-    example: dict[str, ImageRecord] = {}
-    for r in records:
-        if r.status == "rejected":
-            key = r.reason.split(":")[0].split(";")[0].split("(")[0].strip()
-            reasons[key] = reasons.get(key, 0) + 1
-            example.setdefault(key, r)
-    ranked = sorted(reasons.items(), key=lambda kv: -kv[1])
-    summary = ", ".join(f"{k}: {v}" for k, v in ranked)
-    first = example[ranked[0][0]] if ranked else None
-    return (f"{used} usable image(s) of {len(records)}: hand-eye calibration needs at least 3"
-            + (f" (rejected: {summary}; e.g. {first.name}: {first.reason})" if first else ""))
 
 
 def _plausibility(ref: ReprojectionRefinement, records: list[ImageRecord],

@@ -1,0 +1,175 @@
+"""The image stages shared by the hand-eye and the arm-from-images pipelines: read and
+detect every image (in parallel), the camera intrinsics (given or estimated), and the board
+pose of every accepted image; rejected images keep their reason.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal import diagnostics
+from kinecal.errors import InputError
+from kinecal.vision import require_cv2
+from kinecal.vision.boards import Board
+from kinecal.vision.detect import QualityLimits, detect
+from kinecal.vision.image_files import check_image_size
+from kinecal.vision.intrinsics import CameraIntrinsics, estimate_intrinsics
+from kinecal.vision.pnp import board_pose
+from kinecal.vision.results import ImageRecord
+
+__all__ = ["board_poses", "camera_intrinsics", "cpu_count", "detect_all", "load_gray",
+           "take_board_pose", "too_few"]
+
+
+def load_gray(path: str | Path) -> NDArray[np.uint8] | None:
+    """8-bit grey image from a file (None when OpenCV cannot read it).
+
+    Raises `InputError` for an image too large to be a camera's, judged from its header
+    before decoding (`kinecal.vision.image_files.check_image_size`).
+    """
+    cv2 = require_cv2()
+    check_image_size(path)
+    img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    return None if img is None else np.asarray(img)
+
+
+def detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
+                limits: QualityLimits, progress: Callable[..., None] | None,
+                expected: tuple[int, int] | None = None,
+                pose_of: Callable[[ImageRecord], None] | None = None
+                ) -> tuple[list[ImageRecord], tuple[int, int] | None]:
+    """Detect the board in every readable image; the session's image size is the size of
+    most images (ties: the first image's), or `expected` (the intrinsics' size) when images
+    have it, so one odd image, first or not, is the one rejected."""
+    def one(item: tuple[str, Any]) -> tuple[ImageRecord, tuple[int, int] | None]:
+        name, im = item
+        try:
+            gray = load_gray(im) if isinstance(im, str | Path) else np.asarray(im)
+        except InputError as exc:  # too large to decode: rejected from its header
+            return ImageRecord(str(name), "rejected", exc.message), None
+        if gray is None or gray.size == 0:
+            return ImageRecord(str(name), "rejected", "cannot read the image file"), None
+        h, w = gray.shape[:2]
+        det = detect(gray, board, limits)
+        record = ImageRecord(str(name), "used" if det.ok else "rejected", det.reason, det)
+        if pose_of is not None and det.ok:
+            pose_of(record)
+        return record, (w, h)
+
+    records: list[ImageRecord] = []
+    sizes: list[tuple[int, int] | None] = []
+    # images in parallel: OpenCV's detectors, blurs and numpy's large-array work release
+    # the GIL; results come back in input order
+    workers = min(len(images), cpu_count())
+    with ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
+        done = pool.map(one, zip(names, images, strict=True)) if workers > 1 else \
+            map(one, zip(names, images, strict=True))
+        for record, size in done:
+            records.append(record)
+            sizes.append(size)
+            if progress is not None:
+                progress()
+    seen = [z for z in sizes if z is not None]
+    if not seen:
+        return records, None
+    if expected is not None and tuple(expected) in seen:
+        size = tuple(expected)
+    else:
+        size = max(dict.fromkeys(seen), key=seen.count)  # most frequent, first on ties
+    for r, z in zip(records, sizes, strict=True):
+        if z is not None and z != size:
+            r.status, r.detection, r.pose = "rejected", None, None
+            r.reason = (f"image size {z[0]}x{z[1]} differs from the other images' "
+                        f"{size[0]}x{size[1]}")
+    return records, size  # type: ignore[return-value]
+
+
+def cpu_count() -> int:
+    """CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return os.cpu_count() or 1
+
+
+def camera_intrinsics(records: list[ImageRecord], board: Board, size: tuple[int, int] | None,
+                given: CameraIntrinsics | None) -> CameraIntrinsics:
+    ok = [r for r in records if r.status == "used"]
+    if given is not None:
+        if given.size is not None and size is not None and tuple(given.size) != size \
+                and given.size != (0, 0):
+            diagnostics.warn("intrinsics-size",
+                             f"the intrinsics are for {given.size[0]}x{given.size[1]} images "
+                             f"but the images are {size[0]}x{size[1]}: wrong camera file or "
+                             "resized images")
+        return given
+    if len(ok) < 3:
+        raise InputError(too_few(records) + "; estimating the intrinsics needs at least 3 "
+                         "(or pass --intrinsics)")
+    intr = estimate_intrinsics([r.detection.object_points(board) for r in ok],
+                               [r.detection.corners for r in ok], size)
+    if intr.rms_px is not None and intr.rms_px > 1.0:
+        diagnostics.warn("intrinsics-rms",
+                         f"the camera calibration from the images leaves {intr.rms_px:.2f} px "
+                         "RMS: blur, a wrong board size or too few views; pass --intrinsics "
+                         "from a dedicated calibration")
+    return intr
+
+
+def board_poses(records: list[ImageRecord], board: Board, intr: CameraIntrinsics,
+           limits: QualityLimits) -> None:
+    ok = [r for r in records if r.status == "used"]
+    for r in ok:
+        if r.pose is None:  # not yet taken in the detection worker
+            take_board_pose(r, board, intr, limits)
+    with_pose = [r for r in ok if r.pose is not None and r.status == "used"]
+    if not with_pose:
+        return
+    med = float(np.median([r.pose.rms_px for r in with_pose]))
+    if med > limits.max_pnp_rms:
+        diagnostics.warn("pnp-rms", f"the board poses fit the corners to {med:.2f} px RMS "
+                         "(median): the intrinsics or the board size are probably wrong")
+        return
+    for r in with_pose:
+        if r.pose.rms_px > max(limits.max_pnp_rms, 5.0 * med):
+            r.status = "rejected"
+            r.reason = (f"corners do not fit a board pose ({r.pose.rms_px:.2f} px RMS): "
+                        "mis-detected or mis-ordered corners")
+
+
+def take_board_pose(r: ImageRecord, board: Board, intr: CameraIntrinsics,
+             limits: QualityLimits) -> None:
+    """The board pose of one accepted image; rejected when PnP fails or too oblique."""
+    try:
+        r.pose = board_pose(r.detection.object_points(board), r.detection.corners,
+                            intr.K, intr.dist)
+    except InputError as exc:
+        r.status, r.reason = "rejected", f"no board pose: {exc.message}"
+        return
+    if r.pose.tilt_deg > limits.max_tilt_deg:
+        r.status = "rejected"
+        r.reason = (f"too oblique: board tilted {r.pose.tilt_deg:.0f} deg from facing the "
+                    f"camera (> {limits.max_tilt_deg:g} deg)")
+
+
+def too_few(records: list[ImageRecord]) -> str:
+    used = sum(r.status == "used" for r in records)
+    reasons: dict[str, int] = {}
+    example: dict[str, ImageRecord] = {}
+    for r in records:
+        if r.status == "rejected":
+            key = r.reason.split(":")[0].split(";")[0].split("(")[0].strip()
+            reasons[key] = reasons.get(key, 0) + 1
+            example.setdefault(key, r)
+    ranked = sorted(reasons.items(), key=lambda kv: -kv[1])
+    summary = ", ".join(f"{k}: {v}" for k, v in ranked)
+    first = example[ranked[0][0]] if ranked else None
+    return (f"{used} usable image(s) of {len(records)}: hand-eye calibration needs at least 3"
+            + (f" (rejected: {summary}; e.g. {first.name}: {first.reason})" if first else ""))
