@@ -32,7 +32,8 @@ from numpy.typing import NDArray
 
 from kinecal import diagnostics
 from kinecal.calibration.handeye import calibrate_handeye
-from kinecal.calibration.handeye.images import ReprojectionRefinement, refine_reprojection
+from kinecal.calibration.handeye.images import refine_reprojection
+from kinecal.calibration.handeye.refinement import ReprojectionRefinement
 from kinecal.errors import InputError
 from kinecal.vision.boards import Board
 from kinecal.vision.detect import QualityLimits, orientation_ambiguous

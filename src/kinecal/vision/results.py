@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.handeye import HandEyeResult
-from kinecal.calibration.handeye.images import ReprojectionRefinement
+from kinecal.calibration.handeye.refinement import ReprojectionRefinement
 from kinecal.vision.boards import Board
 from kinecal.vision.detect import Detection
 from kinecal.vision.intrinsics import CameraIntrinsics
