@@ -45,6 +45,26 @@ WRITE_ROWS = 16384
 MAX_CELL = 1e12
 
 
+def _resolve_columns(path: Path, required: Sequence[str], optional: Sequence[str]
+                     ) -> tuple[list[str], int, list[str], list[int]]:
+    """The header, the lines before the data, the columns read (required, then the optional
+    ones present) and their indices; missing or repeated columns refused."""
+    header, skip = _header(path, required)
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise InputError(
+            f"missing column(s) {', '.join(missing)}; expected {', '.join(required)} "
+            f"(found {', '.join(header) or 'nothing'})", file=path)
+    wanted = list(required) + [c for c in optional if c in header]
+    twice = next((c for c in wanted if header.count(c) > 1), None)
+    if twice is not None:
+        where = [k + 1 for k, h in enumerate(header) if h == twice]
+        raise InputError(f"column {twice} appears {len(where)} times (columns "
+                         f"{', '.join(map(str, where))}): expected each column once",
+                         file=path)
+    return header, skip, wanted, [header.index(c) for c in wanted]
+
+
 def read_table(
     path: str | Path,
     required: Sequence[str],
@@ -80,22 +100,7 @@ def read_table(
         rows.
     """
     path = Path(path)
-    header, skip = _header(path, required)
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise InputError(
-            f"missing column(s) {', '.join(missing)}; expected {', '.join(required)} "
-            f"(found {', '.join(header) or 'nothing'})",
-            file=path,
-        )
-    wanted = list(required) + [c for c in optional if c in header]
-    twice = next((c for c in wanted if header.count(c) > 1), None)
-    if twice is not None:
-        where = [k + 1 for k, h in enumerate(header) if h == twice]
-        raise InputError(f"column {twice} appears {len(where)} times (columns "
-                         f"{', '.join(map(str, where))}): expected each column once",
-                         file=path)
-    cols = [header.index(c) for c in wanted]
+    header, skip, wanted, cols = _resolve_columns(path, required, optional)
     data = _read_fast(path, skip, len(header), cols, max_abs)
     if data is None:
         data = _read_checked(path, skip, header, wanted, cols, max_abs)
@@ -300,20 +305,7 @@ def read_blocks(path: str | Path, required: Sequence[str], optional: Sequence[st
         The block's numeric columns.
     """
     path = Path(path)
-    header, skip = _header(path, required)
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise InputError(
-            f"missing column(s) {', '.join(missing)}; expected {', '.join(required)} "
-            f"(found {', '.join(header) or 'nothing'})", file=path)
-    wanted = list(required) + [c for c in optional if c in header]
-    twice = next((c for c in wanted if header.count(c) > 1), None)
-    if twice is not None:
-        where = [k + 1 for k, h in enumerate(header) if h == twice]
-        raise InputError(f"column {twice} appears {len(where)} times (columns "
-                         f"{', '.join(map(str, where))}): expected each column once",
-                         file=path)
-    cols = [header.index(c) for c in wanted]
+    header, skip, wanted, cols = _resolve_columns(path, required, optional)
     row = 0
     with _open(path) as fh:
         try:
