@@ -102,6 +102,9 @@ def _raw_image(msg, topic: str) -> NDArray:
     c, dtype, order = _ENCODINGS[enc]
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
     item = np.dtype(dtype).itemsize
+    if h <= 0 or w <= 0:
+        raise InputError(f"{topic}: image of {w} x {h} pixels: expected a width and height "
+                         "of at least 1", option="--images")
     data = np.asarray(msg.data, dtype=np.uint8)
     if step < w * c * item or data.size < h * step:
         raise InputError(f"{topic}: image data of {data.size} bytes does not hold {h} rows of "
