@@ -14,7 +14,7 @@ import numpy as np
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import check_paths
+from kinecal.cli._common import check_paths, warnings_scope
 from kinecal.cli._options import MODEL_HELP, load_model_arg, quiet_option
 from kinecal.errors import InputError
 
@@ -68,9 +68,11 @@ def import_(
                              option=given[0])
         if robot is None:
             raise InputError("a calibration.conf needs --robot (the UR type)", option="--robot")
-        _import_conf(Path(source), robot, out, quiet)
+        with warnings_scope():
+            _import_conf(Path(source), robot, out, quiet)
         return
-    _import_bag(source, out, bag_opts, dwell, still, quiet)
+    with warnings_scope():
+        _import_bag(source, out, bag_opts, dwell, still, quiet)
 
 
 def _import_conf(path: Path, robot: str, out: Path, quiet: bool) -> None:
@@ -113,6 +115,9 @@ def _options(o: dict, dwell: float, still: float):
         if not sep or not parent.strip() or not child.strip():
             raise InputError(f"{o['--tf']!r}: expected PARENT:CHILD", option="--tf")
         pair = (parent.strip().lstrip("/"), child.strip().lstrip("/"))
+        if pair[0] == pair[1]:
+            raise InputError(f"{o['--tf']!r}: the pose of a frame in itself is the identity: "
+                             "expected two frames", option="--tf")
     names = None
     if o["--joint-names"] is not None:
         names = [n.strip() for n in o["--joint-names"].split(",") if n.strip()]
@@ -143,7 +148,7 @@ def _import_bag(source: str, out: Path, o: dict, dwell: float, still: float,
         result = write_folder(source, model, opts, out)
     else:
         result = import_bag(source, model, opts)
-        write_rows(out, result, model)
+        write_rows(out, result, model, source)
     if not quiet:
         _summary(result, opts, out)
 

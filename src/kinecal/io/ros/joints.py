@@ -59,7 +59,6 @@ class JointMapper:
         self.topic = topic
         self.how = "by name" if names else None
         self._cache: dict[tuple[str, ...], NDArray[np.intp] | None] = {}
-        self.unmatched = 0
         self.seen: tuple[str, ...] | None = None
 
     def _first(self, names: tuple[str, ...]) -> None:

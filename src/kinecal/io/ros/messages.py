@@ -14,9 +14,11 @@ from kinecal.errors import InputError
 from kinecal.io.ros.png import encode_png
 
 __all__ = ["ACCEPTED", "camera_info", "image_file", "joint_state", "point", "pose",
-           "stamp_ns", "tf_transforms"]
+           "stamp_ns", "tf_transforms", "value_problem"]
 
 Array = NDArray[np.float64]
+#: coordinates beyond this (m) are no measurement of a robot cell
+MAX_METRES = 1e4
 
 #: the message types each option takes
 ACCEPTED = {
@@ -65,6 +67,19 @@ def pose(msg) -> Array:
     if hasattr(msg, "pose"):
         return _pq(msg.pose.position, msg.pose.orientation)
     return _pq(msg.transform.translation, msg.transform.rotation)
+
+
+def value_problem(v: Array) -> str | None:
+    """Why a point ``(3,)`` or pose ``(7,)`` (x, y, z in m, then qw, qx, qy, qz) is no
+    measurement, or None: a value not finite, a coordinate beyond `MAX_METRES`, a
+    quaternion whose norm is not about 1 (zero: left unset)."""
+    if not np.isfinite(v).all():
+        return "values not finite (NaN or inf)"
+    if np.abs(v[:3]).max() > MAX_METRES:
+        return f"a coordinate of {np.abs(v[:3]).max():.3g} m (beyond {MAX_METRES:g} m)"
+    if v.size == 7 and abs(float(np.linalg.norm(v[3:])) - 1.0) > 0.1:
+        return f"a quaternion of norm {np.linalg.norm(v[3:]):.3g} (expected 1)"
+    return None
 
 
 def _frame(name: str) -> str:
