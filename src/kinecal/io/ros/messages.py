@@ -7,14 +7,16 @@ Messages come deserialized by ``rosbags`` (ROS 1 and ROS 2 alike: ``header.stamp
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.errors import InputError
 from kinecal.io.ros.png import encode_png
 
-__all__ = ["ACCEPTED", "camera_info", "image_file", "joint_state", "point", "pose",
-           "stamp_ns", "tf_transforms", "value_problem"]
+__all__ = ["ACCEPTED", "camera_info", "camera_problem", "image_file", "joint_state", "point",
+           "pose", "stamp_ns", "tf_transforms", "value_problem"]
 
 Array = NDArray[np.float64]
 #: coordinates beyond this (m) are no measurement of a robot cell
@@ -108,6 +110,22 @@ def camera_info(msg) -> dict:
             "distortion_model": str(msg.distortion_model or "plumb_bob")}
 
 
+def camera_problem(camera: dict) -> str | None:
+    """Why a `camera_info` is no calibrated camera, or None: no image size, a camera matrix
+    K that is not ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]`` with finite ``fx, fy > 0`` (ROS
+    leaves K zero for an uncalibrated camera), distortion not finite."""
+    K, D = camera["K"], camera["D"]
+    if camera["width"] <= 0 or camera["height"] <= 0:
+        return f"image size {camera['width']} x {camera['height']}"
+    if not np.isfinite(K).all() or not (K[0, 0] > 0 and K[1, 1] > 0) or \
+            not np.allclose(K[2], (0.0, 0.0, 1.0)) or K[1, 0] != 0:
+        return (f"camera matrix K {np.array2string(K.ravel(), precision=4)} is not a "
+                "calibrated camera's (fx, fy > 0, last row 0 0 1; all zero: uncalibrated)")
+    if not np.isfinite(D).all():
+        return "distortion coefficients not finite"
+    return None
+
+
 def _raw_image(msg, topic: str) -> NDArray:
     enc = str(msg.encoding).lower()
     if enc not in _ENCODINGS:
@@ -131,14 +149,26 @@ def _raw_image(msg, topic: str) -> NDArray:
     return pixels[:, :, order] if order is not None else pixels
 
 
+def _png_header_ok(data: bytes) -> bool:
+    """The PNG signature, then an IHDR chunk giving a width and height of at least 1."""
+    if len(data) < 33 or data[:8] != b"\x89PNG\r\n\x1a\n" or data[12:16] != b"IHDR":
+        return False
+    w, h = struct.unpack(">II", data[16:24])
+    return w > 0 and h > 0
+
+
 def image_file(msg, msgtype: str, topic: str) -> tuple[bytes, str]:
     """The bytes of an image file and its suffix: an Image as PNG, a CompressedImage as
     it is (``.png`` or ``.jpg`` from its content)."""
     if msgtype.endswith("CompressedImage"):
         data = bytes(np.asarray(msg.data, dtype=np.uint8).tobytes())
         if data.startswith(b"\x89PNG"):
+            if not _png_header_ok(data):
+                raise InputError(f"{topic}: a CompressedImage of {len(data)} bytes starts "
+                                 "like a PNG but has no image header (IHDR with a size)",
+                                 option="--images")
             return data, ".png"
-        if data.startswith(b"\xff\xd8"):
+        if data.startswith(b"\xff\xd8\xff"):
             return data, ".jpg"
         raise InputError(f"{topic}: compressed image format {msg.format!r} is neither PNG nor "
                          "JPEG", option="--images")
