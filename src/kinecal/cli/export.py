@@ -188,10 +188,11 @@ def export(
                  f"coefficients (compliance, harmonics, scale) have no {fmt} equivalent: the "
                  "file carries the geometry only; use the model file (--format yaml) for fk, "
                  "ik and compensate")
-    what = f"model {model.name}" if params is None else f"{source} (calibrated {model.name})"
-    if fmt == "ur-kinematics":
-        _export_ur(model, params, out, what, robot)
-        return
+        what = f"model {model.name}" if params is None else \
+            f"{source} (calibrated {model.name})"
+        if fmt == "ur-kinematics":  # inside: its warnings are printed (--strict: no file)
+            _export_ur(model, params, out, what, robot)
+            return
     if fmt == "urdf":
         _export_urdf(model, params, urdf, out, what, chain_only,
                      (camera, unit, parent_frame, child_frame))
