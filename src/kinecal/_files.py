@@ -296,7 +296,7 @@ def read_text(path: str | Path, max_bytes: int = MAX_TEXT_BYTES) -> str:
         raise InputError(f"more than {max_bytes / 1e6:.0f} MB: too large for a model, jobs, "
                          "JSON or YAML file", file=path)
     try:
-        return data.decode("utf-8")
+        return data.decode("utf-8-sig")  # a byte-order mark (Windows editors) is no content
     except UnicodeDecodeError as exc:
         raise InputError(f"not a readable text file ({exc})", file=path) from None
 
