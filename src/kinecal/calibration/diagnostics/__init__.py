@@ -72,6 +72,7 @@ CODES: dict[str, str] = {
     "no-marker-column": "a model with several markers, a measurement file without marker column",
     "urdf-joint-limits": "a URDF revolute joint without usable limits",
     "joint-errors-not-exported": "joint-error terms left out of a URDF export (geometry only)",
+    "camera-mount-far": "a hand-eye camera exported more than 10 m from its parent frame",
     "ur-conf-implausible": "UR calibration.conf deltas larger than a factory calibration gives",
     "ur-kinematics-not-ur": "an ur-kinematics export of a model within 5 mm of no UR type",
     "ros-samples-skipped": "JointState messages of a bag left out (positions not matching the "
