@@ -36,6 +36,7 @@ _UNEVEN = "with fewer or more positions than names"
 _UNMATCHED = "without the model's joint names"
 _NONFINITE = "with non-finite positions"
 _BACKWARDS = "whose time did not increase"
+_TWO_TURNS = 4 * np.pi
 
 
 @dataclass
@@ -183,6 +184,21 @@ def _no_sample(topic: str, mapper: JointMapper, out: dict[str, int],
     return mapper.fail()
 
 
+def _warn_degrees(topic: str, model: SerialModel, dwells: list[Dwell]) -> None:
+    """A warning when revolute joints dwell beyond two turns: ROS gives radians, such
+    values are degrees (or encoder counts)."""
+    revolute = ~model.is_prismatic()
+    if not dwells or not revolute.any():
+        return
+    worst = float(np.abs(np.array([d.q for d in dwells])[:, revolute]).max())
+    if worst > _TWO_TURNS:
+        from kinecal.diagnostics import warn
+
+        warn("ros-joint-units", f"{topic}: revolute joints dwell at up to {worst:.4g} rad "
+             f"({np.degrees(worst):.4g} deg), beyond two turns: ROS gives radians; were "
+             "they recorded in degrees?")
+
+
 def _warn_skipped(topic: str, samples: int, skipped: dict[str, int]) -> None:
     """One warning for the joint samples left out, by reason."""
     if skipped:
@@ -282,6 +298,7 @@ def import_bag(path: str | Path, model: SerialModel, opts: ImportOptions,
                              f"were never still (speed below {opts.still:g}/s) for "
                              f"{opts.dwell:g} s; see --dwell and --still", file=path)
         _warn_skipped(opts.joints, finder.samples, skipped)
+        _warn_degrees(opts.joints, model, dwells)
         starts = np.array([d.start for d in dwells])
         ends = np.array([d.end for d in dwells])
         acc, tree = ({}, None)
