@@ -105,24 +105,17 @@ def _options(o: dict, dwell: float, still: float):
                          option=kinds[1])
     if (o["--images"] is None) != (o["--camera-info"] is None):
         raise InputError("--images and --camera-info go together", option="--camera-info")
-    if not (np.isfinite(dwell) and dwell > 0):
-        raise InputError(f"expected a positive time in seconds, got {dwell:g}", option="--dwell")
-    if not (np.isfinite(still) and still > 0):
-        raise InputError(f"expected a positive speed, got {still:g}", option="--still")
     pair = None
     if o["--tf"] is not None:
         parent, sep, child = o["--tf"].partition(":")
         if not sep or not parent.strip() or not child.strip():
             raise InputError(f"{o['--tf']!r}: expected PARENT:CHILD", option="--tf")
         pair = (parent.strip().lstrip("/"), child.strip().lstrip("/"))
-        if pair[0] == pair[1]:
-            raise InputError(f"{o['--tf']!r}: the pose of a frame in itself is the identity: "
-                             "expected two frames", option="--tf")
     names = None
     if o["--joint-names"] is not None:
         names = [n.strip() for n in o["--joint-names"].split(",") if n.strip()]
     return ImportOptions(o["--joints"], o["--points"], o["--poses"], pair, o["--images"],
-                         o["--camera-info"], dwell, still, names)
+                         o["--camera-info"], dwell, still, names)  # checks dwell, still, tf
 
 
 def _import_bag(source: str, out: Path, o: dict, dwell: float, still: float,

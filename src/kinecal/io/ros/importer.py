@@ -71,6 +71,17 @@ class ImportOptions:
     still: float = 0.002
     joint_names: Sequence[str] | None = None
 
+    def __post_init__(self) -> None:
+        """`InputError` for values no import can use (named by their option)."""
+        if not (np.isfinite(self.dwell) and self.dwell > 0):
+            raise InputError(f"expected a positive time in seconds, got {self.dwell:g}",
+                             option="--dwell")
+        if not (np.isfinite(self.still) and self.still > 0):
+            raise InputError(f"expected a positive speed, got {self.still:g}", option="--still")
+        if self.tf is not None and self.tf[0] == self.tf[1]:
+            raise InputError(f"{self.tf[0]}:{self.tf[1]}: the pose of a frame in itself is the "
+                             "identity: expected two frames", option="--tf")
+
 
 @dataclass
 class BagImport:
@@ -285,6 +296,13 @@ def import_bag(path: str | Path, model: SerialModel, opts: ImportOptions,
         A missing topic or one of another type, joint names matching no model joint, a
         truncated or corrupt bag, no dwell at all.
     """
+    if not isinstance(model, SerialModel):
+        raise TypeError(f"model: expected a SerialModel, got {type(model).__name__}")
+    if not isinstance(opts, ImportOptions):
+        raise TypeError(f"opts: expected ImportOptions, got {type(opts).__name__}")
+    if opts.joint_names is not None and len(opts.joint_names) != model.n_joints:
+        raise InputError(f"expected {model.n_joints} names (one per model joint), got "
+                         f"{len(opts.joint_names)}", option="--joint-names")
     with Bag(path) as bag:
         kinds = _check_topics(bag, opts)
         skipped: dict[str, int] = {}

@@ -159,7 +159,13 @@ def check_frame(name: str, option: str) -> str:
 
 def static_transform(X: Array, setup: str, scale: float, parent: str | None = None,
                      child: str | None = None) -> StaticTransform:
-    """The static transform of hand-eye result `X` (lengths times `scale` = metres)."""
+    """The static transform of hand-eye result `X` ``(4, 4)`` (lengths times `scale` =
+    metres) of `setup` (eye-in-hand or eye-to-hand)."""
+    if setup not in _SETUPS:
+        raise InputError(f"setup: expected {' or '.join(_SETUPS)}, got {setup!r}")
+    X = np.asarray(X, dtype=float)
+    if X.shape != (4, 4):
+        raise InputError(f"X: expected a 4x4 transform, got shape {X.shape}")
     parent = DEFAULT_PARENT[setup] if parent is None else check_frame(parent, "--parent-frame")
     child = DEFAULT_CHILD if child is None else check_frame(child, "--child-frame")
     if parent == child:

@@ -67,6 +67,10 @@ def dh_table(model: SerialModel, params: ArrayLike | None = None) -> Array:
     if per_m is None:
         raise InputError(f"length unit {model.length_unit!r}: expected mm or m")
     p = model.nominal if params is None else np.asarray(params, dtype=float)
+    if p.shape != model.nominal.shape or not np.isfinite(p).all():
+        raise InputError(f"model {model.name!r}: expected {model.nominal.size} finite "
+                         f"parameter values, got shape {p.shape}"
+                         + ("" if p.shape != model.nominal.shape else " with NaN or inf"))
     names = [f"{k}{i}" for i in range(1, 7) for k in ("theta", "a", "d", "alpha")]
     t = p[model.index(names)].reshape(6, 4)
     t[:, 1:3] /= per_m
