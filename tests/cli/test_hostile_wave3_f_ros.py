@@ -144,6 +144,17 @@ def test_metadata_without_keys_is_named_without_an_exception_repr(tmp_path, caps
     assert "KeyError" not in errors[0]
 
 
+def test_output_onto_the_metadata_of_the_bag_read_through_its_db3_is_refused(tmp_path,
+                                                                             capsys):
+    """BAG given as the .db3 inside a bag folder: metadata.yaml beside it is part of the
+    bag (was overwritten by the rows)."""
+    bag = write_bag(tmp_path / "rec")
+    meta = (bag / "metadata.yaml").read_bytes()
+    code, _, errors = run(imp(next(bag.glob("*.db3")), bag / "metadata.yaml"), capsys)
+    assert code == 2 and "inside the input folder BAG" in errors[0]
+    assert (bag / "metadata.yaml").read_bytes() == meta
+
+
 def test_repeated_joint_names_are_refused_not_mapped_onto_one_position(tmp_path, capsys):
     bag = write_bag(tmp_path / "rec", names=["shoulder_pan_joint"] * 6)
     out = tmp_path / "rows.csv"

@@ -120,9 +120,12 @@ def _options(o: dict, dwell: float, still: float):
 
 def _import_bag(source: str, out: Path, o: dict, dwell: float, still: float,
                 quiet: bool) -> None:
+    from kinecal.io.ros.bag import bag_root
+
     opts = _options(o, dwell, still)
     folder = opts.images is not None
-    check_paths({"BAG": source, "--model": o["--model"]}, {} if folder else {"--out": out},
+    check_paths({"BAG": bag_root(source), "--model": o["--model"]},
+                {} if folder else {"--out": out},
                 {"--out": (out, FOLDER_FILES)} if folder else None)
     if folder and out.exists() and any(out.iterdir()):
         raise InputError(f"{out} exists and is not empty: give a new folder", option="--out")

@@ -17,7 +17,7 @@ from kinecal.errors import InputError
 from kinecal.io.ros import require_rosbags
 from kinecal.io.ros.messages import ACCEPTED
 
-__all__ = ["Bag", "is_bag_path"]
+__all__ = ["Bag", "bag_root", "is_bag_path"]
 
 _BAG_SUFFIXES = (".bag", ".db3", ".mcap")
 #: a Python exception's repr (``KeyError('version')``) or a one-item tuple (``('text',)``)
@@ -29,6 +29,15 @@ def _library_text(exc: Exception) -> str:
     """The library's message of `exc` on one line, without Python reprs."""
     text = " ".join(str(exc).split()) or type(exc).__name__
     return _REPR.sub(lambda m: m.group(1) or m.group(2), text)
+
+
+def bag_root(path: str | Path) -> Path:
+    """What a bag reads: its folder when `path` is the ``.db3`` / ``.mcap`` file of a ROS 2
+    bag folder (its ``metadata.yaml`` beside it), else `path` (outputs must stay out)."""
+    p = Path(path)
+    if p.suffix.lower() in (".db3", ".mcap") and (p.parent / "metadata.yaml").is_file():
+        return p.parent
+    return p
 
 
 def is_bag_path(path: str | Path) -> bool:
