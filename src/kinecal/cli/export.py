@@ -159,8 +159,7 @@ def export(
     fmt = _format(fmt, out)
     check_paths({"SOURCE": source, "--nominal": nominal, "--camera": camera}, {"--out": out})
     if fmt == "ros-tf":
-        with warnings_scope(strict):
-            _export_ros_tf(source, out, unit, parent_frame, child_frame)
+        _export_ros_tf(source, out, unit, parent_frame, child_frame, strict)
         return
     if _handeye_json(source):
         raise InputError(f"{source} is a hand-eye calibration result, not an arm's (kinecal "
@@ -189,8 +188,7 @@ def export(
                  f"coefficients (compliance, harmonics, scale) have no {fmt} equivalent: the "
                  "file carries the geometry only; use the model file (--format yaml) for fk, "
                  "ik and compensate")
-        what = f"model {model.name}" if params is None else \
-            f"{source} (calibrated {model.name})"
+        what = f"model {model.name}" if params is None else f"{source} (calibrated {model.name})"
         if fmt == "ur-kinematics":
             _export_ur(model, params, out, what, robot)
             return
@@ -267,8 +265,14 @@ def _export_ur(model, params, out: Path, what: str, robot: str | None) -> None:
 
 
 def _export_ros_tf(source: str, out: Path, unit: str | None, parent: str | None,
-                   child: str | None) -> None:
+                   child: str | None, strict: bool) -> None:
     """Write a hand-eye result as a ROS 2 launch file; print the frames and command."""
+    with warnings_scope(strict):
+        _write_ros_tf(source, out, unit, parent, child)
+
+
+def _write_ros_tf(source: str, out: Path, unit: str | None, parent: str | None,
+                  child: str | None) -> None:
     from kinecal._files import write_text_atomic
     from kinecal.io.ros.static_tf import (
         metres_in_cell,
