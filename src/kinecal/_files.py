@@ -296,7 +296,7 @@ def read_text(path: str | Path, max_bytes: int = MAX_TEXT_BYTES) -> str:
         raise InputError(f"more than {max_bytes / 1e6:.0f} MB: too large for a model, jobs, "
                          "JSON or YAML file", file=path)
     try:
-        return data.decode("utf-8")
+        return data.decode("utf-8-sig")  # a byte-order mark (Windows editors) is no content
     except UnicodeDecodeError as exc:
         raise InputError(f"not a readable text file ({exc})", file=path) from None
 
@@ -310,6 +310,8 @@ def read_json(path: str | Path) -> Any:
         raise InputError(f"not valid JSON at line {exc.lineno}: {exc.msg}", file=path) from None
     except RecursionError:
         raise InputError("not valid JSON: nested too deeply", file=path) from None
+    except ValueError as exc:  # an integer of more digits than Python converts
+        raise InputError(f"not valid JSON: {exc.args[0].split(';')[0]}", file=path) from None
 
 
 def _children(node: Any) -> list:

@@ -159,7 +159,7 @@ def export(
     fmt = _format(fmt, out)
     check_paths({"SOURCE": source, "--nominal": nominal, "--camera": camera}, {"--out": out})
     if fmt == "ros-tf":
-        _export_ros_tf(source, out, unit, parent_frame, child_frame)
+        _export_ros_tf(source, out, unit, parent_frame, child_frame, strict)
         return
     if _handeye_json(source):
         raise InputError(f"{source} is a hand-eye calibration result, not an arm's (kinecal "
@@ -188,23 +188,23 @@ def export(
                  f"coefficients (compliance, harmonics, scale) have no {fmt} equivalent: the "
                  "file carries the geometry only; use the model file (--format yaml) for fk, "
                  "ik and compensate")
-    what = f"model {model.name}" if params is None else f"{source} (calibrated {model.name})"
-    if fmt == "ur-kinematics":
-        _export_ur(model, params, out, what, robot)
-        return
-    if fmt == "urdf":
-        _export_urdf(model, params, urdf, out, what, chain_only,
-                     (camera, unit, parent_frame, child_frame))
-        unit_text = "metres, radians"
-    else:
-        from kinecal.io.models import save_model
+        what = f"model {model.name}" if params is None else f"{source} (calibrated {model.name})"
+        if fmt == "ur-kinematics":
+            _export_ur(model, params, out, what, robot)
+            return
+        if fmt == "urdf":
+            _export_urdf(model, params, urdf, out, what, chain_only,
+                         (camera, unit, parent_frame, child_frame))
+            unit_text = "metres, radians"
+        else:
+            from kinecal.io.models import save_model
 
-        target = model if params is None else model.with_params(
-            params, name=f"{model.name}-calibrated")
-        save_model(target, out)
-        unit_text = f"{model.length_unit}, {model.angle_unit}"
-    typer.echo(f"wrote {out} ({fmt}, {model.n_joints} joints, {unit_text}) from {what}",
-               err=True)
+            target = model if params is None else model.with_params(
+                params, name=f"{model.name}-calibrated")
+            save_model(target, out)
+            unit_text = f"{model.length_unit}, {model.angle_unit}"
+        typer.echo(f"wrote {out} ({fmt}, {model.n_joints} joints, {unit_text}) from {what}",
+                   err=True)
 
 
 def _export_urdf(model, params, urdf: Path | None, out: Path, what: str, chain_only: bool,
@@ -222,18 +222,24 @@ def _export_urdf(model, params, urdf: Path | None, out: Path, what: str, chain_o
         text = urdf_string(model, params, comment=comment)
     camera, unit, parent, child = cam
     if camera is not None:
-        from kinecal.io.ros.static_tf import metres_per_unit, read_handeye_result
+        from kinecal.io.ros.static_tf import (
+            DEFAULT_CHILD,
+            check_frame,
+            metres_in_cell,
+            metres_per_unit,
+            read_handeye_result,
+        )
         from kinecal.io.urdf_camera import add_camera_mount, chain_links
 
         X, setup, length_unit = read_handeye_result(camera)
         scale = metres_per_unit(length_unit, unit, camera)
         base, flange = chain_links(model, params)
-        parent = parent or (flange if setup == "eye-in-hand" else base)
-        X_m = X.copy()
-        X_m[:3, 3] *= scale
-        text = add_camera_mount(text, parent, child or "camera_optical_frame", X_m)
-        typer.echo(f"camera mount ({setup}, {camera}): link "
-                   f"{child or 'camera_optical_frame'} fixed to {parent}", err=True)
+        parent = (flange if setup == "eye-in-hand" else base) if parent is None else \
+            check_frame(parent, "--parent-frame")
+        child = DEFAULT_CHILD if child is None else check_frame(child, "--child-frame")
+        text = add_camera_mount(text, parent, child, metres_in_cell(X, scale, camera))
+        typer.echo(f"camera mount ({setup}, {camera}): link {child} fixed to {parent}",
+                   err=True)
     else:
         for opt, v in (("--unit", unit), ("--parent-frame", parent), ("--child-frame", child)):
             if v is not None:
@@ -259,14 +265,26 @@ def _export_ur(model, params, out: Path, what: str, robot: str | None) -> None:
 
 
 def _export_ros_tf(source: str, out: Path, unit: str | None, parent: str | None,
-                   child: str | None) -> None:
+                   child: str | None, strict: bool) -> None:
     """Write a hand-eye result as a ROS 2 launch file; print the frames and command."""
+    with warnings_scope(strict):
+        _write_ros_tf(source, out, unit, parent, child)
+
+
+def _write_ros_tf(source: str, out: Path, unit: str | None, parent: str | None,
+                  child: str | None) -> None:
     from kinecal._files import write_text_atomic
-    from kinecal.io.ros.static_tf import metres_per_unit, read_handeye_result, static_transform
+    from kinecal.io.ros.static_tf import (
+        metres_in_cell,
+        metres_per_unit,
+        read_handeye_result,
+        static_transform,
+    )
 
     path = Path(source)
     X, setup, length_unit = read_handeye_result(path)
-    tf = static_transform(X, setup, metres_per_unit(length_unit, unit, path), parent, child)
+    X_m = metres_in_cell(X, metres_per_unit(length_unit, unit, path), path)
+    tf = static_transform(X_m, setup, 1.0, parent, child)
     write_text_atomic(out, tf.launch_file(comment=f"written by kinecal export from {source} "
                                           f"({setup}); lengths in metres"))
     typer.echo(tf.words())

@@ -14,7 +14,7 @@ import numpy as np
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import check_paths
+from kinecal.cli._common import check_paths, warnings_scope
 from kinecal.cli._options import MODEL_HELP, load_model_arg, quiet_option
 from kinecal.errors import InputError
 
@@ -68,9 +68,11 @@ def import_(
                              option=given[0])
         if robot is None:
             raise InputError("a calibration.conf needs --robot (the UR type)", option="--robot")
-        _import_conf(Path(source), robot, out, quiet)
+        with warnings_scope():
+            _import_conf(Path(source), robot, out, quiet)
         return
-    _import_bag(source, out, bag_opts, dwell, still, quiet)
+    with warnings_scope():
+        _import_bag(source, out, bag_opts, dwell, still, quiet)
 
 
 def _import_conf(path: Path, robot: str, out: Path, quiet: bool) -> None:
@@ -103,10 +105,6 @@ def _options(o: dict, dwell: float, still: float):
                          option=kinds[1])
     if (o["--images"] is None) != (o["--camera-info"] is None):
         raise InputError("--images and --camera-info go together", option="--camera-info")
-    if not (np.isfinite(dwell) and dwell > 0):
-        raise InputError(f"expected a positive time in seconds, got {dwell:g}", option="--dwell")
-    if not (np.isfinite(still) and still > 0):
-        raise InputError(f"expected a positive speed, got {still:g}", option="--still")
     pair = None
     if o["--tf"] is not None:
         parent, sep, child = o["--tf"].partition(":")
@@ -117,14 +115,17 @@ def _options(o: dict, dwell: float, still: float):
     if o["--joint-names"] is not None:
         names = [n.strip() for n in o["--joint-names"].split(",") if n.strip()]
     return ImportOptions(o["--joints"], o["--points"], o["--poses"], pair, o["--images"],
-                         o["--camera-info"], dwell, still, names)
+                         o["--camera-info"], dwell, still, names)  # checks dwell, still, tf
 
 
 def _import_bag(source: str, out: Path, o: dict, dwell: float, still: float,
                 quiet: bool) -> None:
+    from kinecal.io.ros.bag import bag_root
+
     opts = _options(o, dwell, still)
     folder = opts.images is not None
-    check_paths({"BAG": source, "--model": o["--model"]}, {} if folder else {"--out": out},
+    check_paths({"BAG": bag_root(source), "--model": o["--model"]},
+                {} if folder else {"--out": out},
                 {"--out": (out, FOLDER_FILES)} if folder else None)
     if folder and out.exists() and any(out.iterdir()):
         raise InputError(f"{out} exists and is not empty: give a new folder", option="--out")
@@ -143,7 +144,7 @@ def _import_bag(source: str, out: Path, o: dict, dwell: float, still: float,
         result = write_folder(source, model, opts, out)
     else:
         result = import_bag(source, model, opts)
-        write_rows(out, result, model)
+        write_rows(out, result, model, source)
     if not quiet:
         _summary(result, opts, out)
 

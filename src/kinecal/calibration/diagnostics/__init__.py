@@ -72,4 +72,12 @@ CODES: dict[str, str] = {
     "no-marker-column": "a model with several markers, a measurement file without marker column",
     "urdf-joint-limits": "a URDF revolute joint without usable limits",
     "joint-errors-not-exported": "joint-error terms left out of a URDF export (geometry only)",
+    "camera-mount-far": "a hand-eye camera exported more than 10 m from its parent frame",
+    "ur-conf-implausible": "UR calibration.conf deltas larger than a factory calibration gives",
+    "ur-kinematics-not-ur": "an ur-kinematics export of a model within 5 mm of no UR type",
+    "ros-joint-units": "bag JointState revolute positions beyond two turns (degrees?)",
+    "ros-samples-skipped": "JointState messages of a bag left out (positions not matching the "
+                           "names, not finite, time not increasing)",
+    "ros-bad-values": "bag measurement messages whose values are no measurement (NaN, unset "
+                      "quaternion) left out",
 }

@@ -9,6 +9,7 @@ an `InputError` naming the bag.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -16,9 +17,27 @@ from kinecal.errors import InputError
 from kinecal.io.ros import require_rosbags
 from kinecal.io.ros.messages import ACCEPTED
 
-__all__ = ["Bag", "is_bag_path"]
+__all__ = ["Bag", "bag_root", "is_bag_path"]
 
 _BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+#: a Python exception's repr (``KeyError('version')``) or a one-item tuple (``('text',)``)
+#: inside the library's message: the text alone is kept
+_REPR = re.compile(r"\b[A-Za-z_]\w*(?:Error|Exception)\((.*?)\)|\(('.*?'),\)")
+
+
+def _library_text(exc: Exception) -> str:
+    """The library's message of `exc` on one line, without Python reprs."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return _REPR.sub(lambda m: m.group(1) or m.group(2), text)
+
+
+def bag_root(path: str | Path) -> Path:
+    """What a bag reads: its folder when `path` is the ``.db3`` / ``.mcap`` file of a ROS 2
+    bag folder (its ``metadata.yaml`` beside it), else `path` (outputs must stay out)."""
+    p = Path(path)
+    if p.suffix.lower() in (".db3", ".mcap") and (p.parent / "metadata.yaml").is_file():
+        return p.parent
+    return p
 
 
 def is_bag_path(path: str | Path) -> bool:
@@ -56,8 +75,8 @@ class Bag:
         except InputError:
             raise
         except Exception as exc:  # the library's own errors: a bad or cut bag
-            text = " ".join(str(exc).split()) or type(exc).__name__
-            raise InputError(f"cannot read the bag: {text}", file=self.path) from None
+            raise InputError(f"cannot read the bag: {_library_text(exc)}",
+                             file=self.path) from None
 
     def __enter__(self) -> Bag:
         self._call(self._reader.open)
@@ -104,9 +123,8 @@ class Bag:
             except StopIteration:
                 return
             except Exception as exc:
-                text = " ".join(str(exc).split()) or type(exc).__name__
-                raise InputError(f"cannot read the bag (truncated or corrupt?): {text}",
-                                 file=self.path) from None
+                raise InputError("cannot read the bag (truncated or corrupt?): "
+                                 f"{_library_text(exc)}", file=self.path) from None
             yield con.topic, con.msgtype, int(t), raw
 
     def decode(self, raw: bytes, msgtype: str):

@@ -49,6 +49,7 @@ class ImageWriter:
         self.folder = Path(folder)
         self.image_topic, self.info_topic = image_topic, info_topic
         self.camera: dict | None = None
+        self._bad_info: str | None = None  # why the last CameraInfo was refused
         self._files: dict[int, str] = {}
         self._pending: dict[int, tuple[str, bytes]] = {}
         self._bag = None
@@ -75,7 +76,9 @@ class ImageWriter:
         msg = self._bag.decode(raw, kind)
         if topic == self.info_topic:
             if self.camera is None:
-                self.camera = msgs.camera_info(msg)
+                camera = msgs.camera_info(msg)
+                self._bad_info = msgs.camera_problem(camera)
+                self.camera = camera if self._bad_info is None else None
             return
         stamp = msgs.stamp_ns(msg)
         t = ((stamp if stamp > 0 else bag_ns) - self._t0) * 1e-9
@@ -94,6 +97,9 @@ class ImageWriter:
         for k, (kind, raw) in sorted(self._pending.items()):
             self._write(k, kind, self._bag.decode(raw, kind))
         self._pending.clear()
+        if self.camera is None and self._bad_info is not None:
+            raise InputError(f"topic {self.info_topic}: no CameraInfo of a calibrated camera "
+                             f"(the last: {self._bad_info})", option="--camera-info")
         if self.camera is None:
             raise InputError(f"topic {self.info_topic} has no message", option="--camera-info")
         write_text_atomic(self.folder / "camera.yaml", camera_yaml(self.camera))

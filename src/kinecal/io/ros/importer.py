@@ -31,6 +31,12 @@ Array = NDArray[np.float64]
 _PER_M = {"m": 1.0, "mm": 1000.0}
 _CHUNK = 4096
 _TF_TOPICS = ("/tf", "/tf_static")
+#: why a JointState gave no sample (`_find_dwells`)
+_UNEVEN = "with fewer or more positions than names"
+_UNMATCHED = "without the model's joint names"
+_NONFINITE = "with non-finite positions"
+_BACKWARDS = "whose time did not increase"
+_TWO_TURNS = 4 * np.pi
 
 
 @dataclass
@@ -64,6 +70,17 @@ class ImportOptions:
     dwell: float = 0.3
     still: float = 0.002
     joint_names: Sequence[str] | None = None
+
+    def __post_init__(self) -> None:
+        """`InputError` for values no import can use (named by their option)."""
+        if not (np.isfinite(self.dwell) and self.dwell > 0):
+            raise InputError(f"expected a positive time in seconds, got {self.dwell:g}",
+                             option="--dwell")
+        if not (np.isfinite(self.still) and self.still > 0):
+            raise InputError(f"expected a positive speed, got {self.still:g}", option="--still")
+        if self.tf is not None and self.tf[0] == self.tf[1]:
+            raise InputError(f"{self.tf[0]}:{self.tf[1]}: the pose of a frame in itself is the "
+                             "identity: expected two frames", option="--tf")
 
 
 @dataclass
@@ -124,19 +141,27 @@ def _check_topics(bag: Bag, opts: ImportOptions) -> dict[str, str]:
     return kinds
 
 
-def _find_dwells(bag: Bag, model: SerialModel, opts: ImportOptions) -> tuple[DwellFinder,
-                                                                              int, str]:
-    """First pass: the joint stream through a `DwellFinder`; also the time origin."""
+def _find_dwells(bag: Bag, model: SerialModel, opts: ImportOptions,
+                 out: dict[str, int]) -> tuple[DwellFinder, int, str]:
+    """First pass: the joint stream through a `DwellFinder`; also the time origin. Samples
+    left out are counted in `out` by reason."""
     mapper = JointMapper(model.n_joints, opts.joint_names, opts.joints)
     finder = DwellFinder(model.n_joints, opts.dwell, opts.still)
     scale = np.where(model.is_prismatic(), _PER_M[model.length_unit], 1.0)
-    t0, ts, qs = None, [], []
+    t0, ts, qs, sizes = None, [], [], None
     for _topic, kind, bag_ns, raw in bag.stream([opts.joints]):
         msg = bag.decode(raw, kind)
         names, pos = msgs.joint_state(msg)
-        idx = mapper.index(names) if len(pos) == len(names) else None
+        if len(pos) != len(names):
+            out[_UNEVEN] = out.get(_UNEVEN, 0) + 1
+            sizes = sizes or (len(names), len(pos))
+            continue
+        idx = mapper.index(names)
         if idx is None:
-            mapper.unmatched += 1
+            out[_UNMATCHED] = out.get(_UNMATCHED, 0) + 1
+            continue
+        if not np.isfinite(pos[idx]).all():
+            out[_NONFINITE] = out.get(_NONFINITE, 0) + 1
             continue
         stamp = msgs.stamp_ns(msg)
         t0 = (stamp if stamp > 0 else bag_ns) if t0 is None else t0
@@ -146,18 +171,60 @@ def _find_dwells(bag: Bag, model: SerialModel, opts: ImportOptions) -> tuple[Dwe
             finder.feed(np.array(ts), np.array(qs) * scale)
             ts, qs = [], []
     if t0 is None:
-        if mapper.seen is None:
-            raise InputError(f"topic {opts.joints} has no message", option="--joints")
-        raise mapper.fail()
+        raise _no_sample(opts.joints, mapper, out, sizes)
     if ts:
         finder.feed(np.array(ts), np.array(qs) * scale)
     finder.finish()
+    if finder.skipped:
+        out[_BACKWARDS] = finder.skipped
     return finder, t0, mapper.how
 
 
+def _no_sample(topic: str, mapper: JointMapper, out: dict[str, int],
+               sizes: tuple[int, int] | None) -> InputError:
+    """The error when no JointState of `topic` gave a sample."""
+    if out.get(_NONFINITE):
+        return InputError(f"{topic}: the model's joints are not finite (NaN or inf) in every "
+                          f"JointState ({out[_NONFINITE]})", option="--joints")
+    if mapper.seen is None and sizes is not None:
+        return InputError(f"{topic}: no JointState ({out[_UNEVEN]}) has as many positions "
+                          f"as names: got {sizes[0]} names and {sizes[1]} positions",
+                          option="--joints")
+    if mapper.seen is None:
+        return InputError(f"topic {topic} has no message", option="--joints")
+    return mapper.fail()
+
+
+def _warn_degrees(topic: str, model: SerialModel, dwells: list[Dwell]) -> None:
+    """A warning when revolute joints dwell beyond two turns: ROS gives radians, such
+    values are degrees (or encoder counts)."""
+    revolute = ~model.is_prismatic()
+    if not dwells or not revolute.any():
+        return
+    worst = float(np.abs(np.array([d.q for d in dwells])[:, revolute]).max())
+    if worst > _TWO_TURNS:
+        from kinecal.diagnostics import warn
+
+        warn("ros-joint-units", f"{topic}: revolute joints dwell at up to {worst:.4g} rad "
+             f"({np.degrees(worst):.4g} deg), beyond two turns: ROS gives radians; were "
+             "they recorded in degrees?")
+
+
+def _warn_skipped(topic: str, samples: int, skipped: dict[str, int]) -> None:
+    """One warning for the joint samples left out, by reason."""
+    if skipped:
+        from kinecal.diagnostics import warn
+
+        reasons = ", ".join(f"{n} {why}" for why, n in skipped.items())
+        warn("ros-samples-skipped", f"{topic}: {sum(skipped.values())} JointState messages "
+             f"left out ({reasons}); {samples} samples used")
+
+
 def _second_pass(bag: Bag, kinds: dict, opts: ImportOptions, starts: Array, ends: Array,
-                 t0: int, on_image: Callable | None) -> tuple[dict, TfTree | None]:
-    """Stream the measurement topics into per-dwell averages (and images)."""
+                 t0: int, on_image: Callable | None,
+                 bad: dict[str, list]) -> tuple[dict, TfTree | None]:
+    """Stream the measurement topics into per-dwell averages (and images); values that are
+    no measurement are counted in `bad` and left out."""
     acc: dict[str, StreamAverage] = {}
     if opts.points:
         acc[opts.points] = StreamAverage(starts, ends, 3)
@@ -178,13 +245,34 @@ def _second_pass(bag: Bag, kinds: dict, opts: ImportOptions, starts: Array, ends
         if tree is not None and topic in _TF_TOPICS:
             for parent, child, stamp, pq in msgs.tf_transforms(msg):
                 t = _time(bag_ns, stamp, t0)
-                tree.add(parent, child, dwell_of(t), t, pq, topic == "/tf_static")
+                if _valid(bad, f"{topic} {parent}->{child}", pq):
+                    tree.add(parent, child, dwell_of(t), t, pq, topic == "/tf_static")
+                elif topic != "/tf_static":  # the edge exists, without a value
+                    tree.add(parent, child, None, t, pq, False)
             continue
+        v = msgs.point(msg) if topic == opts.points else msgs.pose(msg)
         t = _time(bag_ns, msgs.stamp_ns(msg), t0)
         k = dwell_of(t)
-        if k is not None:
-            acc[topic].add(k, t, msgs.point(msg) if topic == opts.points else msgs.pose(msg))
+        if k is not None and _valid(bad, topic, v):
+            acc[topic].add(k, t, v)
     return acc, tree
+
+
+def _valid(bad: dict[str, list], what: str, v: Array) -> bool:
+    """False (and counted in `bad` with its reason) for a value that is no measurement."""
+    why = msgs.value_problem(v)
+    if why is not None:
+        bad.setdefault(what, [0, why])[0] += 1
+    return why is None
+
+
+def _warn_bad(bad: dict[str, list]) -> None:
+    """One warning per stream whose messages were left out (`_valid`)."""
+    from kinecal.diagnostics import warn
+
+    for what, (n, why) in bad.items():
+        warn("ros-bad-values", f"{what}: {n} messages left out, their values are no "
+             f"measurement (first: {why}); dwells without another message are dropped")
 
 
 def import_bag(path: str | Path, model: SerialModel, opts: ImportOptions,
@@ -208,25 +296,38 @@ def import_bag(path: str | Path, model: SerialModel, opts: ImportOptions,
         A missing topic or one of another type, joint names matching no model joint, a
         truncated or corrupt bag, no dwell at all.
     """
+    if not isinstance(model, SerialModel):
+        raise TypeError(f"model: expected a SerialModel, got {type(model).__name__}")
+    if not isinstance(opts, ImportOptions):
+        raise TypeError(f"opts: expected ImportOptions, got {type(opts).__name__}")
+    if opts.joint_names is not None and len(opts.joint_names) != model.n_joints:
+        raise InputError(f"expected {model.n_joints} names (one per model joint), got "
+                         f"{len(opts.joint_names)}", option="--joint-names")
     with Bag(path) as bag:
         kinds = _check_topics(bag, opts)
-        finder, t0, how = _find_dwells(bag, model, opts)
+        skipped: dict[str, int] = {}
+        finder, t0, how = _find_dwells(bag, model, opts, skipped)
         dwells = finder.dwells
         out = BagImport(dwells, finder.short, samples=finder.samples, joints_how=how or "",
-                        skipped=finder.skipped)
+                        skipped=sum(skipped.values()))
         if not dwells:
-            raise InputError(f"no dwell in {finder.samples} joint samples: the joints were "
-                             f"never still (speed below {opts.still:g}/s) for {opts.dwell:g} s; "
-                             "see --dwell and --still", file=path)
+            left = "".join(f", {n} {why} left out" for why, n in skipped.items())
+            raise InputError(f"no dwell in {finder.samples} joint samples{left}: the joints "
+                             f"were never still (speed below {opts.still:g}/s) for "
+                             f"{opts.dwell:g} s; see --dwell and --still", file=path)
+        _warn_skipped(opts.joints, finder.samples, skipped)
+        _warn_degrees(opts.joints, model, dwells)
         starts = np.array([d.start for d in dwells])
         ends = np.array([d.end for d in dwells])
         acc, tree = ({}, None)
         if images is not None:
             images.begin(bag, starts, ends, t0)
+        bad: dict[str, list] = {}
         if len(kinds) > 1:
-            acc, tree = _second_pass(bag, kinds, opts, starts, ends, t0, images)
+            acc, tree = _second_pass(bag, kinds, opts, starts, ends, t0, images, bad)
         if images is not None:
             images.finish()
+        _warn_bad(bad)
     _rows(out, model, opts, acc, tree, images)
     return out
 

@@ -34,6 +34,10 @@ def _ur_order(names: Sequence[str]) -> list[str] | None:
     return found
 
 
+def _repeated(names: Sequence[str]) -> list[str]:
+    return sorted({n for n in names if list(names).count(n) > 1})
+
+
 class JointMapper:
     """Positions of a JointState in the model's joint order (module docstring).
 
@@ -48,11 +52,13 @@ class JointMapper:
 
     def __init__(self, n_joints: int, names: Sequence[str] | None, topic: str) -> None:
         self.n = n_joints
+        if names and len(set(names)) < len(names):
+            raise InputError(f"{', '.join(_repeated(names))} given twice: expected one bag "
+                             "joint name per model joint", option="--joint-names")
         self.wanted = list(names) if names else None
         self.topic = topic
         self.how = "by name" if names else None
         self._cache: dict[tuple[str, ...], NDArray[np.intp] | None] = {}
-        self.unmatched = 0
         self.seen: tuple[str, ...] | None = None
 
     def _first(self, names: tuple[str, ...]) -> None:
@@ -66,6 +72,9 @@ class JointMapper:
         """Indices of the model's joints in a message's `names` (None: not all there)."""
         if names in self._cache:
             return self._cache[names]
+        if len(set(names)) < len(names):  # which position is which joint is unknown
+            raise InputError(f"{self.topic}: a JointState names {', '.join(_repeated(names))} "
+                             "more than once: expected each joint once", option="--joints")
         self.seen = self.seen or names
         if self.wanted is None:
             self._first(names)

@@ -7,16 +7,20 @@ Messages come deserialized by ``rosbags`` (ROS 1 and ROS 2 alike: ``header.stamp
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.errors import InputError
 from kinecal.io.ros.png import encode_png
 
-__all__ = ["ACCEPTED", "camera_info", "image_file", "joint_state", "point", "pose",
-           "stamp_ns", "tf_transforms"]
+__all__ = ["ACCEPTED", "camera_info", "camera_problem", "image_file", "joint_state", "point",
+           "pose", "stamp_ns", "tf_transforms", "value_problem"]
 
 Array = NDArray[np.float64]
+#: coordinates beyond this (m) are no measurement of a robot cell
+MAX_METRES = 1e4
 
 #: the message types each option takes
 ACCEPTED = {
@@ -67,6 +71,19 @@ def pose(msg) -> Array:
     return _pq(msg.transform.translation, msg.transform.rotation)
 
 
+def value_problem(v: Array) -> str | None:
+    """Why a point ``(3,)`` or pose ``(7,)`` (x, y, z in m, then qw, qx, qy, qz) is no
+    measurement, or None: a value not finite, a coordinate beyond `MAX_METRES`, a
+    quaternion whose norm is not about 1 (zero: left unset)."""
+    if not np.isfinite(v).all():
+        return "values not finite (NaN or inf)"
+    if np.abs(v[:3]).max() > MAX_METRES:
+        return f"a coordinate of {np.abs(v[:3]).max():.3g} m (beyond {MAX_METRES:g} m)"
+    if v.size == 7 and abs(float(np.linalg.norm(v[3:])) - 1.0) > 0.1:
+        return f"a quaternion of norm {np.linalg.norm(v[3:]):.3g} (expected 1)"
+    return None
+
+
 def _frame(name: str) -> str:
     return name.strip().lstrip("/")
 
@@ -93,6 +110,22 @@ def camera_info(msg) -> dict:
             "distortion_model": str(msg.distortion_model or "plumb_bob")}
 
 
+def camera_problem(camera: dict) -> str | None:
+    """Why a `camera_info` is no calibrated camera, or None: no image size, a camera matrix
+    K that is not ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]`` with finite ``fx, fy > 0`` (ROS
+    leaves K zero for an uncalibrated camera), distortion not finite."""
+    K, D = camera["K"], camera["D"]
+    if camera["width"] <= 0 or camera["height"] <= 0:
+        return f"image size {camera['width']} x {camera['height']}"
+    if not np.isfinite(K).all() or not (K[0, 0] > 0 and K[1, 1] > 0) or \
+            not np.allclose(K[2], (0.0, 0.0, 1.0)) or K[1, 0] != 0:
+        return (f"camera matrix K {np.array2string(K.ravel(), precision=4)} is not a "
+                "calibrated camera's (fx, fy > 0, last row 0 0 1; all zero: uncalibrated)")
+    if not np.isfinite(D).all():
+        return "distortion coefficients not finite"
+    return None
+
+
 def _raw_image(msg, topic: str) -> NDArray:
     enc = str(msg.encoding).lower()
     if enc not in _ENCODINGS:
@@ -102,6 +135,9 @@ def _raw_image(msg, topic: str) -> NDArray:
     c, dtype, order = _ENCODINGS[enc]
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
     item = np.dtype(dtype).itemsize
+    if h <= 0 or w <= 0:
+        raise InputError(f"{topic}: image of {w} x {h} pixels: expected a width and height "
+                         "of at least 1", option="--images")
     data = np.asarray(msg.data, dtype=np.uint8)
     if step < w * c * item or data.size < h * step:
         raise InputError(f"{topic}: image data of {data.size} bytes does not hold {h} rows of "
@@ -113,14 +149,26 @@ def _raw_image(msg, topic: str) -> NDArray:
     return pixels[:, :, order] if order is not None else pixels
 
 
+def _png_header_ok(data: bytes) -> bool:
+    """The PNG signature, then an IHDR chunk giving a width and height of at least 1."""
+    if len(data) < 33 or data[:8] != b"\x89PNG\r\n\x1a\n" or data[12:16] != b"IHDR":
+        return False
+    w, h = struct.unpack(">II", data[16:24])
+    return w > 0 and h > 0
+
+
 def image_file(msg, msgtype: str, topic: str) -> tuple[bytes, str]:
     """The bytes of an image file and its suffix: an Image as PNG, a CompressedImage as
     it is (``.png`` or ``.jpg`` from its content)."""
     if msgtype.endswith("CompressedImage"):
         data = bytes(np.asarray(msg.data, dtype=np.uint8).tobytes())
         if data.startswith(b"\x89PNG"):
+            if not _png_header_ok(data):
+                raise InputError(f"{topic}: a CompressedImage of {len(data)} bytes starts "
+                                 "like a PNG but has no image header (IHDR with a size)",
+                                 option="--images")
             return data, ".png"
-        if data.startswith(b"\xff\xd8"):
+        if data.startswith(b"\xff\xd8\xff"):
             return data, ".jpg"
         raise InputError(f"{topic}: compressed image format {msg.format!r} is neither PNG nor "
                          "JPEG", option="--images")

@@ -49,9 +49,11 @@ def _columns(res: BagImport, model: SerialModel) -> dict:
     return cols
 
 
-def write_rows(path: str | Path, res: BagImport, model: SerialModel) -> None:
-    """Write the kept rows as a measurement CSV (module docstring)."""
-    _check_kept(res, path)
+def write_rows(path: str | Path, res: BagImport, model: SerialModel,
+               bag: str | Path | None = None) -> None:
+    """Write the kept rows as a measurement CSV (module docstring); `InputError` naming
+    `bag` (the file imported, else `path`) when no dwell was kept."""
+    _check_kept(res, path if bag is None else bag)
     write_table(path, _columns(res, model))
 
 

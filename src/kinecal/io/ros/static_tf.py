@@ -22,7 +22,8 @@ from kinecal._files import read_json
 from kinecal.errors import InputError
 from kinecal.spatial import check_transform, quaternion_from_matrix
 
-__all__ = ["StaticTransform", "metres_per_unit", "read_handeye_result", "static_transform"]
+__all__ = ["StaticTransform", "check_frame", "metres_in_cell", "metres_per_unit",
+           "read_handeye_result", "static_transform"]
 
 Array = NDArray[np.float64]
 _PER_M = {"m": 1.0, "mm": 1000.0}
@@ -30,6 +31,9 @@ _PER_M = {"m": 1.0, "mm": 1000.0}
 DEFAULT_PARENT = {"eye-in-hand": "tool0", "eye-to-hand": "base_link"}
 DEFAULT_CHILD = "camera_optical_frame"
 _SETUPS = tuple(DEFAULT_PARENT)
+#: a camera farther than this (m) from its parent frame: refused; warned beyond FAR_METRES
+MAX_METRES = 1e4
+FAR_METRES = 10.0
 
 
 @dataclass(frozen=True)
@@ -127,14 +131,43 @@ def metres_per_unit(length_unit: str, unit: str | None, path: str | Path) -> flo
     return 1.0 / _PER_M[chosen]
 
 
+def metres_in_cell(X: Array, scale: float, path: str | Path) -> Array:
+    """``X`` ``(4, 4)`` with its translation times `scale` (metres): `InputError` beyond
+    `MAX_METRES` (no robot cell: another unit), a warning (``camera-mount-far``) beyond
+    `FAR_METRES` (a result in mm exported as metres puts the camera 1000 times too far)."""
+    X_m = np.array(X, dtype=float)
+    X_m[:3, 3] *= scale
+    far = float(np.linalg.norm(X_m[:3, 3]))
+    if not far <= MAX_METRES:
+        raise InputError(f"X: the camera is {far:.3g} m from its parent frame: no robot "
+                         "cell is that large (the lengths in another unit? --unit)", file=path)
+    if far > FAR_METRES:
+        from kinecal.diagnostics import warn
+
+        warn("camera-mount-far", f"{path}: X puts the camera {far:.4g} m from its parent "
+             f"frame (more than {FAR_METRES:g} m): are the result's lengths in mm? give "
+             "--unit mm")
+    return X_m
+
+
+def check_frame(name: str, option: str) -> str:
+    """`name` when it is a frame (link) name: not empty, no spaces; `InputError` otherwise."""
+    if not name.strip() or any(c.isspace() for c in name):
+        raise InputError(f"{name!r}: expected a frame name without spaces", option=option)
+    return name
+
+
 def static_transform(X: Array, setup: str, scale: float, parent: str | None = None,
                      child: str | None = None) -> StaticTransform:
-    """The static transform of hand-eye result `X` (lengths times `scale` = metres)."""
-    parent = parent or DEFAULT_PARENT[setup]
-    child = child or DEFAULT_CHILD
-    for opt, name in (("--parent-frame", parent), ("--child-frame", child)):
-        if not name.strip() or any(c.isspace() for c in name):
-            raise InputError(f"{name!r}: expected a frame name without spaces", option=opt)
+    """The static transform of hand-eye result `X` ``(4, 4)`` (lengths times `scale` =
+    metres) of `setup` (eye-in-hand or eye-to-hand)."""
+    if setup not in _SETUPS:
+        raise InputError(f"setup: expected {' or '.join(_SETUPS)}, got {setup!r}")
+    X = np.asarray(X, dtype=float)
+    if X.shape != (4, 4):
+        raise InputError(f"X: expected a 4x4 transform, got shape {X.shape}")
+    parent = DEFAULT_PARENT[setup] if parent is None else check_frame(parent, "--parent-frame")
+    child = DEFAULT_CHILD if child is None else check_frame(child, "--child-frame")
     if parent == child:
         raise InputError(f"parent and child frame are both {parent!r}", option="--child-frame")
     w, x, y, z = quaternion_from_matrix(X[:3, :3])

@@ -24,6 +24,13 @@ __all__ = ["DELTA_KEYS", "read_calibration_conf"]
 #: the keys read, in the column order of the returned table (theta, a, d, alpha)
 DELTA_KEYS = ("delta_theta", "delta_a", "delta_d", "delta_alpha")
 _SECTION = "mounting"
+_ANGLES = ("delta_theta", "delta_alpha")
+#: keys whose joints 2-4 are judged by their sum (the parallel axes)
+_PARALLEL = ("delta_theta", "delta_d")
+#: a length delta beyond this (m) is no calibration: refused
+MAX_LENGTH = 100.0
+#: the largest delta a factory calibration gives (m, rad), beyond which a warning is given
+PLAUSIBLE = {"delta_theta": 0.05, "delta_a": 0.01, "delta_d": 0.01, "delta_alpha": 0.05}
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$")
 
 
@@ -93,4 +100,36 @@ def read_calibration_conf(path: str | Path) -> NDArray[np.float64]:
         where = "its [mounting] section" if rows else "a [mounting] section"
         raise InputError(f"not a UR calibration.conf: expected {where} with "
                          f"{', '.join(DELTA_KEYS)} (missing {', '.join(missing)})", file=path)
-    return np.array([found[k] for k in DELTA_KEYS]).T
+    deltas = np.array([found[k] for k in DELTA_KEYS]).T
+    _check_ranges(deltas, path, rows)
+    return deltas
+
+
+def _check_ranges(deltas: NDArray[np.float64], path: Path, rows: dict[str, int]) -> None:
+    """Refuse deltas no calibration has (an angle beyond a turn, a length beyond
+    `MAX_LENGTH`: another unit); warn (``ur-conf-implausible``) beyond what a factory
+    calibration gives: `PLAUSIBLE` per key, for joints 2-4 (parallel axes, whose theta
+    and d deltas may be large and opposite) on their sum."""
+    for col, key in enumerate(DELTA_KEYS):
+        v = deltas[:, col]
+        limit, unit, word = ((2 * math.pi, "rad", "radians") if key in _ANGLES else
+                             (MAX_LENGTH, "m", "metres"))
+        if np.abs(v).max() > limit:
+            raise InputError(f"line {rows[key]}: {key}: {v[np.abs(v).argmax()]:.6g} is beyond "
+                             f"{limit:.4g} {unit}: expected {word} (a factory calibration's "
+                             "deltas are small)", file=path)
+    found = []
+    for col, key in enumerate(DELTA_KEYS):
+        v = deltas[:, col]
+        parts = [v[0], v[1:4].sum(), v[4], v[5]] if key in _PARALLEL else list(v)
+        worst = float(np.abs(parts).max())
+        if worst > PLAUSIBLE[key]:
+            found.append(f"{key} {worst:.4g}" + (" (joints 2-4 summed)" if key in _PARALLEL
+                                                  and worst == abs(parts[1]) else ""))
+    if found:
+        from kinecal.diagnostics import warn
+
+        warn("ur-conf-implausible", f"{path}: factory deltas larger than a UR calibration "
+             f"gives: {', '.join(found)} (expected at most {PLAUSIBLE['delta_a']:g} m and "
+             f"{PLAUSIBLE['delta_alpha']:g} rad): another unit (mm, degrees) or another "
+             "robot's file?")

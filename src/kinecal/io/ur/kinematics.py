@@ -67,6 +67,10 @@ def dh_table(model: SerialModel, params: ArrayLike | None = None) -> Array:
     if per_m is None:
         raise InputError(f"length unit {model.length_unit!r}: expected mm or m")
     p = model.nominal if params is None else np.asarray(params, dtype=float)
+    if p.shape != model.nominal.shape or not np.isfinite(p).all():
+        raise InputError(f"model {model.name!r}: expected {model.nominal.size} finite "
+                         f"parameter values, got shape {p.shape}"
+                         + ("" if p.shape != model.nominal.shape else " with NaN or inf"))
     names = [f"{k}{i}" for i in range(1, 7) for k in ("theta", "a", "d", "alpha")]
     t = p[model.index(names)].reshape(6, 4)
     t[:, 1:3] /= per_m
@@ -172,7 +176,10 @@ def ur_kinematics(model: SerialModel, params: ArrayLike | None = None,
         The reference type.
     """
     table = dh_table(model, params)
-    robot = robot or robot_type(table)
+    if robot is None:
+        robot = robot_type(table)
+        if robot is None:
+            _warn_not_ur(model, table)
     ref = nominal_dh(robot) if robot is not None else None
     origins = joint_origins(table, ref)
     out: dict = {}
@@ -184,6 +191,17 @@ def ur_kinematics(model: SerialModel, params: ArrayLike | None = None,
                             .encode()).hexdigest()
     out["hash"] = f"kinecal_{digest[:16]}"
     return out, robot
+
+
+def _warn_not_ur(model: SerialModel, table: Array) -> None:
+    from kinecal.diagnostics import warn
+
+    warn("ur-kinematics-not-ur",
+         f"model {model.name!r} (d1 {table[0, 2] * 1000:.1f} mm, a2 {table[1, 1] * 1000:.1f} "
+         f"mm, a3 {table[2, 1] * 1000:.1f} mm) is within 5 mm of no UR type: the file is its "
+         "exact kinematics, but ur_description draws a UR's links and meshes along it; for "
+         "an arm that is not a UR export --format urdf (give --robot TYPE to keep a UR "
+         "type's link frames anyway)")
 
 
 def ur_kinematics_text(model: SerialModel, params: ArrayLike | None = None,

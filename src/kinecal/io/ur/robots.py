@@ -40,6 +40,8 @@ _PER_M = {"m": 1.0, "mm": 1000.0}
 
 
 def _check_robot(robot: str) -> str:
+    if not isinstance(robot, str):
+        raise TypeError(f"robot: expected a UR type name (str), got {type(robot).__name__}")
     key = robot.strip().lower()
     if key not in UR_TYPES:
         raise InputError(f"unknown robot {robot!r}; expected one of {', '.join(UR_TYPES)}",
@@ -89,7 +91,14 @@ def ur_model(robot: str, deltas: ArrayLike | None = None, *, name: str | None = 
     """
     table = nominal_dh(robot)
     if deltas is not None:
-        table = table + np.asarray(deltas, dtype=float).reshape(6, 4)
+        try:
+            d = np.asarray(deltas, dtype=float)
+        except (TypeError, ValueError):
+            d = np.zeros(0)
+        if d.shape != (6, 4) or not np.isfinite(d).all():
+            raise InputError(f"deltas: expected a (6, 4) table of finite numbers (theta, a, d, "
+                             f"alpha per joint), got shape {d.shape}")
+        table = table + d
     s = _PER_M[length_unit]
     joints = [{"theta": float(t), "d": float(d * s), "a": float(a * s), "alpha": float(al)}
               for t, a, d, al in table]
