@@ -9,6 +9,7 @@ import numpy as np
 import typer
 
 from kinecal._limits import check_count
+from kinecal.calibration.handeye.scara import MAX_LENGTH
 from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
@@ -91,9 +92,9 @@ def parse_contact(text: str | None) -> np.ndarray | None:
         P = np.array([float(v) for v in text.split(",")])
     except ValueError:
         P = np.zeros(0)
-    if P.shape != (3,) or not np.all(np.isfinite(P)):
-        raise InputError(f"{text!r}: expected X,Y,Z (three numbers, e.g. 450,0,-12.5)",
-                         option="--board-contact")
+    if P.shape != (3,) or not np.all(np.abs(P) <= MAX_LENGTH):
+        raise InputError(f"{text!r}: expected X,Y,Z (three numbers within +-{MAX_LENGTH:g}, "
+                         "e.g. 450,0,-12.5)", option="--board-contact")
     return P
 
 
