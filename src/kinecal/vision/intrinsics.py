@@ -154,7 +154,8 @@ def _read_filestorage(path: Path) -> CameraIntrinsics:
     try:
         return _filestorage_mapping(cv2, path)
     except (cv2.error, SystemError) as exc:  # SystemError: cv2's parser on a broken file
-        reason = " ".join(str(exc).split())[-200:]
+        reason = " ".join(str(exc).split())[-200:] if isinstance(exc, cv2.error) else \
+            "its parser stopped: broken XML or YAML"
         raise InputError(f"not a readable OpenCV FileStorage file ({reason})",
                          file=path) from None
 

@@ -24,8 +24,43 @@ from kinecal.vision.intrinsics import CameraIntrinsics, estimate_intrinsics
 from kinecal.vision.pnp import board_pose
 from kinecal.vision.results import ImageRecord
 
-__all__ = ["board_poses", "camera_intrinsics", "cpu_count", "detect_all", "load_gray",
-           "take_board_pose", "too_few"]
+__all__ = ["as_rows", "board_poses", "camera_intrinsics", "check_arguments", "cpu_count",
+           "detect_all", "load_gray", "take_board_pose", "too_few"]
+
+
+def check_arguments(images: Sequence[Any], names: Sequence[str] | None, board: Any,
+                    intrinsics: Any) -> list[str]:
+    """The image names (default: file names or ``image_<i>``), after the argument types and
+    counts of an image pipeline are checked.
+
+    Raises
+    ------
+    TypeError
+        `board` not a `Board`, `intrinsics` neither None nor `CameraIntrinsics`.
+    InputError
+        `names` not one per image.
+    """
+    if not isinstance(board, Board):
+        raise TypeError(f"board: expected a Board (kinecal.vision.boards.parse_board), got "
+                        f"{type(board).__name__}")
+    if intrinsics is not None and not isinstance(intrinsics, CameraIntrinsics):
+        raise TypeError(f"intrinsics: expected CameraIntrinsics (kinecal.vision.intrinsics."
+                        f"read_intrinsics) or None, got {type(intrinsics).__name__}")
+    if names is None:
+        return [Path(im).name if isinstance(im, str | Path) else f"image_{i}"
+                for i, im in enumerate(images)]
+    if len(names) != len(images):
+        raise InputError(f"{len(names)} names for {len(images)} images: expected one name per "
+                         "image", option="names")
+    return [str(n) for n in names]
+
+
+def as_rows(values: Any, what: str) -> NDArray[np.float64]:
+    """`values` as a float array; `InputError` naming `what` when they are not numbers."""
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{what}: expected numbers ({exc})") from None
 
 
 def load_gray(path: str | Path) -> NDArray[np.uint8] | None:

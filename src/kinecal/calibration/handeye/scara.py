@@ -145,7 +145,10 @@ class AxisHeight:
                                  f"within +-{MAX_LENGTH:g}", option="camera_height")
             return cls(camera_height=h)
         if board_contact is not None:
-            P = np.asarray(board_contact, dtype=float).reshape(-1)
+            try:
+                P = np.asarray(board_contact, dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                P = np.zeros(0)
             if P.shape != (3,) or not np.all(np.abs(P) <= MAX_LENGTH):
                 raise InputError(f"board_contact {board_contact!r}: expected three finite "
                                  f"coordinates x, y, z within +-{MAX_LENGTH:g}",
