@@ -9,7 +9,6 @@ import numpy as np
 import typer
 
 from kinecal._limits import check_count
-from kinecal.calibration.handeye.scara import MAX_LENGTH
 from kinecal.cli._app import app
 from kinecal.cli._common import (
     check_paths,
@@ -88,6 +87,8 @@ def parse_contact(text: str | None) -> np.ndarray | None:
     """``X,Y,Z`` of ``--board-contact`` as an array, or `InputError`."""
     if text is None:
         return None
+    from kinecal.calibration.handeye.scara import MAX_LENGTH
+
     try:
         P = np.array([float(v) for v in text.split(",")])
     except ValueError:
