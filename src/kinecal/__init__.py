@@ -28,6 +28,8 @@ _LAZY = {
     "StewartPlatform": "kinecal.kinematics.stewart.platform",
     "load_geometry": "kinecal.io.geometry",
     "calibrate_handeye": "kinecal.calibration.handeye",
+    "calibrate_handeye_images": "kinecal.vision.pipeline",
+    "calibrate_arm_images": "kinecal.vision.arm_images",
     "compensate": "kinecal.compensation.api",
 }
 

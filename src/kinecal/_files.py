@@ -308,6 +308,8 @@ def read_json(path: str | Path) -> Any:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"not valid JSON at line {exc.lineno}: {exc.msg}", file=path) from None
+    except ValueError:  # Python refuses integers of more than 4300 digits
+        raise InputError("not valid JSON: a number of thousands of digits", file=path) from None
     except RecursionError:
         raise InputError("not valid JSON: nested too deeply", file=path) from None
     except ValueError as exc:  # an integer of more digits than Python converts

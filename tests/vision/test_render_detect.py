@@ -114,10 +114,11 @@ def test_board_specs():
     b = parse_board("charuco:7x5:40:30:DICT_5X5_100")
     assert b.n_corners == 24 and b.spec == "charuco:7x5:40:30:DICT_5X5_100"
     assert parse_board("acircles:4x11:20").n_corners == 44
-    pts = parse_board("chessboard:3x2:10").object_points
+    pts = parse_board("chessboard:3x3:10").object_points
     assert np.allclose(pts[[0, 1, 3]], [[0, 0, 0], [10, 0, 0], [0, 10, 0]])
     for bad in ("chessboard:9x6", "chessboard:9*6:30", "chessboard:9x6:-3", "hexboard:3x3:1",
                 "charuco:7x5:40:50:DICT_5X5_100", "charuco:7x5:40:30:DICT_NOPE",
-                "charuco:20x20:40:30:DICT_4X4_50", "chessboard:1x6:30"):
+                "charuco:20x20:40:30:DICT_4X4_50", "chessboard:1x6:30",
+                "chessboard:3x2:10"):
         with pytest.raises(InputError, match="board"):
             parse_board(bad)

@@ -16,6 +16,9 @@ import os
 # Set before numpy loads; an explicit user setting wins.
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
+# OpenCV's own warnings (an image file it reads in part) would land on stderr beside the
+# one-line contract; kinecal says what it rejects and why. Set before cv2 loads.
+os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
 
 import contextlib  # noqa: E402
 import errno  # noqa: E402

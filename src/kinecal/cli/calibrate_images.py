@@ -105,6 +105,11 @@ def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
         if validate is not None:
             vnames, vq = read_stations(Path(validate), m)
             _match(images, Path(validate), vnames, by_name)
+            both = [n for n in vnames if n in listed]
+            if both:
+                raise InputError(f"{len(both)} image(s) also in {Path(data).name}, e.g. "
+                                 f"{both[0]!r}: validation stations must be held out",
+                                 file=Path(validate))
             listed |= set(vnames)
             val = ([by_name[n] for n in vnames], vq, vnames)
         unlisted = sorted(set(by_name) - listed)

@@ -87,13 +87,15 @@ def parse_contact(text: str | None) -> np.ndarray | None:
     """``X,Y,Z`` of ``--board-contact`` as an array, or `InputError`."""
     if text is None:
         return None
+    from kinecal.calibration.handeye.scara import MAX_LENGTH
+
     try:
         P = np.array([float(v) for v in text.split(",")])
     except ValueError:
         P = np.zeros(0)
-    if P.shape != (3,) or not np.all(np.isfinite(P)):
-        raise InputError(f"{text!r}: expected X,Y,Z (three numbers, e.g. 450,0,-12.5)",
-                         option="--board-contact")
+    if P.shape != (3,) or not np.all(np.abs(P) <= MAX_LENGTH):
+        raise InputError(f"{text!r}: expected X,Y,Z (three numbers within +-{MAX_LENGTH:g}, "
+                         "e.g. 450,0,-12.5)", option="--board-contact")
     return P
 
 

@@ -17,6 +17,10 @@ from kinecal.errors import InputError
 
 __all__ = ["DEFAULT_CAMERA", "simulate_images"]
 
+#: largest --noise (grey levels: beyond the 0-255 range every pixel is noise) and --blur
+#: (px sigma: a Gaussian kernel of 6 sigma; 1e4 px ran for minutes, 1e308 crashed OpenCV)
+MAX_NOISE, MAX_BLUR = 255.0, 100.0
+
 #: the camera of a simulation without --intrinsics: 800 x 600 px, f 900 px, mild distortion
 DEFAULT_CAMERA = {"K": [[900.0, 0.0, 399.5], [0.0, 900.0, 299.5], [0.0, 0.0, 1.0]],
                   "dist": [-0.15, 0.06, 0.0005, -0.0003, 0.0], "size": (800, 600)}
@@ -55,10 +59,9 @@ def simulate_images(args: dict[str, Any]) -> None:
                  "--errors": None if errors in ("zero", "random") else errors},
                 {"--out": out, "--truth-out": args["truth_out"],
                  "--camera-out": args["camera_out"]})
-    check_finite(args["noise"], "--noise")
-    check_finite(args["blur"], "--blur")
-    if args["noise"] < 0 or args["blur"] < 0:
-        raise InputError("expected >= 0", option="--noise" if args["noise"] < 0 else "--blur")
+    for key, most in (("noise", MAX_NOISE), ("blur", MAX_BLUR)):
+        if check_finite(args[key], f"--{key}") > most:
+            raise InputError(f"{args[key]:g}: expected at most {most:g}", option=f"--{key}")
     with warnings_scope(args["strict"]):
         from kinecal.calibration.serial.simulate import read_truth
         from kinecal.vision.boards import parse_board

@@ -27,7 +27,13 @@ from kinecal.kinematics.serial.model import SerialModel
 from kinecal.vision.boards import Board
 from kinecal.vision.detect import QualityLimits
 from kinecal.vision.intrinsics import CameraIntrinsics
-from kinecal.vision.stages import board_poses, camera_intrinsics, detect_all
+from kinecal.vision.stages import (
+    as_rows,
+    board_poses,
+    camera_intrinsics,
+    check_arguments,
+    detect_all,
+)
 
 Array = NDArray[np.float64]
 
@@ -128,11 +134,15 @@ def calibrate_arm_images(
     InputError
         Count mismatch, fewer than 3 usable stations (the reasons summarised).
     """
-    q = np.atleast_2d(np.asarray(q, float))
-    if len(images) != len(q):
-        raise InputError(f"{len(images)} images but {len(q)} joint rows: expected one row "
-                         "per image")
-    names = list(names) if names is not None else [f"image_{i}" for i in range(len(q))]
+    if not isinstance(model, SerialModel):
+        raise TypeError(f"model: expected a SerialModel (kinecal.load_model), got "
+                        f"{type(model).__name__}")
+    names = check_arguments(images, names, board, intrinsics)
+    q = _joint_rows(images, q, "q")
+    if validate is not None:
+        vimg, vq, vnames = validate
+        validate = (vimg, _joint_rows(vimg, vq, "validate q"),
+                    check_arguments(vimg, vnames, board, intrinsics))
     with diagnostics.collect() as found:
         st, intr, skipped = detect_stations(images, q, names, board, intrinsics, limits,
                                             progress)
@@ -159,6 +169,14 @@ def calibrate_arm_images(
     res.val_names = [] if val is None else list(val.names)
     res.warnings = list(found)
     return res
+
+
+def _joint_rows(images: Sequence[Any], q: Any, what: str) -> Array:
+    q = np.atleast_2d(as_rows(q, what))
+    if len(images) != len(q):
+        raise InputError(f"{len(images)} images but {len(q)} joint rows ({what}): expected "
+                         "one row per image")
+    return q
 
 
 def _too_few(n: int, used: int, skipped: list[dict[str, str]], board: Board) -> str:

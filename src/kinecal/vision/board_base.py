@@ -19,13 +19,18 @@ from kinecal.errors import InputError
 
 Array = NDArray[np.float64]
 
-__all__ = ["SYNTAX", "Board", "grid_size", "positive_length"]
+__all__ = ["MAX_GRID", "SYNTAX", "Board", "grid_size", "positive_length"]
 
 SYNTAX = ("chessboard:COLSxROWS:SQUARE (inner corners, e.g. chessboard:9x6:30), "
           "charuco:COLSxROWS:SQUARE:MARKER:DICT (squares, e.g. charuco:7x5:40:30:DICT_5X5_100), "
           "acircles:COLSxROWS:SPACING (e.g. acircles:4x11:20), "
           "circles:COLSxROWS:PITCH[:DIAMETER] (e.g. circles:7x6:20) "
           "or modcircles:COLSxROWS:PITCH[:DIAMETER] (e.g. modcircles:10x10:25.4)")
+
+
+#: most corners (squares for ChArUco, dots for circle grids) a board spec may have: 50 x 50
+#: (printed boards have tens to a few hundred; a 3000 x 3000 spec asked for petabytes)
+MAX_GRID = 2500
 
 
 class Board:
@@ -133,7 +138,12 @@ def grid_size(spec: str) -> tuple[int, int]:
     if m is None:
         raise InputError(f"board size {spec!r}: expected COLSxROWS, e.g. 9x6; {SYNTAX}",
                          option="--board")
-    return int(m.group(1)), int(m.group(2))
+    c, r = int(m.group(1)), int(m.group(2))
+    if c * r > MAX_GRID:
+        raise InputError(f"board size {spec!r}: {c * r:,} corners or squares, expected at most "
+                         f"{MAX_GRID:,} (a board's corner count is a few hundred)",
+                         option="--board")
+    return c, r
 
 
 def positive_length(text: str, what: str) -> float:

@@ -54,8 +54,8 @@ class Chessboard(Board):
     kind = "chessboard"
 
     def __post_init__(self) -> None:
-        if self.cols < 2 or self.rows < 2:
-            raise InputError(f"chessboard {self.cols}x{self.rows}: expected at least 2x2 inner "
+        if self.cols < 3 or self.rows < 3:  # OpenCV's detector needs 3 each way
+            raise InputError(f"chessboard {self.cols}x{self.rows}: expected at least 3x3 inner "
                              "corners", option="--board")
 
     @property

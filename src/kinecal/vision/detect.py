@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal.errors import InputError
 from kinecal.vision import require_cv2
 from kinecal.vision.boards import Board, Charuco, Chessboard
 from kinecal.vision.circle_grids import CircleGrid
@@ -46,7 +47,8 @@ from kinecal.vision.pixels import blurred_around, hull_polygon
 
 Array = NDArray[np.float64]
 
-__all__ = ["Detection", "QualityLimits", "detect", "edge_width", "orientation_ambiguous"]
+__all__ = ["MIN_IMAGE_SIDE", "Detection", "QualityLimits", "as_gray", "detect", "edge_width",
+           "orientation_ambiguous"]
 
 
 def _hull_mask(shape: tuple[int, int], pts: Array, grow: float) -> NDArray[np.bool_]:
@@ -237,6 +239,50 @@ def _collinear(P: Array) -> bool:
     return bool(s[1] <= 1e-9 * max(s[0], 1e-300))
 
 
+#: shortest image side a board is looked for in (px): OpenCV's chessboard detector fails
+#: below 10 px, and no board's corners can be told apart in fewer than 3 px per square
+MIN_IMAGE_SIDE = 32
+
+
+def as_gray(image: Any) -> NDArray[np.uint8]:
+    """An image array as 8-bit grey.
+
+    Parameters
+    ----------
+    image : ndarray, shape (h, w), (h, w, 1), (h, w, 3) or (h, w, 4)
+        Grey, BGR or BGRA; ``uint8``, ``uint16`` (scaled by 1/256 as OpenCV reads 16-bit
+        files), ``bool`` (0 / 255) or float in 0..255 (clipped).
+
+    Raises
+    ------
+    TypeError
+        Not an array of numbers.
+    InputError
+        Another shape, or a float image with NaN or infinity.
+    """
+    cv2 = require_cv2()
+    gray = np.asarray(image)
+    if gray.dtype == bool:
+        gray = gray.astype(np.uint8) * 255
+    if not (np.issubdtype(gray.dtype, np.integer) or np.issubdtype(gray.dtype, np.floating)):
+        raise TypeError(f"image: expected an array of numbers, got dtype {gray.dtype}")
+    if gray.ndim == 3 and gray.shape[2] == 1:
+        gray = gray[:, :, 0]
+    if gray.ndim != 2 and not (gray.ndim == 3 and gray.shape[2] in (3, 4)):
+        raise InputError(f"image of shape {gray.shape}: expected (h, w) grey, (h, w, 3) BGR "
+                         "or (h, w, 4) BGRA")
+    if np.issubdtype(gray.dtype, np.floating) and not np.isfinite(gray).all():
+        raise InputError("image: NaN or infinite pixel values")
+    if gray.dtype == np.uint16:
+        gray = (gray >> 8).astype(np.uint8)
+    elif gray.dtype != np.uint8:
+        gray = np.clip(gray, 0, 255).astype(np.uint8)
+    if gray.ndim == 3 and gray.size:
+        code = cv2.COLOR_BGR2GRAY if gray.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
+        gray = cv2.cvtColor(np.ascontiguousarray(gray), code)
+    return gray
+
+
 def detect(image: NDArray[Any], board: Board,
            limits: QualityLimits | None = None) -> Detection:
     """Detect `board` in `image` and run the image-level quality checks.
@@ -244,24 +290,23 @@ def detect(image: NDArray[Any], board: Board,
     Parameters
     ----------
     image : ndarray, shape (h, w) or (h, w, 3)
-        8-bit grey or BGR image (colour is converted to grey).
+        8-bit grey or BGR image (colour is converted to grey; see `as_gray`).
     board : Board
     limits : QualityLimits, optional
 
     Returns
     -------
     Detection
-        ``ok`` False with a ``reason`` when rejected.
+        ``ok`` False with a ``reason`` when rejected (also an image with a side shorter
+        than `MIN_IMAGE_SIDE`).
     """
-    cv2 = require_cv2()
     limits = limits or QualityLimits()
-    gray = np.asarray(image)
-    if gray.ndim == 3:
-        gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
-    if gray.dtype != np.uint8:
-        gray = np.clip(gray, 0, 255).astype(np.uint8)
+    gray = as_gray(image)
     h, w = gray.shape
     det = Detection(True, "", size=(w, h))
+    if min(h, w) < MIN_IMAGE_SIDE:
+        return det.reject(f"image of {w}x{h} px: too small to show a board (a side shorter "
+                          f"than {MIN_IMAGE_SIDE} px)")
     if isinstance(board, Chessboard):
         det = _detect_chessboard(gray, board, det, limits)
     elif isinstance(board, Charuco):

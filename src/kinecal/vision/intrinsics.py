@@ -18,7 +18,6 @@ pixels reported); `write_intrinsics` writes the ROS YAML.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,14 +26,17 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal._files import load_yaml, read_text, write_text_atomic
+from kinecal._files import load_yaml, read_json, read_text, write_text_atomic
 from kinecal.calibration.handeye.camera import check_camera
 from kinecal.errors import InputError
+from kinecal.vision.image_files import MAX_IMAGE_PIXELS
 
 Array = NDArray[np.float64]
 
 __all__ = ["CameraIntrinsics", "estimate_intrinsics", "read_intrinsics", "write_intrinsics"]
 
+#: the distortion models read (ROS camera_calibration's names; OpenCV's 5 and 8 coefficients)
+_MODELS = ("plumb_bob", "rational_polynomial")
 _K_NAMES = ("camera_matrix", "cameraMatrix", "K", "camera_matrix_K", "intrinsics")
 _D_NAMES = ("distortion_coefficients", "dist_coeffs", "distCoeffs", "D", "distortion")
 
@@ -116,19 +118,33 @@ def _from_mapping(doc: dict, path: Path) -> CameraIntrinsics:
     if model in ("equidistant", "fisheye", "kannala_brandt"):
         raise InputError(f"distortion_model {model}: fisheye models are not supported; "
                          "expected plumb_bob or rational_polynomial", file=path)
+    if model not in _MODELS:
+        raise InputError(f"unknown distortion_model {model!r}; expected one of "
+                         f"{', '.join(_MODELS)}", file=path)
     if d.size not in (0, 4, 5, 8, 12, 14):
         raise InputError(f"{dname}: {d.size} coefficients, expected 4, 5 or 8", file=path)
-    size = None
-    if "image_width" in doc and "image_height" in doc:
-        try:
-            size = (int(doc["image_width"]), int(doc["image_height"]))
-        except (TypeError, ValueError):
-            raise InputError("image_width / image_height: expected integers",
-                             file=path) from None
+    size = _image_size(doc, path)
     try:
         return CameraIntrinsics(K.reshape(3, 3), d, size, source=path.name)
     except InputError as exc:
         raise InputError(exc.message, file=path) from None
+
+
+def _image_size(doc: dict, path: Path) -> tuple[int, int] | None:
+    """``(image_width, image_height)``; None when absent; ``(0, 0)`` (ROS: unknown) kept."""
+    if "image_width" not in doc or "image_height" not in doc:
+        return None
+    try:
+        w, h = float(doc["image_width"]), float(doc["image_height"])
+    except (TypeError, ValueError, OverflowError):
+        w = h = -1.0
+    whole = all(np.isfinite(v) and v == int(v) for v in (w, h))
+    if not whole or not (w == h == 0 or (w > 0 and h > 0 and w * h <= MAX_IMAGE_PIXELS)):
+        raise InputError(f"image_width / image_height {doc['image_width']!r} x "
+                         f"{doc['image_height']!r}: expected two positive integers (a "
+                         f"camera image of at most {MAX_IMAGE_PIXELS / 1e6:.0f} MP; 0 x 0 "
+                         "when unknown)", file=path)
+    return int(w), int(h)
 
 
 def _read_filestorage(path: Path) -> CameraIntrinsics:
@@ -136,10 +152,16 @@ def _read_filestorage(path: Path) -> CameraIntrinsics:
 
     cv2 = require_cv2()
     try:
-        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-    except cv2.error as exc:
-        raise InputError(f"not a readable OpenCV FileStorage file ({' '.join(str(exc).split())})",
+        return _filestorage_mapping(cv2, path)
+    except (cv2.error, SystemError) as exc:  # SystemError: cv2's parser on a broken file
+        reason = " ".join(str(exc).split())[-200:] if isinstance(exc, cv2.error) else \
+            "its parser stopped: broken XML or YAML"
+        raise InputError(f"not a readable OpenCV FileStorage file ({reason})",
                          file=path) from None
+
+
+def _filestorage_mapping(cv2: Any, path: Path) -> CameraIntrinsics:
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     try:
         if not fs.isOpened():
             raise InputError("not a readable OpenCV FileStorage file", file=path)
@@ -171,17 +193,13 @@ def read_intrinsics(path: str | Path) -> CameraIntrinsics:
         Missing file, unknown format, missing camera matrix, bad values, fisheye model.
     """
     path = Path(path)
-    text = read_text(path)
     suffix = path.suffix.lower()
     if suffix == ".json":
-        try:
-            doc = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise InputError(f"not valid JSON at line {exc.lineno}: {exc.msg}",
-                             file=path) from None
+        doc = read_json(path)  # too deep, too long integers refused
         if not isinstance(doc, dict):
             raise InputError("expected a JSON object with camera_matrix", file=path)
         return _from_mapping(doc, path)
+    text = read_text(path)
     head = text.lstrip()[:200]
     if suffix == ".xml" or head.startswith("%YAML:1") or "!!opencv-matrix" in text \
             or head.startswith("<?xml"):

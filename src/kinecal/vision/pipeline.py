@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -40,8 +39,10 @@ from kinecal.vision.detect import QualityLimits, orientation_ambiguous
 from kinecal.vision.intrinsics import CameraIntrinsics
 from kinecal.vision.results import ImageHandEyeResult, ImageRecord
 from kinecal.vision.stages import (
+    as_rows,
     board_poses,
     camera_intrinsics,
+    check_arguments,
     detect_all,
     take_board_pose,
     too_few,
@@ -116,15 +117,13 @@ def calibrate_handeye_images(
     """
     t0 = time.perf_counter()
     limits = limits or QualityLimits()
-    F = np.asarray(flange2base, dtype=float)
+    names = check_arguments(images, names, board, intrinsics)
+    F = as_rows(flange2base, "flange2base")
     if F.ndim != 3 or F.shape[1:] != (4, 4):
         raise InputError(f"flange2base: expected shape (n, 4, 4), got {F.shape}")
     if len(images) != len(F):
         raise InputError(f"{len(images)} images but {len(F)} robot poses: expected one pose "
                          "per image")
-    if names is None:
-        names = [Path(im).name if isinstance(im, str | Path) else f"image_{i}"
-                 for i, im in enumerate(images)]
     with diagnostics.collect() as found:
         if orientation_ambiguous(board):
             warn_symmetric(board)

@@ -18,26 +18,96 @@ from kinecal import diagnostics
 from kinecal.errors import InputError
 from kinecal.vision import require_cv2
 from kinecal.vision.boards import Board
-from kinecal.vision.detect import QualityLimits, detect
-from kinecal.vision.image_files import check_image_size
+from kinecal.vision.detect import QualityLimits, as_gray, detect
+from kinecal.vision.image_files import check_image_file
 from kinecal.vision.intrinsics import CameraIntrinsics, estimate_intrinsics
 from kinecal.vision.pnp import board_pose
 from kinecal.vision.results import ImageRecord
 
-__all__ = ["board_poses", "camera_intrinsics", "cpu_count", "detect_all", "load_gray",
-           "take_board_pose", "too_few"]
+__all__ = ["as_rows", "board_poses", "camera_intrinsics", "check_arguments", "cpu_count",
+           "detect_all", "load_gray", "take_board_pose", "too_few"]
+
+
+def check_arguments(images: Sequence[Any], names: Sequence[str] | None, board: Any,
+                    intrinsics: Any) -> list[str]:
+    """The image names (default: file names or ``image_<i>``), after the argument types and
+    counts of an image pipeline are checked.
+
+    Raises
+    ------
+    TypeError
+        `board` not a `Board`, `intrinsics` neither None nor `CameraIntrinsics`.
+    InputError
+        `names` not one per image.
+    """
+    if not isinstance(board, Board):
+        raise TypeError(f"board: expected a Board (kinecal.vision.boards.parse_board), got "
+                        f"{type(board).__name__}")
+    if intrinsics is not None and not isinstance(intrinsics, CameraIntrinsics):
+        raise TypeError(f"intrinsics: expected CameraIntrinsics (kinecal.vision.intrinsics."
+                        f"read_intrinsics) or None, got {type(intrinsics).__name__}")
+    if names is None:
+        return [Path(im).name if isinstance(im, str | Path) else f"image_{i}"
+                for i, im in enumerate(images)]
+    if len(names) != len(images):
+        raise InputError(f"{len(names)} names for {len(images)} images: expected one name per "
+                         "image", option="names")
+    return [str(n) for n in names]
+
+
+def as_rows(values: Any, what: str) -> NDArray[np.float64]:
+    """`values` as a float array; `InputError` naming `what` when they are not numbers."""
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{what}: expected numbers ({exc})") from None
 
 
 def load_gray(path: str | Path) -> NDArray[np.uint8] | None:
     """8-bit grey image from a file (None when OpenCV cannot read it).
 
     Raises `InputError` for an image too large to be a camera's, judged from its header
-    before decoding (`kinecal.vision.image_files.check_image_size`).
+    before decoding, and for a PNG or JPEG file that ends early
+    (`kinecal.vision.image_files.check_image_file`).
     """
+    check_image_file(path)
+    return _decode(path)
+
+
+def _decode(path: str | Path) -> NDArray[np.uint8] | None:
     cv2 = require_cv2()
-    check_image_size(path)
     img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     return None if img is None else np.asarray(img)
+
+
+def _sizes_before_decoding(images: Sequence[Any]) -> list[tuple[int, int] | str | None]:
+    """Per image: ``(width, height)`` from a file's header or an array's shape, the reason
+    a file is refused unread (too large, truncated), or None (size known once decoded)."""
+    out: list[tuple[int, int] | str | None] = []
+    for im in images:
+        if isinstance(im, str | Path):
+            try:
+                out.append(check_image_file(im))
+            except InputError as exc:
+                out.append(exc.message)
+        else:
+            shape = np.shape(im)
+            out.append((int(shape[1]), int(shape[0])) if len(shape) in (2, 3) else None)
+    return out
+
+
+def _session_size(seen: list[tuple[int, int]], expected: tuple[int, int] | None
+                  ) -> tuple[int, int] | None:
+    """The size of most images (ties: the first's), or `expected` when images have it."""
+    if not seen:
+        return None
+    if expected is not None and tuple(expected) in seen:
+        return tuple(expected)  # type: ignore[return-value]
+    return max(dict.fromkeys(seen), key=seen.count)
+
+
+def _odd_size(z: tuple[int, int], size: tuple[int, int]) -> str:
+    return f"image size {z[0]}x{z[1]} differs from the other images' {size[0]}x{size[1]}"
 
 
 def detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
@@ -47,16 +117,24 @@ def detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
                 ) -> tuple[list[ImageRecord], tuple[int, int] | None]:
     """Detect the board in every readable image; the session's image size is the size of
     most images (ties: the first image's), or `expected` (the intrinsics' size) when images
-    have it, so one odd image, first or not, is the one rejected."""
-    def one(item: tuple[str, Any]) -> tuple[ImageRecord, tuple[int, int] | None]:
-        name, im = item
-        try:
-            gray = load_gray(im) if isinstance(im, str | Path) else np.asarray(im)
-        except InputError as exc:  # too large to decode: rejected from its header
-            return ImageRecord(str(name), "rejected", exc.message), None
+    have it, so one odd image, first or not, is the one rejected. Sizes come from the files'
+    headers first: an odd-sized, too large or truncated file is rejected without decoding
+    it (`kinecal.vision.image_files.check_image_file`)."""
+    pre = _sizes_before_decoding(images)
+    size = _session_size([z for z in pre if isinstance(z, tuple)], expected)
+
+    def one(item: tuple[str, Any, Any]) -> tuple[ImageRecord, tuple[int, int] | None]:
+        name, im, known = item
+        if isinstance(known, str):  # refused from its header
+            return ImageRecord(str(name), "rejected", known), None
+        if known is not None and size is not None and known != size:
+            return ImageRecord(str(name), "rejected", _odd_size(known, size)), known
+        gray = _decode(im) if isinstance(im, str | Path) else as_gray(im)
         if gray is None or gray.size == 0:
             return ImageRecord(str(name), "rejected", "cannot read the image file"), None
         h, w = gray.shape[:2]
+        if size is not None and (w, h) != size:
+            return ImageRecord(str(name), "rejected", _odd_size((w, h), size)), (w, h)
         det = detect(gray, board, limits)
         record = ImageRecord(str(name), "used" if det.ok else "rejected", det.reason, det)
         if pose_of is not None and det.ok:
@@ -68,27 +146,21 @@ def detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
     # images in parallel: OpenCV's detectors, blurs and numpy's large-array work release
     # the GIL; results come back in input order
     workers = min(len(images), cpu_count())
+    items = zip(names, images, pre, strict=True)
     with ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
-        done = pool.map(one, zip(names, images, strict=True)) if workers > 1 else \
-            map(one, zip(names, images, strict=True))
-        for record, size in done:
+        done = pool.map(one, items) if workers > 1 else map(one, items)
+        for record, z in done:
             records.append(record)
-            sizes.append(size)
+            sizes.append(z)
             if progress is not None:
                 progress()
-    seen = [z for z in sizes if z is not None]
-    if not seen:
-        return records, None
-    if expected is not None and tuple(expected) in seen:
-        size = tuple(expected)
-    else:
-        size = max(dict.fromkeys(seen), key=seen.count)  # most frequent, first on ties
-    for r, z in zip(records, sizes, strict=True):
-        if z is not None and z != size:
-            r.status, r.detection, r.pose = "rejected", None, None
-            r.reason = (f"image size {z[0]}x{z[1]} differs from the other images' "
-                        f"{size[0]}x{size[1]}")
-    return records, size  # type: ignore[return-value]
+    if size is None:  # no size known before decoding: the decoded images decide
+        size = _session_size([z for z in sizes if z is not None], expected)
+        for r, z in zip(records, sizes, strict=True):
+            if z is not None and size is not None and z != size:
+                r.status, r.detection, r.pose = "rejected", None, None
+                r.reason = _odd_size(z, size)
+    return records, size
 
 
 def cpu_count() -> int:

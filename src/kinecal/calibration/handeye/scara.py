@@ -58,7 +58,7 @@ from kinecal.spatial import invert_transform, matrix_from_quaternion
 
 Array = NDArray[np.float64]
 
-__all__ = ["ONE_AXIS_DEG", "AxisHeight", "OneAxis", "constrained_uncertainty",
+__all__ = ["MAX_LENGTH", "ONE_AXIS_DEG", "AxisHeight", "OneAxis", "constrained_uncertainty",
            "detect_one_axis", "solve_one_axis", "ulrich_steger"]
 
 #: robot rotation axes within this angle of one another (deg) count as one axis: the
@@ -66,6 +66,9 @@ __all__ = ["ONE_AXIS_DEG", "AxisHeight", "OneAxis", "constrained_uncertainty",
 ONE_AXIS_DEG = 0.05
 #: a board plane closer than this to parallel with the axis cannot fix the height (deg)
 MIN_CONTACT_DEG = 10.0
+#: largest |camera_height| and board_contact coordinate (length unit): 1e9 mm is 1000 km;
+#: beyond, the heights overflow the solution (1e308 ended in a LinAlgError)
+MAX_LENGTH = 1e9
 
 
 @dataclass
@@ -137,15 +140,19 @@ class AxisHeight:
                              option="camera_height")
         if camera_height is not None:
             h = float(camera_height)
-            if not np.isfinite(h):
-                raise InputError(f"camera_height {camera_height!r}: expected a finite length",
-                                 option="camera_height")
+            if not abs(h) <= MAX_LENGTH:
+                raise InputError(f"camera_height {camera_height!r}: expected a finite length "
+                                 f"within +-{MAX_LENGTH:g}", option="camera_height")
             return cls(camera_height=h)
         if board_contact is not None:
-            P = np.asarray(board_contact, dtype=float).reshape(-1)
-            if P.shape != (3,) or not np.all(np.isfinite(P)):
+            try:
+                P = np.asarray(board_contact, dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                P = np.zeros(0)
+            if P.shape != (3,) or not np.all(np.abs(P) <= MAX_LENGTH):
                 raise InputError(f"board_contact {board_contact!r}: expected three finite "
-                                 "coordinates x, y, z", option="board_contact")
+                                 f"coordinates x, y, z within +-{MAX_LENGTH:g}",
+                                 option="board_contact")
             return cls(board_contact=P)
         return cls()
 
