@@ -12,7 +12,7 @@ from kinecal.calibration.blocks.analysis import StackAnalysis
 from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.blocks.tracker import TrackerBlock
-from kinecal.calibration.diagnostics._common import plural
+from kinecal.calibration.diagnostics._common import plural, repeat_groups
 from kinecal.calibration.diagnostics.kinds import check_block_noise, check_initial_error
 from kinecal.calibration.diagnostics.serial import MIN_EQUATION_RATIO, reference
 from kinecal.calibration.diagnostics.units import (
@@ -43,6 +43,7 @@ def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, 
         check_joint_limits(model, b.q, what)
         warned = check_joint_units(model, b.q, what)
         if isinstance(b, TrackerBlock):
+            _check_repeats(b)
             check_frame_and_units(model, b.data, ref, base_free, what, warned)
             continue
         b.check_data(model, p0, v)
@@ -59,6 +60,19 @@ def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, 
         warn("few-poses", f"{m} equations for {n} unknowns (fewer than {MIN_EQUATION_RATIO} "
              "per unknown): the fit can absorb noise and its uncertainty is unreliable; "
              "measure more rows")
+
+
+def _check_repeats(block: TrackerBlock) -> None:
+    """``duplicate-poses`` for a tracker file in a mix (alone, the tracker path's own check
+    warns or refuses)."""
+    n = len(block.q)
+    marker = np.zeros((n, 1)) if block.marker is None else np.asarray(block.marker)[:, None]
+    _, distinct = repeat_groups(np.asarray(block.q, dtype=float), marker)
+    if distinct < n:
+        warn("duplicate-poses",
+             f"{block.name}: {n - distinct} of {n} rows repeat the joint readings of another "
+             f"row ({distinct} distinct): repeated rows add no geometry, and the noise and "
+             "standard errors assume independent readings; measure distinct poses")
 
 
 def check_fits(model: SerialModel, problem: StackedProblem, x: np.ndarray, residuals,

@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.blocks.base import ResidualBlock, group_rows
+from kinecal.calibration.diagnostics._common import repeat_groups
 from kinecal.calibration.diagnostics.kinds import check_group_spread
 from kinecal.data import GaugeMeasurements
 from kinecal.diagnostics import warn
@@ -66,10 +67,12 @@ class GaugeBlock(ResidualBlock):
     def _check_groups(self) -> None:
         """Refuse a group with fewer distinct arm configurations than it needs (a row
         repeated 1000 times is one touch); warn ``duplicate-poses`` on repeated rows."""
-        key = self.q if self.marker is None else np.column_stack([self.q, self.marker])
+        key = np.asarray(self.q, dtype=float)
+        if self.marker is not None:
+            key = np.column_stack([key, self.marker])
         repeats = 0
         for name, rows in zip(self.data.group_names, self.groups, strict=True):
-            distinct = len(np.unique(key[rows], axis=0)) if rows.size > 1 else rows.size
+            distinct = repeat_groups(key[rows])[1]
             repeats += rows.size - distinct
             if 0 < distinct < self.min_rows:
                 where = "" if rows.size == 1 else f" ({_rows_text(rows)})"
