@@ -1,0 +1,156 @@
+"""Wave 3 hostile sweep of the measurement kinds, ``kinecal iso9283`` and ``load_result``
+(branch f-kinds): each test pins a case that misbehaved before its fix.
+
+The contract (tests/cli/test_hostile_issue28.py): exit 2 with one line naming the file and
+the reason, and nothing written; or exit 0 with a ``kinecal: warning: ... [CODE]`` line on
+implausible input; clean input stays silent.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from kinecal import diagnostics
+from kinecal.calibration.diagnostics.fit import check_unidentifiable_free
+from kinecal.cli import main
+
+_WARNING = re.compile(r"^kinecal: warning: .+ \[([a-z-]+)\]$")
+
+ISO = """pose,cycle,x,y,z,cx,cy,cz
+P1,1,600.061,-200.018,400.022,600,-200,400
+P2,1,500.047,0.012,300.031,500,0,300
+P3,1,400.052,200.020,500.019,400,200,500
+P1,2,600.048,-200.025,400.030,,,
+P2,2,500.055,0.020,300.024,,,
+P3,2,400.041,200.011,500.027,,,
+P1,3,600.057,-200.014,400.017,,,
+P2,3,500.050,0.008,300.036,,,
+P3,3,400.049,200.026,500.012,,,
+"""
+
+
+def run(argv: list, capsys) -> tuple[int, str, list[str], list[str]]:
+    """Exit status, stdout, warning codes and error lines (nothing else on stderr)."""
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    lines = [line for line in err.splitlines() if line.strip()]
+    codes = [m.group(1) for m in map(_WARNING.match, lines) if m]
+    errors = [line for line in lines if line.startswith("kinecal: error: ")]
+    progress = [line for line in lines if line.startswith("wrote ")]
+    assert len(codes) + len(errors) + len(progress) == len(lines), err
+    return code, out, codes, errors
+
+
+@pytest.fixture(scope="module")
+def kinds(tmp_path_factory) -> Path:
+    """A ballbar (2 pivots x 12 rows), sockets (4 x 6 touches) and tracker file of one
+    perturbed IRB-120."""
+    d = tmp_path_factory.mktemp("f-kinds")
+    sim = ["simulate", "irb120", "--noise", "0.002", "--quiet"]
+    assert main([*sim, "--kind", "ballbar", "--poses", "12", "--seed", "1", "--out",
+                 str(d / "ballbar.csv"), "--truth-out", str(d / "truth.json")]) == 0
+    assert main([*sim, "--kind", "point", "--poses", "6", "--errors", str(d / "truth.json"),
+                 "--seed", "2", "--out", str(d / "sockets.csv")]) == 0
+    assert main([*sim, "--poses", "20", "--errors", str(d / "truth.json"), "--seed", "3",
+                 "--out", str(d / "tracker.csv")]) == 0
+    return d
+
+
+def _lines(path: Path) -> list[str]:
+    return path.read_text(encoding="utf-8").strip().splitlines()
+
+
+def _copy_first_row(src: Path, dst: Path, n: int) -> Path:
+    head, first = _lines(src)[:2]
+    dst.write_text(head + "\n" + (first + "\n") * n, encoding="utf-8")
+    return dst
+
+
+@pytest.mark.parametrize("kind", ["sockets", "ballbar"])
+def test_one_touch_repeated_is_one_touch(kind, kinds, tmp_path, capsys):
+    """1000 copies of one row gave a point (or a pivot) 1000 'touches': a point was solved
+    from one arm configuration, silently (1e5 copies ran for minutes)."""
+    bad = _copy_first_row(kinds / f"{kind}.csv", tmp_path / "copies.csv", 1000)
+    out = tmp_path / "result.json"
+    code, _, _, errors = run(["calibrate", "irb120", kinds / "ballbar.csv", bad, "--out", out,
+                              "--quiet"], capsys)
+    assert code == 2 and not out.exists()
+    assert len(errors) == 1 and "copies.csv" in errors[0]
+    assert "1000 rows" in errors[0] and "1 distinct arm configuration" in errors[0]
+
+
+def test_pair_of_one_configuration_refused(kinds, tmp_path, capsys):
+    """A bar 'measured' with both ends in one arm configuration (a copied row)."""
+    rows = _lines(kinds / "ballbar.csv")[1:]
+    q = [",".join(r.split(",")[:6]) for r in rows]
+    text = "q1,q2,q3,q4,q5,q6,pair,distance\n" + "".join(
+        f"{q[k]},{k // 2},150\n{q[k] if k % 4 else q[k + 1]},{k // 2},150\n"
+        for k in range(0, 20, 2))
+    (tmp_path / "pairs.csv").write_text(text, encoding="utf-8")
+    code, _, _, errors = run(["calibrate", "irb120", kinds / "ballbar.csv",
+                              tmp_path / "pairs.csv", "--quiet"], capsys)
+    assert code == 2 and len(errors) == 1
+    assert "pairs.csv" in errors[0] and "pair '1' has 2 rows" in errors[0]
+    assert "distinct" in errors[0]
+
+
+def test_repeated_rows_of_a_gauge_or_tracker_warn(kinds, tmp_path, capsys):
+    """Repeated rows in a mix were silent (the tracker path alone warns duplicate-poses)."""
+    lines = _lines(kinds / "sockets.csv")
+    (tmp_path / "sockets.csv").write_text("\n".join(lines + lines[1:4]) + "\n",
+                                          encoding="utf-8")
+    code, _, codes, _ = run(["calibrate", "irb120", kinds / "ballbar.csv",
+                             tmp_path / "sockets.csv", "--quiet"], capsys)
+    assert code == 0 and "duplicate-poses" in codes
+    track = _copy_first_row(kinds / "tracker.csv", tmp_path / "tracker.csv", 20)
+    code, _, codes, _ = run(["calibrate", "irb120", kinds / "ballbar.csv", track, "--quiet"],
+                            capsys)
+    assert code == 0 and "duplicate-poses" in codes
+    code, _, codes, _ = run(["calibrate", "irb120", kinds / "ballbar.csv",
+                             kinds / "sockets.csv", kinds / "tracker.csv", "--quiet"], capsys)
+    assert code == 0 and codes == []  # clean files stay silent
+
+
+def test_iso9283_huge_commanded_cell_refused_before_the_report(tmp_path, capsys):
+    """cz = 1e308 overflowed AP to inf and the report's figure failed (exit 1)."""
+    (tmp_path / "iso.csv").write_text(ISO.replace("400,200,500", "400,200,1e308"),
+                                      encoding="utf-8")
+    report = tmp_path / "r.html"
+    code, _, _, errors = run(["iso9283", tmp_path / "iso.csv", "--report", report], capsys)
+    assert code == 2 and not report.exists()
+    assert "iso.csv, row 3: column cz" in errors[0] and "1e308" in errors[0]
+
+
+@pytest.mark.parametrize(("edit", "expected"), [
+    (lambda t: t.replace("400,200,500", "400,200,-0"), ["far-from-commanded"]),
+    # a 400 mm typo in one of 3 cycles moves the barycentre 133 mm as well
+    (lambda t: t.replace("P3,2,400.041", "P3,2,0.041"), ["far-from-commanded", "cycle-scatter"]),
+    (lambda t: "\n".join(",".join(c if i < 2 or not c else repr(float(c) / 1000)
+                                  for i, c in enumerate(line.split(",")))
+                         if k else line for k, line in enumerate(t.splitlines())),
+     ["scale-mismatch"]),
+])
+def test_iso9283_implausible_test_warns(edit, expected, tmp_path, capsys):
+    """A commanded typo (AP 500 mm on RP 0.02 mm), a measured typo in one cycle and a file
+    in metres read as millimetres gave figures without a word."""
+    (tmp_path / "iso.csv").write_text(edit(ISO), encoding="utf-8")
+    status, out, codes, _ = run(["iso9283", tmp_path / "iso.csv"], capsys)
+    assert status == 0 and codes == expected and "ISO 9283" in out
+    status, _, _, errors = run(["iso9283", tmp_path / "iso.csv", "--strict"], capsys)
+    assert status == 2 and errors
+    (tmp_path / "clean.csv").write_text(ISO, encoding="utf-8")
+    assert run(["iso9283", tmp_path / "clean.csv"], capsys)[2] == []
+
+
+def test_unidentifiable_after_identifiable_does_not_blame_a_free_list():
+    """free="identifiable" whose fit went far from nominal said 'the explicit free list
+    frees ...; use --free identifiable' (what the user had done)."""
+    with diagnostics.collect() as found:
+        check_unidentifiable_free(["d4", "a2"], "identifiable")
+        check_unidentifiable_free(["d4"], ["d4", "a2"])
+    first, second = (d.message for d in found)
+    assert "identifiable at the nominal geometry" in first and "free list" not in first
+    assert "the explicit free list" in second
