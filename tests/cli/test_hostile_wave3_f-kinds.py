@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+import kinecal
 from kinecal import diagnostics
 from kinecal.calibration.diagnostics.fit import check_unidentifiable_free
 from kinecal.cli import main
@@ -46,13 +47,13 @@ def run(argv: list, capsys) -> tuple[int, str, list[str], list[str]]:
 
 @pytest.fixture(scope="module")
 def kinds(tmp_path_factory) -> Path:
-    """A ballbar (2 pivots x 12 rows), sockets (4 x 6 touches) and tracker file of one
+    """A ballbar (2 pivots x 20 rows), sockets (4 x 8 touches) and tracker file of one
     perturbed IRB-120."""
     d = tmp_path_factory.mktemp("f-kinds")
     sim = ["simulate", "irb120", "--noise", "0.002", "--quiet"]
-    assert main([*sim, "--kind", "ballbar", "--poses", "12", "--seed", "1", "--out",
+    assert main([*sim, "--kind", "ballbar", "--poses", "20", "--seed", "1", "--out",
                  str(d / "ballbar.csv"), "--truth-out", str(d / "truth.json")]) == 0
-    assert main([*sim, "--kind", "point", "--poses", "6", "--errors", str(d / "truth.json"),
+    assert main([*sim, "--kind", "point", "--poses", "8", "--errors", str(d / "truth.json"),
                  "--seed", "2", "--out", str(d / "sockets.csv")]) == 0
     assert main([*sim, "--poses", "20", "--errors", str(d / "truth.json"), "--seed", "3",
                  "--out", str(d / "tracker.csv")]) == 0
@@ -154,3 +155,33 @@ def test_unidentifiable_after_identifiable_does_not_blame_a_free_list():
     first, second = (d.message for d in found)
     assert "identifiable at the nominal geometry" in first and "free list" not in first
     assert "the explicit free list" in second
+
+
+def test_stated_noise_below_double_resolution_refused(kinds, tmp_path, capsys):
+    """--sigma 1e-300 ended in a ZeroDivisionError (one tracker file) or an SVD failure (a
+    mix), exit 1; so did a sigma column of 1e-300."""
+    out = tmp_path / "result.json"
+    for files in ([kinds / "tracker.csv"], [kinds / "ballbar.csv", kinds / "sockets.csv"]):
+        code, _, _, errors = run(["calibrate", "irb120", *files, "--sigma", "1e-300",
+                                  "--out", out, "--quiet"], capsys)
+        assert code == 2 and not out.exists()
+        assert errors[0].startswith("kinecal: error: option --sigma: a stated noise of 1e-300")
+    lines = _lines(kinds / "sockets.csv")
+    (tmp_path / "sig.csv").write_text("\n".join([lines[0] + ",sigma"] + [
+        row + (",1e-300" if k == 3 else ",0.01") for k, row in enumerate(lines[1:])]) + "\n",
+        encoding="utf-8")
+    code, _, _, errors = run(["calibrate", "irb120", kinds / "ballbar.csv", tmp_path / "sig.csv",
+                              "--quiet"], capsys)
+    assert code == 2 and "sig.csv: column sigma: a stated noise of 1e-300" in errors[0]
+    with pytest.raises(kinecal.InputError, match="below the resolution"):
+        kinecal.calibrate("irb120", [kinds / "ballbar.csv", kinds / "sockets.csv"],
+                          sigma=[1e-300, None])
+
+
+def test_pessimistic_stated_noise_of_a_gauge_warns(kinds, capsys):
+    """--sigma 100 (mm, on 2 um readings) was silent in a mix; one tracker file warns."""
+    argv = ["calibrate", "irb120", kinds / "ballbar.csv", kinds / "sockets.csv", "--quiet"]
+    code, _, codes, _ = run([*argv, "--sigma", "100"], capsys)
+    assert code == 0 and codes == ["residual-below-noise", "residual-below-noise"]
+    code, _, codes, _ = run([*argv, "--sigma", "0.002,0.002"], capsys)  # the truth
+    assert code == 0 and codes == []
