@@ -185,3 +185,17 @@ def test_pessimistic_stated_noise_of_a_gauge_warns(kinds, capsys):
     assert code == 0 and codes == ["residual-below-noise", "residual-below-noise"]
     code, _, codes, _ = run([*argv, "--sigma", "0.002,0.002"], capsys)  # the truth
     assert code == 0 and codes == []
+
+
+@pytest.mark.parametrize("argv", [
+    ["simulate", "irb120", "--kind", "point", "--poses", "10", "--groups", "1000000",
+     "--out", "{d}/o.csv"],
+    ["simulate", "irb120", "--kind", "pair", "--poses", "10001", "--out", "{d}/o.csv"],
+    ["select-poses", "irb120", "--kind", "ballbar", "--count", "20", "--candidates",
+     "1000000", "--out", "{d}/o.csv"],
+])
+def test_gauge_simulation_size_refused_up_front(argv, tmp_path, capsys):
+    """--groups 1000000 (10 million inverse kinematics solves) ran for hours."""
+    code, _, _, errors = run([a.format(d=tmp_path) for a in argv], capsys)
+    assert code == 2 and not (tmp_path / "o.csv").exists()
+    assert "rows asked for" in errors[0] and "expected at most 20000" in errors[0]

@@ -79,7 +79,7 @@ def select_kind_poses(model: SerialModel, kind: str, count: int, *, candidates: 
         ``identifiable`` (names), ``rank``, ``not_seen`` and ``O1``..``O5`` of the plan.
     """
     gen = np.random.default_rng(rng)
-    sim = simulate_kind(model, kind, candidates, rng=gen, **geometry)
+    sim = simulate_kind(model, kind, candidates, rng=gen, option="--candidates", **geometry)
     data = sim.data
     block = make_blocks(model, [data])[0]
     p0 = model.nominal
