@@ -199,3 +199,16 @@ def test_gauge_simulation_size_refused_up_front(argv, tmp_path, capsys):
     code, _, _, errors = run([a.format(d=tmp_path) for a in argv], capsys)
     assert code == 2 and not (tmp_path / "o.csv").exists()
     assert "rows asked for" in errors[0] and "expected at most 20000" in errors[0]
+
+
+def test_validation_file_of_another_robot_warns(kinds, tmp_path, capsys):
+    """A UR5 tracker file as --validate of an IRB-120 mix gave its before/after figures
+    without a word (validation sets of the stacked path had no checks)."""
+    ur5 = tmp_path / "ur5.csv"
+    assert main(["simulate", "ur5", "--poses", "20", "--seed", "4", "--out", str(ur5),
+                 "--quiet"]) == 0
+    argv = ["calibrate", "irb120", kinds / "ballbar.csv", kinds / "sockets.csv", "--quiet"]
+    code, _, codes, _ = run([*argv, "--validate", ur5], capsys)
+    assert code == 0 and "initial-error" in codes
+    code, _, codes, _ = run([*argv, "--validate", kinds / "tracker.csv"], capsys)
+    assert code == 0 and codes == []

@@ -25,7 +25,7 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.chain import BASE_NAMES
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["check_blocks", "check_fits"]
+__all__ = ["check_block_data", "check_blocks", "check_fits"]
 
 
 def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, before,
@@ -35,21 +35,7 @@ def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, 
     from kinecal.calibration.diagnostics.sizes import check_tolerances
 
     check_tolerances(model)
-    ref = reference(model, analysis.report.names)
-    base_free = set(BASE_NAMES) <= set(model.calibratable)
-    p0 = model.nominal
-    for b, v, e in zip(blocks, nuisance, before, strict=True):
-        what = b.name
-        check_joint_limits(model, b.q, what)
-        warned = check_joint_units(model, b.q, what)
-        if isinstance(b, TrackerBlock):
-            _check_repeats(b)
-            check_frame_and_units(model, b.data, ref, base_free, what, warned)
-            continue
-        b.check_data(model, p0, v)
-        if b.unit == "length" and e.size and not warned:
-            check_initial_error(b.name, float(np.sqrt(np.mean(e**2))), ref.reach,
-                                ref.tolerance_error, model.length_unit)
+    check_block_data(model, blocks, nuisance, before, analysis.report.names)
     m = sum(b.n_rows for b in blocks)
     n = len(names) + sum(b.n_nuisance for b in blocks)
     if m <= n:
@@ -60,6 +46,28 @@ def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, 
         warn("few-poses", f"{m} equations for {n} unknowns (fewer than {MIN_EQUATION_RATIO} "
              "per unknown): the fit can absorb noise and its uncertainty is unreliable; "
              "measure more rows")
+
+
+def check_block_data(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, before,
+                     names: Sequence[str], what: str = "") -> None:
+    """Each set's own checks at the nominal geometry (joints, units, repeats, its gauges,
+    its distance from the nominal model): of the calibration sets, and of the validation
+    sets (`what` = ``"validation "``) of any kind."""
+    ref = reference(model, names)
+    base_free = set(BASE_NAMES) <= set(model.calibratable)
+    p0 = model.nominal
+    for b, v, e in zip(blocks, nuisance, before, strict=True):
+        name = what + b.name
+        check_joint_limits(model, b.q, name)
+        warned = check_joint_units(model, b.q, name)
+        if isinstance(b, TrackerBlock):
+            _check_repeats(b)
+            check_frame_and_units(model, b.data, ref, base_free, name, warned)
+            continue
+        b.check_data(model, p0, v)
+        if b.unit == "length" and e.size and not warned:
+            check_initial_error(name, float(np.sqrt(np.mean(e**2))), ref.reach,
+                                ref.tolerance_error, model.length_unit)
 
 
 def _check_repeats(block: TrackerBlock) -> None:
