@@ -212,3 +212,24 @@ def test_validation_file_of_another_robot_warns(kinds, tmp_path, capsys):
     assert code == 0 and "initial-error" in codes
     code, _, codes, _ = run([*argv, "--validate", kinds / "tracker.csv"], capsys)
     assert code == 0 and codes == []
+
+
+def test_one_file_twice_warns_in_calibrate_and_identifiability(kinds, tmp_path, capsys):
+    """The same sockets twice (or a copy) counted twice, silently; identifiability of a mix
+    ran no file checks at all (a UR5 file in an IRB-120 plan was silent)."""
+    copy = tmp_path / "copy.csv"
+    copy.write_bytes((kinds / "sockets.csv").read_bytes())
+    code, _, codes, _ = run(["calibrate", "irb120", kinds / "ballbar.csv",
+                             kinds / "sockets.csv", copy, "--quiet"], capsys)
+    assert code == 0 and codes == ["duplicate-poses"]
+    code, _, codes, _ = run(["identifiability", "irb120", "--data", kinds / "sockets.csv",
+                             "--data", kinds / "sockets.csv", "--json"], capsys)
+    assert code == 0 and codes == ["duplicate-poses"]
+    ur5 = tmp_path / "ur5.csv"
+    assert main(["simulate", "ur5", "--poses", "20", "--out", str(ur5), "--quiet"]) == 0
+    code, _, codes, _ = run(["identifiability", "irb120", "--data", kinds / "ballbar.csv",
+                             "--data", ur5], capsys)
+    assert code == 0 and "initial-error" in codes
+    code, _, codes, _ = run(["identifiability", "irb120", "--data", kinds / "ballbar.csv",
+                             "--data", kinds / "sockets.csv"], capsys)
+    assert code == 0 and codes == []

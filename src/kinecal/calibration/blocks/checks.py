@@ -56,6 +56,7 @@ def check_block_data(model: SerialModel, blocks: Sequence[ResidualBlock], nuisan
     ref = reference(model, names)
     base_free = set(BASE_NAMES) <= set(model.calibratable)
     p0 = model.nominal
+    _check_same_sets(blocks, what)
     for b, v, e in zip(blocks, nuisance, before, strict=True):
         name = what + b.name
         check_joint_limits(model, b.q, name)
@@ -68,6 +69,19 @@ def check_block_data(model: SerialModel, blocks: Sequence[ResidualBlock], nuisan
         if b.unit == "length" and e.size and not warned:
             check_initial_error(name, float(np.sqrt(np.mean(e**2))), ref.reach,
                                 ref.tolerance_error, model.length_unit)
+
+
+def _check_same_sets(blocks: Sequence[ResidualBlock], what: str) -> None:
+    """``duplicate-poses`` for two sets of one kind with the same joint readings (one file
+    given twice, or a copy of it): its rows would count twice."""
+    for i, a in enumerate(blocks):
+        twin = next((b for b in blocks[:i] if b.kind == a.kind
+                     and np.shape(b.q) == np.shape(a.q) and np.array_equal(b.q, a.q)), None)
+        if twin is not None:
+            warn("duplicate-poses",
+                 f"{what}{a.name} repeats the joint readings of {twin.name} row for row: "
+                 "one measurement given twice counts twice (its noise and standard errors "
+                 "shrink by sqrt(2)); give each file once")
 
 
 def _check_repeats(block: TrackerBlock) -> None:
