@@ -5,6 +5,8 @@ import os
 import subprocess
 import sys
 
+import numpy as np
+
 HEAVY = ("scipy", "matplotlib", "pydantic", "rich", "yaml", "pandas")
 
 
@@ -62,3 +64,42 @@ def test_one_command_loads_its_module_alone():
                             "    assert main(['reproduce', 'no-such-paper']) == 2\n"
                             "assert 'no-such-paper' in err.getvalue(), err.getvalue()")
     assert "kinecal.cli.reproduce" in loaded and "kinecal.cli.fk" not in loaded
+
+
+#: imported on first use only: a command that never solves or tests a distribution skips them
+LATE_SCIPY = ("scipy.optimize", "scipy.special", "scipy.spatial", "scipy.sparse")
+
+
+def test_one_pose_fk_loads_no_solver_or_distribution(tmp_path):
+    """``kinecal fk`` of one pose (scripts call it per target): no scipy.optimize (its
+    import costs more than the command's work) nor scipy.special."""
+    q = tmp_path / "q.csv"
+    q.write_text("q1,q2,q3,q4,q5,q6\n0,10,20,30,40,50\n")
+    loaded = _modules_after("import io, contextlib\nfrom kinecal.cli import main\n"
+                            "with contextlib.redirect_stdout(io.StringIO()):\n"
+                            f"    assert main(['fk', 'ur5', {str(q)!r}]) == 0")
+    assert "kinecal.kinematics.serial.model" in loaded
+    assert not loaded & set(LATE_SCIPY), sorted(loaded & set(LATE_SCIPY))
+
+
+def test_handeye_images_loads_no_solver_or_distribution(tmp_path):
+    """A clean hand-eye recording runs its bundle adjustment on kinecal's LM core
+    (`kinecal.optimize.lm`), never building a scipy OptimizeResult, and judges no outlier
+    station with a chi-square quantile (the robust bounds flag none): the command then
+    starts like a plain OpenCV script plus kinecal's own modules."""
+    from kinecal.vision.boards import parse_board
+    from kinecal.vision.render import ImageConditions, render_handeye_scene, write_scene
+
+    K = [[700.0, 0.0, 239.5], [0.0, 700.0, 179.5], [0.0, 0.0, 1.0]]
+    board = parse_board("chessboard:9x6:20")
+    sc = render_handeye_scene(board, np.array(K), np.zeros(5), (480, 360), 6,
+                              conditions=ImageConditions(blur=0.7, noise=2.0), seed=5)
+    folder = write_scene(sc, tmp_path / "scene")
+    argv = ["handeye-images", str(folder / "images"), str(folder / "robot_poses.csv"),
+            "--board", "chessboard:9x6:20", "--intrinsics", str(folder / "camera.yaml"),
+            "--out", str(tmp_path / "x.json"), "--quiet"]
+    loaded = _modules_after("import io, contextlib\nfrom kinecal.cli import main\n"
+                            "with contextlib.redirect_stdout(io.StringIO()):\n"
+                            f"    assert main({argv!r}) == 0")
+    assert "kinecal.calibration.handeye.images" in loaded and (tmp_path / "x.json").exists()
+    assert not loaded & set(LATE_SCIPY), sorted(loaded & set(LATE_SCIPY))

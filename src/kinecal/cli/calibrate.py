@@ -228,7 +228,8 @@ def calibrate(
             target=target, out=out, model_out=model_out, report=report, json_out=json_out,
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
-                           "--folds": folds}, record=(instrument, operator, note))
+                           "--folds": folds}, record=(instrument, operator, note),
+            unit=shown)
     data, validate = data[0], (validate[0] if validate else None)
     sigma = parse_sigma(sigma, [data])[0]
     check_paths({"MODEL": model, "DATA": data, "--validate": validate},

@@ -88,9 +88,10 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                     out: Path | None, model_out: Path | None, report: Path | None,
                     json_out: bool, quiet: bool, strict: bool, rotation_weight,
                     sigma: list[str] | None, extra_options: dict[str, Any],
-                    record: tuple = (None, None, None)) -> None:
+                    record: tuple = (None, None, None), unit: str | None = None) -> None:
     """``kinecal calibrate MODEL A.csv B.csv ...`` (several files or another kind);
-    `record`: ``--instrument``, ``--operator``, ``--note`` of the report."""
+    `record`: ``--instrument``, ``--operator``, ``--note`` of the report; `unit`: the
+    summary's length unit (None: the model's)."""
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.method_options import check_method_options
     from kinecal.calibration.serial.api import calibrate
@@ -136,7 +137,7 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
     if json_out:
         echo_json(result)
     elif not quiet:
-        typer.echo(res.summary())
+        typer.echo(res.summary(unit))
 
 
 def identifiability_files(model: str, files: list[str], *, base_link, tip_link, free,

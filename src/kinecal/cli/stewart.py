@@ -36,6 +36,7 @@ from kinecal.cli._options import (
     strict_option,
     unit_option,
 )
+from kinecal.diagnostics import expect
 from kinecal.errors import InputError
 
 #: peak memory of ``stewart simulate`` per pose: measured 2.6 kB (rejection sampling of
@@ -105,16 +106,19 @@ def ik(
     geometry: str = typer.Argument(..., help="Bundled geometry name or YAML path."),
     poses: str = typer.Argument(..., help="CSV with x,y,z,alpha,beta,gamma (deg)."),
     check_range: bool = typer.Option(
-        True, "--check-range/--no-check-range", help="Reject poses whose legs leave the range."
-    ),
+        True, "--check-range/--no-check-range",
+        help="Reject poses whose legs leave the range by more than 1 % of the stroke "
+        "(closer: warning leg-range)."),
+    strict: bool = strict_option(),
 ) -> None:
     """Inverse kinematics: leg readings l1..l6 on stdout (Liu, Liu, Wei 2008, eqs 4-5)."""
     geom = _geometry(geometry)
     x = _poses_rad(_read(poses, POSE_COLUMNS, "POSES"))
     legs = geom.inverse(x)
-    if check_range:  # the row of the first pose whose legs leave the range
-        geom.check_legs(legs, file=poses)
-    _write_columns(list(LEG_COLUMNS), list(legs.T))
+    with warnings_scope(strict):
+        if check_range:  # the row of the first pose whose legs leave the range
+            geom.check_legs(legs, file=poses)
+        _write_columns(list(LEG_COLUMNS), list(legs.T))
 
 
 @stewart_app.command("fk")
@@ -126,6 +130,7 @@ def fk(
     all_modes: bool = typer.Option(False, "--all", help="Every real assembly mode, one row each."),
     seed: int = seed_option("Random seed (pso, --all; an integer >= 0)."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON instead of CSV."),
+    strict: bool = strict_option(),
 ) -> None:
     """Forward kinematics: probe poses x,y,z,alpha,beta,gamma (deg) from leg readings."""
     if method not in ("newton", "pso"):
@@ -135,12 +140,21 @@ def fk(
                          f"take --method {method}", option="--method")
     geom = _geometry(geometry)
     path = str(resolve_data_path(legs, "LEGS"))
-    L = geom.check_legs(_read(legs, LEG_COLUMNS, "LEGS"), file=path)
+    L = _read(legs, LEG_COLUMNS, "LEGS")
+    with warnings_scope(strict) as found:
+        L = geom.check_legs(L, file=path)
+        with expect("leg-range"):  # judged once above, not again per solve
+            if all_modes:
+                _fk_all(geom, L, path, seed, json_out, found)
+            else:
+                _fk_solve(geom, L, path, method, seed, json_out, found)
+
+
+def _fk_solve(geom, L: np.ndarray, path: str, method: str, seed: int, json_out: bool,
+              found: list) -> None:
+    """`stewart fk` after its checks: Newton in blocks (CSV) or one call (PSO, JSON)."""
     from kinecal.kinematics.stewart.platform import radians_to_degrees
 
-    if all_modes:
-        _fk_all(geom, L, path, seed, json_out)
-        return
     if method == "newton" and not json_out:
         _fk_blocks(geom, L, path)
         return
@@ -162,7 +176,8 @@ def fk(
              "iterations": int(k)}
             for d, c, r, k in zip(deg, res.converged, res.residual, res.iterations, strict=True)
         ]  # fmt: skip
-        echo_json({"method": method, "elapsed": res.elapsed, "poses": rows})
+        echo_json(with_warnings({"method": method, "elapsed": res.elapsed, "poses": rows},
+                                found))
         return
     _write_columns([*POSE_COLUMNS, "converged", "residual"],
                    [*deg.T, np.where(res.converged, "true", "false").tolist(), res.residual])
@@ -175,6 +190,7 @@ def _fk_blocks(geom, L: np.ndarray, path: str) -> None:
     approaches the API's. The whole CSV is written only once every row has converged (a
     row without a real solution is an input error; nothing is half-written). The tolerance
     is the one a single call takes over all rows."""
+    import contextvars
     from concurrent.futures import ThreadPoolExecutor
 
     from kinecal.kinematics.stewart.forward import default_tol
@@ -187,11 +203,13 @@ def _fk_blocks(geom, L: np.ndarray, path: str) -> None:
         return geom.forward(L[b], on_failure="flag", options={"tol": tol})
 
     text = []
+    ctx = contextvars.copy_context()  # the worker sees the command's diagnostics scope
     with ThreadPoolExecutor(max_workers=1) as pool:
-        pending = pool.submit(solve, blocks[0]) if blocks else None
+        pending = pool.submit(ctx.run, solve, blocks[0]) if blocks else None
         for k, b in enumerate(blocks):
             res = pending.result()
-            pending = pool.submit(solve, blocks[k + 1]) if k + 1 < len(blocks) else None
+            pending = (pool.submit(ctx.run, solve, blocks[k + 1]) if k + 1 < len(blocks)
+                       else None)
             if not res.converged.all():
                 i = int(np.argmin(res.converged))
                 if pending is not None:
@@ -206,7 +224,7 @@ def _fk_blocks(geom, L: np.ndarray, path: str) -> None:
     sys.stdout.write("".join(text))
 
 
-def _fk_all(geom, L: np.ndarray, path: str, seed: int, json_out: bool) -> None:
+def _fk_all(geom, L: np.ndarray, path: str, seed: int, json_out: bool, found: list) -> None:
     from kinecal.kinematics.stewart.platform import radians_to_degrees
 
     out = []
@@ -220,7 +238,7 @@ def _fk_all(geom, L: np.ndarray, path: str, seed: int, json_out: bool) -> None:
             )
         out.append(modes)
     if json_out:
-        echo_json(
+        echo_json(with_warnings(
             {
                 "method": "newton-multistart",
                 "rows": [
@@ -235,8 +253,8 @@ def _fk_all(geom, L: np.ndarray, path: str, seed: int, json_out: bool) -> None:
                     }
                     for i, m in enumerate(out)
                 ],
-            }
-        )  # fmt: skip
+            },
+            found))  # fmt: skip
         return
     header = ["row", "mode", *POSE_COLUMNS, "above", "converged", "residual"]
     rows = []

@@ -13,16 +13,18 @@ Methods (:data:`METHODS`): ``ga`` (Deb's SBX GA) and ``ga-hu2005`` (papers/000),
 (Storn and Price 1997). ``ga``, ``pso`` and ``de`` are the variants that search best at an
 equal budget; the ``-<paper>`` variants keep the papers' algorithms and settings
 (``benchmarks/bench_swarm.py``). More can be added with :func:`register`.
+
+Least squares: ``kinecal.optimize.lsq`` (``householder_gauss_newton`` of papers/000 sec. 4.1,
+``levenberg_marquardt``) on ``kinecal.optimize.lm`` (the LM core, ``solve_normal_equations``).
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.optimize import OptimizeResult
 
 from kinecal.errors import InputError
 from kinecal.optimize._common import (
@@ -40,6 +42,9 @@ from kinecal.optimize.ga import SBXGA, ArithmeticGA
 from kinecal.optimize.gwo import GWO, IGWO
 from kinecal.optimize.gwo_de import DLHGWODE
 from kinecal.optimize.pso import ConstrictionPSO, LinearInertiaPSO
+
+if TYPE_CHECKING:
+    from scipy.optimize import OptimizeResult
 
 __all__ = [
     "METHODS",

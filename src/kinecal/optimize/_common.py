@@ -14,10 +14,9 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Generator, Iterable, Mapping
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
-from scipy.optimize import OptimizeResult
 
 from kinecal.errors import InputError
 from kinecal.optimize._box import (
@@ -33,6 +32,9 @@ from kinecal.optimize._box import (
     seed_points,
     to_unit,
 )
+
+if TYPE_CHECKING:
+    from scipy.optimize import OptimizeResult
 
 __all__ = [
     "STATUS_MESSAGES",
@@ -182,6 +184,8 @@ def make_result(
     **extra
         Further fields (``population``, ``population_energies``, ``jac``, ...).
     """
+    from scipy.optimize import OptimizeResult  # 0.1-0.2 s: only once a solver returns
+
     return OptimizeResult(
         x=np.asarray(x, dtype=float),
         fun=float(fun),
@@ -274,6 +278,8 @@ def drive(
             partial = False
             history.append(best)
             if callback is not None:
+                from scipy.optimize import OptimizeResult
+
                 info = OptimizeResult(x=lo + opt.best_x * span, fun=best, nit=done_iters, nfev=nfev)
                 try:
                     stop = callback(info)

@@ -43,7 +43,6 @@ from collections.abc import Generator
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.spatial.distance import cdist
 
 from kinecal.optimize._common import Optimizer, as_int, as_positive, as_probability, clip_unit
 
@@ -102,6 +101,8 @@ class AFSA(Optimizer):
         return clip_unit(X + self.visual * self.rng.uniform(-1.0, 1.0, X.shape))
 
     def _steps(self) -> Generator[np.ndarray, np.ndarray, None]:
+        from scipy.spatial.distance import cdist  # scipy.spatial loads scipy.special: 0.2 s
+
         N, n = self.popsize, self.n
         X = self.initial_population(N)
         Y = yield X

@@ -22,7 +22,6 @@ from collections.abc import Generator
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.spatial.distance import cdist
 
 from kinecal.optimize._common import Optimizer, as_int, clip_unit
 
@@ -76,6 +75,8 @@ def dlh_candidates(X: np.ndarray, X_gwo: np.ndarray, rng: np.random.Generator) -
     numpy.ndarray, shape (P, n)
         DLH candidates clipped to the unit cube.
     """
+    from scipy.spatial.distance import cdist  # scipy.spatial loads scipy.special: 0.2 s
+
     P, n = X.shape
     R2 = np.einsum("ij,ij->i", X - X_gwo, X - X_gwo)  # eq. 10 (squared)
     D2 = cdist(X, X, "sqeuclidean")

@@ -14,16 +14,18 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import OptimizeResult
 
 from kinecal.errors import InputError
 from kinecal.optimize import METHODS, minimize
 from kinecal.optimize._common import make_result
 from kinecal.optimize.lsq import householder_gauss_newton, levenberg_marquardt
+
+if TYPE_CHECKING:
+    from scipy.optimize import OptimizeResult
 
 __all__ = ["HYBRID_PREFIX", "hybrid_methods", "hybrid_minimize"]
 

@@ -9,25 +9,32 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
-from scipy.optimize import OptimizeResult, least_squares
 
 from kinecal.errors import InputError
 from kinecal.optimize._common import make_result
+from kinecal.optimize.lm import (
+    LinearSolver,
+    LMSolution,
+    NormalEquations,
+    cached_normal_equations,
+    cholesky_step,
+    iterate,
+    plain_normal_equations,
+)
+
+if TYPE_CHECKING:
+    from scipy.optimize import OptimizeResult
 
 __all__ = ["LOSSES", "householder_gauss_newton", "levenberg_marquardt"]
 
 Array = NDArray[np.float64]
 Residual = Callable[[Array], Array]
 Jacobian = Callable[[Array], Array]
-#: ``normal_equations(x) -> (r, J^T J, J^T r)``
-NormalEquations = Callable[[Array], tuple[Array, Array, Array]]
-
-#: ``linear_solver(A, damp, g) -> h`` with ``(A + diag(damp)) h = -g``
-LinearSolver = Callable[[Array, Array, Array], Array]
 
 #: robust losses of `levenberg_marquardt` (scipy names)
 LOSSES = ("linear", "huber", "soft_l1", "cauchy", "arctan")
@@ -107,6 +114,8 @@ def householder_gauss_newton(
         nfev += 1
         history.append(monitor(r))
         if callback is not None:
+            from scipy.optimize import OptimizeResult
+
             stop = callback(OptimizeResult(x=x.copy(), fun=0.5 * float(r @ r), nit=it, nfev=nfev))
             if stop:
                 status, message = 3, "stopped by the callback"
@@ -220,16 +229,15 @@ def levenberg_marquardt(
     monitor = monitor or _rms
     if loss == "linear" and solver == "kinecal":
         if normal_equations is not None:
-            evaluate, linearize = _cached_normal_equations(normal_equations)
+            evaluate, linearize = cached_normal_equations(normal_equations)
         else:
-            evaluate, linearize = _plain_normal_equations(residual, jacobian)
-        return _lm_normal_equations(evaluate, linearize, np.asarray(x0, dtype=float),
-                                    start=start, damping=damping,
-                                    max_nfev=max_nfev or 200 * (np.size(x0) + 1),
-                                    ftol=1e-12 if ftol is None else ftol,
-                                    xtol=1e-12 if xtol is None else xtol,
-                                    gtol=1e-12 if gtol is None else gtol, monitor=monitor,
-                                    linear_solver=linear_solver or _cholesky_step)
+            evaluate, linearize = plain_normal_equations(residual, jacobian)
+        return _as_result(iterate(
+            evaluate, linearize, np.asarray(x0, dtype=float), start=start, damping=damping,
+            max_nfev=max_nfev or 200 * (np.size(x0) + 1),
+            ftol=1e-12 if ftol is None else ftol, xtol=1e-12 if xtol is None else xtol,
+            gtol=1e-12 if gtol is None else gtol, monitor=monitor,
+            linear_solver=linear_solver or cholesky_step))
     ftol, xtol, gtol = (1e-15 if v is None else v for v in (ftol, xtol, gtol))
     history: list[float] = []
 
@@ -238,6 +246,8 @@ def levenberg_marquardt(
         value = monitor(r)
         history.append(value if not history else min(value, history[-1]))
         return r
+
+    from scipy.optimize import least_squares
 
     t0 = time.perf_counter()
     method = "lm" if loss == "linear" else "trf"
@@ -253,132 +263,12 @@ def levenberg_marquardt(
     )
 
 
-def _cholesky_step(A: Array, damp: Array, g: Array) -> Array:
-    """``h`` with ``(A + diag(damp)) h = -g`` by dense Cholesky."""
-    c = scipy.linalg.cho_factor(A + np.diag(damp), check_finite=False)
-    return -scipy.linalg.cho_solve(c, g, check_finite=False)
-
-
-def _plain_normal_equations(residual: Residual, jacobian: Jacobian):
-    """``evaluate(x) -> r`` and ``linearize(x, r) -> (A, g, J)`` from plain callables."""
-
-    def linearize(x: Array, r: Array):
-        J = jacobian(x)
-        return J.T @ J, J.T @ r, J
-
-    return residual, linearize
-
-
-def _cached_normal_equations(normal_equations: NormalEquations):
-    """``evaluate`` / ``linearize`` from one call that returns r, A and g together."""
-    last: dict = {}
-
-    def evaluate(x: Array) -> Array:
-        r, A, g = normal_equations(x)
-        last.update(x=x.copy(), A=A, g=g)
-        return r
-
-    def linearize(x: Array, r: Array):
-        if "x" in last and np.array_equal(last["x"], x):
-            return last["A"], last["g"], None
-        _, A, g = normal_equations(x)
-        return A, g, None
-
-    return evaluate, linearize
-
-
-def _lm_normal_equations(
-    evaluate: Residual, linearize: Callable, x: Array, *, max_nfev: int, ftol: float,
-    xtol: float, gtol: float, monitor: Callable[[Array], float],
-    start: tuple[Array, Array, Array] | None = None,
-    damping: float | tuple[float, float] = 1e-3,
-    linear_solver: LinearSolver = _cholesky_step,
-) -> OptimizeResult:
-    """Levenberg-Marquardt on the normal equations (see `levenberg_marquardt`).
-
-    ``evaluate(x) -> r`` at every trial point, ``linearize(x, r) -> (J^T J, J^T r, J or
-    None)`` at accepted points (right after `evaluate` at the same point).
-    """
-    t0 = time.perf_counter()
-    if start is not None:
-        r, A, g = start
-        J = None
-    else:
-        r = evaluate(x)
-        A, g, J = linearize(x, r)
-    F = 0.5 * float(r @ r)
-    nfev, njev, nit = 1, 1, 0
-    history = [monitor(r)]
-    # dimensionless: the damping is mu * diag(J^T J) (Marquardt scaling)
-    mu, fallback = (damping, None) if np.isscalar(damping) else damping
-    trusted = False  # the last accepted step agreed with the quadratic model
-    nu = 2.0
-    status, message = 0, "maximum number of function evaluations reached"
-    while nfev < max_nfev:
-        if F == 0.0:
-            status, message = 1, "zero residual"
-            break
-        if np.max(np.abs(g), initial=0.0) <= gtol * max(np.sqrt(2 * F), 1e-300):
-            status, message = 1, "gradient below gtol"
-            break
-        d = np.diag(A).copy()
-        d = np.maximum(d, 1e-12 * max(d.max(), 1e-300))  # Marquardt scaling, kept positive
-        try:
-            h = linear_solver(A, mu * d, g)
-        except np.linalg.LinAlgError:
-            mu *= nu
-            nu *= 2.0
-            continue
-        if np.linalg.norm(h) <= xtol * (np.linalg.norm(x) + xtol):
-            status, message = 2, "step below xtol"
-            break
-        predicted = 0.5 * float(h @ (mu * d * h - g))
-        if trusted and 0.0 <= predicted <= ftol * F:
-            # the quadratic model, just confirmed by an accepted step, promises less than
-            # ftol: converged without spending an evaluation to confirm it
-            status, message = 3, "predicted reduction of the cost below ftol"
-            break
-        x_new = x + h
-        r_new = evaluate(x_new)
-        nfev += 1
-        F_new = 0.5 * float(r_new @ r_new)
-        rho = (F - F_new) / predicted if predicted > 0 else -1.0
-        if predicted <= ftol * F and abs(F - F_new) <= ftol * F:
-            # both reductions at round-off level (MINPACK's ftol test): converged; a
-            # further step would only trade round-off for evaluations
-            if F_new < F:
-                x, r, F = x_new, r_new, F_new
-                A, g, J = linearize(x, r)
-                njev += 1
-                nit += 1
-                history.append(monitor(r))
-            status, message = 3, "relative reduction of the cost below ftol"
-            break
-        if rho > 0 and np.isfinite(F_new):
-            reduction = F - F_new
-            x, r, F = x_new, r_new, F_new
-            A, g, J = linearize(x, r)
-            njev += 1
-            nit += 1
-            history.append(monitor(r))
-            mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-            nu = 2.0
-            fallback = None
-            trusted = rho > 0.75
-            if reduction <= ftol * F_new:
-                status, message = 3, "relative reduction of the cost below ftol"
-                break
-        else:
-            mu *= nu
-            nu *= 2.0
-            if fallback is not None:  # the near Gauss-Newton first step failed
-                mu, fallback = max(mu, fallback), None
-            if mu > 1e30:
-                status, message = 4, "no further decrease possible (round-off level)"
-                break
-    extra = {} if J is None else {"jac": J}
+def _as_result(sol: LMSolution) -> OptimizeResult:
+    """The `OptimizeResult` of a kinecal LM solution (``jac`` only when it was formed)."""
+    extra = {} if sol.jac is None else {"jac": sol.jac}
     return make_result(
-        x, F, nit=nit, nfev=nfev, success=status > 0, status=status, message=message,
-        history=history, elapsed=time.perf_counter() - t0, njev=njev, residual=r,
-        normal_matrix=A, gradient=g, damping=mu, **extra,
+        sol.x, sol.fun, nit=sol.nit, nfev=sol.nfev, success=sol.success, status=sol.status,
+        message=sol.message, history=sol.history, elapsed=sol.elapsed, njev=sol.njev,
+        residual=sol.residual, normal_matrix=sol.normal_matrix, gradient=sol.gradient,
+        damping=sol.damping, **extra,
     )

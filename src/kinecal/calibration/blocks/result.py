@@ -39,21 +39,24 @@ def kind_entry(block, sigma: np.ndarray | None, how: str, before: np.ndarray,
     return entry
 
 
-def kind_lines(entries: list[dict], length_unit: str, title: str) -> list[str]:
-    """Text table of per-kind statistics (summary, report)."""
+def kind_lines(entries: list[dict], length_unit: str, title: str,
+               factor: float = 1.0) -> list[str]:
+    """Text table of per-kind statistics (summary, report): lengths times `factor` (from the
+    model's unit to `length_unit`, the unit shown)."""
     if not entries:
         return []
     lines = ["", title,
              f"{'kind':8s} {'file':18s} {'n':>5s} {'sigma':>10s} {'rms before':>11s} "
              f"{'rms after':>10s} {'max after':>10s}"]
     for e in entries:
-        unit = length_unit if e["unit"] == "length" else e["unit"]
+        length = e["unit"] == "length"
+        unit, f = (length_unit, factor) if length else (e["unit"], 1.0)
         s = e["sigma"]
-        sig = "-" if s is None else f"{s:.3g}{'*' if e['sigma_source'] == 'estimated' else ''}"
+        sig = "-" if s is None else f"{s * f:.3g}{'*' if e['sigma_source'] == 'estimated' else ''}"
         name = str(e["file"]).replace("\\", "/").rsplit("/", 1)[-1][:18]
         lines.append(f"{e['kind']:8s} {name:18s} {e['observations']:5d} {sig:>10s} "
-                     f"{e['before']['rms']:11.4g} {e['after']['rms']:10.4g} "
-                     f"{e['after']['max']:10.4g}" + ("" if unit == length_unit else f" {unit}"))
+                     f"{e['before']['rms'] * f:11.4g} {e['after']['rms'] * f:10.4g} "
+                     f"{e['after']['max'] * f:10.4g}" + ("" if length else f" {unit}"))
     if any(e["sigma_source"] == "estimated" for e in entries):
         lines.append(f"(* noise estimated from the fit: no --sigma or sigma column; "
                      f"{length_unit})")
@@ -70,15 +73,16 @@ class KindsCalibrationResult(CalibrationResult):
     measured (for the predicted uncertainty).
     """
 
-    def summary(self) -> str:
-        """The tracker summary with the per-kind table and the motions not seen."""
-        unit = self.nominal_model.length_unit
-        text = super().summary(unit).split("\n")  # the kinds' table is in the model's unit
-        extra = [line for line in kind_lines(self.extra.get("kinds", []), unit,
-                                             f"per measurement set (rms, max: error per "
-                                             f"observation, {unit})")]
+    def summary(self, unit: str | None = None) -> str:
+        """The tracker summary with the per-kind table and the motions not seen; `unit`
+        as `CalibrationResult.summary` (lengths of the text only)."""
+        shown = self.display_unit(unit)
+        unit, f = shown.name, shown.factor
+        text = super().summary(unit).split("\n")
+        extra = kind_lines(self.extra.get("kinds", []), unit,
+                           f"per measurement set (rms, max: error per observation, {unit})", f)
         extra += kind_lines(self.extra.get("validation_kinds", []), unit,
-                            "validation sets (their own unknowns fitted)")
+                            "validation sets (their own unknowns fitted)", f)
         unseen = self.extra.get("not_seen_words")
         if unseen:
             extra += ["", f"not seen by this mix of measurements: {unseen}; the parameters "

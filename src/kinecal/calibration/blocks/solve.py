@@ -6,13 +6,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
-from scipy.optimize import OptimizeResult
-from scipy.special import fdtri
 
+from kinecal._special import fdtri
 from kinecal.calibration.blocks.analysis import analyse_stack
 from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.stack import StackedProblem
@@ -21,6 +21,9 @@ from kinecal.calibration.diagnostics._common import chi_outliers
 from kinecal.diagnostics import warn
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.optimize.lsq import levenberg_marquardt
+
+if TYPE_CHECKING:
+    from scipy.optimize import OptimizeResult
 
 __all__ = ["StackFit", "fit_stack", "observation_outliers"]
 

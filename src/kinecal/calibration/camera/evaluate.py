@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import matrix_from_axis_angle, transform_from
@@ -58,6 +57,8 @@ def aligned_tool_errors(model: SerialModel, params: Array, true_params: Array, q
         pe = np.einsum("nij,pj->npi", A[:, :3, :3], pts) + A[:, None, :3, 3]
         pt = np.einsum("nij,pj->npi", Tt[:, :3, :3], pts) + Tt[:, None, :3, 3]
         return (pe - pt).ravel()
+
+    from scipy.optimize import least_squares
 
     x = least_squares(fun, np.zeros(12), method="lm", xtol=1e-14, ftol=1e-14).x
     _, _, A = place(Te, x)

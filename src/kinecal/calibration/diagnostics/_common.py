@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import chdtri, fdtri
+
+from kinecal._special import chdtri, fdtri
 
 __all__ = [
     "ALPHA",

@@ -10,8 +10,8 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import fdtri
 
+from kinecal._special import fdtri
 from kinecal.calibration.diagnostics._common import (
     ALPHA,
     FitTest,

@@ -14,8 +14,8 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import chdtr, chdtri, fdtri
 
+from kinecal._special import chdtr, chdtri, fdtri
 from kinecal.calibration.diagnostics._common import ALPHA, plural, unit_factor_name
 from kinecal.diagnostics import warn
 

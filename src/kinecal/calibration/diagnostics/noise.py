@@ -39,8 +39,8 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import chdtr, chdtrc
 
+from kinecal._special import chdtr, chdtrc
 from kinecal.calibration.diagnostics._common import ALPHA
 from kinecal.diagnostics import warn
 from kinecal.errors import InputError

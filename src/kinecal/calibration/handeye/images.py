@@ -20,7 +20,7 @@ stations whose RMS exceeds both the chi-square bound of pure corner noise and th
 spread of the station RMS values (and three times their median, and the median + 0.25 px)
 are flagged as outliers and left out of a final pass.
 
-Every pass is kinecal's Levenberg-Marquardt (`kinecal.optimize.lsq.levenberg_marquardt`) on
+Every pass is kinecal's Levenberg-Marquardt (`kinecal.optimize.lm.solve_normal_equations`) on
 the structured normal equations of `kinecal.calibration.handeye.bundle` (Huber's loss as
 reweighted normal equations; the robot-pose corrections eliminated by the Schur complement)
 with the analytic Jacobian (right Jacobians of SO(3); tested against finite differences).
@@ -35,8 +35,8 @@ import time
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import chdtri
 
+from kinecal._special import chdtri
 from kinecal.calibration.handeye.bundle import normal_equations, robust_residuals, schur_solve
 from kinecal.calibration.handeye.camera import check_camera
 from kinecal.calibration.handeye.refinement import ReprojectionRefinement
@@ -50,7 +50,7 @@ from kinecal.calibration.handeye.reprojection import (
 )
 from kinecal.calibration.handeye.scara import AxisHeight, OneAxis
 from kinecal.errors import InputError
-from kinecal.optimize.lsq import levenberg_marquardt
+from kinecal.optimize.lm import solve_normal_equations
 
 Array = NDArray[np.float64]
 
@@ -275,10 +275,10 @@ class _Fit:
 
         # the passes before the last only set the station weights: 1e-9 suffices there
         tol = 1e-12 if final else 1e-9
-        sol = levenberg_marquardt(None, None, p, normal_equations=equations,
-                                  linear_solver=lambda A, d, b: schur_solve(A, d, b, g),
-                                  ftol=tol, xtol=tol, gtol=tol, max_nfev=200,
-                                  damping=(1e-9, 1e-3))
+        sol = solve_normal_equations(equations, p,
+                                     linear_solver=lambda A, d, b: schur_solve(A, d, b, g),
+                                     ftol=tol, xtol=tol, gtol=tol, max_nfev=200,
+                                     damping=(1e-9, 1e-3))
         self.nfev += int(sol.nfev)
         q = sol.x
         if not final:
@@ -332,8 +332,10 @@ def _outlier_stations(srms: Array, counts: Array, sigma: float, level: float) ->
     spread of the station RMS values (median + 5 x 1.4826 MAD), three times the median
     station RMS and the median + 0.25 px (detection biases of a tenth of a pixel on oblique
     views are not outliers; a wrong robot pose costs pixels)."""
-    dof = 2 * np.maximum(counts, 1)
-    chi = np.sqrt(chdtri(dof, 1.0 - level) / dof) * sigma
     med = float(np.median(srms))
     mad = 1.4826 * float(np.median(np.abs(srms - med)))
-    return (srms > chi) & (srms > med + 5.0 * mad) & (srms > max(3.0 * med, med + 0.25))
+    out = (srms > med + 5.0 * mad) & (srms > max(3.0 * med, med + 0.25))
+    if out.any():  # the chi-square bound only where the robust ones already flag
+        dof = 2 * np.maximum(counts[out], 1)
+        out[out] = srms[out] > np.sqrt(chdtri(dof, 1.0 - level) / dof) * sigma
+    return out

@@ -29,9 +29,8 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
-from scipy.special import chdtri
 
+from kinecal._special import chdtri
 from kinecal.spatial import (
     axis_angle_from_matrix,
     invert_transform,
@@ -45,8 +44,13 @@ Array = NDArray[np.float64]
 __all__ = ["LMRefinement", "camera_residuals", "flag_outliers", "lm", "residual_jacobian",
            "residuals_and_jacobian"]
 
-#: Median of the chi distribution with 3 degrees of freedom (scale of |3-vector| of N(0, s)).
-_CHI3_MEDIAN = float(np.sqrt(chdtri(3, 0.5)))
+
+@lru_cache(maxsize=1)
+def _chi3_median() -> float:
+    """Median of the chi distribution with 3 degrees of freedom (scale of the length of a
+    3-vector of N(0, s) components, in units of s)."""
+    return float(np.sqrt(chdtri(3, 0.5)))
+
 #: Cauchy tuning constant (95 % efficiency on Gaussian data), in units of the per-dof scale.
 _CAUCHY_C = 2.3849
 
@@ -181,8 +185,8 @@ def _jacobian(G: Array, C: Array, X: Array, Y: Array, rot: Array, tr: Array, p: 
 
 
 def _scales(rot: Array, trans: Array, L: float) -> tuple[float, float]:
-    sr = float(np.median(np.linalg.norm(rot, axis=1))) / _CHI3_MEDIAN
-    st = float(np.median(np.linalg.norm(trans, axis=1))) / _CHI3_MEDIAN
+    sr = float(np.median(np.linalg.norm(rot, axis=1))) / _chi3_median()
+    st = float(np.median(np.linalg.norm(trans, axis=1))) / _chi3_median()
     return max(sr, 1e-13), max(st, 1e-13 * L)
 
 
@@ -275,6 +279,8 @@ class _Passes:
             else:
                 J = residuals_and_jacobian(G, C, X, Y, p, Gi)[2]  # (n, 6, 12)
             return (J * (scale[None, :, None] * sw[:, :, None])).reshape(-1, 12)
+
+        from scipy.optimize import least_squares
 
         sol = least_squares(fun, np.zeros(12), jac=jac, method="lm", x_scale="jac")
         self.nfev += int(sol.nfev)

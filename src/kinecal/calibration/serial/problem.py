@@ -46,11 +46,19 @@ def characteristic_length(model: SerialModel, data: Measurements, params=None,
     An angle of ``1 / L`` rad sweeps an arc of one length unit at this distance: the
     scale that makes angle and length parameters comparable. `positions` ``(N, 3)``: the
     tool points at `params` when already known (saves a forward-kinematics pass).
+
+    Tool points that do not move at `params` (a tool on the axis of a one-joint chain: the
+    spread is round-off, 1e-16 m, and would make every angle weigh 1e16 times a length)
+    give their RMS distance from the base origin instead, or 1 when that is zero too.
     """
     P = model.positions(data.q, params, data.marker) if positions is None else positions
     D = P - P.mean(axis=0)
-    L = float(np.sqrt(np.einsum("ij,ij->", D, D) / max(len(D), 1)))
-    return L if L > 0 else 1.0
+    n = max(len(D), 1)
+    L = float(np.sqrt(np.einsum("ij,ij->", D, D) / n))
+    size = float(np.sqrt(np.einsum("ij,ij->", P, P) / n))
+    if L > 1e-8 * size:
+        return L
+    return size if size > 0 else 1.0
 
 
 def row_norms(e: Array) -> Array:

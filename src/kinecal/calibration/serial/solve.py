@@ -21,13 +21,13 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
-from scipy.optimize import OptimizeResult
-from scipy.special import fdtri
 
+from kinecal._special import fdtri
 from kinecal.calibration.identifiability import (
     IdentifiabilityReport,
     analyse_factor,
@@ -46,6 +46,9 @@ from kinecal.data import Measurements
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.optimize.factor import gram_root
 from kinecal.optimize.lsq import levenberg_marquardt
+
+if TYPE_CHECKING:
+    from scipy.optimize import OptimizeResult
 
 __all__ = ["GRAM_TOL", "GROWTH_FTOL", "LMSolution", "grow_identifiable", "solve_lm"]
 

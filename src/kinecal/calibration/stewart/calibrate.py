@@ -20,7 +20,6 @@ import time
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 
 from kinecal import diagnostics
 from kinecal.calibration.diagnostics.stewart import (
@@ -118,6 +117,8 @@ def _calibrate_stewart(nominal: StewartPlatform, data: StewartData,
         return identification_jacobian(nominal.with_parameters(v), data.poses)
 
     v0 = nominal.parameters
+    from scipy.optimize import least_squares
+
     sol = least_squares(fun, v0, jac=jac, method="lm", x_scale="jac", max_nfev=max_nfev)
     geom = nominal.with_parameters(sol.x)
     rank = int(info["rank"])

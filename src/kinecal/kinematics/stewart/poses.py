@@ -14,13 +14,19 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kinecal.diagnostics import warn
 from kinecal.errors import InputError
 from kinecal.spatial import rpy_from_matrix
 
-__all__ = ["as_poses", "check_leg_readings", "degrees_to_radians", "poses_from_rt",
+__all__ = ["LEG_RANGE_SLACK", "as_poses", "check_leg_readings", "degrees_to_radians",
+           "poses_from_rt",
            "radians_to_degrees"]
 
 Array = NDArray[np.float64]
+
+#: leg readings this share of the stroke outside `leg_range` are read (with the
+#: ``leg-range`` warning: noise at the range's ends, a nominal range); further out refused
+LEG_RANGE_SLACK = 0.01
 
 
 def as_poses(poses: ArrayLike) -> Array:
@@ -76,7 +82,8 @@ def check_leg_readings(legs: ArrayLike, leg_range: tuple[float, float], *,
     Raises
     ------
     InputError
-        Naming the first bad row.
+        Naming the first bad row (readings more than `LEG_RANGE_SLACK` of the stroke
+        outside the range; closer ones are read with the ``leg-range`` warning).
     """
     L = np.atleast_2d(np.asarray(legs, dtype=float))
     if L.ndim != 2 or L.shape[1] != 6:
@@ -86,14 +93,24 @@ def check_leg_readings(legs: ArrayLike, leg_range: tuple[float, float], *,
         i = int(np.argmax(bad))
         raise InputError("leg lengths must be finite numbers", file=file, row=i + row_offset)
     lo, hi = leg_range
-    tol = 1e-12 * max(1.0, hi)
-    out = ((L < lo - tol) | (L > hi + tol)).any(axis=1)
-    if out.any():
-        i = int(np.argmax(out))
+    stroke = hi - lo if np.isfinite(hi) else max(abs(lo), 1.0)
+    beyond = np.max(np.maximum(lo - L, L - hi), axis=1, initial=-np.inf)  # > 0: outside
+    far = beyond > LEG_RANGE_SLACK * stroke
+    if far.any():
+        i = int(np.argmax(far))
         raise InputError(
             f"leg lengths {np.array2string(L[i], precision=6)} outside the leg range "
-            f"[{lo:g}, {hi:g}]",
+            f"[{lo:g}, {hi:g}] by more than {LEG_RANGE_SLACK:.0%} of the stroke (another "
+            "unit, another leg order or another machine?)",
             file=file,
             row=i + row_offset,
         )
+    near = beyond > 1e-12 * max(1.0, hi)
+    if near.any():
+        warn("leg-range",
+             f"{int(near.sum())} of {L.shape[0]} rows"
+             f"{'' if file is None else ' of ' + str(file)} read legs outside the leg range "
+             f"[{lo:g}, {hi:g}], by up to {float(beyond.max()):.3g} (within "
+             f"{LEG_RANGE_SLACK:.0%} of the stroke: solved as read, a nominal range is not "
+             "the exact stroke)")
     return L
