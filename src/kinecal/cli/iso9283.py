@@ -128,7 +128,7 @@ def iso9283_cmd(
             from kinecal.io.result_values import model_for_result
 
             m = model_for_result(m, params)
-            before = iso9283(data, [])
+            before = iso9283(data, [], check=False)
             T = m.fk(data.joints, parameters_from_result(m, params))
             data = dataclasses.replace(data, commanded=T[:, :3, 3],
                                        commanded_rotations=T[:, :3, :3])

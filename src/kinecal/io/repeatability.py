@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from kinecal.data import RepeatedPoses
 from kinecal.errors import InputError
-from kinecal.io.csvtable import check_separator, read_column, read_table
+from kinecal.io.csvtable import MAX_CELL, check_separator, read_column, read_table
 from kinecal.spatial import matrix_from_quaternion
 
 __all__ = ["read_repeatability"]
@@ -90,9 +90,9 @@ def _per_pose(cells: dict[str, list[str]], names: tuple[str, ...] | list[str],
                     v[k] = float(c)
                 except ValueError:
                     v[k] = np.nan
-                if not np.isfinite(v[k]):
-                    raise InputError(f"column {n}: {c!r}, expected a finite number", file=path,
-                                     row=r + 1)
+                if not abs(v[k]) <= MAX_CELL:
+                    raise InputError(f"column {n}: {c!r}, expected a finite number of at most "
+                                     f"{MAX_CELL:g} in size", file=path, row=r + 1)
             if value is None:
                 value, first = v, r
             elif np.any(np.abs(v - value) > 1e-9 * np.maximum(1.0, np.abs(value))):

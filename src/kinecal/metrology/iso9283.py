@@ -253,8 +253,8 @@ def _orientation_kind(data: RepeatedPoses) -> str:
         else "repeatability"
 
 
-def iso9283(data: RepeatedPoses, pairs: Sequence[tuple[int, int]] | None = None
-            ) -> Iso9283Result:
+def iso9283(data: RepeatedPoses, pairs: Sequence[tuple[int, int]] | None = None, *,
+            check: bool = True) -> Iso9283Result:
     """Every ISO 9283 pose and distance figure of a test.
 
     Parameters
@@ -265,6 +265,9 @@ def iso9283(data: RepeatedPoses, pairs: Sequence[tuple[int, int]] | None = None
         Pose pairs for the distance figures (indices into ``data.labels``); default every
         pair ``(i, k)``, ``i < k``, in test order. The standard's distance test uses one
         pair of its test poses; give that pair to report it alone.
+    check : bool
+        Warn on an implausible test (`kinecal.metrology.iso_checks`: ``scale-mismatch``,
+        ``far-from-commanded``, ``cycle-scatter``).
 
     Returns
     -------
@@ -294,4 +297,9 @@ def iso9283(data: RepeatedPoses, pairs: Sequence[tuple[int, int]] | None = None
             figures.update(orientation_accuracy(mr, cr))
         figures.update(orientation_repeatability(mr, cr))
     pairs = [(int(i), int(k)) for i, k in pairs]
-    return Iso9283Result(data, figures, pairs, [distance_figures(data, i, k) for i, k in pairs])
+    res = Iso9283Result(data, figures, pairs, [distance_figures(data, i, k) for i, k in pairs])
+    if check:
+        from kinecal.metrology.iso_checks import check_test
+
+        check_test(res)
+    return res

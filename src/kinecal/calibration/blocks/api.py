@@ -18,7 +18,7 @@ import numpy as np
 from kinecal import diagnostics
 from kinecal.calibration.blocks.analysis import analyse_stack, report_for, unseen_words
 from kinecal.calibration.blocks.base import ResidualBlock
-from kinecal.calibration.blocks.checks import check_blocks, check_fits
+from kinecal.calibration.blocks.checks import check_block_data, check_blocks, check_fits
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
 from kinecal.calibration.blocks.result import KindsCalibrationResult, kind_entry
 from kinecal.calibration.blocks.solve import fit_stack
@@ -138,6 +138,16 @@ def _length_errors(blocks, errors) -> np.ndarray:
     return np.concatenate(use) if use else np.zeros(0)
 
 
+def _check_validation(model: SerialModel, blocks: Sequence[ResidualBlock],
+                      names: Sequence[str]) -> list[np.ndarray]:
+    """The validation sets' own checks at nominal (a file of another robot, joints in
+    another unit); returns their errors there (the "before" of the validation)."""
+    nuis, res = start_blocks(model, blocks, model.nominal)
+    errors = [b.observation_errors(r) for b, r in zip(blocks, res, strict=True)]
+    check_block_data(model, blocks, nuis, errors, names, "validation ")
+    return errors
+
+
 def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss, f_scale,
                rank_tol, rotation_weight) -> KindsCalibrationResult:
     _check_arguments(method, loss, data, f_scale, rank_tol)
@@ -154,6 +164,7 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
     ana0 = analyse_stack(start, start.pack(p0, nuis0), rank_tol, check=True)
     names = ana0.report.identifiable if free == "identifiable" else cand
     check_blocks(model, blocks, nuis0, before, ana0, names)
+    vb = _check_validation(model, val_blocks, ana0.report.names)
     fit = fit_stack(model, blocks, list(names), cand, p0, nuis0, sig0, known, tol=rank_tol,
                     grow=free == "identifiable", loss=loss, f_scale=f_scale)
     prob, x = fit.problem, np.asarray(fit.result.x, dtype=float)
@@ -178,7 +189,6 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
                                   b.nuisance_report(nuis[i], nuis_std[i])))
     val_entries, val_before, val_after = [], None, None
     if val_blocks:
-        vb = validation_errors(model, val_blocks, p0)
         va = validation_errors(model, val_blocks, params)
         val_entries = [kind_entry(b, b.stated_sigma(), "stated" if b.stated_sigma() is not None
                                   else "not used", e0, e1)

@@ -12,7 +12,7 @@ from kinecal.calibration.blocks.analysis import StackAnalysis
 from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.blocks.tracker import TrackerBlock
-from kinecal.calibration.diagnostics._common import plural
+from kinecal.calibration.diagnostics._common import plural, repeat_groups
 from kinecal.calibration.diagnostics.kinds import check_block_noise, check_initial_error
 from kinecal.calibration.diagnostics.serial import MIN_EQUATION_RATIO, reference
 from kinecal.calibration.diagnostics.units import (
@@ -25,7 +25,7 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.chain import BASE_NAMES
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["check_blocks", "check_fits"]
+__all__ = ["check_block_data", "check_blocks", "check_fits"]
 
 
 def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, before,
@@ -35,20 +35,7 @@ def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, 
     from kinecal.calibration.diagnostics.sizes import check_tolerances
 
     check_tolerances(model)
-    ref = reference(model, analysis.report.names)
-    base_free = set(BASE_NAMES) <= set(model.calibratable)
-    p0 = model.nominal
-    for b, v, e in zip(blocks, nuisance, before, strict=True):
-        what = b.name
-        check_joint_limits(model, b.q, what)
-        warned = check_joint_units(model, b.q, what)
-        if isinstance(b, TrackerBlock):
-            check_frame_and_units(model, b.data, ref, base_free, what, warned)
-            continue
-        b.check_data(model, p0, v)
-        if b.unit == "length" and e.size and not warned:
-            check_initial_error(b.name, float(np.sqrt(np.mean(e**2))), ref.reach,
-                                ref.tolerance_error, model.length_unit)
+    check_block_data(model, blocks, nuisance, before, analysis.report.names)
     m = sum(b.n_rows for b in blocks)
     n = len(names) + sum(b.n_nuisance for b in blocks)
     if m <= n:
@@ -59,6 +46,55 @@ def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, 
         warn("few-poses", f"{m} equations for {n} unknowns (fewer than {MIN_EQUATION_RATIO} "
              "per unknown): the fit can absorb noise and its uncertainty is unreliable; "
              "measure more rows")
+
+
+def check_block_data(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, before,
+                     names: Sequence[str], what: str = "") -> None:
+    """Each set's own checks at the nominal geometry (joints, units, repeats, its gauges,
+    its distance from the nominal model): of the calibration sets, and of the validation
+    sets (`what` = ``"validation "``) of any kind."""
+    ref = reference(model, names)
+    base_free = set(BASE_NAMES) <= set(model.calibratable)
+    p0 = model.nominal
+    _check_same_sets(blocks, what)
+    for b, v, e in zip(blocks, nuisance, before, strict=True):
+        name = what + b.name
+        check_joint_limits(model, b.q, name)
+        warned = check_joint_units(model, b.q, name)
+        if isinstance(b, TrackerBlock):
+            _check_repeats(b)
+            check_frame_and_units(model, b.data, ref, base_free, name, warned)
+            continue
+        b.check_data(model, p0, v)
+        if b.unit == "length" and e.size and not warned:
+            check_initial_error(name, float(np.sqrt(np.mean(e**2))), ref.reach,
+                                ref.tolerance_error, model.length_unit)
+
+
+def _check_same_sets(blocks: Sequence[ResidualBlock], what: str) -> None:
+    """``duplicate-poses`` for two sets of one kind with the same joint readings (one file
+    given twice, or a copy of it): its rows would count twice."""
+    for i, a in enumerate(blocks):
+        twin = next((b for b in blocks[:i] if b.kind == a.kind
+                     and np.shape(b.q) == np.shape(a.q) and np.array_equal(b.q, a.q)), None)
+        if twin is not None:
+            warn("duplicate-poses",
+                 f"{what}{a.name} repeats the joint readings of {twin.name} row for row: "
+                 "one measurement given twice counts twice (its noise and standard errors "
+                 "shrink by sqrt(2)); give each file once")
+
+
+def _check_repeats(block: TrackerBlock) -> None:
+    """``duplicate-poses`` for a tracker file in a mix (alone, the tracker path's own check
+    warns or refuses)."""
+    n = len(block.q)
+    marker = np.zeros((n, 1)) if block.marker is None else np.asarray(block.marker)[:, None]
+    _, distinct = repeat_groups(np.asarray(block.q, dtype=float), marker)
+    if distinct < n:
+        warn("duplicate-poses",
+             f"{block.name}: {n - distinct} of {n} rows repeat the joint readings of another "
+             f"row ({distinct} distinct): repeated rows add no geometry, and the noise and "
+             "standard errors assume independent readings; measure distinct poses")
 
 
 def check_fits(model: SerialModel, problem: StackedProblem, x: np.ndarray, residuals,

@@ -10,8 +10,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.blocks.base import ResidualBlock, group_rows
+from kinecal.calibration.diagnostics._common import repeat_groups
 from kinecal.calibration.diagnostics.kinds import check_group_spread
 from kinecal.data import GaugeMeasurements
+from kinecal.diagnostics import warn
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
 
@@ -63,14 +65,31 @@ class GaugeBlock(ResidualBlock):
         return None if data.sigma is None else np.asarray(data.sigma, dtype=float)
 
     def _check_groups(self) -> None:
+        """Refuse a group with fewer distinct arm configurations than it needs (a row
+        repeated 1000 times is one touch); warn ``duplicate-poses`` on repeated rows."""
+        key = np.asarray(self.q, dtype=float)
+        if self.marker is not None:
+            key = np.column_stack([key, self.marker])
+        repeats = 0
         for name, rows in zip(self.data.group_names, self.groups, strict=True):
-            if 0 < rows.size < self.min_rows:
+            distinct = repeat_groups(key[rows])[1]
+            repeats += rows.size - distinct
+            if 0 < distinct < self.min_rows:
                 where = "" if rows.size == 1 else f" ({_rows_text(rows)})"
                 raise InputError(
                     f"{self.name}: {self.group_word} {name!r} has {rows.size} "
-                    f"{'row' if rows.size == 1 else 'rows'}{where}: expected at least "
-                    f"{self.min_rows} ({self.min_reason})", file=self.source,
-                    row=int(rows[0]) + 1)
+                    f"{'row' if rows.size == 1 else 'rows'}{where}"
+                    + (f" in {distinct} distinct arm configuration"
+                       f"{'' if distinct == 1 else 's'} (the others repeat their joint "
+                       "readings)" if distinct < rows.size else "")
+                    + f": expected at least {self.min_rows} distinct ({self.min_reason})",
+                    file=self.source, row=int(rows[0]) + 1)
+        if repeats:
+            warn("duplicate-poses",
+                 f"{self.name}: {repeats} of {len(key)} rows repeat the joint readings of "
+                 f"another row of their {self.group_word}: repeated rows add no geometry, "
+                 f"and the noise and standard errors assume independent readings; measure "
+                 f"distinct configurations")
 
     @property
     def live_groups(self) -> list[int]:

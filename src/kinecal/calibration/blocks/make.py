@@ -13,6 +13,7 @@ from kinecal.calibration.blocks.pair import PairBlock
 from kinecal.calibration.blocks.plane import PlaneBlock
 from kinecal.calibration.blocks.point import PointBlock
 from kinecal.calibration.blocks.tracker import TrackerBlock
+from kinecal.calibration.diagnostics.noise import check_stated_sigma
 from kinecal.data import GaugeMeasurements, Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import remap_markers
@@ -87,6 +88,13 @@ def make_blocks(model: SerialModel, data: Sequence[DataSet],
         else:
             raise InputError(f"data: expected Measurements, GaugeMeasurements or a residual "
                              f"block, got {type(d).__name__}")
+        b = blocks[-1]
+        check_stated_sigma(model, s)
+        if b.obs_sigma is not None and np.size(b.obs_sigma):
+            try:
+                check_stated_sigma(model, float(np.min(b.obs_sigma)))
+            except InputError as exc:
+                raise InputError(f"column sigma: {exc.message}", file=b.source) from None
         if len(blocks[-1].q) and np.shape(blocks[-1].q)[1] != model.n_joints:
             raise InputError(f"{blocks[-1].name}: {np.shape(blocks[-1].q)[1]} joint values "
                              f"per row, model {model.name!r} has {model.n_joints} joints")

@@ -16,6 +16,7 @@ import numpy as np
 
 from kinecal.calibration.blocks.analysis import StackAnalysis, analyse_stack
 from kinecal.calibration.blocks.api import start_blocks
+from kinecal.calibration.blocks.checks import check_block_data
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
 from kinecal.calibration.blocks.simulate import simulate_kind
 from kinecal.calibration.blocks.stack import StackedProblem
@@ -48,9 +49,11 @@ def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Seque
     model = model_for_markers(model, marker_names(list(data)))
     blocks = make_blocks(model, list(data), sigma)
     p0 = model.nominal
-    nuis, _ = start_blocks(model, blocks, p0)
+    nuis, res = start_blocks(model, blocks, p0)
     sig, _ = initial_sigma(blocks)
     names = candidate_names(model, "all" if free == "identifiable" else free)
+    check_block_data(model, blocks, nuis, [b.observation_errors(r) for b, r in
+                                           zip(blocks, res, strict=True)], names)
     problem = StackedProblem(model, blocks, names, sig)
     ana = analyse_stack(problem, problem.pack(p0, nuis), tol, check=True)
     kinds = [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
@@ -79,7 +82,7 @@ def select_kind_poses(model: SerialModel, kind: str, count: int, *, candidates: 
         ``identifiable`` (names), ``rank``, ``not_seen`` and ``O1``..``O5`` of the plan.
     """
     gen = np.random.default_rng(rng)
-    sim = simulate_kind(model, kind, candidates, rng=gen, **geometry)
+    sim = simulate_kind(model, kind, candidates, rng=gen, option="--candidates", **geometry)
     data = sim.data
     block = make_blocks(model, [data])[0]
     p0 = model.nominal

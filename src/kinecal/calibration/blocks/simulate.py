@@ -30,12 +30,15 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.ik import solve_ik
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["KindSimulation", "default_geometry", "reach", "simulate_kind"]
+__all__ = ["MAX_SIMULATED_ROWS", "KindSimulation", "default_geometry", "reach", "simulate_kind"]
 
 Array = NDArray[np.float64]
 
 #: candidate targets per row wanted (unreachable ones are dropped)
 OVERSAMPLE = 3
+#: most rows one simulation makes: each is an inverse kinematics solve (about 0.3 ms;
+#: ``--groups 1000000`` ran for hours)
+MAX_SIMULATED_ROWS = 20_000
 
 
 @dataclass(frozen=True)
@@ -129,7 +132,7 @@ def simulate_kind(model: SerialModel, kind: str, n: int, *, true_params: Array |
                   noise: float = 0.0, rng: int | np.random.Generator | None = None,
                   centres: Array | None = None, planes: Array | None = None,
                   length: float | None = None, radius: float | None = None,
-                  groups: int | None = None) -> KindSimulation:
+                  groups: int | None = None, option: str = "--poses") -> KindSimulation:
     """Simulated rows of one gauge kind (module docstring).
 
     Parameters
@@ -154,6 +157,8 @@ def simulate_kind(model: SerialModel, kind: str, n: int, *, true_params: Array |
         Planes: touches within this distance of the plane's point (default 1/5 reach).
     groups : int, optional
         Number of pivots / points / planes when not given (default 2 / 4 / 2).
+    option : str
+        What `n` was given as (named when the rows exceed `MAX_SIMULATED_ROWS`).
     """
     if kind not in GAUGE_KINDS:
         raise InputError(f"kind: expected one of {', '.join(GAUGE_KINDS)}, got {kind!r}",
@@ -169,6 +174,13 @@ def simulate_kind(model: SerialModel, kind: str, n: int, *, true_params: Array |
     sizes.check_length_noise(noise, sizes.serial_size(model), "--noise", model.length_unit)
     sizes.check_deviations(model, p - model.nominal)
     count = groups or {"ballbar": 2, "point": 4, "plane": 2, "pair": 1}[kind]
+    given = planes if planes is not None else centres
+    rows = 2 * n if kind == "pair" else n * (count if given is None else len(np.atleast_2d(given)))
+    if rows > MAX_SIMULATED_ROWS:
+        how = f"{n} pairs x 2" if kind == "pair" else f"{n} per gauge x {rows // n} gauges"
+        raise InputError(f"{rows} {kind} rows asked for ({how}): expected at "
+                         f"most {MAX_SIMULATED_ROWS} (each row is an inverse kinematics "
+                         "solve; a gauge test has tens to hundreds of rows)", option=option)
     geo = default_geometry(model, kind, count, gen)
     if centres is not None:
         geo["centres"] = np.atleast_2d(np.asarray(centres, dtype=float))

@@ -59,12 +59,21 @@ def _values(model: SerialModel, names: Sequence[str], values: Array) -> str:
 
 
 def check_unidentifiable_free(names: Sequence[str], free_choice: object) -> None:
-    """``unidentifiable-free``: free parameters the poses cannot identify individually."""
+    """``unidentifiable-free``: free parameters the poses cannot identify individually
+    (with ``free="identifiable"``: chosen at the nominal geometry, lost at the solution)."""
     if not names:
+        return
+    some = f"{len(names)} parameter{'s' if len(names) > 1 else ''}"
+    if free_choice == "identifiable":
+        warn("unidentifiable-free",
+             f"{some} identifiable at the nominal geometry are not at the solution "
+             f"({', '.join(names)}): the fit went where these poses no longer determine "
+             "them, their values are arbitrary and have no standard error; check the other "
+             "warnings (units, joint order, another robot's file)")
         return
     how = "--free all" if free_choice == "all" else "the explicit free list"
     warn("unidentifiable-free",
-         f"{how} frees {len(names)} parameter{'s' if len(names) > 1 else ''} these poses "
+         f"{how} frees {some} these poses "
          f"cannot identify ({', '.join(names)}): only combinations of them are determined, "
          "their values are arbitrary and have no standard error; use --free identifiable")
 

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal._special import chdtri, fdtri
+from kinecal._special import chdtr, chdtri, fdtri
 from kinecal.calibration.diagnostics._common import ALPHA, plural, unit_factor_name
 from kinecal.diagnostics import warn
 
@@ -146,16 +146,29 @@ def check_initial_error(name: str, error: float, reach: float, tolerance_error: 
 
 
 def check_block_noise(name: str, rss: float, redundancy: float, noise_of: str) -> bool:
-    """``residual-above-noise``: a measurement set whose stated noise its residual exceeds
-    (chi-square test at `ALPHA`; `rss` in units of the stated noise, `redundancy` the
-    degrees of freedom its rows keep after the fit). Returns True when it warned."""
+    """``residual-above-noise`` / ``residual-below-noise``: a measurement set whose stated
+    noise its residual exceeds, or whose residual is at most half of it (chi-square tests at
+    `ALPHA`, either tail, as for one tracker file: `kinecal.calibration.diagnostics.noise`;
+    `rss` in units of the stated noise, `redundancy` the degrees of freedom its rows keep
+    after the fit). Returns True when it warned."""
+    from kinecal.calibration.diagnostics.noise import MAX_DEFICIT
+
     if not redundancy > 0.5:
         return False
+    ratio = float(np.sqrt(rss / redundancy))
+    if float(chdtr(redundancy, rss)) < ALPHA and ratio <= MAX_DEFICIT:
+        warn("residual-below-noise",
+             f"{name}: the residual is {ratio:.3g} times the stated noise of {noise_of} "
+             f"(chi-square {rss:.4g} on {redundancy:.1f} degrees of freedom, lower tail p = "
+             f"{float(chdtr(redundancy, rss)):.2g}): the stated noise is pessimistic (another "
+             "unit, or the instrument's worst case rather than its 1-sigma noise), and so "
+             "are the standard errors computed with it")
+        return True
     limit = float(chdtri(redundancy, ALPHA))
     if not rss > limit:
         return False
     warn("residual-above-noise",
-         f"{name}: the residual is {np.sqrt(rss / redundancy):.3g} times the stated noise "
+         f"{name}: the residual is {ratio:.3g} times the stated noise "
          f"of {noise_of} (chi-square {rss:.4g} on {redundancy:.1f} degrees of freedom, "
          f"{1 - ALPHA:.1%} limit {limit:.4g}): the stated sigma is too small, or the model "
          "or the data are wrong; without --sigma the noise is estimated from the fit")

@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 from kinecal._special import chdtr, chdtrc
 from kinecal.calibration.diagnostics._common import ALPHA
 from kinecal.diagnostics import warn
+from kinecal.errors import InputError
 
 __all__ = ["MAX_DEFICIT", "MIN_EXCESS", "check_stated_noise", "check_stated_sigma",
            "known_covariance", "noise_entry", "noise_lines"]
@@ -58,17 +59,25 @@ MIN_EXCESS = 0.5
 MAX_DEFICIT = 0.5
 
 
-def check_stated_sigma(model, sigma: float | None) -> float | None:
-    """Refuse (before any work) a stated noise that is not a positive finite number, or that
-    is larger than the machine (`kinecal.calibration.diagnostics.sizes`)."""
+def check_stated_sigma(model, sigma: float | None, where: str = "--sigma") -> float | None:
+    """Refuse (before any work) a stated noise that is not a positive finite number, that
+    is larger than the machine (`kinecal.calibration.diagnostics.sizes`), or below the
+    double-precision resolution of its coordinates (its weight would overflow the fit's
+    squares: ``--sigma 1e-300`` ended in a division by zero)."""
     if sigma is None:
         return None
     from kinecal._limits import check_finite
     from kinecal.calibration.diagnostics.sizes import check_length_noise, serial_size
 
-    value = check_finite(sigma, "--sigma", positive=True)
-    check_length_noise(value, serial_size(model), "--sigma", model.length_unit,
-                       "stated noise")
+    value = check_finite(sigma, where, positive=True)
+    size = serial_size(model)
+    check_length_noise(value, size, where, model.length_unit, "stated noise")
+    floor = float(np.finfo(float).eps) * size
+    if value < floor:
+        raise InputError(f"a stated noise of {value:.4g} {model.length_unit} is below the "
+                         "resolution of double-precision coordinates of this machine "
+                         f"({floor:.3g} {model.length_unit}): expected at least that (is the "
+                         "unit right?)", option=where)
     return value
 
 
