@@ -151,6 +151,26 @@ def test_a_wrong_station_is_an_outlier(kr6):
         np.sqrt(np.mean(lin.after_px[keep] ** 2))
 
 
+def test_a_grossly_wrong_station_is_left_out_from_the_start(kr6):
+    """A joint read 20 deg off (a station of another pose): the robust closed-form start
+    flags it, and a robust fit leaves it out from its first pass; down-weighted in the fit
+    it had pulled the arm into a wrong minimum (lengths moved by metres, 28 px RMS)."""
+    truth = kr6.nominal + random_errors(kr6, np.random.default_rng(4))
+    st, _, _ = _stations(kr6, "eye-in-hand", truth, n=12)  # (of 24 the fit held before)
+    st.q[7, 1] += np.radians(20.0)
+    st.pixels = [p + np.random.default_rng(k).normal(0, 0.05, p.shape)
+                 for k, p in enumerate(st.pixels)]
+    with diagnostics.expect("outliers") as found:
+        rob = calibrate_arm_camera(kr6, st, K, DIST, loss="huber")
+    assert [d.code for d in found] == ["outliers"] and rob.outliers == [7]
+    assert np.sqrt(np.mean(rob.after_px[rob.inliers] ** 2)) < 0.075
+    keep = [i for i in range(len(st.q)) if i != 7]
+    clean = Stations(st.q[keep], [st.points[i] for i in keep], [st.pixels[i] for i in keep],
+                     st.target2cam[keep], [st.names[i] for i in keep])
+    ref = calibrate_arm_camera(kr6, clean, K, DIST, loss="huber")  # the station never seen
+    np.testing.assert_allclose(rob.params, ref.params, rtol=0, atol=1e-6)
+
+
 def test_camera_block_mixes_with_tracker_points(kr6):
     """One problem of two kinds: the tracker sees the base-side and flange-side parameters
     the camera cannot, the camera adds its pixels; exact data recover the arm."""

@@ -68,6 +68,8 @@ class CameraBlock(ResidualBlock):
         self.K, self.dist, self.setup, self.n_int = K, dist, setup, n_int
         self.method, self.robust_start = method, robust_start
         self.pixels: PixelBlock | None = None
+        #: stations the robust closed-form start judged inconsistent with the others
+        self.start_outliers: list[int] = []
         counts = np.array([len(p) for p in stations.points], dtype=np.intp)
         self._obs = np.repeat(np.arange(len(counts), dtype=np.intp), 2 * counts)
 
@@ -96,8 +98,10 @@ class CameraBlock(ResidualBlock):
     def start(self, model: SerialModel, params: Array) -> Array:
         """References X0, board pose from the closed form at `params`; zero increments."""
         if self.pixels is None:
-            X0, Y0, _ = closed_form_start(model, self.q, self.stations.target2cam, self.setup,
-                                          params, self.method, self.robust_start)
+            X0, Y0, seed = closed_form_start(model, self.q, self.stations.target2cam,
+                                             self.setup, params, self.method,
+                                             self.robust_start)
+            self.start_outliers = [int(i) for i in (seed.outliers or [])]
             self.set_references(model, X0, Y0)
         return np.zeros(self.n_nuisance)
 

@@ -32,6 +32,7 @@ from kinecal.calibration.camera.identify import camera_identifiability
 from kinecal.calibration.camera.residual_block import CameraBlock
 from kinecal.calibration.camera.result import ArmCameraResult, Stations
 from kinecal.calibration.diagnostics import CODES
+from kinecal.calibration.diagnostics._common import chi_outliers
 from kinecal.calibration.serial.problem import candidate_names
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
@@ -131,18 +132,7 @@ def _calibrate(model, st, K, dist, setup, free, refine_intrinsics, rational, los
     nu_he, r_he = fit_nuisance(block, model, p0, block.start(model, p0))
     cands = candidate_names(model, free)
     ident = camera_identifiability(block.pixels, p0, nu_he, cands, tol=rank_tol)
-    with diagnostics.expect(*CODES) as first:  # issued below unless a final fit follows
-        fit = calibrate_blocks(model, [block], free=free, loss=loss, f_scale=f_scale,
-                               rank_tol=rank_tol)
-    outliers = list(fit.outliers)
-    if loss != "linear" and outliers and len(st.q) - len(outliers) >= 3:
-        # robust: the outlier stations are left out of a final fit (a joint read a degree
-        # off moves its corners by pixels; down-weighted they still pull the arm)
-        fit = calibrate_blocks(model, [_without(block, model, outliers)], free=free,
-                               loss=loss, f_scale=f_scale, rank_tol=rank_tol)
-    else:
-        for d in first:
-            diagnostics.warn(d.code, d.message)
+    fit, outliers = _robust_fits(model, block, free, loss, f_scale, rank_tol)
     unknowns = {u["name"]: u for u in fit.extra["kinds"][0]["unknowns"]}
     X = np.array(unknowns["X"]["matrix"])
     Y = np.array(unknowns["board"]["matrix"])
@@ -184,6 +174,49 @@ def _calibrate(model, st, K, dist, setup, free, refine_intrinsics, rational, los
         seconds=time.perf_counter() - t0)
     check_camera_fit(res)
     return res
+
+
+def _robust_fits(model: SerialModel, block: CameraBlock, free, loss: str, f_scale,
+                 rank_tol: float) -> tuple[Any, list[int]]:
+    """The fit and its outlier stations (indices into `block`'s stations).
+
+    Linear loss: one fit of every station (outliers flagged, kept). Robust loss: the
+    stations the robust closed-form start found inconsistent (a joint reading 20 deg off
+    wrecks the arm's fit even down-weighted: it starts hundreds of pixels away) are left
+    out from the first fit; stations that fit flags too are left out of a final one (a
+    joint read a degree off moves its corners by pixels; down-weighted they still pull)."""
+    n = len(block.stations.q)
+    pre = sorted(block.start_outliers) if loss != "linear" else []
+    if n - len(pre) < 3:
+        pre = []
+    kept = np.array([i for i in range(n) if i not in set(pre)], dtype=np.intp)
+    with diagnostics.expect(*CODES) as first:  # issued below unless a final fit follows
+        fit = calibrate_blocks(model, [_without(block, model, pre) if pre else block],
+                               free=free, loss=loss, f_scale=f_scale, rank_tol=rank_tol)
+    outliers = sorted(int(kept[i]) for i in fit.outliers)
+    if pre:  # every station judged again at this fit (the start's judgement is coarse: the
+        # arm at nominal; a station it flagged that fits now is used again)
+        every = _fitted_pixels(model, block, fit)
+        e = every.station_rms(every.residuals(fit.params, np.zeros(12)))
+        outliers = sorted(set(outliers) | set(chi_outliers(e, block.obs_dof)))
+    if loss != "linear" and outliers != pre and n - len(outliers) >= 3:
+        fit = calibrate_blocks(model, [_without(block, model, outliers) if outliers else block],
+                               free=free, loss=loss, f_scale=f_scale, rank_tol=rank_tol)
+    else:
+        for d in first:
+            diagnostics.warn(d.code, d.message)
+    return fit, outliers
+
+
+def _fitted_pixels(model: SerialModel, block: CameraBlock, fit) -> PixelBlock:
+    """Every station of `block` with the fit's X, board pose and intrinsics."""
+    st = block.stations
+    unknowns = {u["name"]: u for u in fit.extra["kinds"][0]["unknowns"]}
+    K, d = block.pixels.K, block.pixels.d8
+    if block.n_int:
+        K, d = np.array(unknowns["intrinsics"]["K"]), np.array(unknowns["intrinsics"]["dist"])
+    return PixelBlock(model, st.q, st.points, st.pixels, block.setup, K, d,
+                      np.array(unknowns["X"]["matrix"]), np.array(unknowns["board"]["matrix"]))
 
 
 def _without(block: CameraBlock, model: SerialModel, drop: Sequence[int]) -> CameraBlock:
