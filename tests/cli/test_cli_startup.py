@@ -66,8 +66,10 @@ def test_one_command_loads_its_module_alone():
     assert "kinecal.cli.reproduce" in loaded and "kinecal.cli.fk" not in loaded
 
 
-#: imported on first use only: a command that never solves or tests a distribution skips them
-LATE_SCIPY = ("scipy.optimize", "scipy.special", "scipy.spatial", "scipy.sparse")
+#: imported on first use only: a command that never solves with them skips them (each
+#: costs 0.1-0.3 s, more than a one-pose fk or a hand-eye bundle adjustment)
+LATE_SCIPY = ("scipy.optimize", "scipy.special", "scipy.spatial", "scipy.sparse",
+              "scipy.linalg")
 
 
 def test_one_pose_fk_loads_no_solver_or_distribution(tmp_path):

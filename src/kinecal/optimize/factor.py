@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg import lapack
 
 __all__ = ["gram_root", "qr_update"]
 
@@ -50,6 +49,8 @@ def qr_update(R: Array | None, block: Array) -> Array:
     stacked[top:] = block
     if stacked.shape[0] == 0:
         return np.zeros((k, k))
+    from scipy.linalg import lapack  # on first use: scipy.linalg costs 0.1 s to import
+
     qr, _, _, info = lapack.dgeqrf(stacked, lwork=max(64 * k, 1), overwrite_a=1)
     if info != 0:  # pragma: no cover - LAPACK argument error
         raise RuntimeError(f"dgeqrf failed (info {info})")

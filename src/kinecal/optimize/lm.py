@@ -17,7 +17,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import NDArray
 
 __all__ = ["LMSolution", "NormalEquations", "solve_normal_equations"]
@@ -86,7 +85,10 @@ class LMSolution:
 
 
 def cholesky_step(A: Array, damp: Array, g: Array) -> Array:
-    """``h`` with ``(A + diag(damp)) h = -g`` by dense Cholesky."""
+    """``h`` with ``(A + diag(damp)) h = -g`` by dense Cholesky (LAPACK's, through scipy,
+    imported here: a caller with its own `linear_solver` does not load scipy.linalg)."""
+    import scipy.linalg
+
     c = scipy.linalg.cho_factor(A + np.diag(damp), check_finite=False)
     return -scipy.linalg.cho_solve(c, g, check_finite=False)
 
