@@ -5,6 +5,8 @@ median wall times are printed (the machine is shared: the minimum is the least d
 run, the median the typical one):
 
 * ``kinecal --help`` against ``python -c "import numpy"``;
+* ``kinecal fk ur5 ONE.csv`` (one pose: a script asking per target) against the same
+  product written with numpy in a ``python -c`` script;
 * ``kinecal calibrate ur5 ur5-laser-tracker:grid --validate ur5-laser-tracker:random``
   against ``python -c "import numpy, scipy.linalg"``;
 * ``kinecal stewart fk liu2008-cmm LEGS.csv`` on 10^5 leg readings (the CSV written
@@ -54,6 +56,32 @@ def compare(label: str, cmd: list[str], ref_label: str, ref: list[str], repeat: 
     print(f"  {ref_label}: min {min(r):.3f} s, median {statistics.median(r):.3f} s")
     print(f"  ratio: {min(t) / min(r):.2f}x (min/min), "
           f"{statistics.median(t) / statistics.median(r):.2f}x (median/median)")
+
+
+#: the bundled ur5 model (D-H table, tool point; mm) at one pose: the peer of ``kinecal fk``
+FK_SCRIPT = """import numpy as np
+d = [89.159, 0, 0, 109.15, 94.65, 82.3]
+a = [0, -425, -392.25, 0, 0, 0]
+al = [np.pi / 2, 0, 0, np.pi / 2, -np.pi / 2, 0]
+q = np.radians([0, 10, 20, 30, 40, 50])
+T = np.eye(4)
+for i in range(6):
+    ct, st, ca, sa = np.cos(q[i]), np.sin(q[i]), np.cos(al[i]), np.sin(al[i])
+    T = T @ np.array([[ct, -st * ca, st * sa, a[i] * ct], [st, ct * ca, -ct * sa, a[i] * st],
+                      [0, sa, ca, d[i]], [0, 0, 0, 1]])
+p = T @ np.array([0.0, 0.07, 31.0, 1.0])  # the bundled model's tool point
+print("x,y,z")
+print(",".join(repr(float(v)) for v in p[:3]))
+"""
+
+
+def one_pose_fk(repeat: int) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        q = Path(tmp) / "one.csv"
+        q.write_text("q1,q2,q3,q4,q5,q6\n0,10,20,30,40,50\n")
+        compare("kinecal fk ur5 ONE.csv (one pose)", [*KINECAL, "fk", "ur5", str(q)],
+                "python -c (numpy D-H product of the same pose)",
+                [sys.executable, "-c", FK_SCRIPT], repeat)
 
 
 def stewart(n: int, repeat: int) -> None:
@@ -162,6 +190,7 @@ def main() -> None:
     py = [sys.executable, "-c"]
     compare("kinecal --help", [*KINECAL, "--help"], 'python -c "import numpy"',
             [*py, "import numpy"], repeat)
+    one_pose_fk(repeat)
     compare("kinecal calibrate ur5 ur5-laser-tracker:grid --validate ur5-laser-tracker:random",
             [*KINECAL, "calibrate", "ur5", "ur5-laser-tracker:grid", "--validate",
              "ur5-laser-tracker:random"],
