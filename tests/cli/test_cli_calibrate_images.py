@@ -164,3 +164,28 @@ def test_validation_stations_are_reprojected_not_fitted(scene, tmp_path):
     assert res["calibration"]["after"]["n"] == 8 and res["validation"]["after"]["n"] == 2
     assert res["validation"]["images"] == ["station_008.png", "station_009.png"]
     assert res["validation"]["after"]["rms_px"] < 0.5 * res["validation"]["before"]["rms_px"]
+
+
+def test_min_corners_reaches_the_detection_and_is_checked(scene, tmp_path, capsys,
+                                                          monkeypatch):
+    """``--min-corners`` (ChArUco boards seen in part) as for handeye-images: checked against
+    the board, handed to the detection, refused without --images."""
+    import kinecal.vision.arm_images as arm
+
+    seen = {}
+    real = arm.calibrate_arm_images
+
+    def spy(*args, **kwargs):
+        seen["limits"] = kwargs["limits"]
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(arm, "calibrate_arm_images", spy)
+    s = _copy(scene, tmp_path)
+    assert _calibrate(s, "--min-corners", "40", "--quiet") == 0
+    assert seen["limits"].min_corners == 40
+    capsys.readouterr()
+    (s / "r.json").unlink()
+    assert _calibrate(s, "--min-corners", "3") == 2
+    assert "option --min-corners" in capsys.readouterr().err and not (s / "r.json").exists()
+    assert main(["calibrate", "kr6-craig", str(s / "stations.csv"), "--min-corners", "10"]) == 2
+    assert "applies to --images only" in capsys.readouterr().err

@@ -198,6 +198,9 @@ def calibrate(
                                            "camera YAML (default: from the images)."),
     setup: str = typer.Option("eye-in-hand", "--setup", help="With --images: eye-in-hand "
                               "or eye-to-hand."),
+    min_corners: int | None = typer.Option(None, "--min-corners", help="With --images: "
+                                           "fewest corners an image must show (ChArUco, "
+                                           "seen in part; default 60 % of the board's)."),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
     or from board images with --images."""
@@ -205,7 +208,8 @@ def calibrate(
         from kinecal.cli.calibrate_images import calibrate_images
 
         return calibrate_images(dict(locals()))
-    for option, value in (("--board", board), ("--intrinsics", intrinsics)):
+    for option, value in (("--board", board), ("--intrinsics", intrinsics),
+                          ("--min-corners", min_corners)):
         if value is not None:
             raise InputError("applies to --images only", option=option)
     from kinecal.calibration.diagnostics.noise import check_stated_sigma

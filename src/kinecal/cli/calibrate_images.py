@@ -61,15 +61,16 @@ def calibrate_images(args: dict[str, Any]) -> None:
          intrinsics=args["intrinsics"], setup=args["setup"], method=args["method"],
          validate=validate, free=free_option(args["free"]), loss=args["loss"],
          out=args["out"], model_out=args["model_out"], report=args["report"],
-         json_out=args["json_out"], quiet=args["quiet"], strict=args["strict"])
+         json_out=args["json_out"], quiet=args["quiet"], strict=args["strict"],
+         min_corners=args["min_corners"])
 
 
 def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
          images: Path, board: str | None, intrinsics: Path | None, setup: str, method: str,
          validate: str | None, free: Any, loss: str, out: Path | None,
          model_out: Path | None, report: Path | None, json_out: bool, quiet: bool,
-         strict: bool) -> None:
-    from kinecal.cli.handeye_images import IMAGE_SUFFIXES, list_images
+         strict: bool, min_corners: int | None = None) -> None:
+    from kinecal.cli.handeye_images import IMAGE_SUFFIXES, limits_option, list_images
 
     if method != "lm":
         raise InputError(f"--images calibrates by Levenberg-Marquardt on the pixels; got "
@@ -95,6 +96,7 @@ def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
         from kinecal.vision.intrinsics import read_intrinsics
 
         the_board = parse_board(board)
+        limits = limits_option(min_corners, the_board)
         m = load_model_arg(model, base_link, tip_link)
         names, q = read_stations(Path(data), m)
         files = list_images(images)
@@ -122,7 +124,8 @@ def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
         with progress("detecting", len(names), quiet or json_out) as update:
             res = calibrate_arm_images(m, [by_name[n] for n in names], q, the_board,
                                        names=names, intrinsics=intr, setup=setup, free=free,
-                                       loss=loss, validate=val, progress=update)
+                                       loss=loss, validate=val, progress=update,
+                                       limits=limits)
         res.warnings = list(found)
         result = with_warnings({"images_dir": str(images), "stations": str(data),
                                 **res.to_dict()}, found)

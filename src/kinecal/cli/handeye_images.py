@@ -66,7 +66,7 @@ def _parse_robot_noise(text: str | None) -> tuple[float, float] | None:
     return float(np.radians(rot_deg)), trans
 
 
-def _limits(min_corners: int | None, board: Any) -> Any:
+def limits_option(min_corners: int | None, board: Any) -> Any:
     """QualityLimits with ``--min-corners`` checked against the board (4 .. its corners)."""
     from kinecal.vision.detection import QualityLimits
 
@@ -150,7 +150,7 @@ def handeye_images(
         from kinecal.vision.pipeline import calibrate_handeye_images
 
         the_board = parse_board(board)
-        limits = _limits(min_corners, the_board)
+        limits = limits_option(min_corners, the_board)
         files = list_images(images_dir)
         names, F = read_robot_poses(robot_poses)
         by_name = {p.name: p for p in files}
