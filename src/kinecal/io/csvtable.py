@@ -202,21 +202,31 @@ def _read_checked(path: Path, skip: int, header: list[str], wanted: list[str],
                   cols: list[int], limit: float) -> NDArray[np.float64]:
     """The wanted columns ``(N, k)``, block by block; a block the C parser does not
     accept is read cell by cell, which raises `InputError` at the first bad cell."""
-    blocks = []
-    row = 0  # data rows before the current block
+    blocks = [b for _, _, b in _numeric_blocks(path, skip, header, wanted, cols, limit,
+                                               BLOCK_LINES)]
+    return np.concatenate(blocks) if blocks else np.empty((0, len(wanted)))
+
+
+def _numeric_blocks(path: Path, skip: int, header: list[str], wanted: list[str],
+                    cols: list[int], limit: float, rows: int
+                    ) -> Iterator[tuple[int, list[str], NDArray[np.float64]]]:
+    """``(first, lines, values)`` per block of `rows` lines after the header: the data
+    rows before the block, its lines and its wanted columns ``(n, k)`` (by the C parser,
+    or cell by cell where it refuses the block, raising `InputError` at the first bad
+    cell)."""
+    row = 0
     with _open(path) as fh:
         try:
             for _ in range(skip):
                 next(fh)
-            while lines := list(islice(fh, BLOCK_LINES)):
+            while lines := list(islice(fh, rows)):
                 b = _block(lines, len(header), cols, limit)
                 if b is None:  # cell by cell: raises at the first bad cell
                     b = _cells(lines, row, header, wanted, cols, path, limit)
-                blocks.append(b)
+                yield row, lines, b
                 row += b.shape[0]
         except (OSError, UnicodeDecodeError, csv.Error) as exc:
             raise InputError(f"cannot read CSV: {exc}", file=path) from None
-    return np.concatenate(blocks) if blocks else np.empty((0, len(wanted)))
 
 
 def _block(lines: list[str], n_fields: int, cols: list[int], limit: float
@@ -306,21 +316,13 @@ def read_blocks(path: str | Path, required: Sequence[str], optional: Sequence[st
     """
     path = Path(path)
     header, skip, wanted, cols = _resolve_columns(path, required, optional)
-    row = 0
-    with _open(path) as fh:
+    for row, lines, b in _numeric_blocks(path, skip, header, wanted, cols, max_abs, rows):
         try:
-            for _ in range(skip):
-                next(fh)
-            while lines := list(islice(fh, rows)):
-                b = _block(lines, len(header), cols, max_abs)
-                if b is None:  # cell by cell: raises at the first bad cell
-                    b = _cells(lines, row, header, wanted, cols, path, max_abs)
-                cells = [[c.strip() for c in r] for r in csv.reader(lines)
-                         if r and any(c.strip() for c in r)]
-                yield row, cells, {name: b[:, k] for k, name in enumerate(wanted)}
-                row += b.shape[0]
-        except (OSError, UnicodeDecodeError, csv.Error) as exc:
+            cells = [[c.strip() for c in r] for r in csv.reader(lines)
+                     if r and any(c.strip() for c in r)]
+        except csv.Error as exc:
             raise InputError(f"cannot read CSV: {exc}", file=path) from None
+        yield row, cells, {name: b[:, k] for k, name in enumerate(wanted)}
 
 
 def read_column(path: str | Path, name: str) -> list[str] | None:

@@ -56,6 +56,7 @@ __all__ = [
     "FLANGE_COLUMNS",
     "IMAGE_COLUMN",
     "TARGET_COLUMNS",
+    "check_image_name",
     "pose_columns",
     "read_handeye_csv",
     "read_handeye_files",
@@ -69,6 +70,15 @@ __all__ = [
 
 _PQ = ("x", "y", "z", "qw", "qx", "qy", "qz")
 
+
+def check_image_name(name: str, seen: dict[str, int], path: Path, row: int) -> None:
+    """Refuse an empty image name or one listed before (`seen`: name -> its row, updated)."""
+    if not name:
+        raise InputError("empty image name", file=path, row=row)
+    if name in seen:
+        raise InputError(f"image {name!r} listed twice (also row {seen[name]})", file=path,
+                         row=row)
+    seen[name] = row
 
 def pose_columns(prefix: str) -> list[str]:
     """Column names ``prefix_x .. prefix_qz`` of a pose (x, y, z, qw, qx, qy, qz)."""
@@ -267,12 +277,7 @@ def read_robot_poses(path: str | Path,
             raise InputError(f"{len(row)} fields, expected {len(header)} as in the header",
                              file=path, row=r)
         name = row[col].strip()
-        if not name:
-            raise InputError("empty image name", file=path, row=r)
-        if name in seen:
-            raise InputError(f"image {name!r} listed twice (also row {seen[name]})", file=path,
-                             row=r)
-        seen[name] = r
+        check_image_name(name, seen, path, r)
         names.append(name)
     if not names:
         raise InputError("no data rows", file=path)

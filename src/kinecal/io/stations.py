@@ -15,13 +15,11 @@ from numpy.typing import NDArray
 
 from kinecal.errors import InputError
 from kinecal.io.csvtable import read_column, read_table
+from kinecal.io.handeye import IMAGE_COLUMN, check_image_name
 from kinecal.io.measurements import csv_header, joint_columns, joint_names
 from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = ["IMAGE_COLUMN", "read_stations"]
-
-#: the image-name column
-IMAGE_COLUMN = "image"
 
 
 def read_stations(path: str | Path, model: SerialModel) -> tuple[list[str], NDArray[np.float64]]:
@@ -59,12 +57,7 @@ def read_stations(path: str | Path, model: SerialModel) -> tuple[list[str], NDAr
     cells = read_column(path, IMAGE_COLUMN) or []
     seen: dict[str, int] = {}
     for r, name in enumerate(cells, start=1):
-        if not name:
-            raise InputError("empty image name", file=path, row=r)
-        if name in seen:
-            raise InputError(f"image {name!r} listed twice (also row {seen[name]})", file=path,
-                             row=r)
-        seen[name] = r
+        check_image_name(name, seen, path, r)
     cols = read_table(path, joints)
     q = np.column_stack([cols[c] for c in joints]) * model.joint_scale()
     if len(q) != len(cells):  # pragma: no cover - both readers count the same rows

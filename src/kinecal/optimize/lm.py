@@ -149,11 +149,12 @@ def solve_normal_equations(
     x = np.asarray(x0, dtype=float)
     evaluate, linearize = cached_normal_equations(normal_equations)
     return iterate(evaluate, linearize, x, max_nfev=max_nfev or 200 * (x.size + 1),
-                   ftol=ftol, xtol=xtol, gtol=gtol, monitor=monitor or _rms,
+                   ftol=ftol, xtol=xtol, gtol=gtol, monitor=monitor or rms,
                    damping=damping, linear_solver=linear_solver or cholesky_step)
 
 
-def _rms(r: Array) -> float:
+def rms(r: Array) -> float:
+    """RMS of the residual vector (the default monitored cost)."""
     return float(np.sqrt(np.mean(np.square(r))))
 
 

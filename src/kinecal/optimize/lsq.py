@@ -25,6 +25,7 @@ from kinecal.optimize.lm import (
     cholesky_step,
     iterate,
     plain_normal_equations,
+    rms,
 )
 
 if TYPE_CHECKING:
@@ -38,10 +39,6 @@ Jacobian = Callable[[Array], Array]
 
 #: robust losses of `levenberg_marquardt` (scipy names)
 LOSSES = ("linear", "huber", "soft_l1", "cauchy", "arctan")
-
-
-def _rms(r: Array) -> float:
-    return float(np.sqrt(np.mean(np.square(r))))
 
 
 def householder_gauss_newton(
@@ -87,7 +84,7 @@ def householder_gauss_newton(
     OptimizeResult
         ``x, fun (0.5 ||r||^2), nit, nfev, njev, history, singular, success, status, message``.
     """
-    monitor = monitor or _rms
+    monitor = monitor or rms
     t0 = time.perf_counter()
     x = np.array(x0, dtype=float)
     r = residual(x)
@@ -226,7 +223,7 @@ def levenberg_marquardt(
                          option="--loss")
     if solver not in ("kinecal", "minpack"):
         raise InputError(f"solver: expected kinecal or minpack, got {solver!r}")
-    monitor = monitor or _rms
+    monitor = monitor or rms
     if loss == "linear" and solver == "kinecal":
         if normal_equations is not None:
             evaluate, linearize = cached_normal_equations(normal_equations)

@@ -170,7 +170,7 @@ class SymmetricCircleGrid(CircleGrid):
     @property
     def spec(self) -> str:
         tail = "" if self.diameter is None else f":{self.diameter:g}"
-        return f"circles:{self.cols}x{self.rows}:{self.spacing:g}{tail}"
+        return f"{self.kind}:{self.cols}x{self.rows}:{self.spacing:g}{tail}"
 
     @property
     def pitch(self) -> float:
@@ -190,13 +190,11 @@ class SymmetricCircleGrid(CircleGrid):
 
 
 @dataclass(frozen=True)
-class ModifiedCircleGrid(CircleGrid):
-    """industrial_calibration's modified circle grid (see the module docstring)."""
+class ModifiedCircleGrid(SymmetricCircleGrid):
+    """industrial_calibration's modified circle grid (see the module docstring): the
+    symmetric grid with a marked origin dot, twice the others' diameter; ``dot`` is the
+    small dots' diameter."""
 
-    cols: int
-    rows: int
-    spacing: float
-    diameter: float | None = None
     kind = "modcircles"
     faces = -1.0
 
@@ -206,23 +204,9 @@ class ModifiedCircleGrid(CircleGrid):
         _check_diameter("modcircles", self.dot, self.spacing, 2.0 / 3.0)
 
     @property
-    def dot(self) -> float:
-        """Diameter of the small dots (length unit); the origin dot's is twice that."""
-        return DEFAULT_DIAMETER * self.spacing if self.diameter is None else self.diameter
-
-    @property
     def origin_id(self) -> int:
         """Id of the origin (large) dot: ``(rows - 1) * cols``."""
         return (self.rows - 1) * self.cols
-
-    @property
-    def spec(self) -> str:
-        tail = "" if self.diameter is None else f":{self.diameter:g}"
-        return f"modcircles:{self.cols}x{self.rows}:{self.spacing:g}{tail}"
-
-    @property
-    def pitch(self) -> float:
-        return self.spacing
 
     @property
     def object_points(self) -> Array:
@@ -230,6 +214,9 @@ class ModifiedCircleGrid(CircleGrid):
         return np.column_stack([c.ravel() * self.spacing,
                                 (self.rows - 1 - r.ravel()) * self.spacing,
                                 np.zeros(c.size)])
+
+    def symmetries(self) -> list[tuple[Array, NDArray[np.intp]]]:
+        return []  # the origin dot marks the frame
 
     def dot_diameters(self) -> Array:
         d = np.full(self.n_corners, self.dot)

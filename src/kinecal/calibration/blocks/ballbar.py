@@ -67,14 +67,6 @@ class BallbarBlock(GaugeBlock):
                      "the mounts, or give each set-up its own pivot id")
     nuisance_components = ("x", "y", "z")
 
-    @property
-    def n_obs(self) -> int:
-        return len(self.data)
-
-    @property
-    def obs_index(self) -> NDArray[np.intp]:
-        return np.arange(len(self.data), dtype=np.intp)
-
     def start(self, model: SerialModel, params: Array) -> Array:
         """Each pivot by a sphere fit with the stated distances as radii."""
         P = model.positions(self.q, params, self.marker)

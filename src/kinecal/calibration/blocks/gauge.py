@@ -61,6 +61,16 @@ class GaugeBlock(ResidualBlock):
                          obs_sigma=None if sigma is not None else self._obs_sigma(data))
         self._check_groups()
 
+    @property
+    def n_obs(self) -> int:
+        """One observation per file row."""
+        return len(self.data)
+
+    @property
+    def obs_index(self) -> NDArray[np.intp]:
+        """The row of every residual (`obs_dof` residuals per row)."""
+        return np.repeat(np.arange(len(self.data), dtype=np.intp), self.obs_dof)
+
     def _obs_sigma(self, data: GaugeMeasurements) -> Array | None:
         return None if data.sigma is None else np.asarray(data.sigma, dtype=float)
 

@@ -71,14 +71,6 @@ class PlaneBlock(GaugeBlock):
         self.normals = np.zeros((len(self.groups), 3))
         self.tangents = np.zeros((len(self.groups), 2, 3))
 
-    @property
-    def n_obs(self) -> int:
-        return len(self.data)
-
-    @property
-    def obs_index(self) -> NDArray[np.intp]:
-        return np.arange(len(self.data), dtype=np.intp)
-
     def nuisance_scale(self, length: float) -> Array:
         return np.tile([1.0 / length, 1.0 / length, 1.0], len(self.live_groups))
 

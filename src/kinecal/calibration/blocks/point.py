@@ -38,14 +38,6 @@ class PointBlock(GaugeBlock):
                      "id; check the touches of that point")
     nuisance_components = ("x", "y", "z")
 
-    @property
-    def n_obs(self) -> int:
-        return len(self.data)
-
-    @property
-    def obs_index(self) -> NDArray[np.intp]:
-        return np.repeat(np.arange(len(self.data), dtype=np.intp), 3)
-
     def group_residual_rows(self, g: int) -> NDArray[np.intp]:
         rows = self.groups[g]
         return (3 * rows[:, None] + np.arange(3)).ravel()

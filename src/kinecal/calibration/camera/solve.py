@@ -134,9 +134,8 @@ def _calibrate(model, st, K, dist, setup, free, refine_intrinsics, rational, los
     ident = camera_identifiability(block.pixels, p0, nu_he, cands, tol=rank_tol)
     fit, outliers = _robust_fits(model, block, free, loss, f_scale, rank_tol)
     unknowns = {u["name"]: u for u in fit.extra["kinds"][0]["unknowns"]}
-    X = np.array(unknowns["X"]["matrix"])
-    Y = np.array(unknowns["board"]["matrix"])
-    Kf, df = block.pixels.K, block.pixels.d8
+    final = _fitted_pixels(model, block, fit)
+    X, Y, Kf, df = final.X0, final.Y0, final.K, final.d8
     nstd = np.radians(unknowns["X"]["std_rotation_deg"]).tolist() + \
         unknowns["X"]["std_translation"] + \
         np.radians(unknowns["board"]["std_rotation_deg"]).tolist() + \
@@ -144,7 +143,6 @@ def _calibrate(model, st, K, dist, setup, free, refine_intrinsics, rational, los
     if n_int:
         Kf, df = np.array(unknowns["intrinsics"]["K"]), np.array(unknowns["intrinsics"]["dist"])
         nstd += unknowns["intrinsics"]["std"]
-    final = PixelBlock(model, st.q, st.points, st.pixels, setup, Kf, df, X, Y)
     r = final.residuals(fit.params, np.zeros(12))
     he = block.pixels.unpack(nu_he)
     val = None
