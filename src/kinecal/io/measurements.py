@@ -6,6 +6,11 @@ optional ``weight`` column; joint values in the model's angle unit, positions in
 The laser-tracker export of the bundled UR5 dataset (``joint_1..joint_n, x_t, y_t, z_t,
 x_dif, y_dif, z_dif``; degrees, mm) is read as well: measured = target + dif.
 
+Optional column sets (`kinecal.io.tracker_columns`): ``station`` (which tracker set-up
+measured the row), the orientation in another format than quaternions
+(``--orientation-format``), and per-axis standard deviations ``sx, sy, sz`` and
+``srx, sry, srz`` that weight each row.
+
 An optional ``marker`` column says which marker (tool point) each row measured: a name of
 the model's ``markers`` or its number 1..M in the model's order. A model without markers
 takes the names the file uses (`kinecal.kinematics.serial.markers.model_for_markers` then gives
@@ -28,8 +33,10 @@ from kinecal import diagnostics
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.io.csvtable import check_separator, read_column, read_table, write_table
+from kinecal.io.poses import PoseFormat
+from kinecal.io.tracker_columns import read_orientation, read_sigma, read_stations
 from kinecal.kinematics.serial.model import SerialModel
-from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
+from kinecal.spatial import quaternion_from_matrix
 
 # Measurements (kinecal.data) is re-exported here
 __all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "read_joints",
@@ -38,7 +45,8 @@ __all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "read_j
 #: columns with a meaning of their own in measurement and program files: a joint of that
 #: name can only be given as q1..qn
 _RESERVED = frozenset(("x", "y", "z", "qw", "qx", "qy", "qz", "weight", "marker", "pose",
-                       "pivot", "pair", "point", "plane", "distance", "sigma"))
+                       "pivot", "pair", "point", "plane", "distance", "sigma", "station",
+                       "sx", "sy", "sz", "srx", "sry", "srz"))
 
 
 def _q_column(name: str) -> bool:
@@ -192,15 +200,20 @@ def read_joints(path: str | Path, model: SerialModel) -> NDArray[np.float64]:
     return q
 
 
-def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
+def read_measurements(path: str | Path, model: SerialModel,
+                      orientation: PoseFormat | str | None = None) -> Measurements:
     """Read a measurement CSV for `model` (a path or a bundled ``NAME:PART``).
 
-    `model` may also be a bundled name or a model file path (loaded).
+    `model` may also be a bundled name or a model file path (loaded). `orientation`: the
+    format of the orientation columns (`kinecal.io.poses.PoseFormat` or its text, e.g.
+    ``intrinsic-xyz:deg``); default quaternions ``qw, qx, qy, qz`` when present.
 
     Raises
     ------
     InputError
-        Missing columns, wrong joint count, NaN or non-numeric cells (with the row).
+        Missing columns, wrong joint count, NaN or non-numeric cells (with the row), bad
+        station names, incomplete or non-unit orientations, standard deviations that are
+        not positive.
     """
     model = _as_model(model)
     path = resolve_csv(path)
@@ -224,15 +237,9 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
             f"{len(qcols)} joint columns ({', '.join(qcols)}), model {model.name!r} has {n} "
             f"joints: expected q1..q{n}" + (f" or {', '.join(names)}" if names else ""),
             file=path)
-    quat = ["qw", "qx", "qy", "qz"]
-    present = [c for c in quat if c in header]
-    if present and len(present) != 4:
-        raise InputError(
-            f"orientation columns {', '.join(present)} without the others: expected all of "
-            "qw, qx, qy, qz (tool orientation as a unit quaternion) or none",
-            file=path,
-        )
-    cols = read_table(path, joints + ["x", "y", "z"], optional=["weight", *quat])
+    fmt = PoseFormat.parse(orientation, option="--orientation-format") if isinstance(
+        orientation, str) else orientation
+    cols = read_table(path, joints + ["x", "y", "z"], optional=["weight"])
     q = np.column_stack([cols[c] for c in joints])
     q *= scale
     xyz = np.column_stack([cols[c] for c in "xyz"])
@@ -240,23 +247,18 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
     if weights is not None and not (weights > 0).all():
         row = int(np.argmax(~(weights > 0))) + 1
         raise InputError("column weight: expected a positive number", file=path, row=row)
-    rotations = None
-    if present:
-        qv = np.column_stack([cols[c] for c in quat])
-        norm = np.linalg.norm(qv, axis=1)
-        bad = np.abs(norm - 1.0) > 1e-3
-        if bad.any():
-            row = int(np.argmax(bad)) + 1
-            raise InputError(f"qw, qx, qy, qz: norm {norm[row - 1]:.6f}, expected a unit "
-                             "quaternion", file=path, row=row)
-        rotations = matrix_from_quaternion(qv)
+    rotations, rotation, angles = read_orientation(path, header, fmt)
+    sigma = read_sigma(path, header, rotation, angles, rotations is not None)
     marker, names = read_markers(path, model)
-    return Measurements(q, xyz, weights, str(path), rotations, marker, names)
+    station, stations = read_stations(path)
+    return Measurements(q, xyz, weights, str(path), rotations, marker, names, station,
+                        stations, sigma)
 
 
 def write_measurements(path: str | Path, data: Measurements, model: SerialModel) -> None:
     """Write `data` in kinecal's CSV format (revolute joint values in the model's angle
-    unit, prismatic ones in its length unit)."""
+    unit, prismatic ones in its length unit; orientations as quaternions, their standard
+    deviations about the measurement axes in degrees)."""
     q = np.asarray(data.q) / model.joint_scale()
     columns = {f"q{i + 1}": q[:, i] for i in range(q.shape[1])}
     columns.update({c: np.asarray(data.xyz)[:, k] for k, c in enumerate("xyz")})
@@ -267,4 +269,11 @@ def write_measurements(path: str | Path, data: Measurements, model: SerialModel)
         columns["weight"] = np.asarray(data.weights)
     if data.marker is not None:
         columns["marker"] = np.asarray(data.marker_names, dtype=str)[np.asarray(data.marker)]
+    if data.station is not None:
+        columns["station"] = np.asarray(data.station_names, dtype=str)[np.asarray(data.station)]
+    if data.sigma is not None:  # rotations about the measurement axes, as quaternions have
+        s = np.asarray(data.sigma)
+        columns.update({c: s[:, k] for k, c in enumerate(("sx", "sy", "sz"))})
+        columns.update({c: np.degrees(s[:, 3 + k]) for k, c in
+                        enumerate(("srx", "sry", "srz")) if s.shape[1] == 6})
     write_table(path, columns)

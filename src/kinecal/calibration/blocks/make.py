@@ -12,6 +12,7 @@ from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.pair import PairBlock
 from kinecal.calibration.blocks.plane import PlaneBlock
 from kinecal.calibration.blocks.point import PointBlock
+from kinecal.calibration.blocks.stations import StationBlock
 from kinecal.calibration.blocks.tracker import TrackerBlock
 from kinecal.calibration.diagnostics.noise import check_stated_sigma
 from kinecal.data import GaugeMeasurements, Measurements
@@ -81,6 +82,8 @@ def make_blocks(model: SerialModel, data: Sequence[DataSet],
             if s is not None:
                 d.sigma, d.obs_sigma = float(s), None
             blocks.append(d)
+        elif isinstance(d, Measurements) and d.station is not None:
+            blocks.append(StationBlock(_remapped(d, model), s, rotation_weight))
         elif isinstance(d, Measurements):
             blocks.append(TrackerBlock(_remapped(d, model), s, rotation_weight))
         elif isinstance(d, GaugeMeasurements):

@@ -137,6 +137,7 @@ def calibrate(
     rank_tol: float = CALIBRATION_RANK_TOL,
     rotation_weight: float | None = None,
     sigma: float | Sequence[float | None] | None = None,
+    validate_register: str | None = None,
 ) -> CalibrationResult:
     """Identify the geometric parameters of `model` from `data`.
 
@@ -188,6 +189,11 @@ def calibrate(
         errors with the noise known are added as ``extra["noise"]``
         (`kinecal.calibration.diagnostics.noise`). With several data sets: one per set
         (None: estimated), the sets weighted by it.
+    validate_register : {"all", "N%"}, optional
+        Validation data from another tracker set-up: refit the base frame and the tool on
+        all of its rows, or on N % of them (drawn with `rng`'s seed) and judge on the
+        others (`kinecal.calibration.serial.validation_frame`). Without it, validation
+        data in another frame warn ``validation-frame``.
 
     Returns
     -------
@@ -205,17 +211,39 @@ def calibrate(
     """
     model = as_model(model)
     data, validate = as_measurements(data, model), as_measurements(validate, model, "validate")
+    if validate_register is not None and validate is None:
+        raise InputError("applies with validation data only", option="--validate-register")
+    res = _dispatch(model, data, method, free=free, validate=validate, rng=rng, loss=loss,
+                    f_scale=f_scale, maxiter=maxiter, target=target, options=options,
+                    progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight,
+                    sigma=sigma, register=validate_register)
+    if validate is not None:  # re-registered, or checked for another frame
+        from kinecal.calibration.serial.validation_frame import judge_validation
+
+        judge_validation(res, validate, validate_register, rng)
+    return res
+
+
+def _dispatch(model, data, method, *, validate, sigma, register, **kw) -> CalibrationResult:
+    """The calibration behind `calibrate`: tracker rows of one set-up on the fast path,
+    anything else stacked (`_several`); rows with per-axis standard deviations weighted
+    after a first fit gives their floor."""
+    if register is not None:  # checked before any work
+        from kinecal.calibration.serial.validation_frame import parse_register
+
+        parse_register(register)
+    if isinstance(data, Measurements) and data.station is not None:
+        data = [data]  # several tracker set-ups: one stacked problem (calibration.blocks)
+    if isinstance(data, Measurements) and data.sigma is not None:
+        from kinecal.calibration.serial.sigma_floor import with_sigma_floor
+
+        data = with_sigma_floor(model, data, kw["free"], rank_tol=kw["rank_tol"],
+                                rotation_weight=kw["rotation_weight"])
     if not isinstance(data, Measurements) or not (validate is None or isinstance(
             validate, Measurements)):
-        return _several(model, data, method, free=free, validate=validate, loss=loss,
-                        f_scale=f_scale, rank_tol=rank_tol, rotation_weight=rotation_weight,
-                        sigma=sigma, rng=rng, maxiter=maxiter, target=target,
-                        options=options, progress=progress)
+        return _several(model, data, method, validate=validate, sigma=sigma, **kw)
     with diagnostics.collect(python_warnings=True) as found:
-        res = _calibrate(model, data, method, free=free, validate=validate, rng=rng, loss=loss,
-                         f_scale=f_scale, maxiter=maxiter, target=target, options=options,
-                         progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight,
-                         sigma=sigma)
+        res = _calibrate(model, data, method, validate=validate, sigma=sigma, **kw)
     res.warnings = list(found)
     return res
 
@@ -232,9 +260,9 @@ def _several(model, data, method, *, free, validate, loss, f_scale, rank_tol,
     one = merge_tracker_sets(sets, sig)
     vone = None if vsets is None else merge_tracker_sets(vsets, [None] * len(vsets))
     if one is not None and (vsets is None or vone is not None):
-        return calibrate(model, one[0], method, free=free, validate=None if vone is None
+        return _dispatch(model, one[0], method, free=free, validate=None if vone is None
                          else vone[0], loss=loss, f_scale=f_scale, rank_tol=rank_tol,
-                         rotation_weight=rotation_weight, sigma=one[1], **kw)
+                         rotation_weight=rotation_weight, sigma=one[1], register=None, **kw)
     from kinecal.calibration.blocks.api import calibrate_blocks
 
     return calibrate_blocks(model, sets, sigma=sig, validate=vsets, method=method, free=free,

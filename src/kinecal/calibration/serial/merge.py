@@ -34,8 +34,12 @@ def merge_tracker_sets(sets: Sequence[object], sigma: Sequence[float | None]
     """
     if not sets or not all(type(s) is Measurements for s in sets):
         return None
+    if any(s.station is not None for s in sets):
+        return None  # several set-ups: a stacked problem (calibration.blocks.stations)
     if len(sets) == 1:
         return sets[0], sigma[0]
+    if any(s.sigma is not None for s in sets):
+        return None  # rows weighted per axis, each file its own floor: a stacked problem
     known = [s is not None for s in sigma]
     if any(known) and not all(known):
         return None

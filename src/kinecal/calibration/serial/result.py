@@ -245,7 +245,7 @@ class CalibrationResult:
             "length_unit": self.nominal_model.length_unit,
             "angle_unit": self.nominal_model.angle_unit,
             "parameters": self.parameter_table(),
-            "frames": frames_entry(self.nominal_model, self.params),
+            "frames": frames_entry(self.nominal_model, self.params, self.extra),
             "free": list(self.free),
             "unidentifiable": self.unidentifiable(),
             "confounded_with": rep.confounded_with,
