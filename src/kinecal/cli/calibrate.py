@@ -44,6 +44,12 @@ from kinecal.cli.calibrate_kinds import (
     identifiability_files,
     parse_sigma,
 )
+from kinecal.cli.tracker_options import (
+    check_tracker_options,
+    orientation_format_option,
+    station_per_file_option,
+    validate_register_option,
+)
 from kinecal.errors import InputError
 
 #: --error-model values (and families joined by '+')
@@ -201,6 +207,9 @@ def calibrate(
     min_corners: int | None = typer.Option(None, "--min-corners", help="With --images: "
                                            "fewest corners an image must show (ChArUco, "
                                            "seen in part; default 60 % of the board's)."),
+    orientation_format: str | None = orientation_format_option(),
+    station_per_file: bool = station_per_file_option(),
+    validate_register: str | None = validate_register_option(),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
     or from board images with --images."""
@@ -223,7 +232,10 @@ def calibrate(
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
     shown = check_unit(unit)
     validate = validate or []
-    if len(data) > 1 or len(validate) > 1 or any(
+    check_tracker_options(orientation_format, validate_register, validate)
+    tracker = {"orientation": orientation_format, "station_per_file": station_per_file,
+               "register": validate_register}
+    if station_per_file or len(data) > 1 or len(validate) > 1 or any(
             file_kind(f, o) != "tracker" for f, o in [(data[0], "DATA")]
             + [(v, "--validate") for v in validate]):
         return calibrate_files(
@@ -233,7 +245,7 @@ def calibrate(
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
                            "--folds": folds}, record=(instrument, operator, note),
-            unit=shown)
+            unit=shown, tracker=tracker)
     data, validate = data[0], (validate[0] if validate else None)
     sigma = parse_sigma(sigma, [data])[0]
     check_paths({"MODEL": model, "DATA": data, "--validate": validate},
@@ -255,19 +267,20 @@ def calibrate(
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
         check_stated_sigma(m, sigma)  # not larger than the machine
-        meas = read_measurements(resolve_data_path(data, "DATA"), m)
+        meas = read_measurements(resolve_data_path(data, "DATA"), m, orientation_format)
         if rotation_weight is not None and meas.rotations is None:
             raise InputError("applies to measured orientations (qw..qz columns) only",
                              option="--rotation-weight")
         val = None
         if validate is not None:
-            val = read_measurements(resolve_data_path(validate, "--validate"), m)
+            val = read_measurements(resolve_data_path(validate, "--validate"), m,
+                                    orientation_format)
         iterative = method not in ("lm",)
         with progress(f"calibrate {m.name} ({method})", maxiter if iterative else None,
                       quiet or json_out) as update:
             kw = dict(free=free_option(free), validate=val, rng=seed, loss=loss,
                       maxiter=maxiter, target=target, rotation_weight=rotation_weight,
-                      sigma=sigma,
+                      sigma=sigma, validate_register=validate_register,
                       progress=(lambda it, best: update(1, best)) if iterative else None)
             if error_model is None and m.joint_errors is None and harmonics is None:
                 res = run(m, meas, method, **kw)

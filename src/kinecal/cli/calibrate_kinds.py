@@ -77,10 +77,17 @@ def parse_sigma(values: list[str] | None, files: list[str]) -> list[float | None
     return out
 
 
-def _read_all(m, files: list[str], option: str) -> list:
+def _read_all(m, files: list[str], option: str, tracker: dict | None = None) -> list:
+    """Every file read; `tracker`: the tracker options of `kinecal.cli.tracker_options`."""
+    from kinecal.cli.tracker_options import per_file_station
     from kinecal.io.kinds import read_kind
 
-    return [read_kind(resolve_data_path(f, option), m) for f in files]
+    tracker = tracker or {}
+    sets = [read_kind(resolve_data_path(f, option), m, tracker.get("orientation"))
+            for f in files]
+    if tracker.get("station_per_file"):
+        sets = [per_file_station(d, f) for d, f in zip(sets, files, strict=True)]
+    return sets
 
 
 def calibrate_files(model: str, files: list[str], *, base_link, tip_link, validate: list[str],
@@ -88,10 +95,13 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                     out: Path | None, model_out: Path | None, report: Path | None,
                     json_out: bool, quiet: bool, strict: bool, rotation_weight,
                     sigma: list[str] | None, extra_options: dict[str, Any],
-                    record: tuple = (None, None, None), unit: str | None = None) -> None:
+                    record: tuple = (None, None, None), unit: str | None = None,
+                    tracker: dict | None = None) -> None:
     """``kinecal calibrate MODEL A.csv B.csv ...`` (several files or another kind);
     `record`: ``--instrument``, ``--operator``, ``--note`` of the report; `unit`: the
-    summary's length unit (None: the model's)."""
+    summary's length unit (None: the model's); `tracker`: ``--orientation-format``,
+    ``--station-per-file``, ``--validate-register`` (`kinecal.cli.tracker_options`)."""
+    tracker = tracker or {}
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.method_options import check_method_options
     from kinecal.calibration.serial.api import calibrate
@@ -115,15 +125,15 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
         m = load_model_arg(model, base_link, tip_link)
         for s in stated:
             check_stated_sigma(m, s)
-        sets = _read_all(m, files, "DATA")
-        vsets = _read_all(m, validate, "--validate") or None
+        sets = _read_all(m, files, "DATA", tracker)
+        vsets = _read_all(m, validate, "--validate", tracker) or None
         if rotation_weight is not None and not any(getattr(d, "rotations", None) is not None
                                                    for d in sets):
             raise InputError("applies to measured orientations (qw..qz columns) only",
                              option="--rotation-weight")
         res = calibrate(m, sets, method, free=free, validate=vsets, rng=seed, loss=loss,
                         maxiter=maxiter, target=target, rotation_weight=rotation_weight,
-                        sigma=stated)
+                        sigma=stated, validate_register=tracker.get("register"))
         res.warnings = list(found)
         result = with_warnings(res.to_dict(), found)
         if out is not None:

@@ -80,12 +80,14 @@ def kind_of_columns(header: list[str], path: Path | None = None) -> str:
     return "tracker"
 
 
-def read_kind(path: str | Path, model: SerialModel) -> Measurements | GaugeMeasurements:
-    """Read a measurement file of any kind for `model` (the kind from its columns)."""
+def read_kind(path: str | Path, model: SerialModel, orientation=None
+              ) -> Measurements | GaugeMeasurements:
+    """Read a measurement file of any kind for `model` (the kind from its columns);
+    `orientation`: the orientation format of a tracker file (`read_measurements`)."""
     path = resolve_csv(path)
     kind = kind_of_columns(csv_header(path), path)
     if kind == "tracker":
-        return read_measurements(path, model)
+        return read_measurements(path, model, orientation)
     return read_gauge(path, model, kind)
 
 

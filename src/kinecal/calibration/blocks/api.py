@@ -19,6 +19,7 @@ from kinecal import diagnostics
 from kinecal.calibration.blocks.analysis import analyse_stack, report_for, unseen_words
 from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.checks import check_block_data, check_blocks, check_fits
+from kinecal.calibration.blocks.floors import set_sigma_floors
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
 from kinecal.calibration.blocks.result import KindsCalibrationResult, kind_entry
 from kinecal.calibration.blocks.solve import fit_stack
@@ -167,6 +168,11 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
     vb = _check_validation(model, val_blocks, ana0.report.names)
     fit = fit_stack(model, blocks, list(names), cand, p0, nuis0, sig0, known, tol=rank_tol,
                     grow=free == "identifiable", loss=loss, f_scale=f_scale)
+    if set_sigma_floors(fit.problem, fit.result.x):  # rows weighted by their deviations
+        x = fit.result.x
+        fit = fit_stack(model, blocks, list(fit.problem.free), cand, fit.problem.params(x),
+                        fit.problem.nuisance(x), sig0, known, tol=rank_tol, grow=False,
+                        loss=loss, f_scale=f_scale)
     prob, x = fit.problem, np.asarray(fit.result.x, dtype=float)
     params, nuis = prob.params(x), prob.nuisance(x)
     final = StackedProblem(model, blocks, cand, prob.sigma, params)

@@ -66,7 +66,7 @@ class TrackerBlock(ResidualBlock):
         if self._pose_rows is None:
             w = self.rotation_weight
             if w is None and self.rows == 6:
-                w = characteristic_length(model, self.data, params)
+                w = self.rotation_weight = characteristic_length(model, self.data, params)
             self._pose_rows = PoseRows(model, self.data, w or 0.0, weighted=False)
             self._scale = sigma_row_scale(self.data, w or 1.0)
         return np.zeros(0)

@@ -213,7 +213,10 @@ def calibrate(
     data, validate = as_measurements(data, model), as_measurements(validate, model, "validate")
     if validate_register is not None and validate is None:
         raise InputError("applies with validation data only", option="--validate-register")
-    res = _dispatch(model, data, method, free=free, validate=validate, rng=rng, loss=loss,
+    # re-registered validation data are judged after the fit only (their raw errors are
+    # the tracker's move, not the model's)
+    res = _dispatch(model, data, method, free=free, rng=rng, loss=loss,
+                    validate=validate if validate_register is None else None,
                     f_scale=f_scale, maxiter=maxiter, target=target, options=options,
                     progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight,
                     sigma=sigma, register=validate_register)

@@ -4,8 +4,8 @@
 A validation set measured after the tracker (or the tool) moved sits in another frame: its
 errors at the calibrated model are the move, metres, not the model's accuracy ("3355 mm,
 improvement 12 %" for the UR10 of ipa-robot-accuracy, series A -> C). With
-``--validate-register`` the base frame and the tool (the calibratable ``tool.*``
-parameters: a point, a frame, the markers) are refitted on the validation rows with the
+``--validate-register`` the base frame and the tool (every ``tool.*`` parameter: a point,
+a frame, the markers) are refitted on the validation rows with the
 arm's geometry held, for the nominal model (before) and the calibrated one (after):
 
 * ``all``: on every validation row, errors on the same rows (6 to 12 parameters fitted
@@ -73,8 +73,9 @@ def parse_register(spec: str | float | None) -> float | None:
 
 
 def _frame_names(model: SerialModel) -> list[str]:
-    """The base and the calibratable tool parameters."""
-    return list(BASE_NAMES) + [n for n in model.calibratable if n.startswith("tool.")]
+    """The base and the tool parameters (the tool point, frame or markers; also where the
+    model holds them by design: a remounted tool moves them all the same)."""
+    return list(BASE_NAMES) + [n for n in model.parameter_names if n.startswith("tool.")]
 
 
 def register_frames(model: SerialModel, params: Array, data: Measurements) -> Array:
