@@ -244,7 +244,7 @@ def judge_validation(res, validate, spec: str | None, rng) -> None:
     with diagnostics.collect(python_warnings=True) as found:
         if spec is not None:
             apply_validation_register(res, validate, spec, parse_register(spec), seed)
-        else:
+        elif not res.extra.get("not_seen"):  # a mix blind to the base: no frame to leave
             for v in sets:
                 if v.station is None:  # a set of stations is registered per station
                     check_validation_frame(res.nominal_model, res.params, v,
