@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import typer
 
 from kinecal.cli._app import app
@@ -77,20 +76,21 @@ def import_(
 
 def _import_conf(path: Path, robot: str, out: Path, quiet: bool) -> None:
     from kinecal.io.models import check_model_file_name, save_model
-    from kinecal.io.ur.conf import read_calibration_conf
+    from kinecal.io.ur.conf import check_calibration, read_calibration_conf
     from kinecal.io.ur.robots import nominal_dh, ur_model
 
     nominal_dh(robot)  # an unknown type: exit 2 before anything is read
     check_model_file_name(out, "--out")
     check_paths({"SOURCE": path}, {"--out": out})
     deltas = read_calibration_conf(path)
+    deviation = check_calibration(deltas, robot, path)
     model = ur_model(robot, deltas, description=f"{robot.lower()} nominal D-H plus the "
                      f"factory deltas of {path.name} (theta, a, d, alpha)")
     save_model(model, out)
     if not quiet:
         typer.echo(f"wrote {out}: {model.name}, {robot.lower()} nominal D-H plus the deltas of "
-                   f"{path} (largest: {np.abs(deltas[:, 1:3]).max() * 1000:.4g} mm, "
-                   f"{np.degrees(np.abs(deltas[:, [0, 3]]).max()):.4g} deg)", err=True)
+                   f"{path}: the flange within {deviation * 1000:.4g} mm of the nominal "
+                   f"{robot.lower()}'s over the joint range", err=True)
 
 
 def _options(o: dict, dwell: float, still: float):
