@@ -77,6 +77,7 @@ CODES: dict[str, str] = {
                             "factory calibration does"),
     "ur-kinematics-not-ur": ("an ur-kinematics export of a model that is no calibration "
                              "of its UR type"),
+    "ros-dwell-moving": "bag dwells dropped: the measurement moved while the joints read still",
     "ros-joint-units": "bag JointState revolute positions beyond two turns (degrees?)",
     "ros-samples-skipped": "JointState messages of a bag left out (positions not matching the "
                            "names, not finite, time not increasing)",

@@ -43,7 +43,7 @@ def bag_root(path: str | Path) -> Path:
 def is_bag_path(path: str | Path) -> bool:
     """A ROS 2 bag folder (``metadata.yaml`` inside) or a ``.bag``/``.db3``/``.mcap`` file."""
     p = Path(path)
-    return p.suffix.lower() in _BAG_SUFFIXES or (p / "metadata.yaml").is_file()
+    return p.suffix.lower() in _BAG_SUFFIXES or (p / "metadata.yaml").exists()
 
 
 def check_regular(path: Path) -> None:
