@@ -29,6 +29,7 @@ from kinecal.calibration.serial.problem import characteristic_length
 from kinecal.calibration.serial.registration import rigid_fit_poses
 from kinecal.calibration.serial.row_weights import sigma_row_scale
 from kinecal.data import Measurements
+from kinecal.diagnostics import warn
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.frames import frame_transform
 from kinecal.kinematics.serial.model import SerialModel
@@ -38,6 +39,7 @@ from kinecal.spatial import (
     rot_x,
     rot_y,
     rot_z,
+    rotation_angle,
     rpy_from_matrix,
 )
 
@@ -47,6 +49,8 @@ Array = NDArray[np.float64]
 
 #: poses per forward-kinematics sweep (every frame of a sweep is kept for the Jacobian)
 SWEEP_POSES = 4096
+#: `tool-orientation`: the median orientation misfit after registration beyond this (deg)
+TOOL_TURN = 10.0
 _KEYS = ("x", "y", "z", "rx", "ry", "rz")
 
 
@@ -92,6 +96,7 @@ class StationBlock(ResidualBlock):
         self._base = np.eye(4)  # the model's (held) base frame, for the report
         self._scale: Array | None = None  # per-row whitening (standard deviations)
         self._started = False
+        self._turn = 0.0
 
     # ------------------------------------------------------------------ layout
     @property
@@ -125,6 +130,7 @@ class StationBlock(ResidualBlock):
         self._base = frame_transform(model, params, "base")
         T = model.fk(self.q, params, self.marker)
         out = []
+        turn = []  # rows' orientation misfit after the registration (deg)
         for s, rows in enumerate(self.groups):
             Rm = None if self.data.rotations is None else np.asarray(self.data.rotations)[rows]
             try:
@@ -135,6 +141,10 @@ class StationBlock(ResidualBlock):
                                  ) from None
             self._R0[s] = X[:3, :3]
             out.append(np.r_[X[:3, 3], 0.0, 0.0, 0.0])
+            if Rm is not None:
+                turn.append(np.degrees(rotation_angle(
+                    np.swapaxes(Rm, 1, 2) @ X[:3, :3] @ T[rows, :3, :3])))
+        self._turn = float(np.median(np.concatenate(turn))) if turn else 0.0
         self._started = True
         return np.concatenate(out) if out else np.zeros(0)
 
@@ -244,9 +254,18 @@ class StationBlock(ResidualBlock):
         return out
 
     def check_data(self, model: SerialModel, params: Array, nuisance: Array) -> None:
-        """A station of fewer rows than its six unknowns need is refused."""
+        """A station of fewer rows than its six unknowns need is refused; measured
+        orientations far from the model's tool frame after each station's registration
+        warn ``tool-orientation``."""
         for s, rows in enumerate(self.groups):
             if rows.size * self.rows < 7:
                 raise InputError(f"{self.name}: station {self.names[s]} has {rows.size} "
                                  f"row(s): its base frame needs more (at least 3 points)")
+        if self._turn > TOOL_TURN:
+            warn("tool-orientation",
+                 f"{self.name}: the measured orientations differ from the model's tool frame "
+                 f"by {self._turn:.3g} deg (median, each station registered on its points): "
+                 "the tool frame's nominal orientation (tool: x, y, z, rx, ry, rz of the "
+                 "model) is not the instrument's; give it within a few degrees (the fit may "
+                 "not converge from this far)")
 
