@@ -218,3 +218,16 @@ def test_station_block_jacobian_matches_central_differences():
         num = (block.evaluate(model, p + d, v0).r - block.evaluate(model, p - d, v0).r) / 2 / h
         np.testing.assert_allclose(rows.arm[:, j], num, rtol=1e-5, atol=1e-5)
     assert xyz_rpy_from_transform(STATIONS[0]).shape == (6,)
+
+
+def test_stations_have_their_own_identifiability_and_no_error_model(tmp_path, capsys):
+    model, _, data = _truth(n=40, orientation=False)
+    write_measurements(tmp_path / "rows.csv", data, model)
+    assert main(["identifiability", "irb120", "--data", str(tmp_path / "rows.csv"),
+                 "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert {"theta1", "d1"} <= set(report["unidentifiable"])  # the stations' blind motion
+    with pytest.raises(InputError, match="one set-up"):
+        from kinecal.calibration.serial.error_model import calibrate_error_model
+
+        calibrate_error_model(model, data, "harmonic")

@@ -46,6 +46,7 @@ from kinecal.cli.calibrate_kinds import (
 )
 from kinecal.cli.tracker_options import (
     check_tracker_options,
+    has_station_column,
     orientation_format_option,
     station_per_file_option,
     validate_register_option,
@@ -91,7 +92,8 @@ def identifiability(
     for option, value in (("--poses", poses), ("--seed", seed)):
         if data and value is not None:
             raise InputError("applies to random poses only, not with --data", option=option)
-    if data and (len(data) > 1 or file_kind(data[0], "--data") != "tracker"):
+    if data and (len(data) > 1 or file_kind(data[0], "--data") != "tracker"
+                 or has_station_column(data[0], "--data")):
         if error_model is not None or harmonics is not None:
             raise InputError("applies to one tracker file only", option="--error-model")
         return identifiability_files(model, data, base_link=base_link, tip_link=tip_link,

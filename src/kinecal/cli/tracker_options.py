@@ -13,7 +13,8 @@ import numpy as np
 
 from kinecal.errors import InputError
 
-__all__ = ["TRACKER_OPTIONS", "check_tracker_options", "orientation_format_option",
+__all__ = ["TRACKER_OPTIONS", "check_tracker_options", "has_station_column",
+           "orientation_format_option",
            "per_file_station", "station_per_file_option", "validate_register_option"]
 
 #: the option names, for "applies to ..." messages
@@ -78,3 +79,12 @@ def per_file_station(data, path: str | Path):
     name = station_name(re.sub(r"[^A-Za-z0-9_+-]", "_", Path(path).stem) or "station")
     return dataclasses.replace(data, station=np.zeros(len(data), dtype=np.intp),
                                station_names=(name,))
+
+
+def has_station_column(spec: str, option: str) -> bool:
+    """True when the CSV `spec` has a ``station`` column (several set-ups: the stacked
+    path)."""
+    from kinecal.cli._common import resolve_data_path
+    from kinecal.io.measurements import csv_header
+
+    return "station" in csv_header(resolve_data_path(spec, option))
