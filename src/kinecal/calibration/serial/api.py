@@ -190,10 +190,8 @@ def calibrate(
         (`kinecal.calibration.diagnostics.noise`). With several data sets: one per set
         (None: estimated), the sets weighted by it.
     validate_register : {"all", "N%"}, optional
-        Validation data from another tracker set-up: refit the base frame and the tool on
-        all of its rows, or on N % of them (drawn with `rng`'s seed) and judge on the
-        others (`kinecal.calibration.serial.validation_frame`). Without it, validation
-        data in another frame warn ``validation-frame``.
+        Validation data from another tracker set-up: base and tool refitted on all (or N %,
+        drawn with `rng`) of its rows first (`kinecal.calibration.serial.validation_frame`).
 
     Returns
     -------
@@ -211,15 +209,19 @@ def calibrate(
     """
     model = as_model(model)
     data, validate = as_measurements(data, model), as_measurements(validate, model, "validate")
-    if validate_register is not None and validate is None:
-        raise InputError("applies with validation data only", option="--validate-register")
+    if validate_register is not None:  # checked before any work
+        from kinecal.calibration.serial.validation_frame import parse_register
+
+        parse_register(validate_register)
+        if validate is None:
+            raise InputError("applies with validation data only", option="--validate-register")
     # re-registered validation data are judged after the fit only (their raw errors are
     # the tracker's move, not the model's)
     res = _dispatch(model, data, method, free=free, rng=rng, loss=loss,
                     validate=validate if validate_register is None else None,
                     f_scale=f_scale, maxiter=maxiter, target=target, options=options,
                     progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight,
-                    sigma=sigma, register=validate_register)
+                    sigma=sigma)
     if validate is not None:  # re-registered, or checked for another frame
         from kinecal.calibration.serial.validation_frame import judge_validation
 
@@ -227,50 +229,22 @@ def calibrate(
     return res
 
 
-def _dispatch(model, data, method, *, validate, sigma, register, **kw) -> CalibrationResult:
+def _dispatch(model, data, method, *, validate, sigma, **kw) -> CalibrationResult:
     """The calibration behind `calibrate`: tracker rows of one set-up on the fast path,
-    anything else stacked (`_several`); rows with per-axis standard deviations weighted
-    after a first fit gives their floor."""
-    if register is not None:  # checked before any work
-        from kinecal.calibration.serial.validation_frame import parse_register
+    anything else stacked (`kinecal.calibration.serial.merge`: `tracker_input`,
+    `several`)."""
+    from kinecal.calibration.serial.merge import tracker_input
 
-        parse_register(register)
-    if isinstance(data, Measurements) and data.station is not None:
-        data = [data]  # several tracker set-ups: one stacked problem (calibration.blocks)
-    if isinstance(data, Measurements) and data.sigma is not None:
-        from kinecal.calibration.serial.sigma_floor import with_sigma_floor
-
-        data = with_sigma_floor(model, data, kw["free"], rank_tol=kw["rank_tol"],
-                                rotation_weight=kw["rotation_weight"])
+    data = tracker_input(model, data, kw["free"], kw["rank_tol"], kw["rotation_weight"])
     if not isinstance(data, Measurements) or not (validate is None or isinstance(
             validate, Measurements)):
-        return _several(model, data, method, validate=validate, sigma=sigma, **kw)
+        from kinecal.calibration.serial.merge import several
+
+        return several(_dispatch, model, data, method, validate=validate, sigma=sigma, **kw)
     with diagnostics.collect(python_warnings=True) as found:
         res = _calibrate(model, data, method, validate=validate, sigma=sigma, **kw)
     res.warnings = list(found)
     return res
-
-
-def _several(model, data, method, *, free, validate, loss, f_scale, rank_tol,
-             rotation_weight, sigma, **kw) -> CalibrationResult:
-    """Several data sets or another kind than tracker points: tracker files alone are
-    merged for the fast path (`kinecal.calibration.serial.merge`), anything else is one
-    stacked problem (`kinecal.calibration.blocks.calibrate_blocks`)."""
-    from kinecal.calibration.serial.merge import data_sets, merge_tracker_sets
-
-    sets, sig = data_sets(data, sigma, "data")
-    vsets = None if validate is None else data_sets(validate, None, "validation")[0]
-    one = merge_tracker_sets(sets, sig)
-    vone = None if vsets is None else merge_tracker_sets(vsets, [None] * len(vsets))
-    if one is not None and (vsets is None or vone is not None):
-        return _dispatch(model, one[0], method, free=free, validate=None if vone is None
-                         else vone[0], loss=loss, f_scale=f_scale, rank_tol=rank_tol,
-                         rotation_weight=rotation_weight, sigma=one[1], register=None, **kw)
-    from kinecal.calibration.blocks.api import calibrate_blocks
-
-    return calibrate_blocks(model, sets, sigma=sig, validate=vsets, method=method, free=free,
-                            loss=loss, f_scale=f_scale, rank_tol=rank_tol,
-                            rotation_weight=rotation_weight)
 
 
 def _check_arguments(method: str, loss: str, f_scale, maxiter, target, options, model,
