@@ -41,6 +41,7 @@ from kinecal.calibration.serial.problem import (
     characteristic_length,
     column_scale,
 )
+from kinecal.calibration.serial.inliers import data_poses, merge_runs, robust_fit, robust_start
 from kinecal.calibration.serial.rows import PoseRows
 from kinecal.data import Measurements
 from kinecal.kinematics.serial.model import SerialModel
@@ -64,28 +65,37 @@ GROWTH_FTOL = 1e-4
 
 @dataclasses.dataclass
 class LMSolution:
-    """What `solve_lm` found: the final problem, the solver's result, the free parameters
-    and the identifiability report."""
+    """What `solve_lm` found: the final problem (every row), the solver's result (with a
+    robust loss and outliers: the fit without them), the free parameters, the
+    identifiability report and the outlier rows."""
 
     problem: CalibrationProblem
     result: OptimizeResult
     names: list[str]
     report: IdentifiabilityReport
+    #: rows the robust loss flagged and left out of the last fit (robust losses only)
+    outliers: list[int] = dataclasses.field(default_factory=list)
+    #: rows left out of the decisions on the free set (`robust_start`)
+    start_outliers: list[int] = dataclasses.field(default_factory=list)
 
 
 def solve_lm(model: SerialModel, data: Measurements, free: str | Sequence[str], *,
              rank_tol: float, rotation_weight: float | None = None,
              check: Callable[[list[str], IdentifiabilityReport], None] | None = None,
+             loss: str = "linear", f_scale: float | None = None, choose: bool | None = None,
              ) -> LMSolution:
     """Identifiability analysis and Levenberg-Marquardt fit (module docstring).
 
     Parameters
     ----------
-    model, data, free, rank_tol, rotation_weight
+    model, data, free, rank_tol, rotation_weight, loss, f_scale
         As in `kinecal.calibration.serial.api.calibrate`.
     check : callable, optional
         ``check(names, report)`` after the analysis, before the fit (the data checks of
         `kinecal.calibration.diagnostics`; it may raise `InputError`).
+    choose : bool, optional
+        Free the identifiable subset of the candidates `free` names (and grow it at the
+        identified geometry); default: when ``free="identifiable"``.
 
     Returns
     -------
@@ -106,7 +116,9 @@ def solve_lm(model: SerialModel, data: Measurements, free: str | Sequence[str], 
         report = analyse_factor(B, cand, rows.rows * rows.n_poses, tol=rank_tol, scale=scale)
     else:
         report = analyse_poses(model, data, cand, tol=rank_tol, rotation_weight=rotation_weight)
-    names = report.identifiable if free == "identifiable" else cand
+    growing = free == "identifiable" if choose is None else bool(choose)
+    names = report.identifiable if growing else cand
+    poses = data_poses(data)
     if check is not None:
         check(list(names), report)
     problem = CalibrationProblem(model, data, names, rotation_weight)
@@ -115,15 +127,27 @@ def solve_lm(model: SerialModel, data: Measurements, free: str | Sequence[str], 
         pos = [cand.index(n) for n in names] + [len(cand)]
         Gs = G[np.ix_(pos, pos)]
         start = (r0, Gs[:-1, :-1], Gs[:-1, -1])
-    growing = free == "identifiable"
     res = levenberg_marquardt(problem.residuals, problem.jacobian, problem.x0,
                               monitor=problem.mean_distance_from_residuals,
                               normal_equations=problem.normal_equations, start=start,
                               ftol=GROWTH_FTOL if growing else None)
+    # rank and free set decided on the inliers (`kinecal.calibration.serial.inliers`)
+    found = robust_start(problem, res, poses, GROWTH_FTOL if growing else None)
+    fit, res = found.problem, found.result
     if growing:
-        problem, res, names, report = grow_identifiable(
-            model, data, problem, res, report, rank_tol)
-    return LMSolution(problem, res, list(names), report)
+        fit, res, names, report = grow_identifiable(model, fit.data, fit, res, report,
+                                                    rank_tol)
+    problem = fit if not found.outliers else CalibrationProblem(model, data, names,
+                                                                rotation_weight)
+    outliers: list[int] = []
+    if loss != "linear":  # from the inliers' solution, outliers left out of the last fit
+        res, outliers = robust_fit(problem, res.x, poses, loss, f_scale, res)
+    elif found.outliers:  # least squares of every pose, from the inliers' solution
+        res = merge_runs(res, levenberg_marquardt(
+            problem.residuals, problem.jacobian, res.x,
+            monitor=problem.mean_distance_from_residuals,
+            normal_equations=problem.normal_equations))
+    return LMSolution(problem, res, list(names), report, outliers, found.outliers)
 
 
 def _converge(problem: CalibrationProblem, res: OptimizeResult) -> OptimizeResult:
