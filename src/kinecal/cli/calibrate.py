@@ -76,8 +76,10 @@ def identifiability(
     harmonics: int | None = typer.Option(None, "--harmonics",
                                          help="Harmonic order (default 2)."),
 ) -> None:
-    """Rank, identifiable and unidentifiable parameters, condition number, O1-O5."""
+    """Rank, identifiable and unidentifiable parameters, condition number, O1-O5; with
+    --data, what calibrate would free from those poses."""
     from kinecal.calibration.diagnostics.serial import check_pose_set
+    from kinecal.calibration.serial.api import CALIBRATION_RANK_TOL
     from kinecal.calibration.serial.problem import resolve_free
     from kinecal.calibration.serial.simulate import simulate as run
     from kinecal.kinematics.serial.markers import model_for_markers
@@ -107,10 +109,15 @@ def identifiability(
             # the geometry first, then the joint-error coefficients beyond it
             m, report = identifiability_with_terms(m, meas, free_option(free), error_model,
                                                    harmonics)
+        elif data is not None:  # what calibrate frees from these poses: its own rule
+            from kinecal.calibration.serial.solve import data_identifiability
+
+            report = data_identifiability(m, meas, free_option(free),
+                                          rank_tol=CALIBRATION_RANK_TOL)
         else:
             _, report = resolve_free(m, meas, free_option(free))
         if data is not None:
-            check_pose_set(m, meas, report)
+            check_pose_set(m, meas, report, CALIBRATION_RANK_TOL)
     if json_out:
         echo_json(with_warnings(report.to_dict(), found))
         return

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.diagnostics.fit import ROUND_OFF, pose_leverage
-from kinecal.calibration.diagnostics.observations import pose_groups, pose_outliers
+from kinecal.calibration.diagnostics.observations import pose_outliers
 from kinecal.calibration.diagnostics.sizes import serial_size
 from kinecal.calibration.serial.problem import CalibrationProblem
 from kinecal.data import Measurements
@@ -38,7 +38,7 @@ from kinecal.optimize.lsq import levenberg_marquardt
 if TYPE_CHECKING:
     from scipy.optimize import OptimizeResult
 
-__all__ = ["MAX_ROUNDS", "Inliers", "data_poses", "judge_poses", "merge_runs", "robust_fit",
+__all__ = ["MAX_ROUNDS", "Inliers", "judge_poses", "merge_runs", "robust_fit",
            "robust_start"]
 
 #: fits on the inliers at most (the flagged set usually repeats after the first)
@@ -65,14 +65,6 @@ class Inliers:
     result: OptimizeResult
     outliers: list[int] = field(default_factory=list)
     keep: NDArray[np.intp] | None = None
-
-
-def data_poses(data: Measurements) -> tuple[NDArray[np.intp], int] | None:
-    """The pose of each row of `data` and the number of poses, or None when every row is
-    its own pose (one tool point: a repeated row is a repeated measurement)."""
-    if data.marker is None:
-        return None
-    return pose_groups(np.asarray(data.q, dtype=float), np.asarray(data.marker))
 
 
 def merge_runs(first: OptimizeResult, then: OptimizeResult) -> OptimizeResult:

@@ -41,7 +41,8 @@ from kinecal.calibration.serial.problem import (
     characteristic_length,
     column_scale,
 )
-from kinecal.calibration.serial.inliers import data_poses, merge_runs, robust_fit, robust_start
+from kinecal.calibration.serial.cross_validation import data_poses
+from kinecal.calibration.serial.inliers import merge_runs, robust_fit, robust_start
 from kinecal.calibration.serial.rows import PoseRows
 from kinecal.data import Measurements
 from kinecal.kinematics.serial.model import SerialModel
@@ -51,7 +52,8 @@ from kinecal.optimize.lsq import levenberg_marquardt
 if TYPE_CHECKING:
     from scipy.optimize import OptimizeResult
 
-__all__ = ["GRAM_TOL", "GROWTH_FTOL", "LMSolution", "grow_identifiable", "solve_lm"]
+__all__ = ["GRAM_TOL", "GROWTH_FTOL", "LMSolution", "data_identifiability", "grow_identifiable",
+           "solve_lm"]
 
 Array = NDArray[np.float64]
 
@@ -258,3 +260,16 @@ def _significant(rss0: float, rss1: float, k: int, dof: int) -> bool:
     if rss1 <= 0.0:
         return True
     return dof > 0 and (rss0 - rss1) / k > float(fdtri(k, dof, 0.99)) * rss1 / dof
+
+
+def data_identifiability(model: SerialModel, data: Measurements,
+                         free: str | Sequence[str] = "all", *, rank_tol: float,
+                         rotation_weight: float | None = None) -> IdentifiabilityReport:
+    """What `calibrate` frees from `data`, as a report of the candidates `free` (``all``,
+    ``identifiable`` or names): the rule of ``free="identifiable"`` (rank at nominal at
+    `rank_tol`, outlier poses left out, parameters that became identifiable at the
+    identified geometry freed when the fit improves significantly), here applied to any
+    candidate set (``kinecal identifiability --data``)."""
+    cand = candidate_names(model, "all" if free == "identifiable" else free)
+    return solve_lm(model, data, cand, rank_tol=rank_tol, rotation_weight=rotation_weight,
+                    choose=True).report
