@@ -78,7 +78,7 @@ def test_folds_deal_poses_not_rows():
 
 
 def test_one_bad_pose_keeps_the_free_set(three_markers):
-    arm, nominal, clean, bad_data, bad, val = three_markers
+    _, nominal, clean, bad_data, bad, val = three_markers
     good = np.setdiff1d(np.arange(len(clean)), bad)
     ref = calibrate(nominal, clean.subset(good), validate=val)
     assert {"theta5", "alpha5"} <= set(ref.free)  # grown at the identified geometry
@@ -100,7 +100,7 @@ def test_one_bad_pose_keeps_the_free_set(three_markers):
 
 
 def test_identifiability_of_data_frees_what_calibrate_frees(three_markers, tmp_path, capsys):
-    arm, nominal, clean, bad_data, bad, val = three_markers
+    arm, nominal, clean, bad_data, _, _ = three_markers
     save_model(arm, tmp_path / "arm.yaml")
     for name, data in (("clean", clean), ("bad", bad_data)):
         path = tmp_path / f"{name}.csv"

@@ -34,6 +34,8 @@ from kinecal.calibration.identifiability import (
     conditioning,
     observability_indices,
 )
+from kinecal.calibration.serial.cross_validation import data_poses
+from kinecal.calibration.serial.inliers import merge_runs, robust_fit, robust_start
 from kinecal.calibration.serial.problem import (
     CalibrationProblem,
     analyse_poses,
@@ -41,8 +43,6 @@ from kinecal.calibration.serial.problem import (
     characteristic_length,
     column_scale,
 )
-from kinecal.calibration.serial.cross_validation import data_poses
-from kinecal.calibration.serial.inliers import merge_runs, robust_fit, robust_start
 from kinecal.calibration.serial.rows import PoseRows
 from kinecal.data import Measurements
 from kinecal.kinematics.serial.model import SerialModel
