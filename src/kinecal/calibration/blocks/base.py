@@ -31,6 +31,8 @@ What a block provides (each method's docstring has the shapes and units):
                           sweep for all such blocks)
 ``observation_errors(r)`` per-observation error sizes from the residual (before / after
                           statistics, outliers)
+``observation_poses()``   the pose of each observation (rows of one configuration at
+                          several markers: one pose of the outlier test)
 ``check_data``, ``check_fit``  plausibility hooks (`kinecal.diagnostics.warn` with a stable
                           code) before the fit at the start values, and after it
 ``nuisance_report``       the solved nuisance in words and numbers (JSON, report)
@@ -189,6 +191,13 @@ class ResidualBlock(ABC):
         """One label per observation (``file:row``) for outlier lists."""
         stem = Path(self.source).name or self.source
         return [f"{stem}:{i + 1}" for i in range(self.n_obs)]
+
+    def observation_poses(self) -> tuple[NDArray[np.intp], int]:
+        """The pose of each observation ``(n_obs,)`` and the number of poses: the
+        observations one arm configuration made at several markers are one pose of the
+        outlier test (`kinecal.calibration.diagnostics.observations`). Default: each
+        observation its own pose."""
+        return np.arange(self.n_obs, dtype=np.intp), self.n_obs
 
     def configurations(self) -> tuple[Array, NDArray[np.intp] | None]:
         """Joint readings and markers of the tool points the block measures."""

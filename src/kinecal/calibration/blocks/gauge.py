@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from kinecal.calibration.blocks.base import ResidualBlock, group_rows
 from kinecal.calibration.diagnostics._common import repeat_groups
 from kinecal.calibration.diagnostics.kinds import check_group_spread
+from kinecal.calibration.diagnostics.observations import pose_groups
 from kinecal.data import GaugeMeasurements
 from kinecal.diagnostics import warn
 from kinecal.errors import InputError
@@ -70,6 +71,12 @@ class GaugeBlock(ResidualBlock):
     def obs_index(self) -> NDArray[np.intp]:
         """The row of every residual (`obs_dof` residuals per row)."""
         return np.repeat(np.arange(len(self.data), dtype=np.intp), self.obs_dof)
+
+    def observation_poses(self) -> tuple[NDArray[np.intp], int]:
+        """Rows of one arm configuration at several markers are one pose."""
+        if self.marker is None:
+            return np.arange(self.n_obs, dtype=np.intp), self.n_obs
+        return pose_groups(self.q, self.marker)
 
     def _obs_sigma(self, data: GaugeMeasurements) -> Array | None:
         return None if data.sigma is None else np.asarray(data.sigma, dtype=float)
