@@ -14,7 +14,9 @@ Joints are ``q1..qn`` or the model's joint names, in the model's units, as for t
 files (`kinecal.io.measurements.joint_columns`); ``pivot``, ``pair``, ``point`` and
 ``plane`` hold ids (any text without commas: ``P1``, ``3``); ``distance`` is in the
 model's length unit; an optional ``sigma`` column states each row's 1-sigma noise (length
-unit); an optional ``marker`` column says which tool point touched (several markers).
+unit); an optional ``marker`` column says which tool point touched (several markers);
+point and plane files may give known fixtures (``px,py,pz[,nx,ny,nz]``,
+`kinecal.io.fixtures`).
 """
 
 from __future__ import annotations
@@ -23,9 +25,16 @@ from pathlib import Path
 
 import numpy as np
 
-from kinecal.data import DISTANCE_KINDS, GAUGE_KINDS, GaugeMeasurements, Measurements
+from kinecal.data import (
+    DISTANCE_KINDS,
+    GAUGE_KINDS,
+    KNOWN_COLUMNS,
+    GaugeMeasurements,
+    Measurements,
+)
 from kinecal.errors import InputError
 from kinecal.io.csvtable import read_column, read_table, write_table
+from kinecal.io.fixtures import read_known
 from kinecal.io.measurements import (
     csv_header,
     joint_columns,
@@ -137,9 +146,10 @@ def read_gauge(path: str | Path, model: SerialModel, kind: str | None = None
             raise InputError(f"column {name}: {v[row - 1]:g}, expected a positive length "
                              f"({model.length_unit})", file=path, row=row)
     group, names = _ids(path, GAUGE_KINDS[kind], len(q))
+    known = read_known(path, kind, group, names)
     marker, markers = read_markers(path, model)
     return GaugeMeasurements(kind, q, group, names, cols.get("distance"), cols.get("sigma"),
-                             str(path), marker, markers)
+                             str(path), marker, markers, known)
 
 
 def write_gauge(path: str | Path, data: GaugeMeasurements, model: SerialModel) -> None:
@@ -153,4 +163,9 @@ def write_gauge(path: str | Path, data: GaugeMeasurements, model: SerialModel) -
         columns["sigma"] = np.asarray(data.sigma)
     if data.marker is not None:
         columns["marker"] = np.asarray(data.marker_names, dtype=str)[np.asarray(data.marker)]
+    if data.known is not None:  # known fixtures: their rows carry them, unknown ones blank
+        known = np.asarray(data.known, dtype=float)[np.asarray(data.group)]
+        for k, c in enumerate(KNOWN_COLUMNS[data.kind]):
+            columns[c] = np.array(["" if np.isnan(v) else repr(float(v)) for v in known[:, k]],
+                                  dtype=object)
     write_table(path, columns)

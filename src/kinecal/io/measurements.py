@@ -38,7 +38,8 @@ __all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "read_j
 #: columns with a meaning of their own in measurement and program files: a joint of that
 #: name can only be given as q1..qn
 _RESERVED = frozenset(("x", "y", "z", "qw", "qx", "qy", "qz", "weight", "marker", "pose",
-                       "pivot", "pair", "point", "plane", "distance", "sigma"))
+                       "pivot", "pair", "point", "plane", "distance", "sigma",
+                       "px", "py", "pz", "nx", "ny", "nz"))
 
 
 def _q_column(name: str) -> bool:
