@@ -46,6 +46,9 @@ from kinecal.cli.calibrate_kinds import (
 )
 from kinecal.errors import InputError
 
+FIXTURE_HELP = ("Known fixtures: CSV of point,px,py,pz or plane,px,py,pz,nx,ny,nz rows (base "
+                "frame, length unit) for the point or plane files' ids (repeatable). See "
+                "docs/measurement-kinds.md.")
 #: --error-model values (and families joined by '+')
 ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto")
 
@@ -75,6 +78,7 @@ def identifiability(
         "joint_errors)."),
     harmonics: int | None = typer.Option(None, "--harmonics",
                                          help="Harmonic order (default 2)."),
+    fixture: list[Path] | None = typer.Option(None, "--fixture", help=FIXTURE_HELP),
 ) -> None:
     """Rank, identifiable and unidentifiable parameters, condition number, O1-O5; with
     --data, what calibrate would free from those poses."""
@@ -87,12 +91,14 @@ def identifiability(
     for option, value in (("--poses", poses), ("--seed", seed)):
         if data and value is not None:
             raise InputError("applies to random poses only, not with --data", option=option)
-    if data and (len(data) > 1 or file_kind(data[0], "--data") != "tracker"):
+    if fixture and not data:
+        raise InputError("applies to --data point and plane files", option="--fixture")
+    if data and (len(data) > 1 or fixture or file_kind(data[0], "--data") != "tracker"):
         if error_model is not None or harmonics is not None:
             raise InputError("applies to one tracker file only", option="--error-model")
         return identifiability_files(model, data, base_link=base_link, tip_link=tip_link,
                                      free=free_option(free), json_out=json_out, quiet=quiet,
-                                     strict=strict)
+                                     strict=strict, fixture=fixture)
     data = data[0] if data else None
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
@@ -208,6 +214,7 @@ def calibrate(
     min_corners: int | None = typer.Option(None, "--min-corners", help="With --images: "
                                            "fewest corners an image must show (ChArUco, "
                                            "seen in part; default 60 % of the board's)."),
+    fixture: list[Path] | None = typer.Option(None, "--fixture", help=FIXTURE_HELP),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
     or from board images with --images."""
@@ -230,7 +237,7 @@ def calibrate(
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
     shown = check_unit(unit)
     validate = validate or []
-    if len(data) > 1 or len(validate) > 1 or any(
+    if len(data) > 1 or len(validate) > 1 or fixture or any(
             file_kind(f, o) != "tracker" for f, o in [(data[0], "DATA")]
             + [(v, "--validate") for v in validate]):
         return calibrate_files(
@@ -240,7 +247,7 @@ def calibrate(
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
                            "--folds": folds}, record=(instrument, operator, note),
-            unit=shown)
+            unit=shown, fixture=fixture)
     data, validate = data[0], (validate[0] if validate else None)
     sigma = parse_sigma(sigma, [data])[0]
     check_paths({"MODEL": model, "DATA": data, "--validate": validate},

@@ -25,7 +25,8 @@ __all__ = ["calibrate_images"]
 #: options of ``calibrate`` that measured positions use and images do not
 _POSITION_ONLY = {"error_model": "--error-model", "harmonics": "--harmonics",
                   "folds": "--folds", "rotation_weight": "--rotation-weight",
-                  "sigma": "--sigma", "maxiter": "--maxiter", "target": "--target"}
+                  "sigma": "--sigma", "maxiter": "--maxiter", "target": "--target",
+                  "fixture": "--fixture"}
 
 
 def _one(value: Any, option: str) -> str | None:

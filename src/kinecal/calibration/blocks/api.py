@@ -196,6 +196,8 @@ def _result(model, prob, fit, ana, unc, params, before, after, entries, val_entr
     extra = {"kinds": entries, "not_seen": list(ana.unseen),
              "not_seen_words": unseen_words(ana.unseen), "noise_rounds": int(fit.rounds),
              "data": [b.source for b in blocks]}
+    if ana.shown_by_fixtures:
+        extra["fixtures_show"] = list(ana.shown_by_fixtures)
     if val_entries:
         extra["validation_kinds"] = val_entries
         extra["validation_data"] = [b.source for b in val_blocks]

@@ -46,7 +46,8 @@ def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Seque
         other candidates not) and ``unseen`` (motions of the whole arm the mix does not
         see).
     list of dict
-        Per set: ``file``, ``kind``, ``observations``, ``rows``, ``unknowns`` (its own).
+        Per set: ``file``, ``kind``, ``observations``, ``rows``, ``unknowns`` (its own),
+        ``known`` (its known fixtures: points or planes).
     """
     model = model_for_markers(model, marker_names(list(data)))
     blocks = make_blocks(model, list(data), sigma)
@@ -57,7 +58,8 @@ def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Seque
 
     ana = solve_blocks(model, blocks, names, True, rank_tol=tol, check=check).analysis
     kinds = [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
-              "rows": int(b.n_rows), "unknowns": int(b.n_nuisance)} for b in blocks]
+              "rows": int(b.n_rows), "unknowns": int(b.n_nuisance),
+              "known": int(np.sum(getattr(b, "known_mask", ())))} for b in blocks]
     return ana, kinds
 
 
