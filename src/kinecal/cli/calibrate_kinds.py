@@ -78,13 +78,14 @@ def parse_sigma(values: list[str] | None, files: list[str]) -> list[float | None
     return out
 
 
-def _read_all(m, files: list[str], option: str, fixtures: list | None = None) -> list:
-    """The data sets of `files`, point and plane sets with the known geometry of the
-    `fixtures` (`kinecal.io.fixtures.Fixture`) added by id."""
+def _read_all(m, files: list[str], option: str, fixtures: list | None = None,
+              angle_unit: str | None = None) -> list:
+    """The data sets of `files` (joint columns in `angle_unit`), point and plane sets with
+    the known geometry of the `fixtures` (`kinecal.io.fixtures.Fixture`) added by id."""
     from kinecal.io.fixtures import with_fixture
     from kinecal.io.kinds import read_kind
 
-    sets = [read_kind(resolve_data_path(f, option), m) for f in files]
+    sets = [read_kind(resolve_data_path(f, option), m, angle_unit=angle_unit) for f in files]
     if fixtures:
         sets = [with_fixture(d, fixtures) if getattr(d, "kind", None) in ("point", "plane")
                 else d for d in sets]
@@ -117,7 +118,7 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                     json_out: bool, quiet: bool, strict: bool, rotation_weight,
                     sigma: list[str] | None, extra_options: dict[str, Any],
                     record: tuple = (None, None, None), unit: str | None = None,
-                    fixture: list[Path] | None = None) -> None:
+                    fixture: list[Path] | None = None, angle_unit: str | None = None) -> None:
     """``kinecal calibrate MODEL A.csv B.csv ...`` (several files or another kind);
     `record`: ``--instrument``, ``--operator``, ``--note`` of the report; `unit`: the
     summary's length unit (None: the model's); `fixture`: ``--fixture`` files."""
@@ -146,9 +147,9 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
         for s in stated:
             check_stated_sigma(m, s)
         fixtures = read_fixtures(fixture)
-        sets = _read_all(m, files, "DATA", fixtures)
+        sets = _read_all(m, files, "DATA", fixtures, angle_unit)
         check_fixtures_used(fixtures, sets)
-        vsets = _read_all(m, validate, "--validate", fixtures) or None
+        vsets = _read_all(m, validate, "--validate", fixtures, angle_unit) or None
         if rotation_weight is not None and not any(getattr(d, "rotations", None) is not None
                                                    for d in sets):
             raise InputError("applies to measured orientations (qw..qz columns) only",
@@ -175,7 +176,8 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
 def identifiability_files(model: str, files: list[str], *, base_link, tip_link, free,
                           json_out: bool, quiet: bool, strict: bool,
                           sigma: list[str] | None = None,
-                          fixture: list[Path] | None = None) -> None:
+                          fixture: list[Path] | None = None,
+                          angle_unit: str | None = None) -> None:
     """``kinecal identifiability MODEL --data A.csv --data B.csv``: what a mix identifies
     (what `calibrate` would free from it), with ``--fixture`` files."""
     from kinecal.calibration.blocks.plan import analyse_kinds
@@ -184,7 +186,7 @@ def identifiability_files(model: str, files: list[str], *, base_link, tip_link, 
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
         fixtures = read_fixtures(fixture)
-        sets = _read_all(m, files, "--data", fixtures)
+        sets = _read_all(m, files, "--data", fixtures, angle_unit)
         check_fixtures_used(fixtures, sets)
         ana, kinds = analyse_kinds(m, sets, free, sigma=stated)
     out = ana.report.to_dict()
@@ -291,7 +293,7 @@ def simulate_kind_file(m, kind: str, *, poses: int, noise: float, true_params, s
 
 def select_kind_file(model: str, kind: str, *, count: int, candidates: int | None, seed: int,
                      out: Path, gauge: list[str] | None, length: float | None, base_link,
-                     tip_link) -> None:
+                     tip_link, angle_unit: str | None = None) -> None:
     """``kinecal select-poses MODEL --kind K --count N --out PLAN.csv``: D-optimal rows of a
     gauge kind (`kinecal.calibration.blocks.plan.select_kind_poses`)."""
     from kinecal.calibration.blocks.plan import select_kind_poses
@@ -317,7 +319,7 @@ def select_kind_file(model: str, kind: str, *, count: int, candidates: int | Non
         raise InputError(f"applies to --kind ballbar or pair, not {kind}", option="--length")
     m = load_model_arg(model, base_link, tip_link)
     plan, info = select_kind_poses(m, kind, count, candidates=candidates, rng=seed, **geometry)
-    write_gauge(out, plan, m)
+    write_gauge(out, plan, m, angle_unit=angle_unit)
     typer.echo(f"wrote {len(plan)} {kind} rows to {out}; O1 = {info['O1']:.4g}, O2 = "
                f"{info['O2']:.4g} ({info['rank']} identifiable parameters"
                + (f"; not seen: {', '.join(info['not_seen'])}" if info["not_seen"] else "")

@@ -89,13 +89,15 @@ def kind_of_columns(header: list[str], path: Path | None = None) -> str:
     return "tracker"
 
 
-def read_kind(path: str | Path, model: SerialModel) -> Measurements | GaugeMeasurements:
-    """Read a measurement file of any kind for `model` (the kind from its columns)."""
+def read_kind(path: str | Path, model: SerialModel, *, angle_unit: str | None = None
+              ) -> Measurements | GaugeMeasurements:
+    """Read a measurement file of any kind for `model` (the kind from its columns; joint
+    columns in `angle_unit`, default the model's)."""
     path = resolve_csv(path)
     kind = kind_of_columns(csv_header(path), path)
     if kind == "tracker":
-        return read_measurements(path, model)
-    return read_gauge(path, model, kind)
+        return read_measurements(path, model, angle_unit=angle_unit)
+    return read_gauge(path, model, kind, angle_unit=angle_unit)
 
 
 def _ids(path: Path, column: str, n: int) -> tuple[np.ndarray, tuple[str, ...]]:
@@ -112,9 +114,10 @@ def _ids(path: Path, column: str, n: int) -> tuple[np.ndarray, tuple[str, ...]]:
     return idx, tuple(lookup)
 
 
-def read_gauge(path: str | Path, model: SerialModel, kind: str | None = None
-               ) -> GaugeMeasurements:
-    """Read a ballbar, pair, point or plane file for `model`.
+def read_gauge(path: str | Path, model: SerialModel, kind: str | None = None, *,
+               angle_unit: str | None = None) -> GaugeMeasurements:
+    """Read a ballbar, pair, point or plane file for `model` (joint columns in
+    `angle_unit`, default the model's).
 
     Raises
     ------
@@ -138,7 +141,7 @@ def read_gauge(path: str | Path, model: SerialModel, kind: str | None = None
                          + (f" or {', '.join(names)}" if names else ""), file=path)
     numeric = joints + (["distance"] if kind in DISTANCE_KINDS else [])
     cols = read_table(path, numeric, optional=["sigma"])
-    q = np.column_stack([cols[c] for c in joints]) * model.joint_scale()
+    q = np.column_stack([cols[c] for c in joints]) * model.joint_scale(angle_unit)
     for name in ("distance", "sigma"):
         v = cols.get(name)
         if v is not None and not (v > 0).all():
@@ -152,9 +155,11 @@ def read_gauge(path: str | Path, model: SerialModel, kind: str | None = None
                              str(path), marker, markers, known)
 
 
-def write_gauge(path: str | Path, data: GaugeMeasurements, model: SerialModel) -> None:
-    """Write gauge measurements in their kind's CSV format (joints in the model's units)."""
-    q = np.asarray(data.q) / model.joint_scale()
+def write_gauge(path: str | Path, data: GaugeMeasurements, model: SerialModel, *,
+                angle_unit: str | None = None) -> None:
+    """Write gauge measurements in their kind's CSV format (joints in the model's units, or
+    revolute ones in `angle_unit`)."""
+    q = np.asarray(data.q) / model.joint_scale(angle_unit)
     columns: dict[str, np.ndarray] = {f"q{i + 1}": q[:, i] for i in range(q.shape[1])}
     columns[GAUGE_KINDS[data.kind]] = np.asarray(data.group_names, dtype=str)[data.group]
     if data.distance is not None:
