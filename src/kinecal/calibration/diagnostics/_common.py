@@ -182,13 +182,14 @@ def chi_outliers(d: Array, dof: int | Array = 3, alpha: float = ALPHA) -> list[i
     if n < 5:
         return []
     k = np.broadcast_to(np.asarray(dof, dtype=float), d.shape)
-    m = np.sqrt(chdtri(k, 0.5))  # the median norm of unit noise, per pose
+    dofs, which = np.unique(k, return_inverse=True)  # the quantiles once per dof
+    m = np.sqrt(chdtri(dofs, 0.5))[which]  # the median norm of unit noise, per pose
     z = d / m
     med = float(np.median(z))
     mad = 1.4826 * float(np.median(np.abs(z - med)))
     if med <= 0 or mad <= 0:
         return []
-    q = np.sqrt(chdtri(k, alpha / n))
+    q = np.sqrt(chdtri(dofs, alpha / n))[which]
     floor = max(med + 5.0 * mad, MEDIAN_MULTIPLE * med) * m
     sigma = med
     # the median is a noisy scale for few poses: also the RMS of the poses that pass, and

@@ -80,15 +80,18 @@ def merge_runs(first: OptimizeResult, then: OptimizeResult) -> OptimizeResult:
 
 def judge_poses(problem: CalibrationProblem, x: NDArray[np.float64],
                 poses: tuple[NDArray[np.intp], int] | None, normal: NDArray[np.float64],
-                kept: NDArray[np.bool_] | None = None) -> list[int]:
+                kept: NDArray[np.bool_] | None = None,
+                residual: NDArray[np.float64] | None = None) -> list[int]:
     """Rows of the outlier poses at `x` (every row of `problem`).
 
     `normal` is the ``J^T W J`` of the fit at `x`; `kept` marks its rows (None: all).
     Errors of fitted rows are studentized by ``sqrt(1 - h)``, of left-out rows by
     ``sqrt(1 + h)`` (the variance of a prediction); `poses` pools the rows of one pose
-    (`kinecal.calibration.diagnostics.observations.pose_groups`; None: a pose per row).
+    (`kinecal.calibration.diagnostics.observations.pose_groups`; None: a pose per row);
+    `residual`: `problem`'s residual vector at `x` when known (saves a pass).
     """
-    d = problem.distances(x)
+    d = (problem.distances(x) if residual is None
+         else problem.distances_from_residuals(residual))
     if not d.size or d.max() <= ROUND_OFF * serial_size(problem.model):
         return []
     h = pose_leverage(problem, x, normal)
@@ -128,7 +131,7 @@ def robust_start(problem: CalibrationProblem, res: OptimizeResult,
     Inliers
     """
     n = len(problem.data)
-    flagged = judge_poses(problem, res.x, poses, res.normal_matrix)
+    flagged = judge_poses(problem, res.x, poses, res.normal_matrix, residual=res.residual)
     if not flagged:
         return Inliers(problem, res)
     sub, fit, done = problem, res, []
