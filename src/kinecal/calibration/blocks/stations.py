@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.blocks.base import BlockRows, ResidualBlock, group_rows
+from kinecal.calibration.diagnostics.observations import pose_groups
 from kinecal.calibration.serial.problem import characteristic_length
 from kinecal.calibration.serial.registration import rigid_fit_poses
 from kinecal.calibration.serial.row_weights import sigma_row_scale
@@ -110,6 +111,14 @@ class StationBlock(ResidualBlock):
     @property
     def nuisance_names(self) -> list[str]:
         return [n for s in self.names for n in station_parameter_names(s)]
+
+    def observation_poses(self) -> tuple[NDArray[np.intp], int]:
+        """Rows of one arm configuration at several markers, from one station, are one
+        pose (as `kinecal.calibration.blocks.tracker.TrackerBlock`'s)."""
+        if self.marker is None:
+            return np.arange(self.n_obs, dtype=np.intp), self.n_obs
+        q = np.column_stack([self.q, 1e6 * self.station])  # never one pose across stations
+        return pose_groups(q, self.marker)
 
     def nuisance_scale(self, length: float) -> Array:
         return np.tile([1.0, 1.0, 1.0, 1.0 / length, 1.0 / length, 1.0 / length],
