@@ -32,8 +32,9 @@ from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
 # Measurements (kinecal.data) is re-exported here
-__all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "read_joints",
-           "read_markers", "read_measurements", "resolve_csv", "write_measurements"]
+__all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "measured_poses",
+           "orientation_columns", "read_joints", "read_markers", "read_measurements",
+           "resolve_csv", "write_measurements"]
 
 #: columns with a meaning of their own in measurement and program files: a joint of that
 #: name can only be given as q1..qn
@@ -224,25 +225,44 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
             f"{len(qcols)} joint columns ({', '.join(qcols)}), model {model.name!r} has {n} "
             f"joints: expected q1..q{n}" + (f" or {', '.join(names)}" if names else ""),
             file=path)
-    quat = ["qw", "qx", "qy", "qz"]
-    present = [c for c in quat if c in header]
+    cols = read_table(path, joints + ["x", "y", "z"],
+                      optional=["weight", *orientation_columns(header, path)])
+    q = np.column_stack([cols[c] for c in joints])
+    q *= scale
+    xyz, weights, rotations = measured_poses(path, cols)
+    marker, names = read_markers(path, model)
+    return Measurements(q, xyz, weights, str(path), rotations, marker, names)
+
+
+_QUAT = ["qw", "qx", "qy", "qz"]
+
+
+def orientation_columns(header: list[str], path: Path) -> list[str]:
+    """``qw, qx, qy, qz`` when the header has them, none when it has none; `InputError`
+    for some of them only."""
+    present = [c for c in _QUAT if c in header]
     if present and len(present) != 4:
         raise InputError(
             f"orientation columns {', '.join(present)} without the others: expected all of "
             "qw, qx, qy, qz (tool orientation as a unit quaternion) or none",
             file=path,
         )
-    cols = read_table(path, joints + ["x", "y", "z"], optional=["weight", *quat])
-    q = np.column_stack([cols[c] for c in joints])
-    q *= scale
+    return present
+
+
+def measured_poses(path: Path, cols: dict) -> tuple[NDArray[np.float64], NDArray | None,
+                                                    NDArray | None]:
+    """Measured points ``(N, 3)``, weights ``(N,)`` and rotations ``(N, 3, 3)`` (None when
+    absent) from the columns `read_table` read (``x, y, z`` and the optional ``weight``,
+    ``qw .. qz``); `InputError` for a non-positive weight or a quaternion off unit norm."""
     xyz = np.column_stack([cols[c] for c in "xyz"])
     weights = cols.get("weight")
     if weights is not None and not (weights > 0).all():
         row = int(np.argmax(~(weights > 0))) + 1
         raise InputError("column weight: expected a positive number", file=path, row=row)
     rotations = None
-    if present:
-        qv = np.column_stack([cols[c] for c in quat])
+    if "qw" in cols:
+        qv = np.column_stack([cols[c] for c in _QUAT])
         norm = np.linalg.norm(qv, axis=1)
         bad = np.abs(norm - 1.0) > 1e-3
         if bad.any():
@@ -250,8 +270,7 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
             raise InputError(f"qw, qx, qy, qz: norm {norm[row - 1]:.6f}, expected a unit "
                              "quaternion", file=path, row=row)
         rotations = matrix_from_quaternion(qv)
-    marker, names = read_markers(path, model)
-    return Measurements(q, xyz, weights, str(path), rotations, marker, names)
+    return xyz, weights, rotations
 
 
 def write_measurements(path: str | Path, data: Measurements, model: SerialModel) -> None:
