@@ -110,13 +110,18 @@ def stack_scale(problem: StackedProblem, params: Array, names=None) -> tuple[Arr
     return D, L, q, P
 
 
-def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool) -> Array:
+def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool,
+            keep: list[Array] | None = None) -> Array:
     """``R`` of the scaled, weighted ``[J_n | J_a]`` ``(n, n)``; with `check`, refuses a
-    block whose rows do not determine its own unknowns."""
+    block whose rows do not determine its own unknowns; `keep`: per block, the residual
+    rows to use (the others left out)."""
     k, n = problem.k, problem.n
     nn = n - k
     R = None
-    for b, (_, Ja, Jn, s) in zip(problem.blocks, problem._weighted_rows(x), strict=True):
+    for i, (b, (_, Ja, Jn, s)) in enumerate(zip(problem.blocks, problem._weighted_rows(x),
+                                                strict=True)):
+        if keep is not None:
+            Ja, Jn = Ja[keep[i]], Jn[keep[i]]
         if b.n_nuisance and check:
             Js = Jn * b.nuisance_scale(L)
             sv = np.linalg.svd(Js, compute_uv=False)
@@ -132,16 +137,22 @@ def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool) 
 
 
 def blind_basis(problem: StackedProblem, params: Array, q: Array, P: Array, D: Array,
+                used: list[bool] | None = None, configs: Array | None = None,
                 ) -> tuple[Array, list[str]]:
     """Orthonormal arm directions ``(k, b)`` (columns scaled by `D`) producing the mix's
     blind motions on the tool points `P` ``(N, 3)`` of the configurations `q`, and the
-    motions' names (`stack_scale` gives `D`, `q` and `P`)."""
+    motions' names (`stack_scale` gives `D`, `q` and `P`); `used`: the blocks that count
+    (default all), `configs`: the configurations that count (a mask, default all)."""
     blind = None
-    for b in problem.blocks:
-        blind = set(b.blind_to) if blind is None else blind & set(b.blind_to)
+    for i, b in enumerate(problem.blocks):
+        if used is None or used[i]:
+            blind = set(b.blind_to) if blind is None else blind & set(b.blind_to)
     if not blind or problem.k == 0:
         return np.zeros((problem.k, 0)), []
     _, marker = _configurations(problem)
+    if configs is not None:
+        q, P = q[configs], P[configs]
+        marker = None if marker is None else marker[configs]
     J = problem.model.identification_jacobian(q, params, marker=marker)[:, :, problem.index]
     J = J.reshape(-1, problem.k)
     fields, names = [], []
@@ -170,7 +181,8 @@ def blind_basis(problem: StackedProblem, params: Array, q: Array, P: Array, D: A
     return U[:, :rank], [n for n, m in zip(names, made, strict=True) if m]
 
 
-def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = False
+def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = False,
+                  keep: list[Array] | None = None, configs: Array | None = None
                   ) -> StackAnalysis:
     """Identifiability of `problem`'s arm parameters at `x` (module docstring).
 
@@ -184,15 +196,22 @@ def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = F
     check : bool
         Refuse (`InputError`) a block whose rows do not determine its own unknowns (the
         data's fault at the start values; at a solution, the fit's).
+    keep : list of ndarray of bool, optional
+        Per block, the residual rows to analyse (e.g. one chain's of a robot system); the
+        blocks without any count neither for the blind motions.
+    configs : ndarray of bool, optional
+        With `keep`: the configurations (of the blocks in order) those rows measure.
     """
     params = problem.params(x)
     D, L, q, P = stack_scale(problem, params)
-    R = _factor(problem, x, D, L, check)
+    R = _factor(problem, x, D, L, check, keep)
     nn = problem.n - problem.k
     Raa = R[nn:, nn:]
-    Q, unseen = blind_basis(problem, params, q, P, D)
+    used = None if keep is None else [bool(k.any()) for k in keep]
+    Q, unseen = blind_basis(problem, params, q, P, D, used, configs)
     B = Raa - (Raa @ Q) @ Q.T if Q.size else Raa
-    n_rows = max(problem.m - nn, 1)
+    m = problem.m if keep is None else int(sum(int(k.sum()) for k in keep))
+    n_rows = max(m - nn, 1)
     report = analyse_factor(B / D, problem.free, n_rows, tol=tol, scale=D)
     return StackAnalysis(report, unseen, Raa / D, B, D, L, n_rows)
 

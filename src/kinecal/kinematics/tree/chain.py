@@ -68,7 +68,7 @@ class PathChain(SerialKinematics):
         self.name = name
         self.motions = motions
         self.n_params = n_params
-        self.n_joints = int(len(source))
+        self.n_joints = len(source)
         self.source = np.asarray(source, dtype=np.intp)
         self.multiplier = np.asarray(multiplier, dtype=np.intp)
         self.coupled = bool((self.multiplier >= 0).any())

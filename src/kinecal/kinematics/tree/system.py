@@ -172,6 +172,11 @@ class SystemModel(SystemKinematics):
         leaders of its coupled joints), in joint order."""
         return np.unique(self._chains[self.tip_number(tip)].source)
 
+    def chain_links(self, tip: str) -> tuple[str, ...]:
+        """The links on the chain of `tip`, root first (the tip's link last)."""
+        path = self._layout.paths[self.tip_link(tip)]
+        return (self.root, *(e.child for e in path))
+
     def link_joints(self, link: str) -> NDArray[np.intp]:
         """Indices of the system joints the pose of `link` depends on."""
         return np.unique(self._link_chain(link).source)
