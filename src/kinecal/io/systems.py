@@ -21,7 +21,7 @@ from kinecal.io.models import is_urdf_path, load_model
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.kinematics.tree.system import SystemModel
 
-__all__ = ["is_system_file", "load_machine", "load_system"]
+__all__ = ["is_system_file", "is_system_spec", "load_machine", "load_system"]
 
 
 def is_system_file(spec: str | Path) -> bool:
@@ -77,14 +77,21 @@ def load_system(spec: str | Path, tips: Sequence[str] = (), *,
     return system
 
 
+def is_system_spec(spec: str | Path, base_link: str | None = None,
+                   tips: Sequence[str] = ()) -> bool:
+    """Whether `load_machine` makes a system of `spec` and `tips` (module docstring)."""
+    tips = [t for t in tips if t is not None]
+    if is_system_file(spec):
+        return True
+    return bool(is_urdf_path(spec) and Path(spec).is_file() and (
+        len(tips) > 1 or _urdf_coupled(spec, base_link, tips[0] if tips else None)))
+
+
 def load_machine(spec: str | Path, *, base_link: str | None = None,
                  tips: Sequence[str] = ()) -> SerialModel | SystemModel:
     """A serial model or a system, whichever `spec` and `tips` make (module docstring)."""
     tips = [t for t in tips if t is not None]
-    if is_system_file(spec):
-        return load_system(spec, tips, base_link=base_link)
-    if is_urdf_path(spec) and (len(tips) > 1 or _urdf_coupled(spec, base_link,
-                                                              tips[0] if tips else None)):
+    if is_system_spec(spec, base_link, tips):
         return load_system(spec, tips, base_link=base_link)
     if len(tips) > 1:
         raise InputError(f"--tip-link given {len(tips)} times: several tips make a system of "

@@ -101,13 +101,20 @@ def load_urdf_system(path: str | Path, tips: Sequence[str], *,
     by_child, _, root = _tree(urdf.robot.joints, path)
     base = root if base_link is None else base_link
     by_name = {j.name: j for j in urdf.robot.joints}
-    joints, seen = [], set()
+    joints, seen, leaders = [], set(), []
     for tip in tips:
         for j in chain_path(urdf, base_link, tip, path):
             for k in [j, *_leaders(j, by_name, path)]:
+                if k is not j and k.type in MOVING and k.child not in leaders:
+                    leaders.append(k.child)
                 if k.name not in seen:
                     seen.add(k.name)
                     joints.append(k)
+    for link in leaders:  # a leader off the chains: its link is reached too (an export
+        for j in chain_path(urdf, base_link, link, path):  # keeps the coupling)
+            if j.name not in seen:
+                seen.add(j.name)
+                joints.append(j)
     try:
         elements = [urdf_element(j, path) for j in joints]
         links = {lk.name for lk in urdf.robot.links} | set(by_child)
@@ -121,7 +128,7 @@ def load_urdf_system(path: str | Path, tips: Sequence[str], *,
             tip_list.append(Tip(tip, tip, tuple(tm), dict.fromkeys((m.name for m in tm), 0.0)))
         return SystemModel(
             urdf.robot.name or path.stem, elements, tip_list, root=world, length_unit="m",
-            angle_unit="deg", tolerances=dict(URDF_TOLERANCES),
+            angle_unit="deg", tolerances=dict(URDF_TOLERANCES), links=leaders,
             description=f"URDF {path.name}: {base} -> {', '.join(tips)}",
             source={"urdf": str(path), "base_link": base_link, "tips": list(tips)})
     except InputError as exc:
