@@ -13,7 +13,7 @@ from kinecal.errors import InputError
 __all__ = ["CALIBRATION_METHOD_CHOICES", "MODEL_HELP", "UNITS", "base_link_option",
            "check_unit", "choices", "instrument_option", "load_model_arg", "note_option",
            "operator_option", "quiet_option", "report_option", "seed_option",
-           "strict_option", "tip_link_option", "tip_links_option", "tip_option",
+           "single_tip", "strict_option", "tip_link_option", "tip_links_option", "tip_option",
            "unit_option"]
 
 
@@ -101,6 +101,17 @@ def tip_option() -> Any:
 
     return typer.Option(None, "--tip", help="Robot system: the chain (tip link or part) of "
                         "every row of files without a tip column (docs/systems.md).")
+
+
+def single_tip(tip_link: list[str] | str | None) -> str | None:
+    """The one ``--tip-link`` of a serial chain (None when not given); several are a
+    system's, which the command's system path took before."""
+    if tip_link is None or isinstance(tip_link, str):
+        return tip_link
+    if len(tip_link) > 1:
+        raise InputError(f"--tip-link given {len(tip_link)} times: several tips make a robot "
+                         "system of a URDF tree (docs/systems.md)", option="--tip-link")
+    return tip_link[0] if tip_link else None
 
 
 def load_model_arg(model: str, base_link: str | None = None, tip_link: str | None = None):

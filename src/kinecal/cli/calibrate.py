@@ -33,8 +33,11 @@ from kinecal.cli._options import (
     quiet_option,
     report_option,
     seed_option,
+    single_tip,
     strict_option,
     tip_link_option,
+    tip_links_option,
+    tip_option,
     unit_option,
 )
 from kinecal.cli._serial_common import POSE_BYTES, free_option
@@ -54,7 +57,8 @@ ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto")
 def identifiability(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: str | None = tip_option(),
     data: list[str] | None = typer.Option(
         None, "--data", help="CSV of the poses to analyse: measurements of any kind, or "
         "joint values q1..qn alone (e.g. from select-poses); repeat it for a mix of kinds "
@@ -77,6 +81,15 @@ def identifiability(
                                          help="Harmonic order (default 2)."),
 ) -> None:
     """Rank, identifiable and unidentifiable parameters, condition number, O1-O5."""
+    from kinecal.cli.systems import is_system_arg
+
+    if is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_identifiability
+
+        return system_identifiability({**locals(), "free": free_option(free)})
+    if tip is not None:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
+    tip_link = single_tip(tip_link)
     from kinecal.calibration.diagnostics.serial import check_pose_set
     from kinecal.calibration.serial.problem import resolve_free
     from kinecal.calibration.serial.simulate import simulate as run
@@ -142,7 +155,8 @@ def _poses_to_analyse(model, path):
 def calibrate(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: str | None = tip_option(),
     data: list[str] = typer.Argument(..., help="Measurement CSV(s) or NAME:PART; several "
                                      "files of any kinds make one problem "
                                      "(docs/measurement-kinds.md)."),
@@ -203,7 +217,17 @@ def calibrate(
                                            "seen in part; default 60 % of the board's)."),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
-    or from board images with --images."""
+    or from board images with --images; a robot system from rows of its chains."""
+    from kinecal.cli.systems import is_system_arg
+
+    if images is None and is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_calibrate
+
+        return system_calibrate({**locals(), "free": free_option(free),
+                                 "unit": check_unit(unit)})
+    if tip is not None:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
+    tip_link = single_tip(tip_link)
     if images is not None:  # the arm from camera images: its own module
         from kinecal.cli.calibrate_images import calibrate_images
 

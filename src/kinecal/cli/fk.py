@@ -15,9 +15,12 @@ from kinecal.cli._options import (
     base_link_option,
     load_model_arg,
     quiet_option,
+    single_tip,
     strict_option,
-    tip_link_option,
+    tip_links_option,
+    tip_option,
 )
+from kinecal.errors import InputError
 
 
 @app.command()
@@ -65,14 +68,25 @@ def models(json_out: bool = typer.Option(False, "--json", help="Print JSON.")) -
 def fk(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
-    joints: str = typer.Argument(..., help="CSV with q1..qn (model angle unit) or NAME:PART."),
+    tip_link: list[str] | None = tip_links_option(),
+    joints: str = typer.Argument(..., help="CSV with q1..qn (model angle unit) or NAME:PART; "
+                                 "a robot system's: its joint names and a tip column."),
     pose: bool = typer.Option(False, "--pose", help="Also print qw,qx,qy,qz of the tool frame."),
     params: Path | None = typer.Option(None, "--params", help="Calibration result JSON."),
+    tip: str | None = tip_option(),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
 ) -> None:
     """Forward kinematics: tool-point positions (CSV on stdout)."""
+    from kinecal.cli.systems import is_system_arg
+
+    if is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_fk
+
+        return system_fk(dict(locals()))
+    if tip is not None:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
+    tip_link = single_tip(tip_link)
     from kinecal.calibration.diagnostics.serial import check_joint_limits, check_joint_units
     from kinecal.cli._serial_common import parameters_from_result
     from kinecal.io.measurements import read_joints, read_markers

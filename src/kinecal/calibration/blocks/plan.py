@@ -29,7 +29,7 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["analyse_kinds", "select_kind_poses"]
+__all__ = ["analyse_kinds", "kinds_problem", "select_kind_poses"]
 
 
 def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Sequence[str] = "all",
@@ -46,6 +46,20 @@ def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Seque
     list of dict
         Per set: ``file``, ``kind``, ``observations``, ``rows``, ``unknowns`` (its own).
     """
+    problem, x = kinds_problem(model, data, free, sigma=sigma)
+    ana = analyse_stack(problem, x, tol, check=True)
+    kinds = [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
+              "rows": int(b.n_rows), "unknowns": int(b.n_nuisance)} for b in problem.blocks]
+    return ana, kinds
+
+
+def kinds_problem(model: SerialModel, data: Sequence[DataSet],
+                  free: str | Sequence[str] = "all", *,
+                  sigma: Sequence[float | None] | None = None
+                  ) -> tuple[StackedProblem, np.ndarray]:
+    """The stacked problem of data sets of any kinds at the nominal geometry (each set's
+    unknowns fitted to it, its data checked) and its unknowns there: what `analyse_kinds`
+    analyses."""
     model = model_for_markers(model, marker_names(list(data)))
     blocks = make_blocks(model, list(data), sigma)
     p0 = model.nominal
@@ -55,10 +69,7 @@ def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Seque
     check_block_data(model, blocks, nuis, [b.observation_errors(r) for b, r in
                                            zip(blocks, res, strict=True)], names)
     problem = StackedProblem(model, blocks, names, sig)
-    ana = analyse_stack(problem, problem.pack(p0, nuis), tol, check=True)
-    kinds = [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
-              "rows": int(b.n_rows), "unknowns": int(b.n_nuisance)} for b in blocks]
-    return ana, kinds
+    return problem, problem.pack(p0, nuis)
 
 
 def select_kind_poses(model: SerialModel, kind: str, count: int, *, candidates: int = 100,
