@@ -43,8 +43,18 @@ def models(json_out: bool = typer.Option(False, "--json", help="Print JSON.")) -
     datasets = [{"name": n, "parts": [f"{n}:{p}" for p in d["parts"]], "license": d["license"],
                  "model": d["model"], "description": d["description"]}
                 for n, d in DATASETS.items()]
+    from kinecal.io.bundled import bundled_names
+    from kinecal.io.systems import load_system
+
+    systems = []
+    for name in bundled_names("system"):
+        s = load_system(name)
+        systems.append({"name": name, "tips": list(s.tips), "joints": s.n_joints,
+                        "parameters": s.n_params, "length_unit": s.length_unit,
+                        "description": s.description})
     if json_out:
-        echo_json({"models": arms, "geometries": geometries, "datasets": datasets})
+        echo_json({"models": arms, "systems": systems, "geometries": geometries,
+                   "datasets": datasets})
         return
     from rich.console import Console
     from rich.table import Table
@@ -57,6 +67,9 @@ def models(json_out: bool = typer.Option(False, "--json", help="Print JSON.")) -
         t.add_row(a["name"], a["convention"], str(a["joints"]), str(a["parameters"]),
                   str(a["calibratable"]), a["length_unit"])
     console.print(t)
+    for s in systems:
+        console.print(f"system {s['name']}: tips {', '.join(s['tips'])} ({s['joints']} "
+                      f"joints, {s['parameters']} parameters, {s['length_unit']})")
     if geometries:
         console.print("Stewart geometries: " + ", ".join(
             g if isinstance(g, str) else g.get("name", "") for g in geometries))

@@ -218,8 +218,7 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
         more["by_tip"] = {"calibration": by_tip(model.tips, blocks, before, after)}
         if val_blocks:
             more["by_tip"]["validation"] = by_tip(model.tips, val_blocks, vb, va)
-        more["system"] = system_identifiability(final, final.pack(params, nuis), rank_tol,
-                                                ana.report)
+        more["system"] = system_identifiability(final, final.pack(params, nuis), rank_tol, ana)
     return _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,
                    val_before, val_after, blocks, val_blocks, t0, loss, more)
 

@@ -22,16 +22,19 @@ from typing import Any
 
 import numpy as np
 
-from kinecal.calibration.blocks.analysis import analyse_stack
+from kinecal.calibration.blocks.analysis import StackAnalysis, analyse_stack
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.blocks.tips import row_tips
-from kinecal.calibration.identifiability import RANK_TOL, IdentifiabilityReport
+from kinecal.calibration.identifiability import RANK_TOL
 
 __all__ = ["NULL_SHARE", "analyse_system", "system_identifiability", "system_lines"]
 
 #: a parameter counts as determined by a chain's rows when the null directions of those
 #: rows move it by less than this share (unit-norm directions in scaled columns)
 NULL_SHARE = 1e-3
+#: a held parameter is confounded with free ones when they reproduce its effect (scaled,
+#: blind motions removed) to this fraction
+EXPLAINED = 1e-3
 
 
 def _config_tips(problem: StackedProblem) -> np.ndarray:
@@ -59,8 +62,37 @@ def _estimable(reduced: np.ndarray, names: list[str], wanted: list[str], tol: fl
     return [n for n, m in zip(wanted, moved, strict=True) if m < NULL_SHARE]
 
 
+def _across(analysis: StackAnalysis, names: list[str], free: list[str], reach: dict
+            ) -> dict[str, dict[str, float]]:
+    """Held parameters whose effect the free ones of other chains reproduce (least squares
+    on the reduced information leaving less than `EXPLAINED` of it): ``{held: {free: c}}``
+    (parameter units), the partners on a different set of chains only."""
+    B, D = analysis.reduced, analysis.scale
+    kept = [names.index(n) for n in free]
+    out: dict[str, dict[str, float]] = {}
+    if not kept:
+        return out
+    for j, n in enumerate(names):
+        if n in free:
+            continue
+        col = B[:, j]
+        norm = float(np.linalg.norm(col))
+        if norm == 0.0:
+            continue
+        c, *_ = np.linalg.lstsq(B[:, kept], col, rcond=None)
+        if np.linalg.norm(B[:, kept] @ c - col) > EXPLAINED * norm:
+            continue  # weak rather than confounded: no partners to name
+        c = c * D[kept] / D[j]
+        big = np.abs(c) > 1e-6 * max(float(np.abs(c).max()), 1e-300)
+        other = {free[i]: float(c[i]) for i in np.flatnonzero(big)
+                 if reach[free[i]] != reach[n]}
+        if other:
+            out[n] = other
+    return out
+
+
 def system_identifiability(problem: StackedProblem, x: np.ndarray, tol: float,
-                           report: IdentifiabilityReport) -> dict[str, Any]:
+                           analysis: StackAnalysis) -> dict[str, Any]:
     """The system's identifiability section of a result (module docstring).
 
     Parameters
@@ -70,9 +102,10 @@ def system_identifiability(problem: StackedProblem, x: np.ndarray, tol: float,
     x : ndarray
     tol : float
         Rank threshold.
-    report : IdentifiabilityReport
-        The analysis with every row (the calibration's); its identifiable parameters are
-        the free set each chain's rows are judged on.
+    analysis : StackAnalysis
+        The analysis with every row (the calibration's, its ``report`` for the free set
+        fitted); its identifiable parameters are the free set each chain's rows are judged
+        on.
 
     Returns
     -------
@@ -85,6 +118,7 @@ def system_identifiability(problem: StackedProblem, x: np.ndarray, tol: float,
         with free ones of other chains.
     """
     model = problem.model
+    report = analysis.report
     names = list(report.names)
     free = list(report.identifiable)
     reach = {n: frozenset(t for t in model.tips if n in set(model.chain_parameters(t)))
@@ -103,11 +137,7 @@ def system_identifiability(problem: StackedProblem, x: np.ndarray, tol: float,
         tips[tip] = {"rows": rows, "parameters": len(model.chain_parameters(tip)),
                      "identifiable": ident}
     shared = set(model.shared_parameters())
-    across = {}
-    for n, partners in report.confounded_with.items():
-        other = {m: c for m, c in partners.items() if m in reach and reach[m] != reach[n]}
-        if other:
-            across[n] = other
+    across = _across(analysis, names, free, reach)
     return {
         "tips": tips,
         "shared": [n for n in model.parameter_names if n in shared],
@@ -129,7 +159,7 @@ def analyse_system(model, data, free="all", *, sigma=None, tol: float = RANK_TOL
     ana = analyse_stack(problem, x, tol, check=True)
     kinds = [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
               "rows": int(b.n_rows), "unknowns": int(b.n_nuisance)} for b in problem.blocks]
-    return ana, kinds, system_identifiability(problem, x, tol, ana.report)
+    return ana, kinds, system_identifiability(problem, x, tol, ana)
 
 
 def system_lines(section: dict[str, Any]) -> list[str]:
