@@ -57,6 +57,8 @@ def _number(cell: str, path: Path, row: int, column: str) -> float:
 def _tips(path: Path, cells: list[str] | None, tip: str | None, system: SystemModel,
           n: int) -> NDArray[np.intp]:
     names = system.tips
+    if tip is not None:
+        system.tip_number(tip)  # a known tip, whatever the file
     if cells is not None and tip is not None:
         raise InputError("applies to files without a tip column (this one has one)",
                          option="--tip")

@@ -1,0 +1,137 @@
+"""Robot systems on the command line: a URDF tree with several --tip-link and the bundled
+system files through simulate, calibrate, fk, identifiability, compensate and export (the
+exported tree loaded by pinocchio), and the bad inputs: exit 2 with one line."""
+
+import importlib.metadata
+import json
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from kinecal.cli import main
+from kinecal.io.systems import load_machine
+
+TALOS = ("talos_data/robots/talos_reduced.urdf",
+         ["gripper_left_base_link", "gripper_right_base_link"])
+
+
+def talos_path() -> str:
+    dist = importlib.metadata.distribution("example-robot-data")
+    return str(dist.locate_file(f"cmeel.prefix/share/example-robot-data/robots/{TALOS[0]}"))
+
+
+def tips_args(tips):
+    return [a for t in tips for a in ("--tip-link", t)]
+
+
+def run(args, capsys) -> tuple[int, str, str]:
+    code = main([str(a) for a in args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_urdf_tree_end_to_end(tmp_path, capsys):
+    urdf = talos_path()
+    tips = tips_args(TALOS[1])
+    data, val, res = tmp_path / "d.csv", tmp_path / "v.csv", tmp_path / "r.json"
+    for out, seed in ((data, 1), (val, 2)):
+        code, _, err = run(["simulate", urdf, *tips, "--poses", 25, "--noise", 1e-5,
+                            "--errors", "random" if seed == 1 else tmp_path / "t.json",
+                            "--seed", seed, "--out", out,
+                            *(["--truth-out", tmp_path / "t.json"] if seed == 1 else [])],
+                           capsys)
+        assert code == 0, err
+    header = data.read_text().splitlines()[0].split(",")
+    assert "torso_2_joint" in header and "tip" in header and "q1" not in header
+    code, out, err = run(["calibrate", urdf, *tips, data, "--validate", val, "--out", res],
+                         capsys)
+    assert code == 0, err
+    assert "per tip" in out and "system: what each chain's data identify alone" in out
+    result = json.loads(res.read_text())
+    for section in ("calibration", "validation"):
+        assert set(result[section]["by_tip"]) == set(TALOS[1])
+        for entry in result[section]["by_tip"].values():
+            assert entry["after"]["rms"] < entry["before"]["rms"] / 10
+    assert result["system"]["shared"][:2] == ["base.x", "base.y"]
+    # fk with the result: each row on its chain, as the calibrated system computes it
+    code, out, err = run(["fk", urdf, *tips, val, "--params", res], capsys)
+    assert code == 0, err
+    system = load_machine(urdf, tips=TALOS[1])
+    from kinecal.io.result_values import parameters_from_result
+    from kinecal.io.system_data import read_system_data
+
+    p = parameters_from_result(system, res)
+    v = read_system_data(val, system)
+    printed = np.loadtxt(out.splitlines()[1:], delimiter=",")
+    np.testing.assert_array_equal(printed, system.fk(v.q, p, v.marker)[:, :3, 3])
+    # the calibrated tree, into a copy of the URDF: pinocchio reproduces every tip
+    tree = tmp_path / "cal.urdf"
+    code, _, err = run(["export", res, "--nominal", urdf, *tips, "--format", "urdf",
+                        "--out", tree], capsys)
+    assert code == 0, err
+    model = pin.buildModelFromUrdf(str(tree))
+    pdata = model.createData()
+    cfg = pin.neutral(model)
+    for k, name in enumerate(system.joint_names):
+        cfg[model.joints[model.getJointId(name)].idx_q] = v.q[0, k]
+    pin.framesForwardKinematics(model, pdata, cfg)
+    for t, tip in enumerate(system.tips):
+        T = pdata.oMf[model.getFrameId(f"{tip}_tool")].homogeneous
+        np.testing.assert_allclose(T, system.fk(v.q[:1], p, np.array([t]))[0], atol=1e-12)
+    assert "<mesh" in tree.read_text()  # the rest of the file kept
+
+
+def test_rail_cell_from_the_bundled_data(tmp_path, capsys):
+    res = tmp_path / "r.json"
+    code, out, err = run(["calibrate", "rail-cell", "rail-cell:tracker", "rail-cell:touches",
+                          "--validate", "rail-cell:validation", "--out", res], capsys)
+    assert code == 0, err
+    result = json.loads(res.read_text())
+    by_tip = result["validation"]["by_tip"]
+    assert by_tip["arm"]["after"]["rms"] < 0.05 and by_tip["rail"]["after"]["rms"] < 0.05
+    assert "positioner.theta1" in result["system"]["combination_only"]
+    points = result["kinds"][1]["unknowns"]
+    assert len(points) == 4 and {p["frame"] for p in points} == {"positioner"}
+    # compensate a joint program of the arm (the rail a joint of its chain)
+    prog = tmp_path / "prog.csv"
+    prog.write_text("rail.q1,arm.q1,arm.q2,arm.q3,arm.q4,arm.q5,arm.q6\n"
+                    "500,10,-80,90,-100,-90,0\n900,20,-70,80,-90,-80,10\n")
+    out_csv = tmp_path / "comp.csv"
+    code, out, err = run(["compensate", res, prog, "--nominal", "rail-cell", "--tip", "arm",
+                          "--out", out_csv, "--json"], capsys)
+    assert code == 0, err
+    stats = json.loads(out)
+    assert stats["converged"] == 2 if "converged" in stats else True
+    rows = out_csv.read_text().splitlines()
+    assert rows[0].startswith("rail.q1,arm.q1") and len(rows) == 3
+    code, out, err = run(["identifiability", "rail-cell", "--data", "rail-cell:tracker",
+                          "--data", "rail-cell:touches", "--json"], capsys)
+    assert code == 0, err
+    assert "positioner.theta1" in json.loads(out)["system"]["combination_only"]
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (["fk", "rail-cell", "rail-cell:validation", "--tip", "arm"],
+     "applies to files without a tip column"),
+    (["calibrate", "rail-cell", "rail-cell:tracker", "--model-out", "m.yaml"], "system"),
+    (["calibrate", "rail-cell", "rail-cell:tracker", "--method", "pso"], "stacked"),
+    (["calibrate", "rail-cell", "rail-cell:tracker", "--tip", "nope"], "unknown tip"),
+    (["calibrate", "ur5", "ur5-laser-tracker:random", "--tip", "a"], "robot system"),
+    (["simulate", "dual-ur5", "--kind", "ballbar", "--poses", "3", "--out", "x.csv"],
+     "tracker, pair or point"),
+    (["export", "rail-cell", "--format", "yaml", "--out", "x.yaml"], "urdf"),
+])
+def test_bad_system_inputs_exit_2_with_one_line(args, words, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run(args, capsys)
+    assert code == 2
+    lines = [ln for ln in err.splitlines() if ln.startswith("kinecal: error")]
+    assert len(lines) == 1 and words in lines[0], err
+
+
+def test_unknown_tip_link_of_a_tree(tmp_path, capsys):
+    code, _, err = run(["simulate", talos_path(), "--tip-link", TALOS[1][0], "--tip-link",
+                        "no_such_link", "--poses", 3, "--out", tmp_path / "x.csv"], capsys)
+    assert code == 2 and "no_such_link" in err
+    assert not (tmp_path / "x.csv").exists()
