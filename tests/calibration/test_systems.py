@@ -12,7 +12,7 @@ import pytest
 
 import kinecal
 from kinecal.calibration.blocks.api import calibrate_system
-from kinecal.calibration.blocks.system_ident import analyse_system
+from kinecal.calibration.blocks.plan import analyse_system
 from kinecal.calibration.blocks.system_simulate import simulate_system
 from kinecal.io.systems import load_machine
 from kinecal.io.urdf_tree import load_urdf_system

@@ -97,7 +97,8 @@ def system_identifiability(a: dict[str, Any]) -> None:
     """``kinecal identifiability SYSTEM [--data A.csv ...] [--poses N]``: per chain and
     for the combination (`kinecal.calibration.blocks.system_ident`)."""
     from kinecal._limits import check_count
-    from kinecal.calibration.blocks.system_ident import analyse_system, system_lines
+    from kinecal.calibration.blocks.plan import analyse_system
+    from kinecal.calibration.blocks.system_ident import system_lines
     from kinecal.calibration.blocks.system_simulate import simulate_system
 
     _refuse({"--error-model": a["error_model"], "--harmonics": a["harmonics"]})

@@ -20,6 +20,7 @@ from kinecal.calibration.blocks.checks import check_block_data
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
 from kinecal.calibration.blocks.simulate import simulate_kind
 from kinecal.calibration.blocks.stack import StackedProblem
+from kinecal.calibration.blocks.system_ident import system_identifiability
 from kinecal.calibration.blocks.weights import initial_sigma
 from kinecal.calibration.identifiability import RANK_TOL
 from kinecal.calibration.serial.pose_selection import d_optimal
@@ -29,7 +30,7 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["analyse_kinds", "kinds_problem", "select_kind_poses"]
+__all__ = ["analyse_kinds", "analyse_system", "kinds_problem", "select_kind_poses"]
 
 
 def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Sequence[str] = "all",
@@ -48,9 +49,12 @@ def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Seque
     """
     problem, x = kinds_problem(model, data, free, sigma=sigma)
     ana = analyse_stack(problem, x, tol, check=True)
-    kinds = [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
-              "rows": int(b.n_rows), "unknowns": int(b.n_nuisance)} for b in problem.blocks]
-    return ana, kinds
+    return ana, _kinds(problem)
+
+
+def _kinds(problem: StackedProblem) -> list[dict[str, Any]]:
+    return [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
+             "rows": int(b.n_rows), "unknowns": int(b.n_nuisance)} for b in problem.blocks]
 
 
 def kinds_problem(model: SerialModel, data: Sequence[DataSet],
@@ -132,3 +136,16 @@ def select_kind_poses(model: SerialModel, kind: str, count: int, *, candidates: 
     sv = np.linalg.svd(sel, compute_uv=False)
     return plan, {"identifiable": list(names), "rank": ana.report.rank,
                   "not_seen": list(ana.unseen), **observability_indices(sv, sel.shape[0])}
+
+
+def analyse_system(model, data: Sequence[DataSet], free: str | Sequence[str] = "all", *,
+                   sigma: Sequence[float | None] | None = None, tol: float = RANK_TOL
+                   ) -> tuple[StackAnalysis, list[dict[str, Any]], dict[str, Any]]:
+    """Identifiability of a robot system from data sets of any kinds at its nominal
+    geometry (``kinecal identifiability SYSTEM --data ...``): the analysis of every row,
+    the sets (as `analyse_kinds`) and the system section
+    (`kinecal.calibration.blocks.system_ident.system_identifiability`: what each chain's
+    rows identify alone, what only the combination does)."""
+    problem, x = kinds_problem(model, data, free, sigma=sigma)
+    ana = analyse_stack(problem, x, tol, check=True)
+    return ana, _kinds(problem), system_identifiability(problem, x, tol, ana)

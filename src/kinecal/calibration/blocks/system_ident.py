@@ -25,9 +25,8 @@ import numpy as np
 from kinecal.calibration.blocks.analysis import StackAnalysis, analyse_stack
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.blocks.tips import row_tips
-from kinecal.calibration.identifiability import RANK_TOL
 
-__all__ = ["NULL_SHARE", "analyse_system", "system_identifiability", "system_lines"]
+__all__ = ["NULL_SHARE", "system_identifiability", "system_lines"]
 
 #: a parameter counts as determined by a chain's rows when the null directions of those
 #: rows move it by less than this share (unit-norm directions in scaled columns)
@@ -146,20 +145,6 @@ def system_identifiability(problem: StackedProblem, x: np.ndarray, tol: float,
         "combination_only": [n for n in free if n not in alone],
         "confounded_across_chains": across,
     }
-
-
-def analyse_system(model, data, free="all", *, sigma=None, tol: float = RANK_TOL):
-    """Identifiability of a system from data sets of any kinds at its nominal geometry
-    (``kinecal identifiability SYSTEM --data ...``): the analysis of every row
-    (`analysis.StackAnalysis`), the sets (as `plan.analyse_kinds`) and the system section
-    (`system_identifiability`)."""
-    from kinecal.calibration.blocks.plan import kinds_problem
-
-    problem, x = kinds_problem(model, data, free, sigma=sigma)
-    ana = analyse_stack(problem, x, tol, check=True)
-    kinds = [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
-              "rows": int(b.n_rows), "unknowns": int(b.n_nuisance)} for b in problem.blocks]
-    return ana, kinds, system_identifiability(problem, x, tol, ana)
 
 
 def system_lines(section: dict[str, Any]) -> list[str]:
