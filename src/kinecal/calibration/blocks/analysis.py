@@ -111,15 +111,16 @@ def stack_scale(problem: StackedProblem, params: Array, names=None) -> tuple[Arr
 
 
 def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool,
-            keep: list[Array] | None = None) -> Array:
+            keep: list[Array] | None = None, rows: list | None = None) -> Array:
     """``R`` of the scaled, weighted ``[J_n | J_a]`` ``(n, n)``; with `check`, refuses a
     block whose rows do not determine its own unknowns; `keep`: per block, the residual
-    rows to use (the others left out)."""
+    rows to use (the others left out); `rows`: the blocks' weighted rows at `x` when
+    already evaluated (`StackedProblem._weighted_rows`)."""
     k, n = problem.k, problem.n
     nn = n - k
     R = None
-    for i, (b, (_, Ja, Jn, s)) in enumerate(zip(problem.blocks, problem._weighted_rows(x),
-                                                strict=True)):
+    rows = problem._weighted_rows(x) if rows is None else rows
+    for i, (b, (_, Ja, Jn, s)) in enumerate(zip(problem.blocks, rows, strict=True)):
         if keep is not None:
             Ja, Jn = Ja[keep[i]], Jn[keep[i]]
         if b.n_nuisance and check:
@@ -129,10 +130,22 @@ def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool,
                 raise InputError(f"{b.name}: its rows do not determine its own unknowns "
                                  f"({', '.join(b.nuisance_names[:6])}...): too few or too "
                                  "similar rows per group")
-        block = np.zeros((Ja.shape[0], n), order="F")
-        block[:, s.start - k:s.stop - k] = Jn * b.nuisance_scale(L)
-        block[:, nn:] = Ja * D
-        R = qr_update(R, block)
+        groups = problem.groups[i]
+        if groups is None or keep is not None:  # (a chain's rows alone: the rows kept)
+            block = np.zeros((Ja.shape[0], n), order="F")
+            block[:, s.start - k:s.stop - k] = Jn * b.nuisance_scale(L)
+            block[:, nn:] = Ja * D
+            R = qr_update(R, block)
+            continue
+        own = np.arange(s.start - k, s.stop - k)
+        for rows, cols in groups:  # each chain's rows on its own columns, then folded
+            compact = np.hstack([Jn[rows] * b.nuisance_scale(L), Ja[np.ix_(rows, cols)]
+                                 * D[cols]])
+            Rg = qr_update(None, compact)
+            full = np.zeros((Rg.shape[0], n), order="F")
+            full[:, own] = Rg[:, :own.size]
+            full[:, nn + cols] = Rg[:, own.size:]
+            R = qr_update(R, full)
     return np.zeros((n, n)) if R is None else R
 
 
@@ -182,8 +195,8 @@ def blind_basis(problem: StackedProblem, params: Array, q: Array, P: Array, D: A
 
 
 def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = False,
-                  keep: list[Array] | None = None, configs: Array | None = None
-                  ) -> StackAnalysis:
+                  keep: list[Array] | None = None, configs: Array | None = None,
+                  rows: list | None = None) -> StackAnalysis:
     """Identifiability of `problem`'s arm parameters at `x` (module docstring).
 
     Parameters
@@ -201,10 +214,13 @@ def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = F
         blocks without any count neither for the blind motions.
     configs : ndarray of bool, optional
         With `keep`: the configurations (of the blocks in order) those rows measure.
+    rows : list, optional
+        The blocks' weighted rows at `x` (`StackedProblem._weighted_rows`), when several
+        analyses of one point share them.
     """
     params = problem.params(x)
     D, L, q, P = stack_scale(problem, params)
-    R = _factor(problem, x, D, L, check, keep)
+    R = _factor(problem, x, D, L, check, keep, rows)
     nn = problem.n - problem.k
     Raa = R[nn:, nn:]
     used = None if keep is None else [bool(k.any()) for k in keep]

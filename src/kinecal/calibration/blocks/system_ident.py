@@ -125,12 +125,13 @@ def system_identifiability(problem: StackedProblem, x: np.ndarray, tol: float,
     cfg = _config_tips(problem)
     tips: dict[str, Any] = {}
     alone: set[str] = set()
+    weighted = list(problem._weighted_rows(x))  # once for every tip
     for t, tip in enumerate(model.tips):
         keep = [row_tips(b, model, t) for b in problem.blocks]
         rows = int(sum(int(k.sum()) for k in keep))
         ident: list[str] = []
         if rows:
-            ana = analyse_stack(problem, x, tol, keep=keep, configs=cfg == t)
+            ana = analyse_stack(problem, x, tol, keep=keep, configs=cfg == t, rows=weighted)
             ident = [n for n in _estimable(ana.reduced, names, free, tol) if tip in reach[n]]
         alone |= set(ident)
         tips[tip] = {"rows": rows, "parameters": len(model.chain_parameters(tip)),

@@ -20,7 +20,7 @@ from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.pair import PairBlock
 from kinecal.metrology.stats import error_stats
 
-__all__ = ["by_tip", "observation_tips", "row_tips"]
+__all__ = ["by_tip", "column_groups", "observation_tips", "row_tips"]
 
 Bool = NDArray[np.bool_]
 
@@ -81,4 +81,40 @@ def by_tip(tips: Sequence[str], blocks: Sequence[ResidualBlock],
         a0 = np.concatenate(e0) if e0 else np.zeros(0)
         a1 = np.concatenate(e1) if e1 else np.zeros(0)
         out[name] = {"n": int(a0.size), "before": error_stats(a0), "after": error_stats(a1)}
+    return out
+
+
+def column_groups(model, block: ResidualBlock, index: np.ndarray
+                  ) -> list[tuple[np.ndarray, np.ndarray]] | None:
+    """The residual rows of `block` grouped by the chains they involve, each group with
+    the positions in `index` (the free arm parameters) of the columns those chains reach:
+    the other columns of the group's rows are zero, so the normal equations and factors
+    of a robot system are built per group (``n_g k_g^2`` instead of ``m k^2``). None for a
+    model that is no system, or a block whose rows name no tip."""
+    chains = getattr(model, "_chains", None)
+    obs = observation_tips(block, len(chains)) if chains is not None else None
+    if obs is None:
+        return None
+    reach = [np.isin(index, c.reach) for c in chains]
+    key = (obs.T.astype(np.int64) << np.arange(len(chains))).sum(axis=1)  # tips as bits
+    carrier = getattr(getattr(block, "data", None), "carrier", None)
+    links = []
+    if carrier is not None and obs.shape[1] == len(carrier):
+        names = block.data.carrier_names
+        links = [np.isin(index, model._link_chain(n).reach) for n in names]
+        key = key + ((np.asarray(carrier, dtype=np.int64) + 1) << len(chains))
+    rows_key = key[block.obs_index]
+    out = []
+    for k in np.unique(rows_key):
+        rows = np.flatnonzero(rows_key == k)
+        cols = np.zeros(len(index), dtype=bool)
+        for t in range(len(chains)):
+            if (k >> t) & 1:
+                cols |= reach[t]
+        c = (int(k) >> len(chains)) - 1
+        if c >= 0:
+            cols |= links[c]
+        out.append((rows, np.flatnonzero(cols)))
+    if len(out) == 1 and out[0][1].size == len(index):
+        return None
     return out

@@ -82,6 +82,13 @@ class PathChain(SerialKinematics):
         cols = {m.joint: int(index[i]) for i, m in enumerate(motions) if m.joint is not None}
         self._joint_columns = np.array([cols[j] for j in range(self.n_joints)], dtype=np.intp)
         self._point_values: Array | None = None
+        #: the parameter indices the chain reaches (its motions' and its multipliers')
+        self.reach = np.unique(np.r_[index, self.multiplier[self.multiplier >= 0]])
+
+    def columns_of(self, cols: NDArray[np.intp]) -> NDArray[np.intp]:
+        """Positions in `cols` of the parameters this chain reaches (the others' rows of
+        its Jacobian are zero)."""
+        return np.flatnonzero(np.isin(cols, self.reach))
 
     # ------------------------------------------------------------------ readings
     def chain_q(self, q: Array, p: Array) -> Array:

@@ -28,6 +28,26 @@ Array = NDArray[np.float64]
 Rows = slice | NDArray[np.intp]
 
 
+def _put(out: Array, sel: NDArray[np.intp], rows: Rows, J: Array) -> None:
+    """``out[sel, :, rows] = J`` for index arrays `sel` (axis 0) and `rows` (axis 2)."""
+    if isinstance(rows, slice):
+        out[sel, :, rows] = J
+        return
+    for i, c in enumerate(sel):  # one row set per column: no (k, rows, n) index grids
+        out[c][:, rows] = J[i]
+
+
+def _chain_jacobian(chain: PathChain, cols: NDArray[np.intp], q: Array, p: Array, jac
+                    ) -> tuple[NDArray[np.intp], Array]:
+    """The positions in `cols` of the parameters `chain` reaches and their Jacobian rows
+    ``jac(columns)`` (multiplier columns added): one sweep's worth, not the system's."""
+    sel = chain.columns_of(cols)
+    sub = cols[sel]
+    J = jac(sub)
+    chain.multiplier_rows(J, sub, q, p, jac)
+    return sel, J
+
+
 def _per_vector(chain: PathChain, q: Array, p: Array, call: Callable) -> Array:
     """``call(chain_q, p)`` for one vector, or stacked over a population of vectors (a
     coupled chain's readings differ per vector)."""
@@ -76,10 +96,9 @@ class SystemSweep:
         Jt = np.zeros((cols.size, 6 if outputs == "pose" else 3, self.n)) if out is None \
             else out
         for chain, rows, s, q in self.parts:
-            J = s.jacobian_t(outputs, columns=cols)
-            chain.multiplier_rows(J, cols, q, self.p,
-                                  lambda c, s=s: s.jacobian_t(outputs, columns=c))
-            Jt[:, :, rows] = J
+            sel, J = _chain_jacobian(chain, cols, q, self.p,
+                                     lambda c, s=s: s.jacobian_t(outputs, columns=c))
+            _put(Jt, sel, rows, J)
         return Jt
 
 
@@ -141,7 +160,9 @@ class SystemKinematics:
         out: list[tuple[PathChain, Rows]] = []
         for t in np.unique(tips):
             rows = np.flatnonzero(tips == t)
-            out.append((self._chains[int(t)], slice(None) if rows.size == n else rows))
+            if rows[-1] - rows[0] + 1 == rows.size:  # a block of rows: a view, no copies
+                rows = slice(int(rows[0]), int(rows[-1]) + 1)
+            out.append((self._chains[int(t)], rows))
         return out
 
     # ------------------------------------------------------------------ kinematics
@@ -182,11 +203,9 @@ class SystemKinematics:
         for chain, rows in self._groups(marker, len(q)):
             qr = q[rows]
             qc = chain.chain_q(qr, p)
-            J = chain.jacobian_t(qc, p, outputs, cols)
-            chain.multiplier_rows(J, cols, qr, p,
-                                  lambda c, qc=qc, chain=chain: chain.jacobian_t(qc, p, outputs,
-                                                                                 c))
-            out[:, :, rows] = J
+            sel, J = _chain_jacobian(chain, cols, qr, p, lambda c, qc=qc, chain=chain:
+                                     chain.jacobian_t(qc, p, outputs, c))
+            _put(out, sel, rows, J)
         return out
 
     def identification_jacobian(self, q: ArrayLike, params: ArrayLike | None = None,
