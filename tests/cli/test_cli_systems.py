@@ -84,9 +84,15 @@ def test_urdf_tree_end_to_end(tmp_path, capsys):
 
 def test_rail_cell_from_the_bundled_data(tmp_path, capsys):
     res = tmp_path / "r.json"
+    report = tmp_path / "r.html"
     code, out, err = run(["calibrate", "rail-cell", "rail-cell:tracker", "rail-cell:touches",
-                          "--validate", "rail-cell:validation", "--out", res], capsys)
+                          "--validate", "rail-cell:validation", "--out", res, "--report",
+                          report], capsys)
     assert code == 0, err
+    text = report.read_text()  # a section per chain and one for the shared part
+    for title in ("Chain rail", "Chain arm", "Chain positioner", "The shared part"):
+        assert f"<h2>{title}</h2>" in text
+    assert "the combination only" not in text or "positioner" in text
     result = json.loads(res.read_text())
     by_tip = result["validation"]["by_tip"]
     assert by_tip["arm"]["after"]["rms"] < 0.05 and by_tip["rail"]["after"]["rms"] < 0.05
