@@ -92,7 +92,9 @@ def test_rail_cell_from_the_bundled_data(tmp_path, capsys):
     text = report.read_text()  # a section per chain and one for the shared part
     for title in ("Chain rail", "Chain arm", "Chain positioner", "The shared part"):
         assert f"<h2>{title}</h2>" in text
-    assert "the combination only" not in text or "positioner" in text
+    shared = text.split("<h2>The shared part</h2>")[1].split("</section>")[0]
+    assert "rail.d1" in shared and "positioner.theta1" in shared  # only the combination
+    assert "0 residual rows of this chain" in text.split("<h2>Chain positioner</h2>")[1]
     result = json.loads(res.read_text())
     by_tip = result["validation"]["by_tip"]
     assert by_tip["arm"]["after"]["rms"] < 0.05 and by_tip["rail"]["after"]["rms"] < 0.05
