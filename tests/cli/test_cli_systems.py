@@ -119,6 +119,29 @@ def test_rail_cell_from_the_bundled_data(tmp_path, capsys):
     assert "positioner.theta1" in json.loads(out)["system"]["combination_only"]
 
 
+def test_plan_rows_of_a_system_measure_and_calibrate(tmp_path, capsys):
+    """select-poses chooses the rows (which chain, in which configuration) that identify
+    the most; the plan is analysed as it is, measured with simulate --joints and
+    calibrated."""
+    plan, truth, data = tmp_path / "plan.csv", tmp_path / "t.json", tmp_path / "d.csv"
+    code, _, err = run(["select-poses", "dual-ur5", "--count", 40, "--candidates", 200,
+                        "--out", plan], capsys)
+    assert code == 0, err
+    rows = plan.read_text().splitlines()
+    assert len(rows) == 41 and rows[0].endswith(",tip")
+    assert {r.rsplit(",", 1)[1] for r in rows[1:]} == {"left", "right"}
+    code, out, err = run(["identifiability", "dual-ur5", "--data", plan, "--json"], capsys)
+    assert code == 0, err
+    planned = json.loads(out)
+    code, _, err = run(["simulate", "dual-ur5", "--joints", plan, "--truth-out", truth,
+                        "--out", data], capsys)
+    assert code == 0, err
+    code, out, err = run(["calibrate", "dual-ur5", data, "--json"], capsys)
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["rank"] == planned["rank"] and result["calibration"]["after"]["max"] < 1e-6
+
+
 @pytest.mark.parametrize(("args", "words"), [
     (["fk", "rail-cell", "rail-cell:validation", "--tip", "arm"],
      "applies to files without a tip column"),

@@ -35,7 +35,6 @@ from kinecal.cli._options import (
     seed_option,
     single_tip,
     strict_option,
-    tip_link_option,
     tip_links_option,
     tip_option,
     unit_option,
@@ -323,7 +322,9 @@ def calibrate(
 def select_poses_cmd(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: list[str] | None = typer.Option(None, "--tip", help="Robot system: the chains to "
+                                         "plan rows of (repeatable; default every tip)."),
     count: int = typer.Option(..., "--count", help="Number of poses to select."),
     candidates: int | None = typer.Option(
         None, "--candidates", help="Random candidate poses (default 2000; gauge kinds: per "
@@ -339,7 +340,17 @@ def select_poses_cmd(
     length: float | None = typer.Option(None, "--length", help="Ballbar or bar length."),
 ) -> None:
     """Choose calibration poses maximising observability (O1, D-optimal); for a gauge kind
-    the rows of its file (docs/measurement-kinds.md)."""
+    the rows of its file (docs/measurement-kinds.md); for a robot system, which chain in
+    which configuration (docs/systems.md)."""
+    from kinecal.cli.systems import is_system_arg
+
+    if is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_select
+
+        return system_select(dict(locals()))
+    if tip:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
+    tip_link = single_tip(tip_link)
     if kind != "tracker":
         from kinecal.cli.calibrate_kinds import select_kind_file
 

@@ -98,9 +98,9 @@ def simulate(
     if is_system_arg(model, base_link, tip_link):
         from kinecal.cli.systems import system_simulate
 
-        if poses is None:
+        if (poses is None) == (joints is None):
             raise InputError("expected --poses N (rows per chain, bars, touches per point "
-                             "and tip)", option="--poses")
+                             "and tip) or --joints PLAN.csv, one of them", option="--poses")
         return system_simulate(dict(locals()))
     for option, value in (("--tip", tip), ("--carrier", carrier)):
         if value:

@@ -27,7 +27,8 @@ from kinecal.cli._common import (
 from kinecal.errors import InputError
 
 __all__ = ["is_system_arg", "load_system_arg", "system_arms", "system_calibrate",
-           "system_export", "system_fk", "system_identifiability", "system_simulate"]
+           "system_export", "system_fk", "system_identifiability", "system_select",
+           "system_simulate"]
 
 
 def is_system_arg(model: str, base_link: str | None, tips: list[str] | None) -> bool:
@@ -105,7 +106,7 @@ def system_identifiability(a: dict[str, Any]) -> None:
     with warnings_scope(a["strict"]) as found:
         system = load_system_arg(a["model"], a["base_link"], a["tip_link"])
         if a["data"]:
-            sets = _read(system, list(a["data"]), "--data", a["tip"])
+            sets = [_plan_or_data(system, f, a["tip"]) for f in a["data"]]
         else:
             n = check_count(50 if a["poses"] is None else a["poses"], "--poses",
                             bytes_per_item=4096)
@@ -119,6 +120,46 @@ def system_identifiability(a: dict[str, Any]) -> None:
         typer.echo(ana.report.explain())
         typer.echo("identifiable: " + ", ".join(ana.report.identifiable))
         typer.echo("\n".join(system_lines(section)[1:]))
+
+
+def system_select(a: dict[str, Any]) -> None:
+    """``kinecal select-poses SYSTEM --count K [--tip T ...] --out PLAN.csv``: the rows of
+    the chains that identify the most (joints and a tip column: a plan)."""
+    from kinecal._limits import check_count
+    from kinecal.calibration.blocks.plan import select_system_poses
+    from kinecal.io.system_data import write_system_joints
+
+    _refuse({"--gauge": a["gauge"], "--length": a["length"]})
+    if a["kind"] != "tracker":
+        raise InputError("a robot system plans tracker rows", option="--kind")
+    check_paths({"MODEL": a["model"]}, {"--out": a["out"]})
+    candidates = check_count(500 if a["candidates"] is None else a["candidates"],
+                             "--candidates", bytes_per_item=4096, what="candidates")
+    system = load_system_arg(a["model"], a["base_link"], a["tip_link"])
+    plan, info = select_system_poses(system, a["count"], candidates=candidates,
+                                     tips=a["tip"] or None, rng=a["seed"])
+    write_system_joints(a["out"], plan.q, plan.marker, system)
+    per_tip = ", ".join(f"{t} {n}" for t, n in info["per_tip"].items())
+    typer.echo(f"wrote {a['count']} rows to {a['out']} ({per_tip}); O1 = {info['O1']:.4g}, "
+               f"O2 = {info['O2']:.4g} ({info['rank']} identifiable parameters)", err=True)
+
+
+def _plan_or_data(system, spec: str, tip: str | None):
+    """A measurement file of a system, or a plan (joints and tips alone: what
+    ``select-poses`` writes) measured by the nominal system (only its rows matter to an
+    analysis)."""
+    from kinecal.data import Measurements
+    from kinecal.io.kinds import KINDS
+    from kinecal.io.measurements import csv_header
+    from kinecal.io.system_data import read_system_data, system_readings
+
+    path = resolve_data_path(spec, "--data")
+    header = csv_header(path)
+    if any(c in header for cols in KINDS.values() for c in cols):
+        return read_system_data(path, system, tip)
+    q, tips, _, _ = system_readings(path, header, system, tip)
+    return Measurements(q, system.positions(q, marker=tips), source=str(path), marker=tips,
+                        marker_names=system.tips)
 
 
 def _tips_of_file(system, path: Path, tip: str | None):
@@ -172,7 +213,7 @@ def system_simulate(a: dict[str, Any]) -> None:
     from kinecal.calibration.serial.simulate import random_errors, read_truth, write_truth
     from kinecal.io.system_data import write_system_data
 
-    _refuse({"--joints": a["joints"], "--images": a["images"], "--pivot": a["pivot"],
+    _refuse({"--images": a["images"], "--pivot": a["pivot"],
              "--plane": a["plane"], "--radius": a["radius"], "--groups": a["groups"],
              "--sigma-column": a["sigma_column"], "--angle-noise": a["angle_noise"]})
     if a["kind"] not in ("tracker", "pair", "point"):
@@ -180,9 +221,11 @@ def system_simulate(a: dict[str, Any]) -> None:
                          "point rows", option="--kind")
     errors = a["errors"]
     check_paths({"MODEL": a["model"], "--errors": None if errors in ("zero", "random")
-                 else errors}, {"--out": a["out"], "--truth-out": a["truth_out"]})
+                 else errors, "--joints": a["joints"]},
+                {"--out": a["out"], "--truth-out": a["truth_out"]})
     check_finite(a["noise"], "--noise")
-    check_count(a["poses"], "--poses", bytes_per_item=4096)
+    if a["poses"] is not None:
+        check_count(a["poses"], "--poses", bytes_per_item=4096)
     with warnings_scope(a["strict"]):
         system = load_system_arg(a["model"], a["base_link"], a["tip_link"])
         if errors in ("zero", "random"):
@@ -196,16 +239,33 @@ def system_simulate(a: dict[str, Any]) -> None:
             from kinecal.cli.calibrate_kinds import _vectors
 
             centres = _vectors(a["point"], 3, "--point")
-        sim = simulate_system(system, a["poses"], kind=a["kind"], tips=a["tip"] or None,
-                              true_params=true, noise=a["noise"], rng=a["seed"],
-                              orientation=a["orientation"], length=a["length"],
-                              centres=centres, carrier=a["carrier"])
-        write_system_data(a["out"], sim.data, system)
+        if a["joints"] is not None:  # the rows of a plan (select-poses), measured
+            data = _measured_plan(system, a, true)
+        else:
+            data = simulate_system(system, a["poses"], kind=a["kind"], tips=a["tip"] or None,
+                                   true_params=true, noise=a["noise"], rng=a["seed"],
+                                   orientation=a["orientation"], length=a["length"],
+                                   centres=centres, carrier=a["carrier"]).data
+        write_system_data(a["out"], data, system)
         if a["truth_out"] is not None:
             write_truth(a["truth_out"], system, true)
     if not a["quiet"]:
-        typer.echo(f"wrote {len(sim.data)} {a['kind']} rows of {system.name} to {a['out']}"
+        typer.echo(f"wrote {len(data)} {a['kind']} rows of {system.name} to {a['out']}"
                    + (f", truth to {a['truth_out']}" if a["truth_out"] else ""), err=True)
+
+
+def _measured_plan(system, a: dict[str, Any], true):
+    """``simulate SYSTEM --joints PLAN.csv``: tracker rows at a plan's joints and tips."""
+    from kinecal.data import Measurements
+
+    if a["kind"] != "tracker":
+        raise InputError("applies to tracker rows only", option="--joints")
+    q, tips = _tips_of_file(system, resolve_data_path(a["joints"], "--joints"), None)
+    T = system.fk(q, true, tips)
+    gen = np.random.default_rng(a["seed"])
+    xyz = T[:, :3, 3] + (gen.normal(0.0, a["noise"], (len(q), 3)) if a["noise"] > 0 else 0.0)
+    return Measurements(q, xyz, None, f"simulated {system.name}",
+                        T[:, :3, :3] if a["orientation"] else None, tips, system.tips)
 
 
 def system_arms(calibrated: str, nominal: str | None, base_link: str | None,

@@ -38,7 +38,8 @@ from kinecal.io.measurements import (
 from kinecal.kinematics.tree.system import SystemModel
 from kinecal.spatial import quaternion_from_matrix
 
-__all__ = ["read_system_data", "system_readings", "write_system_data"]
+__all__ = ["read_system_data", "system_readings", "write_system_data",
+           "write_system_joints"]
 
 Array = NDArray[np.float64]
 
@@ -183,6 +184,32 @@ def read_system_data(path: str | Path, system: SystemModel, tip: str | None = No
                              system.tips, carrier, carriers)
 
 
+def _joint_columns(q: Array, tips: NDArray[np.intp], carrier, carrier_names,
+                   system: SystemModel) -> dict[str, np.ndarray]:
+    """The joint columns of rows (system units; blank off each row's chain and carrier)."""
+    n = len(q)
+    want = np.zeros((n, system.n_joints), dtype=bool)
+    for t, name in enumerate(system.tips):
+        want[np.ix_(tips == t, system.chain_joints(name))] = True
+    if carrier is not None:
+        for c, link in enumerate(carrier_names):
+            want[np.ix_(carrier == c, system.link_joints(link))] = True
+    q = np.asarray(q) / system.joint_scale()
+    columns: dict[str, np.ndarray] = {}
+    for j, name in enumerate(system.joint_names):
+        cells = np.array([repr(float(v)) for v in q[:, j]], dtype=object)
+        cells[~want[:, j]] = ""
+        columns[name] = cells
+    columns["tip"] = np.asarray(system.tips, dtype=object)[tips]
+    return columns
+
+
+def write_system_joints(path: str | Path, q: Array, tips: NDArray[np.intp],
+                        system: SystemModel) -> None:
+    """Write rows of joints and tips alone (a plan: ``kinecal select-poses`` of a system)."""
+    write_table(path, _joint_columns(q, np.asarray(tips), None, (), system))
+
+
 def write_system_data(path: str | Path, data: Measurements | GaugeMeasurements,
                       system: SystemModel) -> None:
     """Write `data` of `system` (joints by name in the system's units, blank off each
@@ -190,19 +217,8 @@ def write_system_data(path: str | Path, data: Measurements | GaugeMeasurements,
     n = len(data)
     tips = np.zeros(n, dtype=np.intp) if data.marker is None else np.asarray(data.marker)
     carrier = getattr(data, "carrier", None)
-    want = np.zeros((n, system.n_joints), dtype=bool)
-    for t, name in enumerate(system.tips):
-        want[np.ix_(tips == t, system.chain_joints(name))] = True
-    if carrier is not None:
-        for c, link in enumerate(data.carrier_names):
-            want[np.ix_(carrier == c, system.link_joints(link))] = True
-    q = np.asarray(data.q) / system.joint_scale()
-    columns: dict[str, np.ndarray] = {}
-    for j, name in enumerate(system.joint_names):
-        cells = np.array([repr(float(v)) for v in q[:, j]], dtype=object)
-        cells[~want[:, j]] = ""
-        columns[name] = cells
-    columns["tip"] = np.asarray(system.tips, dtype=object)[tips]
+    columns = _joint_columns(data.q, tips, carrier, getattr(data, "carrier_names", ()),
+                             system)
     if isinstance(data, Measurements):
         columns.update({c: np.asarray(data.xyz)[:, k] for k, c in enumerate("xyz")})
         if data.rotations is not None:

@@ -30,7 +30,8 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["analyse_kinds", "analyse_system", "kinds_problem", "select_kind_poses"]
+__all__ = ["analyse_kinds", "analyse_system", "kinds_problem", "select_kind_poses",
+           "select_system_poses"]
 
 
 def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Sequence[str] = "all",
@@ -149,3 +150,42 @@ def analyse_system(model, data: Sequence[DataSet], free: str | Sequence[str] = "
     problem, x = kinds_problem(model, data, free, sigma=sigma)
     ana = analyse_stack(problem, x, tol, check=True)
     return ana, _kinds(problem), system_identifiability(problem, x, tol, ana)
+
+
+def select_system_poses(model, count: int, *, candidates: int = 500,
+                        tips: Sequence[str] | None = None,
+                        rng: int | np.random.Generator | None = None
+                        ) -> tuple[Any, dict[str, Any]]:
+    """Tracker rows of a robot system that identify the most: which chain, in which
+    configuration (``kinecal select-poses SYSTEM``).
+
+    `candidates` random configurations per tip (`tips`, default all) of the nominal
+    system; `count` rows in all chosen to maximise ``log det`` of the information of the
+    parameters the candidates identify (unit-RMS columns; greedy build-up and exchanges,
+    `kinecal.calibration.serial.pose_selection.d_optimal`).
+
+    Returns
+    -------
+    Measurements
+        The chosen rows (their tips in ``marker``), nominal tool points as ``xyz``.
+    dict
+        ``identifiable``, ``rank``, ``per_tip`` (rows chosen per tip), ``O1``..``O5``.
+    """
+    from kinecal.calibration.blocks.system_simulate import simulate_system
+    from kinecal.calibration.identifiability import observability_indices
+
+    data = simulate_system(model, candidates, tips=tips, rng=rng).data
+    names = analyse_system(model, [data], "all")[0].report.identifiable
+    if count < 1 or count > len(data) or 3 * count < len(names):
+        raise InputError(f"count: {count} rows give {3 * count} equations for {len(names)} "
+                         f"identifiable parameters (and at most {len(data)} candidates): "
+                         f"expected {-(-len(names) // 3)} to {len(data)}", option="--count")
+    idx = model.index(names)
+    J = model.identification_jacobian(data.q, marker=data.marker)[:, :, idx]
+    J = J / np.maximum(np.sqrt((J ** 2).mean(axis=(0, 1))), 1e-300)
+    chosen = np.sort(np.asarray(d_optimal(J, count), dtype=np.intp))
+    plan = data.subset(chosen)
+    s = np.linalg.svd(J[chosen].reshape(-1, idx.size), compute_uv=False)
+    per_tip = {t: int((plan.marker == k).sum()) for k, t in enumerate(model.tips)}
+    return plan, {"identifiable": list(names), "rank": len(names), "per_tip": per_tip,
+                  **observability_indices(s, 3 * count)}
