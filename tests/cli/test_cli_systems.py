@@ -166,3 +166,20 @@ def test_unknown_tip_link_of_a_tree(tmp_path, capsys):
                         "no_such_link", "--poses", 3, "--out", tmp_path / "x.csv"], capsys)
     assert code == 2 and "no_such_link" in err
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_batch_jobs_take_systems(tmp_path, capsys):
+    jobs = tmp_path / "jobs.yaml"
+    jobs.write_text("jobs:\n  - {name: cell, model: rail-cell, data: [rail-cell:tracker, "
+                    "rail-cell:touches], validation: rail-cell:validation}\n"
+                    f"  - {{name: talos, model: {talos_path()}, tip_link: "
+                    f"[{TALOS[1][0]}, {TALOS[1][1]}], data: {tmp_path / 'd.csv'}}}\n")
+    code, _, err = run(["simulate", talos_path(), *tips_args(TALOS[1]), "--poses", 20,
+                        "--noise", 1e-5, "--out", tmp_path / "d.csv"], capsys)
+    assert code == 0, err
+    code, _, err = run(["batch", jobs, "--out", tmp_path / "out", "--workers", 1], capsys)
+    assert code == 0, err
+    cell = json.loads((tmp_path / "out" / "cell.json").read_text())
+    assert set(cell["validation"]["by_tip"]) == {"rail", "arm", "positioner"}
+    talos = json.loads((tmp_path / "out" / "talos.json").read_text())
+    assert set(talos["calibration"]["by_tip"]) == set(TALOS[1])
