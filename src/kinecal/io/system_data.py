@@ -27,7 +27,8 @@ from numpy.typing import NDArray
 
 from kinecal.data import GAUGE_KINDS, GaugeMeasurements, Measurements
 from kinecal.errors import InputError
-from kinecal.io.csvtable import MAX_CELL, read_table, read_text_columns, write_table
+from kinecal.io.csvtable import MAX_CELL, read_columns, read_table, write_table
+from kinecal.io.fixtures import read_known
 from kinecal.io.kinds import gauge_columns, gauge_values, kind_of_columns
 from kinecal.io.measurements import (
     csv_header,
@@ -122,7 +123,7 @@ def system_readings(path: Path, header: list[str], system: SystemModel, tip: str
     if not present:
         raise InputError(f"no joint columns: expected the system's joint names "
                          f"({', '.join(joints)})", file=path)
-    cells = read_text_columns(path, [*present, "tip", "carrier"])
+    cells = read_columns(path, [*present, "tip", "carrier"])
     n = len(cells[present[0]])
     if "carrier" in cells and not carrier_ok:
         raise InputError("a carrier column applies to point files only", file=path)
@@ -180,8 +181,10 @@ def read_system_data(path: str | Path, system: SystemModel, tip: str | None = No
     cols = read_table(path, numeric, optional=["sigma"]) if numeric or "sigma" in header \
         else {}
     group, names, distance, sigma = gauge_values(path, kind, cols, len(q), system.length_unit)
+    known = read_known(path, kind, group, names)  # in the measurement frame (or the carrier's)
     return GaugeMeasurements(kind, q, group, names, distance, sigma, str(path), tips,
-                             system.tips, carrier, carriers)
+                             system.tips, known=known, carrier=carrier,
+                             carrier_names=carriers)
 
 
 def _joint_columns(q: Array, tips: NDArray[np.intp], carrier, carrier_names,

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.calibration.blocks.base import BlockRows, tool_points
+from kinecal.calibration.blocks.base import BlockRows, point_constraint, tool_points
 from kinecal.calibration.blocks.point import PointBlock
 from kinecal.data import GaugeMeasurements
 from kinecal.errors import InputError
@@ -53,14 +53,23 @@ class CarriedPointBlock(PointBlock):
         return out
 
     def start(self, model, params: Array) -> Array:
-        """Each point as the centroid of its touches, in its carrier's frame."""
+        """Each unknown point as the centroid of its touches, in its carrier's frame."""
         P = model.positions(self.q, params, self.marker)
         local = P.copy()
         for link, rows in self._carried():
             T = model.link_poses(self.q[rows], link, params)
             local[rows] = np.einsum("nji,nj->ni", T[:, :3, :3], P[rows] - T[:, :3, 3])
-        out = [local[self.groups[g]].mean(axis=0) for g in self.live_groups]
+        out = [local[self.groups[g]].mean(axis=0) for g in self.solved_groups]
         return np.concatenate(out) if out else np.zeros(0)
+
+    def blind_constraints(self) -> Array:
+        """A known point fixed in the measurement frame stays when the system moves (a
+        carried one moves with its link)."""
+        rows = [super(PointBlock, self).blind_constraints()]
+        for g in self.live_groups:
+            if self.known_mask[g] and self.group_carrier[g] < 0:
+                rows.append(point_constraint(self.known[g]))
+        return np.concatenate(rows)
 
     def evaluate(self, model, params: Array, nuisance: Array,
                  columns: NDArray[np.intp] | None = None, jacobian: bool = False,
@@ -68,9 +77,8 @@ class CarriedPointBlock(PointBlock):
         cols = columns if jacobian else None
         P, Jt = points if points is not None else tool_points(
             model, self.q, params, self.marker, cols)
-        C = np.zeros((len(self.groups), 3))
-        C[self.live_groups] = np.asarray(nuisance, dtype=float).reshape(-1, 3)
-        X = C[self.data.group]
+        g = np.asarray(self.data.group)
+        X = self.centres(nuisance)[g]
         n = len(self.q)
         R = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
         JX = None if cols is None else np.zeros((len(cols), 3, n))
@@ -83,12 +91,12 @@ class CarriedPointBlock(PointBlock):
             return BlockRows(r)
         arm = (Jt - JX).transpose(2, 1, 0).reshape(r.size, Jt.shape[0])
         nuis = np.zeros((r.size, self.n_nuisance))
-        pos = {g: i for i, g in enumerate(self.live_groups)}
-        col = np.array([3 * pos[g] for g in self.data.group], dtype=np.intp)
-        rows = np.arange(n)
+        pos = np.full(len(self.groups), -1, dtype=np.intp)
+        pos[self.solved_groups] = np.arange(len(self.solved_groups))
+        rows = np.flatnonzero(pos[g] >= 0)  # touches of the unknown points
         for a in range(3):
             for b in range(3):
-                nuis[3 * rows + a, col + b] = -R[:, a, b]
+                nuis[3 * rows + a, 3 * pos[g[rows]] + b] = -R[rows, a, b]
         return BlockRows(r, arm, nuis)
 
     def nuisance_report(self, nuisance: Array, std: Array) -> list[dict]:

@@ -15,14 +15,13 @@ from typing import Any
 import numpy as np
 
 from kinecal.calibration.blocks.analysis import StackAnalysis, analyse_stack
-from kinecal.calibration.blocks.api import start_blocks
+from kinecal.calibration.blocks.api import RANK_TOL as CAL_RANK_TOL
 from kinecal.calibration.blocks.checks import check_block_data
+from kinecal.calibration.blocks.decide import solve_blocks
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
 from kinecal.calibration.blocks.simulate import simulate_kind
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.blocks.system_ident import system_identifiability
-from kinecal.calibration.blocks.weights import initial_sigma
-from kinecal.calibration.identifiability import RANK_TOL
 from kinecal.calibration.serial.pose_selection import d_optimal
 from kinecal.calibration.serial.problem import candidate_names
 from kinecal.data import GaugeMeasurements
@@ -30,51 +29,63 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["analyse_kinds", "analyse_system", "kinds_problem", "select_kind_poses",
-           "select_system_poses"]
+__all__ = ["analyse_kinds", "analyse_system", "select_kind_poses", "select_system_poses"]
 
 
 def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Sequence[str] = "all",
-                  *, sigma: Sequence[float | None] | None = None, tol: float = RANK_TOL
+                  *, sigma: Sequence[float | None] | None = None, tol: float = CAL_RANK_TOL
                   ) -> tuple[StackAnalysis, list[dict[str, Any]]]:
-    """Identifiability of `free` (``all``, ``identifiable`` or names) from data sets of any
-    kinds at the nominal geometry, each set's unknowns fitted to it.
+    """What `calibrate_blocks` frees of `free` (``all``, ``identifiable`` or names) from
+    data sets of any kinds: its own rule (`kinecal.calibration.blocks.decide`), the
+    candidates' rank at nominal at `tol`, each set's unknowns fitted to it, outliers left
+    out, the parameters that became identifiable at the solution freed when they pay.
 
     Returns
     -------
     StackAnalysis
-        ``report`` (the `kinecal identifiability` JSON) and ``unseen`` (motions of the whole
-        arm the mix does not see).
+        ``report`` (the `kinecal identifiability` JSON: the free set identifiable, the
+        other candidates not) and ``unseen`` (motions of the whole arm the mix does not
+        see).
     list of dict
-        Per set: ``file``, ``kind``, ``observations``, ``rows``, ``unknowns`` (its own).
+        Per set: ``file``, ``kind``, ``observations``, ``rows``, ``unknowns`` (its own),
+        ``known`` (its known fixtures: points or planes).
     """
-    problem, x = kinds_problem(model, data, free, sigma=sigma)
-    ana = analyse_stack(problem, x, tol, check=True)
-    return ana, _kinds(problem)
+    sol, blocks = _solve(model, data, free, sigma, tol)
+    return sol.analysis, _kinds(blocks)
 
 
-def _kinds(problem: StackedProblem) -> list[dict[str, Any]]:
-    return [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
-             "rows": int(b.n_rows), "unknowns": int(b.n_nuisance)} for b in problem.blocks]
-
-
-def kinds_problem(model: SerialModel, data: Sequence[DataSet],
-                  free: str | Sequence[str] = "all", *,
-                  sigma: Sequence[float | None] | None = None
-                  ) -> tuple[StackedProblem, np.ndarray]:
-    """The stacked problem of data sets of any kinds at the nominal geometry (each set's
-    unknowns fitted to it, its data checked) and its unknowns there: what `analyse_kinds`
-    analyses."""
+def _solve(model, data: Sequence[DataSet], free, sigma, tol: float):
+    """`solve_blocks` of the data sets with the data checks; and their blocks."""
     model = model_for_markers(model, marker_names(list(data)))
     blocks = make_blocks(model, list(data), sigma)
-    p0 = model.nominal
-    nuis, res = start_blocks(model, blocks, p0)
-    sig, _ = initial_sigma(blocks)
     names = candidate_names(model, "all" if free == "identifiable" else free)
-    check_block_data(model, blocks, nuis, [b.observation_errors(r) for b, r in
-                                           zip(blocks, res, strict=True)], names)
-    problem = StackedProblem(model, blocks, names, sig)
-    return problem, problem.pack(p0, nuis)
+
+    def check(nuis, before, ana0, chosen) -> None:
+        check_block_data(model, blocks, nuis, before, names)
+
+    return solve_blocks(model, blocks, names, True, rank_tol=tol, check=check), blocks
+
+
+def _kinds(blocks) -> list[dict[str, Any]]:
+    return [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
+             "rows": int(b.n_rows), "unknowns": int(b.n_nuisance),
+             "known": int(np.sum(getattr(b, "known_mask", ())))} for b in blocks]
+
+
+def analyse_system(model, data: Sequence[DataSet], free: str | Sequence[str] = "all", *,
+                   sigma: Sequence[float | None] | None = None, tol: float = CAL_RANK_TOL
+                   ) -> tuple[StackAnalysis, list[dict[str, Any]], dict[str, Any]]:
+    """What `calibrate_blocks` frees from a robot system's data sets (`analyse_kinds`), and
+    the system section (`kinecal.calibration.blocks.system_ident.system_identifiability`:
+    what each chain's rows identify alone, what only the combination does); ``kinecal
+    identifiability SYSTEM --data ...``."""
+    sol, blocks = _solve(model, data, free, sigma, tol)
+    prob = sol.fit.problem
+    x = np.asarray(sol.fit.result.x, dtype=float)
+    final = sol.final
+    section = system_identifiability(final, final.pack(prob.params(x), prob.nuisance(x)), tol,
+                                     sol.analysis)
+    return sol.analysis, _kinds(blocks), section
 
 
 def select_kind_poses(model: SerialModel, kind: str, count: int, *, candidates: int = 100,
@@ -137,19 +148,6 @@ def select_kind_poses(model: SerialModel, kind: str, count: int, *, candidates: 
     sv = np.linalg.svd(sel, compute_uv=False)
     return plan, {"identifiable": list(names), "rank": ana.report.rank,
                   "not_seen": list(ana.unseen), **observability_indices(sv, sel.shape[0])}
-
-
-def analyse_system(model, data: Sequence[DataSet], free: str | Sequence[str] = "all", *,
-                   sigma: Sequence[float | None] | None = None, tol: float = RANK_TOL
-                   ) -> tuple[StackAnalysis, list[dict[str, Any]], dict[str, Any]]:
-    """Identifiability of a robot system from data sets of any kinds at its nominal
-    geometry (``kinecal identifiability SYSTEM --data ...``): the analysis of every row,
-    the sets (as `analyse_kinds`) and the system section
-    (`kinecal.calibration.blocks.system_ident.system_identifiability`: what each chain's
-    rows identify alone, what only the combination does)."""
-    problem, x = kinds_problem(model, data, free, sigma=sigma)
-    ana = analyse_stack(problem, x, tol, check=True)
-    return ana, _kinds(problem), system_identifiability(problem, x, tol, ana)
 
 
 def select_system_poses(model, count: int, *, candidates: int = 500,

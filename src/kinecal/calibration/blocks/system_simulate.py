@@ -150,8 +150,9 @@ def _points(system, p, n, tips, gen, noise, centres, carrier):
     carried = None if carrier is None else np.zeros(len(Q), dtype=np.intp)
     data = GaugeMeasurements("point", Q, np.array(groups, dtype=np.intp),
                              tuple(f"S{g + 1}" for g in range(len(centres))), None, None,
-                             f"simulated points of {system.name}", tip, system.tips, carried,
-                             () if carrier is None else (carrier,))
+                             f"simulated points of {system.name}", tip, system.tips,
+                             carrier=carried, carrier_names=() if carrier is None
+                             else (carrier,))
     return data, {"centres": np.asarray(centres, dtype=float)}
 
 
