@@ -187,3 +187,31 @@ def test_batch_jobs_take_systems(tmp_path, capsys):
     assert set(cell["validation"]["by_tip"]) == {"rail", "arm", "positioner"}
     talos = json.loads((tmp_path / "out" / "talos.json").read_text())
     assert set(talos["calibration"]["by_tip"]) == set(TALOS[1])
+
+
+def test_angle_unit_of_a_systems_files(tmp_path, capsys):
+    """--angle-unit rad reads a system's revolute columns in radians: fk of a file in
+    radians equals fk of the same rows in the system's degrees."""
+    deg = tmp_path / "deg.csv"
+    code, _, err = run(["simulate", "dual-ur5", "--poses", 3, "--out", deg, "--quiet"], capsys)
+    assert code == 0, err
+    lines = deg.read_text().splitlines()
+    header = lines[0].split(",")
+    joints = [i for i, c in enumerate(header) if c.startswith(("left.q", "right.q"))]
+    rad = tmp_path / "rad.csv"
+    out = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        for i in joints:
+            if cells[i]:
+                cells[i] = repr(float(np.radians(float(cells[i]))))
+        out.append(",".join(cells))
+    rad.write_text("\n".join(out) + "\n")
+    code, in_deg, err = run(["fk", "dual-ur5", deg], capsys)
+    assert code == 0, err
+    code, in_rad, err = run(["fk", "dual-ur5", rad, "--angle-unit", "rad"], capsys)
+    assert code == 0, err
+    np.testing.assert_allclose(np.loadtxt(in_rad.splitlines()[1:], delimiter=","),
+                               np.loadtxt(in_deg.splitlines()[1:], delimiter=","), atol=1e-9)
+    code, _, err = run(["calibrate", "dual-ur5", deg, "--fixture", deg], capsys)
+    assert code == 2 and "--fixture" in err

@@ -94,6 +94,7 @@ def fk(
     angle_unit: str | None = angle_unit_option("JOINTS"),
 ) -> None:
     """Forward kinematics: tool-point positions (CSV on stdout)."""
+    check_angle_unit(angle_unit)
     from kinecal.cli.systems import is_system_arg
 
     if is_system_arg(model, base_link, tip_link):
@@ -109,7 +110,6 @@ def fk(
     from kinecal.io.result_values import model_for_result
     from kinecal.spatial import quaternion_from_matrix
 
-    check_angle_unit(angle_unit)
     with warnings_scope(strict):
         m = load_model_arg(model, base_link, tip_link)
         if params is not None:

@@ -105,6 +105,8 @@ def simulate(
         if (poses is None) == (joints is None):
             raise InputError("expected --poses N (rows per chain, bars, touches per point "
                              "and tip) or --joints PLAN.csv, one of them", option="--poses")
+        if check_angle_unit(angle_unit) and joints is None:
+            raise InputError("applies to a --joints file", option="--angle-unit")
         return system_simulate(dict(locals()))
     for option, value in (("--tip", tip), ("--carrier", carrier)):
         if value:

@@ -51,10 +51,12 @@ def _refuse(given: dict[str, Any], what: str = "a robot system") -> None:
             raise InputError(f"does not apply to {what} (docs/systems.md)", option=option)
 
 
-def _read(system, files: list[str], option: str, tip: str | None) -> list:
+def _read(system, files: list[str], option: str, tip: str | None,
+          angle_unit: str | None = None) -> list:
     from kinecal.io.system_data import read_system_data
 
-    return [read_system_data(resolve_data_path(f, option), system, tip) for f in files]
+    return [read_system_data(resolve_data_path(f, option), system, tip, angle_unit)
+            for f in files]
 
 
 def system_calibrate(a: dict[str, Any]) -> None:
@@ -64,7 +66,7 @@ def system_calibrate(a: dict[str, Any]) -> None:
 
     _refuse({"--error-model": a["error_model"], "--harmonics": a["harmonics"],
              "--folds": a["folds"], "--maxiter": a["maxiter"], "--target": a["target"],
-             "--model-out": a["model_out"]})
+             "--model-out": a["model_out"], "--fixture": a.get("fixture")})
     if a["method"] != "lm":
         raise InputError(f"method {a['method']!r}: a robot system is calibrated by lm on one "
                          "stacked problem", option="--method")
@@ -76,8 +78,8 @@ def system_calibrate(a: dict[str, Any]) -> None:
     stated = parse_sigma(a["sigma"], files)
     with warnings_scope(a["strict"]) as found:
         system = load_system_arg(a["model"], a["base_link"], a["tip_link"])
-        sets = _read(system, files, "DATA", a["tip"])
-        vsets = _read(system, validate, "--validate", a["tip"]) or None
+        sets = _read(system, files, "DATA", a["tip"], a.get("angle_unit"))
+        vsets = _read(system, validate, "--validate", a["tip"], a.get("angle_unit")) or None
         res = calibrate_system(system, sets, validate=vsets, free=a["free"], loss=a["loss"],
                                sigma=stated, rotation_weight=a["rotation_weight"])
         res.warnings = list(found)
@@ -102,11 +104,13 @@ def system_identifiability(a: dict[str, Any]) -> None:
     from kinecal.calibration.blocks.system_ident import system_lines
     from kinecal.calibration.blocks.system_simulate import simulate_system
 
-    _refuse({"--error-model": a["error_model"], "--harmonics": a["harmonics"]})
+    _refuse({"--error-model": a["error_model"], "--harmonics": a["harmonics"],
+             "--fixture": a.get("fixture")})
     with warnings_scope(a["strict"]) as found:
         system = load_system_arg(a["model"], a["base_link"], a["tip_link"])
         if a["data"]:
-            sets = [_plan_or_data(system, f, a["tip"]) for f in a["data"]]
+            sets = [_plan_or_data(system, f, a["tip"], a.get("angle_unit"))
+                    for f in a["data"]]
         else:
             n = check_count(50 if a["poses"] is None else a["poses"], "--poses",
                             bytes_per_item=4096)
@@ -129,7 +133,8 @@ def system_select(a: dict[str, Any]) -> None:
     from kinecal.calibration.blocks.plan import select_system_poses
     from kinecal.io.system_data import write_system_joints
 
-    _refuse({"--gauge": a["gauge"], "--length": a["length"]})
+    _refuse({"--gauge": a["gauge"], "--length": a["length"],
+             "--angle-unit": a.get("angle_unit")})
     if a["kind"] != "tracker":
         raise InputError("a robot system plans tracker rows", option="--kind")
     check_paths({"MODEL": a["model"]}, {"--out": a["out"]})
@@ -144,7 +149,7 @@ def system_select(a: dict[str, Any]) -> None:
                f"O2 = {info['O2']:.4g} ({info['rank']} identifiable parameters)", err=True)
 
 
-def _plan_or_data(system, spec: str, tip: str | None):
+def _plan_or_data(system, spec: str, tip: str | None, angle_unit: str | None = None):
     """A measurement file of a system, or a plan (joints and tips alone: what
     ``select-poses`` writes) measured by the nominal system (only its rows matter to an
     analysis)."""
@@ -156,17 +161,17 @@ def _plan_or_data(system, spec: str, tip: str | None):
     path = resolve_data_path(spec, "--data")
     header = csv_header(path)
     if any(c in header for cols in KINDS.values() for c in cols):
-        return read_system_data(path, system, tip)
-    q, tips, _, _ = system_readings(path, header, system, tip)
+        return read_system_data(path, system, tip, angle_unit)
+    q, tips, _, _ = system_readings(path, header, system, tip, angle_unit=angle_unit)
     return Measurements(q, system.positions(q, marker=tips), source=str(path), marker=tips,
                         marker_names=system.tips)
 
 
-def _tips_of_file(system, path: Path, tip: str | None):
+def _tips_of_file(system, path: Path, tip: str | None, angle_unit: str | None = None):
     from kinecal.io.measurements import csv_header
     from kinecal.io.system_data import system_readings
 
-    return system_readings(path, csv_header(path), system, tip)[:2]
+    return system_readings(path, csv_header(path), system, tip, angle_unit=angle_unit)[:2]
 
 
 def _result_params(system, params: Path | None):
@@ -187,7 +192,7 @@ def system_fk(a: dict[str, Any]) -> None:
         system = load_system_arg(a["model"], a["base_link"], a["tip_link"])
         tip = a["tip"] or _one_part(system, a["tip_link"])
         path = resolve_data_path(a["joints"], "JOINTS")
-        q, tips = _tips_of_file(system, path, tip)
+        q, tips = _tips_of_file(system, path, tip, a.get("angle_unit"))
         p = _result_params(system, a["params"])
     T = system.fk(q, p, tips)
     header = ["x", "y", "z"] + (["qw", "qx", "qy", "qz"] if a["pose"] else [])
@@ -260,7 +265,8 @@ def _measured_plan(system, a: dict[str, Any], true):
 
     if a["kind"] != "tracker":
         raise InputError("applies to tracker rows only", option="--joints")
-    q, tips = _tips_of_file(system, resolve_data_path(a["joints"], "--joints"), None)
+    q, tips = _tips_of_file(system, resolve_data_path(a["joints"], "--joints"), None,
+                            a.get("angle_unit"))
     T = system.fk(q, true, tips)
     gen = np.random.default_rng(a["seed"])
     xyz = T[:, :3, 3] + (gen.normal(0.0, a["noise"], (len(q), 3)) if a["noise"] > 0 else 0.0)

@@ -101,12 +101,14 @@ def _carriers(path: Path, cells: list[str] | None, system: SystemModel
 
 
 def system_readings(path: Path, header: list[str], system: SystemModel, tip: str | None,
-                    carrier_ok: bool = False) -> tuple[Array, NDArray[np.intp],
+                    carrier_ok: bool = False, angle_unit: str | None = None
+                    ) -> tuple[Array, NDArray[np.intp],
                                                        NDArray[np.intp] | None,
                                                        tuple[str, ...]]:
     """Joint readings ``(N, n_joints)`` (API units; joints off a row's chain set inside
     their limits), tip per row, carrier per row (or None) and the carrier names of a
-    system file (module docstring).
+    system file (module docstring); revolute readings in `angle_unit` (default the
+    system's).
 
     Raises
     ------
@@ -143,7 +145,7 @@ def system_readings(path: Path, header: list[str], system: SystemModel, tip: str
             want[np.ix_(carrier == c, system.link_joints(link))] = True
     _check_cells(path, raw, want, joints, system.tips, tips)
     lo, hi = system.joint_limits[:, 0], system.joint_limits[:, 1]
-    q = np.where(want, raw * system.joint_scale(), np.clip(0.0, lo, hi))
+    q = np.where(want, raw * system.joint_scale(angle_unit), np.clip(0.0, lo, hi))
     return q, tips, carrier, carriers
 
 
@@ -158,10 +160,11 @@ def _check_cells(path, raw, want, joints, tip_names, tips) -> None:
                              file=path, row=int(r) + 1)
 
 
-def read_system_data(path: str | Path, system: SystemModel, tip: str | None = None
-                     ) -> Measurements | GaugeMeasurements:
+def read_system_data(path: str | Path, system: SystemModel, tip: str | None = None,
+                     angle_unit: str | None = None) -> Measurements | GaugeMeasurements:
     """Read a measurement file of any kind for `system` (module docstring); `tip`: the
-    chain of a file without a ``tip`` column."""
+    chain of a file without a ``tip`` column; `angle_unit`: of its revolute joint columns
+    (default the system's)."""
     path = resolve_csv(path)
     header = csv_header(path)
     kind = kind_of_columns(header, path)
@@ -171,7 +174,8 @@ def read_system_data(path: str | Path, system: SystemModel, tip: str | None = No
     if kind == "tracker" and "x_t" in header:
         raise InputError("a laser-tracker export of one arm, not a system's file", file=path)
     q, tips, carrier, carriers = system_readings(path, header, system, tip,
-                                                 carrier_ok=kind == "point")
+                                                 carrier_ok=kind == "point",
+                                                 angle_unit=angle_unit)
     if kind == "tracker":
         cols = read_table(path, ["x", "y", "z"],
                           optional=["weight", *orientation_columns(header, path)])
