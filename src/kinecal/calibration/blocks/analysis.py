@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from kinecal.calibration.blocks.base import MOTION_WORDS
 from kinecal.calibration.blocks.stack import StackedProblem
+from kinecal.calibration.blocks.tips import fold_groups
 from kinecal.calibration.identifiability import IdentifiabilityReport, analyse_factor
 from kinecal.calibration.serial.problem import column_scale
 from kinecal.data import Measurements
@@ -146,15 +147,8 @@ def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool,
             block[:, nn:] = Ja * D
             R = qr_update(R, block)
             continue
-        own = np.arange(s.start - k, s.stop - k)
-        for grows, cols in groups:  # each chain's rows on its own columns, then folded
-            compact = np.hstack([Jn[grows] * b.nuisance_scale(L),
-                                 Ja[np.ix_(grows, cols)] * D[cols]])
-            Rg = qr_update(None, compact)
-            full = np.zeros((Rg.shape[0], n), order="F")
-            full[:, own] = Rg[:, :own.size]
-            full[:, nn + cols] = Rg[:, own.size:]
-            R = qr_update(R, full)
+        R = fold_groups(R, Jn * b.nuisance_scale(L), Ja, D, groups,
+                        np.arange(s.start - k, s.stop - k), nn, n)
     return np.zeros((n, n)) if R is None else R
 
 
