@@ -225,8 +225,7 @@ class SystemKinematics:
         for chain, rows in self._groups(marker, len(q)):
             Jc = chain.joint_jacobian(chain.chain_q(q[rows], p), p, outputs)
             mult = np.where(chain.multiplier >= 0, p[np.maximum(chain.multiplier, 0)], 1.0)
-            J = np.zeros((Jc.shape[0], Jc.shape[1], self.n_joints))
-            for j, s in enumerate(chain.source):
-                J[:, :, s] += Jc[:, :, j] * mult[j]
-            out[rows] = J
+            M = np.zeros((chain.n_joints, self.n_joints))  # chain joints -> system joints
+            np.add.at(M, (np.arange(chain.n_joints), chain.source), mult)
+            out[rows] = Jc @ M
         return out
