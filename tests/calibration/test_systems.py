@@ -190,3 +190,53 @@ def test_same_seed_same_result(kind):
                         **({"carrier": "positioner", "centres": WORKPIECE[:2]}
                            if kind == "point" else {}))
     np.testing.assert_array_equal(a.data.q, b.data.q)
+
+
+GRIPPER = """<robot name="g">
+  <link name="b"/><link name="l1"/><link name="l2"/><link name="fa"/><link name="fb"/>
+  <joint name="j1" type="revolute"><origin xyz="0 0 0.3"/><parent link="b"/><child link="l1"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><origin xyz="0.3 0 0.1"/><parent link="l1"/>
+    <child link="l2"/><axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="1"
+    velocity="1"/></joint>
+  <joint name="fa" type="prismatic"><origin xyz="0.2 0.01 0"/><parent link="l2"/>
+    <child link="fa"/><axis xyz="0 1 0"/><limit lower="0" upper="0.05" effort="1"
+    velocity="1"/></joint>
+  <joint name="fb" type="prismatic"><origin xyz="0.2 -0.01 0"/><parent link="l2"/>
+    <child link="fb"/><axis xyz="0 1 0"/><limit lower="-0.05" upper="0" effort="1"
+    velocity="1"/><mimic joint="fa" multiplier="-1" offset="0.002"/></joint>
+</robot>"""
+
+
+def test_a_mimic_joints_multiplier_and_offset_are_identified(tmp_path):
+    """A finger that follows the other (multiplier -1, offset 2 mm): its coupling is
+    identified from tracker rows of both fingertips (noise-free: to round-off). The offset,
+    like any prismatic joint's, moves the finger along its axis as its origin's translation
+    does: the two are identified together (the origin absorbs it exactly)."""
+    path = tmp_path / "g.urdf"
+    path.write_text(GRIPPER)
+    system = load_urdf_system(path, ["fa", "fb"])
+    assert system.joint_names == ("j1", "j2", "fa")
+    k = system.index(["fb.multiplier", "fb.offset"])
+    np.testing.assert_allclose(system.nominal[k], [-1.0, 0.002])
+    p = system.nominal
+    tool = system.index(["fa.tool.x", "fb.tool.x", "fa.tool.z", "fb.tool.z"])
+    p[tool] = [0.01, 0.01, 0.02, -0.02]  # targets off the fingers' axes
+    system = system.with_params(p)
+
+    def make(params):
+        return [simulate_system(system, 40, true_params=params, rng=9).data]
+
+    true, free, (data,) = truth(system, make, 10, length=2e-3, angle=2e-3)
+    true[k] += [5e-4, 4e-4]  # the coupling off nominal
+    data = make(true)[0]
+    res = calibrate_system(system, data)
+    assert "fb.multiplier" in res.free and "fb.offset" not in res.free
+    assert res.identifiability.confounded_with["fb.offset"]  # with fb's origin
+    m = system.index(["fb.multiplier"])[0]
+    assert abs(res.params[m] - true[m]) < 1e-10
+    assert res.errors_after.max() < 1e-12  # m
+    # and the fingertips of the calibrated system at other rows
+    val = simulate_system(system, 20, true_params=true, rng=11).data
+    np.testing.assert_allclose(system.positions(val.q, res.params, val.marker), val.xyz,
+                               atol=1e-12)
