@@ -227,7 +227,7 @@ def test_a_mimic_joints_multiplier_and_offset_are_identified(tmp_path):
     def make(params):
         return [simulate_system(system, 40, true_params=params, rng=9).data]
 
-    true, free, (data,) = truth(system, make, 10, length=2e-3, angle=2e-3)
+    true, _, _ = truth(system, make, 10, length=2e-3, angle=2e-3)
     true[k] += [5e-4, 4e-4]  # the coupling off nominal
     data = make(true)[0]
     res = calibrate_system(system, data)
