@@ -39,14 +39,15 @@ from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.io.csvtable import check_separator, read_column, read_table, write_table
 from kinecal.io.poses import PoseFormat
-from kinecal.io.tracker_columns import read_orientation, read_sigma, read_stations
+from kinecal.io.tracker_columns import QUATERNION, read_orientation, read_sigma, read_stations
 from kinecal.io.wide import is_wide, read_wide
 from kinecal.kinematics.serial.model import SerialModel
-from kinecal.spatial import quaternion_from_matrix
+from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
 # Measurements (kinecal.data) is re-exported here
-__all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "read_joints",
-           "read_markers", "read_measurements", "resolve_csv", "write_measurements"]
+__all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "measured_poses",
+           "orientation_columns", "read_joints", "read_markers", "read_measurements",
+           "resolve_csv", "write_measurements"]
 
 #: columns with a meaning of their own in measurement and program files: a joint of that
 #: name can only be given as q1..qn
@@ -244,12 +245,54 @@ def _checked_joint_columns(header: list[str], model: SerialModel, path: Path) ->
     return joints
 
 
+def _orientation_columns(header: list[str], path: Path) -> list[str]:
+    """``qw, qx, qy, qz`` when the header has them (all four or none)."""
+    present = [c for c in QUATERNION if c in header]
+    if present and len(present) != 4:
+        raise InputError(
+            f"orientation columns {', '.join(present)} without the others: expected all of "
+            "qw, qx, qy, qz (tool orientation as a unit quaternion) or none",
+            file=path,
+        )
+    return present
+
+
+def orientation_columns(header: list[str], path: Path) -> list[str]:
+    """``qw, qx, qy, qz`` when the header has them, none when it has none; `InputError`
+    for some of them only (the readers of a robot system's files, `kinecal.io.system_data`)."""
+    return _orientation_columns(header, path)
+
+
+def measured_poses(path: Path, cols: dict) -> tuple[NDArray[np.float64], NDArray | None,
+                                                    NDArray | None]:
+    """Measured points ``(N, 3)``, weights ``(N,)`` and rotations ``(N, 3, 3)`` (None when
+    absent) from the columns `read_table` read (``x, y, z`` and the optional ``weight``,
+    ``qw .. qz``); `InputError` for a non-positive weight or a quaternion off unit norm."""
+    xyz = np.column_stack([cols[c] for c in "xyz"])
+    quat = [c for c in QUATERNION if c in cols]
+    return xyz, _weights(cols, path), _rotations(cols, quat, path)
+
+
 def _weights(cols: dict[str, NDArray[np.float64]], path: Path) -> NDArray[np.float64] | None:
     weights = cols.get("weight")
     if weights is not None and not (weights > 0).all():
         row = int(np.argmax(~(weights > 0))) + 1
         raise InputError("column weight: expected a positive number", file=path, row=row)
     return weights
+
+
+def _rotations(cols: dict[str, NDArray[np.float64]], quat: list[str], path: Path
+               ) -> NDArray[np.float64] | None:
+    if not quat:
+        return None
+    qv = np.column_stack([cols[c] for c in quat])
+    norm = np.linalg.norm(qv, axis=1)
+    bad = np.abs(norm - 1.0) > 1e-3
+    if bad.any():
+        row = int(np.argmax(bad)) + 1
+        raise InputError(f"qw, qx, qy, qz: norm {norm[row - 1]:.6f}, expected a unit "
+                         "quaternion", file=path, row=row)
+    return matrix_from_quaternion(qv)
 
 
 def _read_wide(path: Path, header: list[str], model: SerialModel, joints: list[str],

@@ -31,7 +31,7 @@ from kinecal.io.csvtable import read_column, read_table
 from kinecal.io.orientation import rotation_sigma
 from kinecal.io.poses import ROTATIONS, PoseFormat, pose_columns, poses_from_table
 
-__all__ = ["POSITION_SIGMA", "ROTATION_SIGMA", "STATION_COLUMN", "read_orientation",
+__all__ = ["POSITION_SIGMA", "QUATERNION", "ROTATION_SIGMA", "STATION_COLUMN", "read_orientation",
            "read_sigma", "read_stations", "station_name"]
 
 Array = NDArray[np.float64]

@@ -27,7 +27,7 @@ from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stat
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
-from kinecal.calibration.serial.inputs import as_measurements, as_model
+from kinecal.calibration.serial.inputs import as_measurements, as_model, is_system
 from kinecal.calibration.serial.polish import check_local_polish
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
@@ -199,6 +199,15 @@ def calibrate(
     """
     model = as_model(model)
     data, validate = as_measurements(data, model), as_measurements(validate, model, "validate")
+    if is_system(model):  # several chains: the stacked problem, whatever the data
+        from kinecal.calibration.blocks.api import calibrate_system
+
+        if validate_register is not None:
+            raise InputError("applies to a serial arm's tracker rows, not to a system",
+                             option="--validate-register")
+        return calibrate_system(model, data, method, validate=validate, free=free, loss=loss,
+                                f_scale=f_scale, rank_tol=rank_tol, sigma=sigma,
+                                rotation_weight=rotation_weight)
     if validate_register is not None:  # checked before any work
         from kinecal.calibration.serial.validation_frame import parse_register
 
