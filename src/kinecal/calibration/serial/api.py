@@ -230,14 +230,14 @@ def calibrate(
 
 def _dispatch(model, data, method, *, validate, sigma, **kw) -> CalibrationResult:
     """The calibration behind `calibrate`: tracker rows of one set-up on the fast path,
-    anything else stacked (`kinecal.calibration.serial.merge`: `tracker_input`,
-    `several`)."""
+    anything else stacked (`kinecal.calibration.serial.merge.tracker_input`,
+    `kinecal.calibration.serial.several`)."""
     from kinecal.calibration.serial.merge import tracker_input
 
     data = tracker_input(model, data, kw["free"], kw["rank_tol"], kw["rotation_weight"])
     if not isinstance(data, Measurements) or not (validate is None or isinstance(
             validate, Measurements)):
-        from kinecal.calibration.serial.merge import several
+        from kinecal.calibration.serial.several import several
 
         return several(_dispatch, model, data, method, validate=validate, sigma=sigma, **kw)
     with diagnostics.collect(python_warnings=True) as found:

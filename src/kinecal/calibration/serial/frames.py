@@ -33,6 +33,8 @@ def frames_entry(model: SerialModel, params: np.ndarray, extra: dict | None = No
     ``base@NAME``, with its parameters and standard errors) from the stacked result's
     `extra`."""
     out: dict[str, Any] = {}
+    if not isinstance(model, SerialModel):  # a system: its chains' frames are its own
+        return out
     which = ["base"] + (["tool"] if "tool.rx" in model.parameter_names else [])
     for w in which:
         out[w] = {"nominal": file_pose(model, frame_pose(model, None, w)),

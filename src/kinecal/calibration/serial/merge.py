@@ -18,7 +18,7 @@ import numpy as np
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 
-__all__ = ["data_sets", "merge_tracker_sets", "several", "tracker_input"]
+__all__ = ["data_sets", "merge_tracker_sets", "tracker_input"]
 
 
 def merge_tracker_sets(sets: Sequence[object], sigma: Sequence[float | None]
@@ -89,22 +89,3 @@ def tracker_input(model, data, free, rank_tol: float, rotation_weight):
                                 rotation_weight=rotation_weight)
     return data
 
-
-def several(dispatch, model, data, method, *, free, validate, loss, f_scale, rank_tol,
-            rotation_weight, sigma, **kw):
-    """Several data sets or another kind than tracker points: tracker files alone are
-    merged for the fast path (`dispatch`, the serial calibration's), anything else is one
-    stacked problem (`kinecal.calibration.blocks.calibrate_blocks`)."""
-    sets, sig = data_sets(data, sigma, "data")
-    vsets = None if validate is None else data_sets(validate, None, "validation")[0]
-    one = merge_tracker_sets(sets, sig)
-    vone = None if vsets is None else merge_tracker_sets(vsets, [None] * len(vsets))
-    if one is not None and (vsets is None or vone is not None):
-        return dispatch(model, one[0], method, free=free, validate=None if vone is None
-                        else vone[0], loss=loss, f_scale=f_scale, rank_tol=rank_tol,
-                        rotation_weight=rotation_weight, sigma=one[1], **kw)
-    from kinecal.calibration.blocks.api import calibrate_blocks
-
-    return calibrate_blocks(model, sets, sigma=sig, validate=vsets, method=method, free=free,
-                            loss=loss, f_scale=f_scale, rank_tol=rank_tol,
-                            rotation_weight=rotation_weight)
