@@ -55,6 +55,8 @@ ALLOWED: dict[str, set[str]] = {
     "batch": {"ground", "io", "metrology", "calibration", "calibration.serial",
               "calibration.diagnostics"},
     "cli": {"ground", "calibration", "experiments"},
+    "ui": {"ground", "io", "kinematics.serial", "kinematics.tree", "calibration",
+           "calibration.serial", "datasets"},
     "__main__": {"cli"},
     "kinecal": {"ground"},
 }
@@ -72,7 +74,8 @@ LATE_ALLOWED: dict[str, set[str]] = {
             "calibration.handeye", "calibration.serial", "calibration.stewart",
             "compensation", "datasets", "io", "kinematics.serial", "kinematics.stewart",
             "kinematics.tree",
-            "report", "vision", "metrology", "kinecal"},
+            "report", "vision", "metrology", "kinecal", "ui"},
+    "ui": {"calibration.serial", "datasets", "io", "kinematics.tree", "registry"},
 }
 #: below no kind of machine: compensation is the apply step on top of calibration results
 NEVER = [("calibration", "compensation"), ("io", "calibration"), ("kinematics", "calibration"),

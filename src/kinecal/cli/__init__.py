@@ -76,6 +76,7 @@ _COMMAND_MODULES = [
     "kinecal.cli.import_cmd",
     "kinecal.cli.iso9283",
     "kinecal.cli.datasets",
+    "kinecal.cli.ui",
 ]
 
 
@@ -103,6 +104,7 @@ _COMMANDS = {
     "import": "kinecal.cli.import_cmd",
     "iso9283": "kinecal.cli.iso9283",
     "datasets": "kinecal.cli.datasets",
+    "ui": "kinecal.cli.ui",
 }
 
 

@@ -295,8 +295,15 @@ def progress(
 ) -> Iterator[Callable[..., None]]:
     """Context manager yielding ``update(advance=1, best=None)`` that drives a rich bar.
 
-    The bar goes to stderr and is silent when `quiet` or stderr is not a terminal.
+    The bar goes to stderr and is silent when `quiet` or stderr is not a terminal. With
+    ``KINECAL_PROGRESS=lines`` in the environment (the workbench's runs, `kinecal.ui.runs`)
+    each step is one line ``kinecal: progress: {"task", "done", "total", "best"}`` on
+    stderr instead, from the start (done 0) to the end (``"end": true``).
     """
+    if os.environ.get("KINECAL_PROGRESS") == "lines":
+        with _progress_lines(description, total) as update:
+            yield update
+        return
     if quiet_requested(quiet):
         yield lambda advance=1, best=None: None
         return
@@ -312,3 +319,25 @@ def progress(
             bar.update(task, advance=advance, **fields)
 
         yield update
+
+
+@contextlib.contextmanager
+def _progress_lines(description: str, total: int | None) -> Iterator[Callable[..., None]]:
+    """`progress` as JSON lines on stderr (``KINECAL_PROGRESS=lines``)."""
+    state = {"task": description, "done": 0, "total": total, "best": None}
+
+    def emit(**extra: Any) -> None:
+        sys.stderr.write("kinecal: progress: " + json.dumps({**state, **extra}) + "\n")
+        sys.stderr.flush()
+
+    def update(advance: int = 1, best: float | None = None) -> None:
+        state["done"] += advance
+        if best is not None:
+            state["best"] = float(best)
+        emit()
+
+    emit()
+    try:
+        yield update
+    finally:
+        emit(end=True)

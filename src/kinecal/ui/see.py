@@ -1,0 +1,184 @@
+"""The See view: the robot at each measured pose (a slider steps through them), every
+pose's residual as an arrow before and after calibration (drawn `gain` times its length,
+coloured green to red by size on one scale for both), and what the calibration placed:
+the tracker (the measurement frame), the robot's base, cameras and boards of the result.
+
+The arrows of all poses are sent once per data set or result; a slider move sends the
+robot's cylinders and one marker, nothing more (``benchmarks/bench_ui.py`` times it).
+"""
+
+from __future__ import annotations
+
+import html
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal.ui.geometry import error_colors, residual_arrows
+from kinecal.ui.scene import RobotFigure, model_scale, urdf_of
+
+__all__ = ["SeeView"]
+
+Array = NDArray[np.float64]
+
+
+class SeeView:
+    """The See tab (module docstring); `app` is the `kinecal.ui.app.Workbench`."""
+
+    def __init__(self, app, tab) -> None:
+        self.app = app
+        server = self.server = app.server
+        self.robot = RobotFigure(server, "/robot", color=(150, 165, 185))
+        self.params: Array | None = None  # calibrated parameters (None: nominal only)
+        self.result_label = ""
+        self.before: Array | None = None
+        self.after: Array | None = None
+        self._handles: dict[str, object] = {}
+        with tab:
+            self.data = server.gui.add_dropdown("Data", ("(none)",), initial_value="(none)",
+                                                hint="Measurement file whose poses are shown")
+            self.pose = server.gui.add_slider("Pose", min=1, max=2, step=1, initial_value=1,
+                                              disabled=True, hint="Step through the poses")
+            self.show_before = server.gui.add_checkbox("Errors before", True)
+            self.show_after = server.gui.add_checkbox("Errors after", True)
+            self.gain = server.gui.add_slider("Arrow scale (log10)", min=0.0, max=4.0,
+                                              step=0.1, initial_value=2.0)
+            self.info = server.gui.add_html(_info_html("No poses yet: load a model and its "
+                                                       "measurements."))
+            self.legend = server.gui.add_html("")
+        self.data.on_update(lambda _: self.refresh())
+        self.pose.on_update(lambda _: self.show_pose(int(self.pose.value) - 1))
+        for box in (self.show_before, self.show_after):
+            box.on_update(lambda _: self._visibility())
+        self.gain.on_update(lambda _: self._draw_arrows())
+        server.scene.add_frame("/tracker", axes_length=0.15, axes_radius=0.004)
+        server.scene.add_label("/tracker/label", "tracker (measurement frame)")
+
+    # ------------------------------------------------------------------ state
+    def set_result(self, params: Array | None, label: str = "") -> None:
+        """Show the arm with calibrated `params` (None: nominal) and the errors after."""
+        self.params = None if params is None else np.asarray(params, dtype=float)
+        self.result_label = label
+        self.refresh()
+
+    def data_names(self) -> list[str]:
+        s = self.app.session
+        return [n for n, d in s.data.items() if d.meas is not None]
+
+    def refresh(self) -> None:
+        """Redraw for the chosen data set (a model or data change, a new result)."""
+        s = self.app.session
+        names = self.data_names()
+        options = tuple(names) or ("(none)",)
+        if tuple(self.data.options) != options:
+            self.data.options = options
+        if self.data.value not in options:
+            self.data.value = options[-1]
+        ds = s.data.get(self.data.value)
+        if s.model is None:
+            self.robot.remove()
+            self._clear()
+            return
+        if ds is None or ds.meas is None:
+            self._clear()
+            q = np.zeros((1, s.model.n_joints))
+            self.robot.set_poses(s.model, q, self.params, urdf_of(s.model_spec))
+            self.robot.show(0)
+            self.pose.disabled = True
+            self.info.content = _info_html(f"{html.escape(s.model.name)} at zero: load "
+                                           "measurements to see its poses.")
+            return
+        meas = ds.meas
+        self.robot.set_poses(s.model, meas.q, self.params, urdf_of(s.model_spec))
+        nominal = s.model.positions(meas.q, None, meas.marker)
+        self.before = np.linalg.norm(meas.xyz - nominal, axis=1)
+        self.after = None
+        calibrated = None
+        if self.params is not None:
+            calibrated = s.model.positions(meas.q, self.params, meas.marker)
+            self.after = np.linalg.norm(meas.xyz - calibrated, axis=1)
+        self._nominal, self._calibrated = nominal, calibrated
+        k = model_scale(s.model)
+        self.server.scene.add_point_cloud("/poses/measured", (meas.xyz * k).astype(np.float32),
+                                          colors=(60, 60, 60), point_size=0.004,
+                                          point_shape="circle")
+        n = len(meas.q)
+        self.pose.disabled = n < 2
+        self.pose.max = max(n, 2)
+        self._draw_arrows()
+        self.show_pose(min(int(self.pose.value), n) - 1)
+
+    def _clear(self) -> None:
+        for key in ("before", "after"):
+            h = self._handles.pop(key, None)
+            if h is not None:
+                h.remove()
+        self.server.scene.remove_by_name("/poses")
+        self.before = self.after = None
+        self.legend.content = ""
+
+    # ------------------------------------------------------------------ drawing
+    def _draw_arrows(self) -> None:
+        s = self.app.session
+        ds = s.data.get(self.data.value)
+        if ds is None or ds.meas is None or self.before is None:
+            return
+        k = model_scale(s.model)
+        top = float(self.before.max(initial=0.0)) or 1.0
+        gain = 10.0 ** float(self.gain.value)
+        size = self.robot.skeleton.size if self.robot.skeleton is not None else 1.0
+        radius = 0.0015 * size
+        for key, pred, err in (("before", self._nominal, self.before),
+                               ("after", self._calibrated, self.after)):
+            h = self._handles.pop(key, None)
+            if h is not None:
+                h.remove()
+            if pred is None:
+                continue
+            arrows = residual_arrows(pred * k, ds.meas.xyz * k, gain)
+            self._handles[key] = self.server.scene.add_arrows(
+                f"/poses/{key}", arrows.astype(np.float32), error_colors(err, top),
+                shaft_radius=radius, head_radius=2.5 * radius, head_length=6 * radius)
+        self._visibility()
+        unit = s.model.length_unit
+        after = ("" if self.after is None else
+                 f"; after ({html.escape(self.result_label)}): mean {self.after.mean():.4g}, "
+                 f"max {self.after.max():.4g} {unit}")
+        self.legend.content = (
+            f'<div id="kc-legend" style="font-size:12px;padding:0 8px">Arrows: each pose\'s '
+            f"error, drawn {gain:.3g} times its length, from the model's point to the "
+            f"measured one; colour by size: <b style='color:#28aa50'>0</b> to "
+            f"<b style='color:#dc2828'>{top:.3g} {unit}</b>. Before: mean "
+            f"{self.before.mean():.4g}, max {top:.4g} {unit}{after}.</div>")
+
+    def _visibility(self) -> None:
+        for key, box in (("before", self.show_before), ("after", self.show_after)):
+            h = self._handles.get(key)
+            if h is not None:
+                h.visible = bool(box.value)
+
+    def show_pose(self, index: int) -> None:
+        """Draw the robot at pose `index` (0-based) and mark its measured point."""
+        s = self.app.session
+        ds = s.data.get(self.data.value)
+        if ds is None or ds.meas is None or self.robot.skeleton is None:
+            return
+        n = len(ds.meas.q)
+        index = int(np.clip(index, 0, n - 1))
+        self.robot.show(index)
+        k = model_scale(s.model)
+        p = ds.meas.xyz[index] * k
+        size = self.robot.skeleton.size
+        self.server.scene.add_icosphere("/poses/current", radius=0.012 * size,
+                                        color=(30, 90, 200), position=tuple(p))
+        unit = s.model.length_unit
+        q = ds.meas.q[index] / s.model.joint_scale()
+        after = "" if self.after is None else f", after {self.after[index]:.4g} {unit}"
+        self.info.content = _info_html(
+            f"pose {index + 1} of {n} ({html.escape(ds.name)}): error before "
+            f"{self.before[index]:.4g} {unit}{after}<br>joints: "
+            + ", ".join(f"{v:.4g}" for v in q))
+
+
+def _info_html(text: str) -> str:
+    return f'<div id="kc-pose" style="font-size:12px;padding:0 8px">{text}</div>'
