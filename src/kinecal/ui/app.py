@@ -8,7 +8,9 @@ work longer than a redraw (a calibration, a pose selection) runs in a worker pro
 
 from __future__ import annotations
 
+import contextlib
 import html
+import io
 import threading
 from collections.abc import Sequence
 from pathlib import Path
@@ -69,7 +71,8 @@ class Workbench:
 
         self.session = Session(Path(workdir), base_link=base_link, tip_links=list(tip_links))
         self.db = db
-        self.server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+        with contextlib.redirect_stdout(io.StringIO()):  # viser's banner names its own port
+            self.server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
         self.server.gui.configure_theme(control_width="large", dark_mode=False,
                                         show_logo=False)
         self.server.scene.set_up_direction("+z")

@@ -108,7 +108,7 @@ def _handler(front: FrontServer) -> type[BaseHTTPRequestHandler]:
     class Handler(BaseHTTPRequestHandler):
         server_version = "kinecal-ui"
 
-        def log_message(self, format, *args):  # noqa: A002 (the base class's name)
+        def log_message(self, format, *args):
             return  # quiet: the terminal shows the address only
 
         def _host_ok(self) -> bool:
@@ -127,7 +127,7 @@ def _handler(front: FrontServer) -> type[BaseHTTPRequestHandler]:
             self.end_headers()
             self.wfile.write(body)
 
-        def do_GET(self):  # noqa: N802 (the base class's name)
+        def do_GET(self):
             if not self._host_ok():
                 return self._send(HTTPStatus.FORBIDDEN, b"forbidden", "text/plain")
             path = unquote(urlsplit(self.path).path)
@@ -151,7 +151,7 @@ def _handler(front: FrontServer) -> type[BaseHTTPRequestHandler]:
                     return self._send(HTTPStatus.OK, file.read_bytes(), kind)
             return self._send(HTTPStatus.NOT_FOUND, b"not found", "text/plain")
 
-        def do_POST(self):  # noqa: N802 (the base class's name)
+        def do_POST(self):
             if not self._host_ok():
                 return self._send(HTTPStatus.FORBIDDEN, b"forbidden", "text/plain")
             url = urlsplit(self.path)

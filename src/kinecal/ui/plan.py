@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from kinecal.errors import InputError
 from kinecal.ui.runs import Run
-from kinecal.ui.scene import RobotFigure, model_scale, urdf_of
+from kinecal.ui.scene import RobotFigure, model_scale
 
 __all__ = ["PROGRAMS", "PlanView"]
 
@@ -38,6 +38,7 @@ class PlanView:
         self.collider = None
         self._model = None
         self._selecting: Run | None = None
+        self._touched = False  # the ghost shows once a joint slider has moved
         gui = server.gui
         with tab:
             self.joints = gui.add_folder("Joints")
@@ -86,6 +87,7 @@ class PlanView:
         self.sliders = []
         self.ghost.remove()
         self.collider = None
+        self._touched = False
         model = self.app.session.model
         if model is None or self.app.session.is_system:
             return
@@ -101,7 +103,7 @@ class PlanView:
                                                 initial_value=float(np.clip(0.0, lo, hi)))
                 sl.on_update(lambda _: self._moved())
                 self.sliders.append(sl)
-        urdf = urdf_of(self.app.session.model_spec)
+        urdf = self.app.session.urdf()
         if urdf is not None:
             try:
                 from kinecal.ui.collision import SelfCollision
@@ -123,7 +125,13 @@ class PlanView:
         q = self.q_now()[None]
         self.ghost.set_poses(model, q, None, None)
         self.ghost.show(0)
+        self.show_ghost(self._touched)
+        self._touched = True
         self.update_figures()
+
+    def show_ghost(self, visible: bool) -> None:
+        """Show or hide the pose being planned (hidden while the See view steps)."""
+        self.ghost.set_visible(visible)
 
     def _collisions(self, q: Array) -> list[tuple[str, str]]:
         if self.collider is None:

@@ -51,7 +51,7 @@ def urdf_of(spec: str | None):
         return yourdfpy.URDF.load(spec, build_scene_graph=True, load_meshes=True,
                                   build_collision_scene_graph=True,
                                   load_collision_meshes=True, filename_handler=handler)
-    except Exception:  # noqa: BLE001 (meshes are a picture: without them, the skeleton)
+    except Exception:
         return None
 
 
@@ -148,6 +148,8 @@ class RobotFigure:
         for h in (self._links, self._joints):
             if h is not None:
                 h.visible = visible
+        if self._urdf_view is not None:
+            self._urdf_view.show_visual = visible
 
     def remove(self) -> None:
         for h in (self._links, self._joints):

@@ -9,17 +9,28 @@ robot's cylinders and one marker, nothing more (``benchmarks/bench_ui.py`` times
 
 from __future__ import annotations
 
+import functools
 import html
+import threading
 
 import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.ui.geometry import error_colors, residual_arrows
-from kinecal.ui.scene import RobotFigure, model_scale, urdf_of
+from kinecal.ui.scene import RobotFigure, model_scale
 
 __all__ = ["SeeView"]
 
 Array = NDArray[np.float64]
+
+
+def _locked(method):
+    """Run a drawing method under the view's lock (viser calls back on several threads)."""
+    @functools.wraps(method)
+    def run(self, *args, **kw):
+        with self._lock:
+            return method(self, *args, **kw)
+    return run
 
 
 class SeeView:
@@ -34,6 +45,8 @@ class SeeView:
         self.before: Array | None = None
         self.after: Array | None = None
         self._handles: dict[str, object] = {}
+        self._shown: str | None = None
+        self._lock = threading.RLock()
         with tab:
             self.data = server.gui.add_dropdown("Data", ("(none)",), initial_value="(none)",
                                                 hint="Measurement file whose poses are shown")
@@ -47,7 +60,7 @@ class SeeView:
                                                        "measurements."))
             self.legend = server.gui.add_html("")
         self.data.on_update(lambda _: self.refresh())
-        self.pose.on_update(lambda _: self.show_pose(int(self.pose.value) - 1))
+        self.pose.on_update(lambda _: self._stepped())
         for box in (self.show_before, self.show_after):
             box.on_update(lambda _: self._visibility())
         self.gain.on_update(lambda _: self._draw_arrows())
@@ -55,6 +68,7 @@ class SeeView:
         server.scene.add_label("/tracker/label", "tracker (measurement frame)")
 
     # ------------------------------------------------------------------ state
+    @_locked
     def set_result(self, params: Array | None, label: str = "") -> None:
         """Show the arm with calibrated `params` (None: nominal) and the errors after."""
         self.params = None if params is None else np.asarray(params, dtype=float)
@@ -65,6 +79,7 @@ class SeeView:
         s = self.app.session
         return [n for n, d in s.data.items() if d.meas is not None]
 
+    @_locked
     def refresh(self) -> None:
         """Redraw for the chosen data set (a model or data change, a new result)."""
         s = self.app.session
@@ -82,14 +97,17 @@ class SeeView:
         if ds is None or ds.meas is None:
             self._clear()
             q = np.zeros((1, s.model.n_joints))
-            self.robot.set_poses(s.model, q, self.params, urdf_of(s.model_spec))
+            self.robot.set_poses(s.model, q, self.params, s.urdf())
             self.robot.show(0)
+            if self._shown != s.model_spec:
+                self._shown = s.model_spec
+                self._frame(self.robot.skeleton.points[0])
             self.pose.disabled = True
             self.info.content = _info_html(f"{html.escape(s.model.name)} at zero: load "
                                            "measurements to see its poses.")
             return
         meas = ds.meas
-        self.robot.set_poses(s.model, meas.q, self.params, urdf_of(s.model_spec))
+        self.robot.set_poses(s.model, meas.q, self.params, s.urdf())
         nominal = s.model.positions(meas.q, None, meas.marker)
         self.before = np.linalg.norm(meas.xyz - nominal, axis=1)
         self.after = None
@@ -105,19 +123,41 @@ class SeeView:
         n = len(meas.q)
         self.pose.disabled = n < 2
         self.pose.max = max(n, 2)
+        if ds.name != self._shown:  # a new data set: arrows scaled to be seen, camera
+            self._shown = ds.name
+            top = float(self.before.max(initial=0.0)) * k or 1.0
+            self.gain.value = round(float(np.clip(np.log10(0.25 * self.robot.skeleton.size
+                                                           / top), 0.0, 4.0)), 1)
+            self._frame(np.vstack([self.robot.skeleton.points[0], meas.xyz * k]))
         self._draw_arrows()
         self.show_pose(min(int(self.pose.value), n) - 1)
 
+    def _stepped(self) -> None:
+        self.app.plan.show_ghost(False)  # the See view's robot alone
+        self.show_pose(int(self.pose.value) - 1)
+
+    def _frame(self, points: Array) -> None:
+        """Point the camera of new pages (and of those open) at `points` (scene units)."""
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        center = (lo + hi) / 2
+        size = float(max(np.ptp(points, axis=0).max(), 0.2))
+        eye = center + size * np.array([0.75, -1.1, 0.55])
+        self.server.initial_camera.position = tuple(eye)
+        self.server.initial_camera.look_at = tuple(center)
+        for client in self.server.get_clients().values():
+            client.camera.position = tuple(eye)
+            client.camera.look_at = tuple(center)
+
     def _clear(self) -> None:
         for key in ("before", "after"):
-            h = self._handles.pop(key, None)
-            if h is not None:
+            for h in self._handles.pop(key, ()):
                 h.remove()
         self.server.scene.remove_by_name("/poses")
         self.before = self.after = None
         self.legend.content = ""
 
     # ------------------------------------------------------------------ drawing
+    @_locked
     def _draw_arrows(self) -> None:
         s = self.app.session
         ds = s.data.get(self.data.value)
@@ -127,18 +167,24 @@ class SeeView:
         top = float(self.before.max(initial=0.0)) or 1.0
         gain = 10.0 ** float(self.gain.value)
         size = self.robot.skeleton.size if self.robot.skeleton is not None else 1.0
-        radius = 0.0015 * size
+        radius = 0.008 * size
         for key, pred, err in (("before", self._nominal, self.before),
                                ("after", self._calibrated, self.after)):
-            h = self._handles.pop(key, None)
-            if h is not None:
+            for h in self._handles.pop(key, ()):
                 h.remove()
             if pred is None:
                 continue
-            arrows = residual_arrows(pred * k, ds.meas.xyz * k, gain)
-            self._handles[key] = self.server.scene.add_arrows(
-                f"/poses/{key}", arrows.astype(np.float32), error_colors(err, top),
-                shaft_radius=radius, head_radius=2.5 * radius, head_length=6 * radius)
+            # lines and a dot at the head: software-rendered WebGL (no GPU) draws 2000
+            # of these at 50 frames a second, 2000 meshed arrows at one
+            arrows = residual_arrows(pred * k, ds.meas.xyz * k, gain).astype(np.float32)
+            colors = error_colors(err, top)
+            self._handles[key] = (
+                self.server.scene.add_line_segments(
+                    f"/poses/{key}/shafts", arrows, np.repeat(colors[:, None], 2, axis=1),
+                    thickness=2.0, thickness_units="screen"),
+                self.server.scene.add_point_cloud(
+                    f"/poses/{key}/heads", arrows[:, 1], colors=colors, point_size=radius,
+                    point_shape="circle"))
         self._visibility()
         unit = s.model.length_unit
         after = ("" if self.after is None else
@@ -153,10 +199,10 @@ class SeeView:
 
     def _visibility(self) -> None:
         for key, box in (("before", self.show_before), ("after", self.show_after)):
-            h = self._handles.get(key)
-            if h is not None:
+            for h in self._handles.get(key, ()):
                 h.visible = bool(box.value)
 
+    @_locked
     def show_pose(self, index: int) -> None:
         """Draw the robot at pose `index` (0-based) and mark its measured point."""
         s = self.app.session

@@ -57,6 +57,16 @@ class Session:
     data: dict[str, DataSet] = field(default_factory=dict)
     plan: Array | None = None
     lock: threading.RLock = field(default_factory=threading.RLock)
+    _urdf: dict = field(default_factory=dict)
+
+    def urdf(self):
+        """The model's URDF with its meshes when the model is a URDF file (read once)."""
+        from kinecal.ui.scene import urdf_of
+
+        spec = self.model_spec
+        if spec not in self._urdf:
+            self._urdf[spec] = urdf_of(spec)
+        return self._urdf[spec]
 
     # ------------------------------------------------------------------ model
     @property
