@@ -91,7 +91,7 @@ def test_calibrate_in_the_page(page, bench, workdir):
     page.wait_text("kc-legend", "after (run 1)")
     page.el(bench.see.show_after).click()  # before only
     page.page.wait_for_timeout(1000)
-    before = _arrow_colours(canvas(page.shot()))
+    before = _arrow_colours(canvas(page.shot(DOCS_IMG / "workbench-before.png")))
     page.el(bench.see.show_after).click()
     page.el(bench.see.show_before).click()  # after only
     page.page.wait_for_timeout(1000)
@@ -119,7 +119,7 @@ def test_the_page_answers_while_a_calibration_runs(page, bench):
     page.choose(bench.run.method, "pso")
     page.el(bench.run.start).click()
     page.wait_text("kc-run", "run 2: running")
-    page.page.wait_for_function("() => /: [1-9][0-9]*\\/[0-9]+/.test("
+    page.page.wait_for_function("() => /: [1-9][0-9]*( it\\.|\\/[0-9]+)/.test("
                                 "document.getElementById('kc-run').innerText)",
                                 timeout=60_000)  # iterations reported as they come
     page.tab("See")

@@ -146,7 +146,8 @@ class RunView:
         else:
             self.progress.animated = run.running
             self.progress.value = 100.0 if not run.running else 50.0
-        step = f"{run.task}: {run.done}/{run.total}" if run.total else run.task
+        step = (f"{run.task}: {run.done}/{run.total}" if run.total else
+                f"{run.task}: {run.done} it." if run.done else run.task)
         best = "" if run.best is None else f", best {run.best:.4g}"
         lines = [f"{run.label}: {run.status} ({run.seconds:.1f} s){' - ' if step else ''}"
                  f"{step}{best}", f"$ {run.command}", *run.warnings]

@@ -58,6 +58,7 @@ class Run:
     started: float = 0.0
     seconds: float = 0.0
     _proc: subprocess.Popen | None = None
+    _stopping: bool = False
 
     @property
     def command(self) -> str:
@@ -87,7 +88,7 @@ class Run:
         """End the run's process (SIGTERM: the command line cleans up and exits 143)."""
         proc = self._proc
         if proc is not None and proc.poll() is None:
-            self.status = "stopped"
+            self._stopping = True
             proc.send_signal(signal.SIGTERM)
 
     def wait(self, timeout: float | None = None) -> Run:
@@ -115,8 +116,8 @@ class Run:
         reader.join()
         self.returncode = proc.wait()
         self.stdout = "".join(out)
-        if self.status != "stopped":
-            self.status = "done" if self.returncode == 0 else "failed"
+        self.status = ("stopped" if self._stopping else
+                       "done" if self.returncode == 0 else "failed")
         if self.returncode not in (0, 2) and self.error is None and self.status == "failed":
             self.error = f"kinecal exited with status {self.returncode}"
         self._changed()
