@@ -90,6 +90,10 @@ class Page:
 
         from PIL import Image
 
+        notice = self.page.get_by_text("Software WebGL rendering detected")
+        if notice.count():  # viser's notice of software rendering: not part of the page
+            notice.locator("xpath=ancestor::*[.//button][1]//button").first.click()
+            notice.wait_for(state="hidden", timeout=3000)
         data = self.page.screenshot(path=None if path is None else str(path))
         return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
 

@@ -165,7 +165,7 @@ class Session:
 
             model = self.require_model()
             header = csv_header(Path(spec))
-            joints_only = not (set(header) - _joint_like(model))
+            joints_only = bool(header) and not (set(header) - _joint_like(model))
             if joints_only:
                 q = self.read_plan(spec)
                 return f"plan {Path(spec).name}: {len(q)} poses"
