@@ -120,6 +120,6 @@ def open_page(browser, bench, width=1400, height=900) -> Page:
         notice.wait_for(timeout=5000)
         notice.locator("xpath=ancestor::*[.//button][1]//button").first.click(timeout=2000)
         notice.wait_for(state="hidden", timeout=3000)
-    except Exception:  # noqa: BLE001 (no notice: hardware rendering)
+    except Exception:
         pass
     return p

@@ -9,7 +9,6 @@ import sys
 
 import numpy as np
 import pytest
-
 from tests.ui.conftest import open_page
 
 pytestmark = pytest.mark.slow

@@ -9,7 +9,6 @@ import json
 
 import numpy as np
 import pytest
-
 from tests.ui.conftest import DOCS_IMG, open_page
 
 pytestmark = pytest.mark.slow
