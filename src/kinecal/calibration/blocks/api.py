@@ -25,6 +25,7 @@ from kinecal.calibration.blocks.solve import fit_stack
 from kinecal.calibration.blocks.stack import StackedProblem, fit_nuisance
 from kinecal.calibration.blocks.uncertainty import stack_uncertainty
 from kinecal.calibration.blocks.weights import initial_sigma
+from kinecal.calibration.diagnostics.change import check_change
 from kinecal.calibration.diagnostics.fit import (
     check_parameter_tolerance,
     check_unidentifiable_free,
@@ -178,6 +179,8 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
                                if not e], free)
     check_parameter_tolerance(model, params, np.where(unc.estimable, unc.std, np.inf),
                               prob.free, ana.report.confounded_with)
+    check_change(model, params, _full_std(model, prob, unc), prob.free,
+                 kinds=[b.kind for b in blocks])
     r1 = prob.block_residuals(x)
     after = [b.observation_errors(r) for b, r in zip(blocks, r1, strict=True)]
     check_fits(model, prob, x, r1, fit, loss)
@@ -196,6 +199,13 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
         val_before, val_after = _length_errors(val_blocks, vb), _length_errors(val_blocks, va)
     return _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,
                    val_before, val_after, blocks, val_blocks, t0, loss)
+
+
+def _full_std(model, prob, unc) -> np.ndarray:
+    """Standard errors of every parameter ``(n_params,)``: 0 held, ``inf`` not estimable."""
+    std = np.zeros(model.n_params)
+    std[prob.index] = np.where(unc.estimable, unc.std, np.inf)
+    return std
 
 
 def _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,

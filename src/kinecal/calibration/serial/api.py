@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from kinecal import diagnostics
+from kinecal.calibration.diagnostics.change import check_change
 from kinecal.calibration.diagnostics.fit import check_serial_fit
 from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stated_sigma
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
@@ -359,6 +360,7 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         confounded_with=first_report.confounded_with, normal=normal,
         residual=res.residual if normal is not None else None)
     outliers = outliers or flagged
+    check_change(model, params, std, names)
     e_before = problem.errors(problem.x0)
     axes = {"calibration": {"before": axis_stats(e_before), "after": axis_stats(e_after)}}
     val_before, val_after = validation_errors(model, validate, params, axes)
