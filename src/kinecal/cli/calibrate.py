@@ -186,6 +186,14 @@ def calibrate(
         "unit): the residual is tested against it (chi-square) and the standard errors with "
         "it known are added. Several files: FILE=SIGMA (repeatable) or SIGMA,SIGMA,... in "
         "file order. See docs/diagnostics.md."),
+    prior: str | None = typer.Option(
+        None, "--prior", metavar="auto|GROUP=S,...|FILE", help="A prior on the free "
+        "parameters (a MAP fit): auto (strength by cross-validation), lengths=S,angles=S "
+        "(1-sigma in model units; also NAME=S, tool.*=S) or a CSV name,sigma[,mean]. See "
+        "docs/priors.md."),
+    prior_from: Path | None = typer.Option(
+        None, "--prior-from", help="Prior values from a previous result JSON instead of "
+        "the nominal ones (alone: --prior auto)."),
     instrument: str | None = instrument_option(),
     operator: str | None = operator_option(),
     note: str | None = note_option(),
@@ -212,9 +220,11 @@ def calibrate(
                           ("--min-corners", min_corners)):
         if value is not None:
             raise InputError("applies to --images only", option=option)
+    priors = {"prior": prior, "prior_from": prior_from}
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.serial.api import CALIBRATION_METHODS
     from kinecal.calibration.serial.api import calibrate as run
+    from kinecal.calibration.serial.prior import prior_file
     from kinecal.cli._common import progress
     from kinecal.io.measurements import read_measurements
 
@@ -233,10 +243,11 @@ def calibrate(
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
                            "--folds": folds}, record=(instrument, operator, note),
-            unit=shown)
+            unit=shown, priors=priors)
     data, validate = data[0], (validate[0] if validate else None)
     sigma = parse_sigma(sigma, [data])[0]
-    check_paths({"MODEL": model, "DATA": data, "--validate": validate},
+    check_paths({"MODEL": model, "DATA": data, "--validate": validate,
+                 "--prior-from": prior_from, "--prior": prior_file(prior)},
                 {"--out": out, "--model-out": model_out, "--report": report})
     record = report_record(report, {"MODEL": model, "DATA": data, "--validate": validate},
                            instrument, operator, note)
@@ -270,7 +281,10 @@ def calibrate(
                       sigma=sigma,
                       progress=(lambda it, best: update(1, best)) if iterative else None)
             if error_model is None and m.joint_errors is None and harmonics is None:
-                res = run(m, meas, method, **kw)
+                res = run(m, meas, method, **kw, **priors)
+            elif prior is not None or prior_from is not None:
+                raise InputError("not with joint-error models (--error-model, a model's "
+                                 "joint_errors) yet", option="--prior")
             else:
                 from kinecal.calibration.serial.error_model import calibrate_error_model
 

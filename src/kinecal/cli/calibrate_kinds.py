@@ -88,10 +88,12 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                     out: Path | None, model_out: Path | None, report: Path | None,
                     json_out: bool, quiet: bool, strict: bool, rotation_weight,
                     sigma: list[str] | None, extra_options: dict[str, Any],
-                    record: tuple = (None, None, None), unit: str | None = None) -> None:
+                    record: tuple = (None, None, None), unit: str | None = None,
+                    priors: dict | None = None) -> None:
     """``kinecal calibrate MODEL A.csv B.csv ...`` (several files or another kind);
     `record`: ``--instrument``, ``--operator``, ``--note`` of the report; `unit`: the
-    summary's length unit (None: the model's)."""
+    summary's length unit (None: the model's); `priors`: ``prior`` and ``prior_from`` of
+    `kinecal.calibrate`."""
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.method_options import check_method_options
     from kinecal.calibration.serial.api import calibrate
@@ -102,7 +104,12 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                          f"{len(files)} files or other kinds", option=given[0])
     inputs = {"MODEL": model, **{f"DATA {f}": f for f in files},
               **{f"--validate {v}": v for v in validate}}
-    check_paths(inputs, {"--out": out, "--model-out": model_out, "--report": report})
+    from kinecal.calibration.serial.prior import prior_file
+
+    priors = priors or {}
+    check_paths({**inputs, "--prior-from": priors.get("prior_from"),
+                 "--prior": prior_file(priors.get("prior"))},
+                {"--out": out, "--model-out": model_out, "--report": report})
     provenance = report_record(report, inputs, *record)
     if model_out is not None:
         from kinecal.io.models import check_model_file_name
@@ -123,7 +130,7 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                              option="--rotation-weight")
         res = calibrate(m, sets, method, free=free, validate=vsets, rng=seed, loss=loss,
                         maxiter=maxiter, target=target, rotation_weight=rotation_weight,
-                        sigma=stated)
+                        sigma=stated, **priors)
         res.warnings = list(found)
         result = with_warnings(res.to_dict(), found)
         if out is not None:

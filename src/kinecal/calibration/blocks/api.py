@@ -20,6 +20,7 @@ from kinecal.calibration.blocks.analysis import analyse_stack, report_for, unsee
 from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.checks import check_block_data, check_blocks, check_fits
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
+from kinecal.calibration.blocks.prior import stack_prior
 from kinecal.calibration.blocks.result import KindsCalibrationResult, kind_entry
 from kinecal.calibration.blocks.solve import fit_stack
 from kinecal.calibration.blocks.stack import StackedProblem, fit_nuisance
@@ -30,6 +31,8 @@ from kinecal.calibration.diagnostics.fit import (
     check_parameter_tolerance,
     check_unidentifiable_free,
 )
+from kinecal.calibration.serial.prior import prior_spec, prior_state
+from kinecal.calibration.serial.prior_fit import prior_entry
 from kinecal.calibration.serial.problem import candidate_names
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers
@@ -57,6 +60,8 @@ def calibrate_blocks(
     f_scale: float | None = None,
     rank_tol: float = RANK_TOL,
     rotation_weight: float | None = None,
+    prior: object = None,
+    prior_from: object = None,
 ) -> KindsCalibrationResult:
     """Identify `model`'s geometry from measurement sets of any kinds (one problem).
 
@@ -87,6 +92,9 @@ def calibrate_blocks(
         Relative rank threshold of the identifiability analysis.
     rotation_weight : float, optional
         Tracker poses: length units per rad of the rotation rows.
+    prior, prior_from
+        A prior on the arm's free parameters, as in `kinecal.calibrate` (its rows join the
+        stack: `kinecal.calibration.blocks.prior`).
 
     Returns
     -------
@@ -94,7 +102,7 @@ def calibrate_blocks(
     """
     with diagnostics.collect(python_warnings=True) as found:
         res = _calibrate(model, list(data), sigma, validate, validate_sigma, method, free,
-                         loss, f_scale, rank_tol, rotation_weight)
+                         loss, f_scale, rank_tol, rotation_weight, (prior, prior_from))
     res.warnings = list(found)
     return res
 
@@ -150,10 +158,11 @@ def _check_validation(model: SerialModel, blocks: Sequence[ResidualBlock],
 
 
 def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss, f_scale,
-               rank_tol, rotation_weight) -> KindsCalibrationResult:
+               rank_tol, rotation_weight, priors=(None, None)) -> KindsCalibrationResult:
     _check_arguments(method, loss, data, f_scale, rank_tol)
     t0 = time.perf_counter()
     model = model_for_markers(model, marker_names(list(data) + list(validate or [])))
+    spec = prior_spec(model, *priors, method, loss)
     blocks = make_blocks(model, data, sigma, rotation_weight)
     val_blocks = make_blocks(model, validate or [], validate_sigma, rotation_weight)
     p0 = model.nominal
@@ -168,19 +177,30 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
     vb = _check_validation(model, val_blocks, ana0.report.names)
     fit = fit_stack(model, blocks, list(names), cand, p0, nuis0, sig0, known, tol=rank_tol,
                     grow=free == "identifiable", loss=loss, f_scale=f_scale)
-    prob, x = fit.problem, np.asarray(fit.result.x, dtype=float)
+    prob = fit.problem
+    prior_used = pfit = None
+    if spec is not None:  # the MAP fit (docs/priors.md)
+        prior_used, pfit = stack_prior(prob, fit.result, spec, rank_tol)
+        if pfit is not None:
+            fit.result = pfit.result
+    x = np.asarray(fit.result.x, dtype=float)
     params, nuis = prob.params(x), prob.nuisance(x)
     final = StackedProblem(model, blocks, cand, prob.sigma, params)
     ana = analyse_stack(final, final.pack(params, nuis), rank_tol)
     ana.report = report_for(ana, prob.free, rank_tol)
-    unc, nuis_std = stack_uncertainty(prob, x, ana, fit.outliers if loss != "linear" else [])
-    unc.estimable &= ~np.isin(prob.free, ana.report.unidentifiable)
+    if pfit is not None:  # the posterior: the prior decides the blind motions too
+        unc, nuis_std = pfit.uncertainty, pfit.nuisance_std
+    else:
+        unc, nuis_std = stack_uncertainty(prob, x, ana,
+                                          fit.outliers if loss != "linear" else [])
+        unc.estimable &= ~np.isin(prob.free, ana.report.unidentifiable)
     check_unidentifiable_free([n for n, e in zip(prob.free, unc.estimable, strict=True)
                                if not e], free)
     check_parameter_tolerance(model, params, np.where(unc.estimable, unc.std, np.inf),
                               prob.free, ana.report.confounded_with)
     check_change(model, params, _full_std(model, prob, unc), prob.free,
-                 kinds=[b.kind for b in blocks])
+                 kinds=[b.kind for b in blocks], prior=prior_state(spec, pfit),
+                 prior_decided=[] if pfit is None else pfit.split["decided_by_prior"])
     r1 = prob.block_residuals(x)
     after = [b.observation_errors(r) for b, r in zip(blocks, r1, strict=True)]
     check_fits(model, prob, x, r1, fit, loss)
@@ -197,8 +217,10 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
                                   else "not used", e0, e1)
                        for b, e0, e1 in zip(val_blocks, vb, va, strict=True)]
         val_before, val_after = _length_errors(val_blocks, vb), _length_errors(val_blocks, va)
-    return _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,
-                   val_before, val_after, blocks, val_blocks, t0, loss)
+    res = _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,
+                  val_before, val_after, blocks, val_blocks, t0, loss)
+    res.extra["prior"] = prior_entry(model, spec, prior_used, pfit)
+    return res
 
 
 def _full_std(model, prob, unc) -> np.ndarray:

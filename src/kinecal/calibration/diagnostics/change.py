@@ -51,7 +51,7 @@ def _moves(model: SerialModel, params: Array, std: Array, names: Sequence[str],
 
 
 def check_change(nominal: SerialModel, params: Array, std: Array, free: Sequence[str], *,
-                 prior_decided: Sequence[str] = (), prior: bool = False,
+                 prior_decided: Sequence[str] = (), prior: str | None = None,
                  kinds: Sequence[str] = ()) -> ArmComparison | None:
     """``implausible-change``: the calibrated model is not a calibration of the same arm
     by the rule the commands that read results refuse it with.
@@ -68,8 +68,9 @@ def check_change(nominal: SerialModel, params: Array, std: Array, free: Sequence
         The free parameters (those named in the message).
     prior_decided : sequence of str
         Free parameters a prior decided rather than the data (named so in the message).
-    prior : bool
-        A prior was used (the advice then is a tighter one).
+    prior : {None, "used", "declined"}
+        No prior was asked for; one was used (the advice then is a tighter one); ``auto``
+        found none the data support (the advice then is to state one).
     kinds : sequence of str
         Measurement kinds of the data (``point`` / ``plane``: known fixture coordinates
         are advised too).
@@ -92,8 +93,11 @@ def check_change(nominal: SerialModel, params: Array, std: Array, free: Sequence
             return found
         finding = found.finding
     moves = _moves(nominal, params, np.asarray(std, float), list(free), prior_decided)
-    if prior:
+    if prior == "used":
         todo = "a tighter prior (smaller --prior sigmas)"
+    elif prior == "declined":
+        todo = ("a prior of stated sigmas (--prior lengths=S,angles=S, e.g. the model's "
+                "tolerances: cross-validation found no strength these data support)")
     else:
         todo = "a prior on the parameters (--prior auto, or --prior lengths=S,angles=S)"
     fixtures = (", known fixture coordinates for the points and planes"
