@@ -180,7 +180,7 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
     prob = fit.problem
     prior_used = pfit = None
     if spec is not None:  # the MAP fit (docs/priors.md)
-        prior_used, pfit = stack_prior(prob, fit.result, spec, rank_tol)
+        prior_used, pfit = stack_prior(fit, spec, rank_tol)
         if pfit is not None:
             fit.result = pfit.result
     x = np.asarray(fit.result.x, dtype=float)

@@ -1,10 +1,13 @@
 """A prior in a stacked calibration: one more set of rows beside the blocks' rows.
 
 The stacked rows are in units of each observation's noise; the prior's rows are
-``sigma0 (x_j - mu_j) / s_j`` on the arm's free parameters (`kinecal.calibration.serial.
-prior`: what a prior is and how it is stated), with ``sigma0`` the standard deviation of
-unit weight of the fit without the prior (1 when every set's noise was stated, close to 1
-when estimated). The MAP fit, its posterior covariance with every block's unknowns
+``(x_j - mu_j) / s_j`` on the arm's free parameters (`kinecal.calibration.serial.prior`:
+what a prior is and how it is stated). The noise of a set without a stated one is
+estimated again with the prior's rows in place (variance components,
+`kinecal.calibration.blocks.weights`: the prior's information enters every set's
+redundancy): a fit without the prior that bent the arm to zero residual (planes that
+become one) says nothing about the noise. The MAP fit, its posterior covariance with
+every block's unknowns
 marginalised, and the split into directions the data decided and those the prior did
 follow the serial path (`kinecal.calibration.serial.prior_fit`); the blind motions of the
 mix (a ballbar cannot see where the arm stands) are then decided by the prior too, with
@@ -25,6 +28,7 @@ from numpy.typing import NDArray
 from scipy.optimize import OptimizeResult
 
 from kinecal.calibration.blocks.analysis import stack_scale
+from kinecal.calibration.blocks.solve import StackFit, estimate_noise
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.blocks.uncertainty import marginal_normal
 from kinecal.calibration.serial.cross_validation import CVScore, fold_of
@@ -81,6 +85,11 @@ class PriorStack(StackedProblem):
     def monitor(self, r: Array) -> float:
         return super().monitor(np.asarray(r)[:self.m])
 
+    def extra_information(self) -> Array:
+        out = np.zeros((self.n, self.n))
+        out[:self.k, :self.k] = np.diag(self.w**2)
+        return out
+
 
 @dataclass
 class StackPriorFit:
@@ -106,7 +115,7 @@ class StackPriorFit:
     uncertainty: Uncertainty
     nuisance_std: list
     split: dict
-    noise_source: str = "the fit's unit weight"
+    noise_source: str = "stated"
 
 
 def _solve(ps: PriorStack, x: Array) -> OptimizeResult:
@@ -197,46 +206,47 @@ def _posterior(ps: PriorStack, x: Array, noise: float, prior: Prior, rank_tol: f
     return unc, [std[s] for s in ps.slices], split
 
 
-def stack_prior(problem: StackedProblem, result: OptimizeResult, spec: PriorSpec,
-                rank_tol: float) -> tuple[Prior, StackPriorFit | None]:
+def stack_prior(fit: StackFit, spec: PriorSpec, rank_tol: float
+                ) -> tuple[Prior, StackPriorFit | None]:
     """The prior step of a stacked calibration (module docstring): the prior of the arm's
-    free parameters (``auto``: chosen by cross-validation), and the MAP fit (None when the
-    prior decides nothing).
+    free parameters (``auto``: chosen by cross-validation), and the MAP fit, the noise of
+    the sets without a stated one estimated again with the prior's rows in place (None
+    when the prior decides nothing).
 
     Parameters
     ----------
-    problem : StackedProblem
-        The fitted problem (its noise per block settled).
-    result : OptimizeResult
-        The fit without the prior.
+    fit : StackFit
+        The fit without the prior (`kinecal.calibration.blocks.solve.fit_stack`); its
+        problem takes the noise estimated with the prior.
     spec : PriorSpec
     rank_tol : float
     """
-    x = np.asarray(result.x, dtype=float)
-    dof = problem.m - problem.n
-    if dof <= 0:
-        raise InputError("a prior needs the noise of the measurements: the fit without it "
-                         "leaves no residual to estimate it from", option="--prior")
-    noise = float(np.sqrt(2.0 * result.fun / dof)) or 1.0
+    problem = fit.problem
+    x = np.asarray(fit.result.x, dtype=float)
+    noise = 1.0  # the rows are in units of each observation's noise
     if spec.kind == "auto":
         prior = _choose(problem, x, spec, noise)
     else:
         prior = resolve_prior(problem.model, spec, list(problem.free))
     if not prior.active:
         return prior, None
-    fit = _map(problem, prior, noise, x)
     ps = PriorStack(problem, prior, noise)
-    xm = np.asarray(fit.x, dtype=float)
+    res = _map(problem, prior, noise, x)
+    res, fit.factors, fit.redundancy, rounds = estimate_noise(ps, res, fit.known)
+    xm = np.asarray(res.x, dtype=float)
     unc, nuis_std, split = _posterior(ps, xm, noise, prior, rank_tol)
     if spec.kind == "auto" and negligible(xm[:ps.k], x[:ps.k], unc.std):
         prior.choice["negligible"] = prior.strength
         prior.choice["chosen"] = prior.strength = None
         prior.sigma = np.full(len(prior.names), np.inf)
         return prior, None
-    r = np.asarray(fit.residual)[:ps.m]
-    out = OptimizeResult(fit)
+    problem.set_sigma(ps.sigma)
+    fit.rounds += rounds
+    r = np.asarray(res.residual)[:ps.m]
+    out = OptimizeResult(res)
     out.x, out.residual, out.fun = xm, r, 0.5 * float(r @ r)
-    out.nfev += int(result.nfev)
-    out.nit += int(result.nit)
-    out.history = list(result.history) + list(fit.history)
-    return prior, StackPriorFit(ps, out, noise, unc, nuis_std, split)
+    out.nfev += int(fit.result.nfev)
+    out.nit += int(fit.result.nit)
+    out.history = list(fit.result.history) + list(res.history)
+    return prior, StackPriorFit(ps, out, noise, unc, nuis_std, split,
+                                "stated" if all(fit.known) else "estimated per set")

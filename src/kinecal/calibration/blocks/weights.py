@@ -56,7 +56,7 @@ def redundancies(problem: StackedProblem, x: Array, grams: list[Array] | None = 
                  ) -> Array:
     """Redundancy ``r_b`` of each block at `x` (they sum to ``m - rank``)."""
     grams = problem.block_grams(x) if grams is None else grams
-    A = np.sum(grams, axis=0)
+    A = np.sum(grams, axis=0) + problem.extra_information()
     d = np.sqrt(np.clip(np.diag(A), 0.0, None))
     d = np.where(d > 0, d, 1.0)
     Ainv = np.linalg.pinv(A / np.outer(d, d), rcond=1e-12) / np.outer(d, d)

@@ -94,7 +94,8 @@ def check_change(nominal: SerialModel, params: Array, std: Array, free: Sequence
         finding = found.finding
     moves = _moves(nominal, params, np.asarray(std, float), list(free), prior_decided)
     if prior == "used":
-        todo = "a tighter prior (smaller --prior sigmas)"
+        todo = ("a prior on more of the free parameters, or a tighter one (smaller --prior "
+                "sigmas)")
     elif prior == "declined":
         todo = ("a prior of stated sigmas (--prior lengths=S,angles=S, e.g. the model's "
                 "tolerances: cross-validation found no strength these data support)")

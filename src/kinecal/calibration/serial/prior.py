@@ -276,6 +276,11 @@ def parse_prior(model: SerialModel, prior: Any, prior_from: Any = None) -> Prior
     if isinstance(prior, str | Path):
         from kinecal.io.priors import read_prior_file
 
+        if not Path(prior).exists():
+            raise InputError(f"{str(prior)!r}: expected auto, groups GROUP=SIGMA "
+                             "(lengths=0.5,angles=0.05) or a CSV file name,sigma[,mean]; no "
+                             "such file", option=OPTION)
+
         rows = read_prior_file(prior, model)
         sigma = {r.name: r.sigma for r in rows}
         means = {r.name: r.mean for r in rows if r.mean is not None}
