@@ -11,9 +11,9 @@ import pytest
 from scipy.optimize import least_squares
 
 import kinecal
-from kinecal.calibration.serial.problem import CalibrationProblem
 from kinecal.calibration.serial.prior import parse_prior, resolve_prior
 from kinecal.calibration.serial.prior_fit import PriorProblem
+from kinecal.calibration.serial.problem import CalibrationProblem
 from kinecal.calibration.serial.simulate import random_errors, simulate
 from kinecal.errors import InputError
 

@@ -36,7 +36,6 @@ from kinecal.calibration.serial.prior import Prior, PriorSpec, resolve_prior, to
 from kinecal.calibration.serial.prior_auto import DEFAULT_FOLDS, negligible, scan_strengths
 from kinecal.calibration.serial.prior_fit import posterior_uncertainty, prior_split
 from kinecal.calibration.uncertainty import Uncertainty
-from kinecal.errors import InputError
 from kinecal.optimize.lsq import levenberg_marquardt
 
 __all__ = ["PriorStack", "StackPriorFit", "stack_prior"]
