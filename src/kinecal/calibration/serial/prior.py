@@ -335,7 +335,8 @@ def resolve_prior(model: SerialModel, spec: PriorSpec, names: list[str],
     idx = model.index(names)
     mean = spec.mean[idx].copy()
     if spec.kind == AUTO:
-        sigma = tolerance_sigma(model, names) * (np.inf if strength is None else strength)
+        sigma = (np.full(len(names), np.inf) if strength is None
+                 else tolerance_sigma(model, names) * strength)
         return Prior(spec, list(names), mean, sigma, strength)
     unit = _unit(model)[idx]
     angle = model.is_angle()[idx]
