@@ -240,11 +240,12 @@ def prior_split(info: Array, prior: Prior, unc: Uncertainty, scale: Array,
     b = ~a
     F = 0.5 * (info + info.T)
     if b.any():  # marginalise the parameters without a prior
-        Fbb = F[np.ix_(b, b)] * scale[b][:, None] * scale[b][None, :]
+        Db = scale[b]
+        Fbb = F[np.ix_(b, b)] * Db[:, None] * Db[None, :]  # lengths and angles comparable
         wb = np.linalg.eigvalsh(Fbb) if Fbb.size else np.zeros(0)
         rank_b = int((wb > rank_tol**2 * max(float(wb.max(initial=0.0)), 1e-300)).sum())
-        S = F[np.ix_(a, a)] - F[np.ix_(a, b)] @ np.linalg.pinv(
-            F[np.ix_(b, b)], rcond=rank_tol**2, hermitian=True) @ F[np.ix_(b, a)]
+        inv_b = Db[:, None] * np.linalg.pinv(Fbb, rcond=rank_tol**2, hermitian=True) * Db
+        S = F[np.ix_(a, a)] - F[np.ix_(a, b)] @ inv_b @ F[np.ix_(b, a)]
     else:
         rank_b, S = 0, F
     s = 1.0 / np.sqrt(prec[a])
