@@ -106,6 +106,8 @@ def check_change(nominal: SerialModel, params: Array, std: Array, free: Sequence
     warn("implausible-change",
          f"the calibration changed the arm more than a calibration can: {finding}"
          + (f"; largest changes: {moves}" if moves else "")
-         + f". fk --params, export and compensate will refuse this result. Use {todo}, "
-         f"more and better spread poses{fixtures}, or fewer free parameters (--free)")
+         + ". fk --params, export and compensate will refuse this result. Check the "
+         "data first (units, frame, joint order, another robot's file: the other "
+         f"warnings); if they are right, use {todo}, more and better spread "
+         f"poses{fixtures}, or fewer free parameters (--free)")
     return found

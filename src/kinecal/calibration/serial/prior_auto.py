@@ -41,8 +41,8 @@ from kinecal.calibration.serial.problem import CalibrationProblem
 from kinecal.errors import InputError
 from kinecal.optimize.lsq import levenberg_marquardt
 
-__all__ = ["DEFAULT_FOLDS", "GRID", "REFIT_FOLDS", "REFIT_ROWS", "apply_prior", "choose_strength", "cv_choice",
-           "negligible", "scan_strengths"]
+__all__ = ["DEFAULT_FOLDS", "GRID", "REFIT_FOLDS", "REFIT_ROWS", "apply_prior",
+           "choose_strength", "cv_choice", "negligible", "scan_strengths"]
 
 Array = NDArray[np.float64]
 
