@@ -53,13 +53,16 @@ def list_images(folder: Path) -> list[Path]:
     return files
 
 
-def _parse_robot_noise(text: str | None) -> tuple[float, float] | None:
-    if text is None:
+def _parse_robot_noise(text: str | None) -> tuple[float, float] | str | None:
+    """``--robot-noise``: ``auto`` (default: estimated), ``exact`` or ``ROT_DEG,TRANS``."""
+    if text is None or text.strip() == "auto":
+        return "auto"
+    if text.strip() == "exact":
         return None
     try:
         rot_deg, trans = (float(v) for v in text.split(","))
     except ValueError:
-        raise InputError(f"{text!r}: expected ROT_DEG,TRANS (e.g. 0.02,0.1)",
+        raise InputError(f"{text!r}: expected auto, exact or ROT_DEG,TRANS (e.g. 0.02,0.1)",
                          option="--robot-noise") from None
     if not (rot_deg > 0 and trans > 0 and np.isfinite(rot_deg) and np.isfinite(trans)):
         raise InputError(f"{text!r}: expected two positive numbers", option="--robot-noise")
@@ -105,9 +108,11 @@ def handeye_images(
     refine_intrinsics: bool | None = typer.Option(
         None, "--refine-intrinsics/--fix-intrinsics", help="Refine the intrinsics jointly "
         "with X (default: when estimated from the images, not when given)."),
-    robot_noise: str | None = typer.Option(None, "--robot-noise", metavar="ROT_DEG,TRANS",
-                                           help="Model robot pose errors of this std (deg, "
-                                           "board length unit, e.g. 0.02,0.1)."),
+    robot_noise: str | None = typer.Option(
+        None, "--robot-noise", metavar="auto|exact|ROT_DEG,TRANS",
+        help="Robot pose errors: auto (default) estimates their std from the stations' "
+        "consistency and models them when they matter; exact trusts the poses; or the std "
+        "(deg, board length unit, e.g. 0.02,0.1)."),
     min_corners: int | None = typer.Option(None, "--min-corners", help="Fewest corners an "
                                            "image must show (ChArUco boards, seen in part; "
                                            "default 60 % of the board's corners, at least "
@@ -203,6 +208,8 @@ def _summary(res: Any) -> str:
         + ", ".join(f"{v:.4f}" for v in xt) + " mm",
         f"board pose ({tframe}, mm):",
         _fmt_matrix(res.target),
+        res.refinement.robot_noise.describe("mm") if res.refinement.robot_noise is not None
+        else "",
         f"reprojection RMS {res.refinement.rms_px:.3f} px (corner sigma "
         f"{res.refinement.sigma_px:.3f} px); intrinsics: {intr.source}"
         + (f", calibration RMS {intr.rms_px:.3f} px" if intr.rms_px is not None else ""),

@@ -64,7 +64,7 @@ def calibrate_handeye_images(
     setup: str = "eye-in-hand",
     method: str = "park",
     refine_intrinsics: bool | None = None,
-    robot_noise: tuple[float, float] | None = None,
+    robot_noise: tuple[float, float] | str | None = "auto",
     robust: bool = True,
     limits: QualityLimits | None = None,
     progress: Callable[..., None] | None = None,
@@ -93,8 +93,10 @@ def calibrate_handeye_images(
         same images (the hand-eye constraint ties the views together: on the rendered
         walkthrough scene X's translation error falls from 0.10 to 0.007 mm), no when they
         are given (a dedicated camera calibration is usually better conditioned).
-    robot_noise : (float, float), optional
-        Robot pose error std, rotation (rad) and translation (length): model it.
+    robot_noise : (float, float), "auto" or None
+        Robot pose error std, rotation (rad) and translation (length): model it. ``"auto"``
+        (default): estimated from the stations' consistency and modelled when it matters
+        (`kinecal.calibration.handeye.robot_noise`); None: the robot poses are exact.
     robust : bool
         Robust refinement with outlier stations (default).
     limits : QualityLimits, optional
@@ -189,7 +191,7 @@ def _one_axis(seed: Any, F: Array, setup: str, camera_height: float | None,
 
 def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
                      intr: CameraIntrinsics, setup: str, method: str, refine_intrinsics: bool,
-                     robot_noise: tuple[float, float] | None, robust: bool,
+                     robot_noise: tuple[float, float] | str | None, robust: bool,
                      axis: dict[str, Any]) -> tuple[Any, ReprojectionRefinement, Any]:
     """The closed form (with the pose-level checks) seeds the refinement on the pixels,
     which is robust itself. When that refinement flags stations, it runs again from the

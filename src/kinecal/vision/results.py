@@ -176,6 +176,8 @@ class ImageHandEyeResult:
             "images": [r.to_dict() for r in self.records],
             "rejected": [{"image": r.name, "reason": r.reason} for r in self.rejected],
             "outliers": self.outliers,
+            "robot_noise": (None if ref.robot_noise is None
+                            else ref.robot_noise.to_dict()),
             "robot_corrections": (None if ref.corrections is None
                                   else ref.corrections.tolist()),
             "seed": {"method": self.method, "X": self.seed.X.tolist(),

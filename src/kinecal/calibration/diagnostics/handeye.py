@@ -13,6 +13,7 @@ each station's six residuals scaled by the RMS rotation and translation residual
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -195,13 +196,16 @@ def _spread_units(G: Array, C: Array, what: str) -> bool:
 
 def handeye_uncertainty(G: Array, C: Array, X: Array, Y: Array,
                         inliers: Array | None = None,
-                        residuals: tuple[Array, Array, Array] | None = None
-                        ) -> XUncertainty | None:
+                        residuals: tuple[Array, Array, Array] | None = None,
+                        noise: tuple[Any, bool] | None = None) -> XUncertainty | None:
     """First-order uncertainty of X at the solution (see the module docstring).
 
     `residuals`: ``residuals_and_jacobian(G, C, X, Y, 0)`` of all stations
     (`kinecal.calibration.handeye.refine`), when the caller has them (no `inliers` then).
-    None when it cannot be estimated (noise-free data, no degrees of freedom).
+    `noise`: the stations' estimated noise model and whether the set-up is eye-in-hand
+    (`kinecal.calibration.handeye.noise.StationNoise`): the residuals are whitened by it
+    instead of two scales. None when it cannot be estimated (noise-free data, no degrees of
+    freedom).
     """
     from kinecal.calibration.handeye.refine import residuals_and_jacobian
 
@@ -217,9 +221,17 @@ def handeye_uncertainty(G: Array, C: Array, X: Array, Y: Array,
     L = float(np.sqrt(np.mean(np.sum(C[:, :3, 3] ** 2, axis=1))))
     if not (sr > 1e-12 and st > 1e-12 * max(L, 1e-300)):
         return None
-    scale = np.r_[[1.0 / sr] * 3, [1.0 / st] * 3]
-    Js = (J * scale[None, :, None]).reshape(-1, UNKNOWNS)
-    r = np.concatenate([rot / sr, tr / st], axis=1).ravel()
+    if noise is not None:
+        from kinecal.calibration.handeye.noise import station_components, whitening
+
+        floor = np.r_[[1e-26] * 3, [(1e-13 * L) ** 2] * 3]
+        Li = whitening(noise[0].theta, station_components(G, C, X, Y, rot, noise[1]), floor)
+        Js = (Li @ J).reshape(-1, UNKNOWNS)
+        r = np.einsum("nij,nj->ni", Li, np.concatenate([rot, tr], axis=1)).ravel()
+    else:
+        scale = np.r_[[1.0 / sr] * 3, [1.0 / st] * 3]
+        Js = (J * scale[None, :, None]).reshape(-1, UNKNOWNS)
+        r = np.concatenate([rot / sr, tr / st], axis=1).ravel()
     # columns scaled to unit norm before the pseudo-inverse: rotation rows weighted by
     # 1 / s_R (1e11 for exact rotations read from a file) otherwise put the translation's
     # information below pinv's cut-off, and X's translation came out 1e-26 "certain"

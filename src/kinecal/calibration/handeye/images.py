@@ -8,9 +8,12 @@ pose-based cost weighs those errors wrongly. Here the unknowns are
 - X (``cam2flange`` eye-in-hand, ``cam2base`` eye-to-hand) and the fixed board pose Y
   (``target2base`` eye-in-hand, ``target2flange`` eye-to-hand), always;
 - optionally the camera intrinsics ``(fx, fy, cx, cy, k1, k2, p1, p2, k3[, k4, k5, k6])``;
-- optionally a correction ``E_i`` of every reported robot pose (``flange2base_i E_i``, a
-  rotation vector and a translation in the flange frame) with a zero-mean Gaussian prior of
-  the given standard deviations (robot-pose noise modelled instead of ignored).
+- a correction ``E_i`` of every reported robot pose (``flange2base_i E_i``, a rotation
+  vector and a translation in the flange frame) with a zero-mean Gaussian prior of the
+  robot's standard deviations, when the robot's noise matters: stated by the caller, or
+  (default) estimated from the stations' consistency (`kinecal.calibration.handeye.
+  robot_noise`) and modelled when it is a noticeable share of the camera's; exact robot
+  poses are trusted as they are.
 
 The corner model and its Jacobian are in `kinecal.calibration.handeye.reprojection`.
 Residuals are predicted minus observed pixels divided by the corner noise sigma (estimated
@@ -48,6 +51,7 @@ from kinecal.calibration.handeye.reprojection import (
     predict_pixels,
     unpack,
 )
+from kinecal.calibration.handeye.robot_noise import RobotNoise, estimate_robot_noise
 from kinecal.calibration.handeye.scara import AxisHeight, OneAxis
 from kinecal.errors import InputError
 from kinecal.optimize.lm import solve_normal_equations
@@ -72,7 +76,7 @@ def refine_reprojection(
     setup: str = "eye-in-hand",
     refine_intrinsics: bool = False,
     rational: bool = False,
-    robot_noise: tuple[float, float] | None = None,
+    robot_noise: tuple[float, float] | str | None = "auto",
     robust: bool = True,
     outlier_level: float = 0.999,
     max_outer: int = 8,
@@ -98,9 +102,11 @@ def refine_reprojection(
         Free ``fx, fy, cx, cy, k1, k2, p1, p2, k3`` (and ``k4..k6`` with `rational`).
     rational : bool
         The camera uses the 8-coefficient rational model.
-    robot_noise : (float, float), optional
+    robot_noise : (float, float), "auto" or None
         Standard deviations of the robot poses' error, rotation (rad) and translation (L),
         per axis: model a correction of every robot pose with this Gaussian prior.
+        ``"auto"`` (default): estimated from the data and modelled when it matters
+        (`kinecal.calibration.handeye.robot_noise`); None: the robot poses are exact.
     robust : bool
         Huber loss, station reweighting and outlier stations (default); False: plain least
         squares over all stations.
@@ -124,8 +130,25 @@ def refine_reprojection(
     P = np.concatenate([np.asarray(p, float).reshape(-1, 3) for p in points])
     uv = np.concatenate([np.asarray(p, float).reshape(-1, 2) for p in pixels])
     n_int = (12 if rational else 9) if refine_intrinsics else 0
+    if isinstance(robot_noise, str) and n_int:
+        # free intrinsics: the stations' board poses are judged with refined ones (start
+        # intrinsics a few pixels off make every station look inconsistent)
+        first = refine_reprojection(F, points, pixels, K, dist, X0, Y0, setup=setup,
+                                    refine_intrinsics=True, rational=rational,
+                                    robot_noise=None, robust=robust,
+                                    outlier_level=outlier_level, max_outer=max_outer,
+                                    one_axis=one_axis)
+        noise = _robot_noise(robot_noise, F, P, uv, sid, counts, first.K, first.dist,
+                             first.X, first.Y, setup)
+        if not noise.modelled:
+            first.robot_noise = noise
+            first.seconds = time.perf_counter() - t0
+            return first
+        K, d8, X0, Y0 = first.K, first.dist, first.X, first.Y
+    else:
+        noise = _robot_noise(robot_noise, F, P, uv, sid, counts, K, d8, X0, Y0, setup)
     pr = ReprojectionProblem(F, P, uv, sid, setup == "eye-in-hand", K, d8, np.asarray(X0, float),
-                             np.asarray(Y0, float), n_int, robot_noise)
+                             np.asarray(Y0, float), n_int, noise.prior)
     fit = _Fit(pr, counts)
     p = np.zeros(pr.n_params)
     history: list[float] = []
@@ -152,17 +175,30 @@ def refine_reprojection(
         r, srms = fit.residual_stats(p)
     # covariance: the normal matrix of the final pass at the solution, residual variance
     s2 = float(raw @ raw) / max(raw.size - pr.n_params + (row is not None), 1)
-    cov = _covariance(A_cov, s2, row)
+    cov, corr_std = _covariance(A_cov, s2, row, 12 + pr.n_int)
     X, Y, Kf, df, E = unpack(pr, p)
     res = np.split(-r, np.cumsum(counts)[:-1])
     outliers = [int(i) for i in np.flatnonzero(~inlier)]
     return ReprojectionRefinement(X, Y, Kf, df, None if E is None else E.copy(), res, srms,
-                                  outliers, float(sigma), cov, parameter_names(pr), fit.nfev,
-                                  history, time.perf_counter() - t0)
+                                  outliers, float(sigma), cov,
+                                  parameter_names(pr)[:12 + pr.n_int], fit.nfev, history,
+                                  time.perf_counter() - t0, noise, corr_std)
+
+
+def _robot_noise(robot_noise: tuple[float, float] | str | None, F: Array, P: Array,
+                 uv: Array, sid: Array, counts: Array, K: Array, d8: Array, X0: Array,
+                 Y0: Array, setup: str) -> RobotNoise:
+    """The robot-pose noise of the refinement: given, exact, or estimated (``"auto"``)."""
+    if robot_noise is None:
+        return RobotNoise(0.0, 0.0, "exact")
+    if isinstance(robot_noise, str):
+        return estimate_robot_noise(F, P, uv, sid, counts, K, d8, np.asarray(X0, float),
+                                    np.asarray(Y0, float), setup == "eye-in-hand")
+    return RobotNoise(float(robot_noise[0]), float(robot_noise[1]), "given")
 
 
 def _check_inputs(flange2base: Array, points: list[Array], pixels: list[Array], K: Array,
-                  dist: Array | None, setup: str, robot_noise: tuple[float, float] | None
+                  dist: Array | None, setup: str, robot_noise: tuple[float, float] | str | None
                   ) -> tuple[Array, Array, Array, NDArray[np.intp]]:
     """Validated camera ``(K, d8)``, robot poses and the corner count per station."""
     if setup not in ("eye-in-hand", "eye-to-hand"):
@@ -175,7 +211,12 @@ def _check_inputs(flange2base: Array, points: list[Array], pixels: list[Array], 
         raise InputError(f"{n} robot poses but {len(points)} / {len(pixels)} corner sets")
     if n < 3:
         raise InputError(f"{n} stations: hand-eye calibration needs at least 3")
-    if robot_noise is not None and not (robot_noise[0] > 0 and robot_noise[1] > 0):
+    if isinstance(robot_noise, str):
+        if robot_noise != "auto":
+            raise InputError(f"robot_noise {robot_noise!r}: expected 'auto', None or two "
+                             "standard deviations (rad, length)", option="robot_noise")
+    elif robot_noise is not None and not (
+            len(robot_noise) == 2 and all(np.isfinite(v) and v > 0 for v in robot_noise)):
         raise InputError(f"robot_noise {robot_noise}: expected two positive standard "
                          "deviations (rad, length)", option="robot_noise")
     counts = np.array([len(p) for p in points])
@@ -314,17 +355,34 @@ def _place_on_axis(pr: ReprojectionProblem, p: Array, axis: OneAxis,
     return q, row
 
 
-def _covariance(A: Array, s2: float, row: Array | None) -> Array:
-    """``s2 A^-1`` for the normal matrix ``A = J^T J`` ``(n_params, n_params)``, restricted
-    to ``row . p = 0`` when a row is given (a constrained direction that J does not see)."""
-    n = A.shape[0]
+def _covariance(A: Array, s2: float, row: Array | None, g: int) -> tuple[Array, Array | None]:
+    """``s2 A^-1`` for the shared unknowns ``(g, g)`` and the standard deviations ``(n, 6)``
+    of the robot-pose corrections (None without them), from the normal matrix ``A = J^T J``
+    ``(p, p)`` with the corrections eliminated by their Schur complement (no dense inverse
+    of the whole matrix); restricted to ``row . p = 0`` when a row is given (a constrained
+    direction of the shared unknowns that J does not see)."""
+    n = (A.shape[0] - g) // 6
     try:
+        if n:
+            idx = g + 6 * np.arange(n)[:, None] + np.arange(6)
+            Ei = np.linalg.inv(A[idx[:, :, None], idx[:, None, :]])  # (n, 6, 6)
+            Fs = A[:g, g:].reshape(g, n, 6).transpose(1, 0, 2)  # (n, g, 6)
+            EiFt = Ei @ np.swapaxes(Fs, 1, 2)  # (n, 6, g)
+            S = A[:g, :g] - np.einsum("sgi,sih->gh", Fs, EiFt)
+        else:
+            S = A
         if row is None:
-            return s2 * np.linalg.inv(A)
-        N = np.linalg.svd(row.reshape(1, -1))[2][1:].T
-        return s2 * N @ np.linalg.inv(N.T @ A @ N) @ N.T
+            Sg = np.linalg.inv(S)
+        else:
+            N = np.linalg.svd(row[:g].reshape(1, -1))[2][1:].T
+            Sg = N @ np.linalg.inv(N.T @ S @ N) @ N.T
     except np.linalg.LinAlgError:
-        return np.full((n, n), np.inf)
+        return np.full((g, g), np.inf), None if not n else np.full((n, 6), np.inf)
+    if not n:
+        return s2 * Sg, None
+    # diagonal blocks of the inverse: E^-1 + E^-1 F^T S^-1 F E^-1
+    dE = np.einsum("sig,gh,sih->si", EiFt, Sg, EiFt) + np.diagonal(Ei, axis1=1, axis2=2)
+    return s2 * Sg, np.sqrt(np.clip(s2 * dE, 0.0, None))
 
 
 def _outlier_stations(srms: Array, counts: Array, sigma: float, level: float) -> Array:

@@ -92,7 +92,8 @@ def calibrate_one_axis(F: Array, C: Array, G: Array, setup: str, axis: OneAxis,
     nfev = 0
     outliers: list[int] = []
     if refine == "lm":
-        res = lm(G, C, X, Y, robust=robust, rotation_weight=rotation_weight)
+        res = lm(G, C, X, Y, robust=robust, rotation_weight=rotation_weight,
+                 eye_in_hand=setup == "eye-in-hand")
         X, Y, outliers, history, nfev = res.X, res.Y, res.outliers, res.history, res.nfev
     elif refine in ("igwo", "dlh-gwo-de"):
         from kinecal.calibration.handeye.refine_meta import metaheuristic

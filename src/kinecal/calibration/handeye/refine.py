@@ -8,14 +8,19 @@ measurement enters many pairs with correlated errors.
 Residual of station i (in the camera frame, where the largest noise enters): with the
 predicted ``C^_i = X^-1 G_i^-1 Y``,
 
-    r_i = ( log(R^_i^T R_Ci) / s_R ,  (t_Ci - t^_i) / s_t )      (6 numbers)
+    r_i = ( log(R^_i^T R_Ci) ,  t_Ci - t^_i )      (6 numbers)
 
-``s_R`` (rad) and ``s_t`` (length) are robust (median-based) scales of the rotation and
-translation residuals, which sets the rotation / translation weighting from the data
-(override with ``rotation_weight``: length per radian). The robust version runs
-iteratively reweighted Levenberg-Marquardt with Cauchy weights on the station distance
-``d_i = |r_i|`` and then flags stations with ``d_i^2`` beyond the chi-square(6) quantile
-``outlier_level`` as outliers; a last non-robust pass uses the inliers only.
+whitened by the station's noise covariance ``Sigma_i`` (`kinecal.calibration.handeye.noise`:
+the camera's rotation, the translation, and the robot's rotation, whose lever from the
+flange to the target couples the residual's rotation and translation). The components are
+estimated from the residuals (REML) on the stations weighted above 1/2, so the rotation /
+translation weighting and the robot's share come from the data; ``rotation_weight``
+(length per radian) fixes a diagonal weighting instead, and below 6 stations two robust
+(median-based) scales are used. The robust version runs iteratively reweighted
+Levenberg-Marquardt with Cauchy weights on the whitened station distance ``d_i =
+|L_i^-1 r_i|`` (median-based scales in the first pass) and then flags stations with
+``d_i^2`` beyond the chi-square(6) quantile ``outlier_level`` as outliers; a last
+non-robust pass uses the inliers only, with the noise re-estimated on them.
 
 Each pass is scipy's MINPACK Levenberg-Marquardt with the analytic Jacobian
 (`residual_jacobian`, through the right Jacobian of SO(3)), checked against finite
@@ -26,6 +31,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,6 +59,8 @@ def _chi3_median() -> float:
 
 #: Cauchy tuning constant (95 % efficiency on Gaussian data), in units of the per-dof scale.
 _CAUCHY_C = 2.3849
+#: stations from which the three noise components are estimated (fewer: two robust scales)
+_MIN_ESTIMATED = 6
 
 
 @dataclass
@@ -73,6 +81,9 @@ class LMRefinement:
         Residual evaluations.
     history : list of float
         Weighted cost after each outer iteration.
+    noise : StationNoise or None
+        The stations' noise model the final pass weighed them by
+        (`kinecal.calibration.handeye.noise`).
     """
 
     X: Array
@@ -82,6 +93,7 @@ class LMRefinement:
     scales: tuple[float, float]
     nfev: int
     history: list[float] = field(default_factory=list)
+    noise: Any = None
 
 
 def _update(T0: Array, p: Array) -> Array:
@@ -201,6 +213,7 @@ def lm(
     outlier_level: float = 0.999,
     max_outer: int = 10,
     start_inliers: Array | None = None,
+    eye_in_hand: bool = True,
 ) -> LMRefinement:
     """Refine ``X`` and the target pose ``Y`` by (robust) Levenberg-Marquardt.
 
@@ -216,8 +229,10 @@ def lm(
         Cauchy-reweighted iterations and outlier flagging (default); False: plain
         least squares over all stations.
     rotation_weight : float, optional
-        Fixed weighting, length units per radian of rotation residual (e.g. 1000 mm/rad).
-        Default: the ratio of the robust residual scales ``s_t / s_R``.
+        Fixed weighting, length units per radian of rotation residual (e.g. 1000 mm/rad),
+        and no robot component. Default: the station noise estimated from the residuals
+        (`kinecal.calibration.handeye.noise`: the camera's rotation, the translation and
+        the robot's rotation with its lever).
     outlier_level : float
         Chi-square(6) probability beyond which a station is flagged.
     max_outer : int
@@ -227,105 +242,33 @@ def lm(
         `ransac.consensus_start`): the first pass weighs only them, and the residual scales
         come from the stations currently weighted above 1/2 instead of all stations (which
         at 50 % outliers puts the median on the outliers).
+    eye_in_hand : bool
+        The set-up (where a flange rotation swings the target from: the robot component).
 
     Returns
     -------
     LMRefinement
     """
-    fit = _Passes(G, C, rotation_weight)
-    X, Y, inlier = fit.reweighted(X0.copy(), Y0.copy(), robust, outlier_level, max_outer,
-                                  start_inliers)
-    # final plain least squares on the inliers, scales re-estimated from them (rms)
+    from kinecal.calibration.handeye.refine_passes import Passes
+
+    fit = Passes(G, C, rotation_weight, eye_in_hand)
+    X, Y, inlier, theta = fit.reweighted(X0.copy(), Y0.copy(), robust, outlier_level,
+                                         max_outer, start_inliers)
+    # final least squares on the inliers, the noise estimated from them
+    for _ in range(2 if fit.estimates else 1):
+        theta = fit.noise(X, Y, inlier, theta, final=True)
+        X, Y = fit.solve(X, Y, inlier.astype(float), fit.whitening(X, Y, theta))
     rot, tr = camera_residuals(G[inlier], C[inlier], X, Y, fit.Ginv[inlier])
     sr = max(float(np.sqrt(np.mean(np.sum(rot**2, 1)) / 3.0)), 1e-13)
     st = max(float(np.sqrt(np.mean(np.sum(tr**2, 1)) / 3.0)), 1e-13 * fit.L)
     if rotation_weight is not None:
         sr = st / rotation_weight
-    X, Y = fit.solve(X, Y, inlier.astype(float), sr, st)
-    d = _distances(G, C, X, Y, sr, st, fit.Ginv)
+    d = fit.distances(X, Y, theta)
     outliers = [int(i) for i in np.flatnonzero(~inlier)]
-    return LMRefinement(X, Y, outliers, d, (sr, st), fit.nfev, fit.history)
+    from kinecal.calibration.handeye.noise import StationNoise
 
-
-class _Passes:
-    """The weighted Levenberg-Marquardt passes of `lm` on stations (G, C)."""
-
-    def __init__(self, G: Array, C: Array, rotation_weight: float | None) -> None:
-        self.G, self.C, self.rotation_weight = G, C, rotation_weight
-        self.Ginv = invert_transform(G)  # every evaluation's, computed once
-        self.L = max(float(np.sqrt(np.mean(np.sum(C[:, :3, 3] ** 2, axis=1)))), 1e-300)
-        self.nfev = 0
-        self.history: list[float] = []
-
-    def solve(self, X: Array, Y: Array, w: Array, sr: float, st: float) -> tuple[Array, Array]:
-        """Minimise the station residuals weighted by `w` ``(n,)`` and the scales (MINPACK's
-        Levenberg-Marquardt with the analytic Jacobian)."""
-        G, C, Gi = self.G, self.C, self.Ginv
-        sw = np.sqrt(w)[:, None]
-        scale = np.r_[[1.0 / sr] * 3, [1.0 / st] * 3]
-
-        last: list[tuple[Array, ...]] = []  # MINPACK asks the Jacobian where it last
-        # evaluated the residuals: their poses and residuals are reused there
-
-        def fun(p: Array) -> Array:
-            Xp, Yp = _update(X, p[:6]), _update(Y, p[6:])
-            rot, tr = camera_residuals(G, C, Xp, Yp, Gi)
-            last[:] = [(p.copy(), Xp, Yp, rot, tr)]
-            return np.concatenate([sw * rot / sr, sw * tr / st], axis=1).ravel()
-
-        def jac(p: Array) -> Array:
-            if last and np.array_equal(last[0][0], p):
-                J = _jacobian(G, C, *last[0][1:], p)
-            else:
-                J = residuals_and_jacobian(G, C, X, Y, p, Gi)[2]  # (n, 6, 12)
-            return (J * (scale[None, :, None] * sw[:, :, None])).reshape(-1, 12)
-
-        from scipy.optimize import least_squares
-
-        sol = least_squares(fun, np.zeros(12), jac=jac, method="lm", x_scale="jac")
-        self.nfev += int(sol.nfev)
-        self.history.append(float(2.0 * sol.cost))
-        return _update(X, sol.x[:6]), _update(Y, sol.x[6:])
-
-    def scales(self, X: Array, Y: Array, mask: Array) -> tuple[float, float]:
-        """Robust residual scales of the stations in `mask` ``(n,)``."""
-        rot, tr = camera_residuals(self.G[mask], self.C[mask], X, Y, self.Ginv[mask])
-        sr, st = _scales(rot, tr, self.L)
-        if self.rotation_weight is not None:
-            sr = st / self.rotation_weight
-        return sr, st
-
-    def reweighted(self, X: Array, Y: Array, robust: bool, outlier_level: float,
-                   max_outer: int, start_inliers: Array | None
-                   ) -> tuple[Array, Array, NDArray[np.bool_]]:
-        """Cauchy-reweighted passes (robust) and the inlier mask ``(n,)`` they leave
-        (all stations when fewer than 3 remain, or not robust)."""
-        G, C = self.G, self.C
-        n = len(G)
-        w = np.ones(n)
-        trusted = np.ones(n, bool)
-        if robust and start_inliers is not None and len(start_inliers) >= 3:
-            trusted = np.zeros(n, bool)
-            trusted[np.asarray(start_inliers, dtype=np.intp)] = True
-            w = trusted.astype(float)
-        sr, st = self.scales(X, Y, trusted)
-        if not robust:
-            return X, Y, np.ones(n, bool)
-        for _ in range(max_outer):
-            X, Y = self.solve(X, Y, w, sr, st)
-            sr, st = self.scales(X, Y, w > 0.5 if start_inliers is not None
-                                 else np.ones(n, bool))
-            d = _distances(G, C, X, Y, sr, st, self.Ginv)
-            w_new = 1.0 / (1.0 + (d / (np.sqrt(6.0) * _CAUCHY_C)) ** 2)
-            done = np.max(np.abs(w_new - w)) < 1e-3
-            w = w_new
-            if done:
-                break
-        d = _distances(G, C, X, Y, sr, st, self.Ginv)
-        inlier = d**2 <= _chi2_isf6(1.0 - outlier_level)
-        if inlier.sum() < 3:
-            inlier = np.ones(n, bool)
-        return X, Y, inlier
+    return LMRefinement(X, Y, outliers, d, (sr, st), fit.nfev, fit.history,
+                        StationNoise(theta, fit.source))
 
 
 def _distances(G: Array, C: Array, X: Array, Y: Array, sr: float, st: float,
@@ -360,7 +303,9 @@ def flag_outliers(G: Array, C: Array, X: Array, Y: Array, level: float = 0.999) 
     # `lm`'s robust passes decide its outliers before its last (plain) pass: stop there
     # (converged as tightly as `lm`'s: without rotation noise the rotation scale is at
     # round-off, and looser passes flag stations that `lm` does not)
-    _, _, inlier = _Passes(G, C, None).reweighted(X, Y, True, level, 10, None)
+    from kinecal.calibration.handeye.refine_passes import Passes
+
+    _, _, inlier, _ = Passes(G, C, None).reweighted(X, Y, True, level, 10, None)
     return [int(i) for i in np.flatnonzero(~inlier)]
 
 
