@@ -201,6 +201,9 @@ def calibrate(
     min_corners: int | None = typer.Option(None, "--min-corners", help="With --images: "
                                            "fewest corners an image must show (ChArUco, "
                                            "seen in part; default 60 % of the board's)."),
+    validate_images: Path | None = typer.Option(
+        None, "--validate-images", help="With --images: folder of the --validate stations' "
+        "images (default: the --images folder)."),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
     or from board images with --images."""
@@ -209,7 +212,7 @@ def calibrate(
 
         return calibrate_images(dict(locals()))
     for option, value in (("--board", board), ("--intrinsics", intrinsics),
-                          ("--min-corners", min_corners)):
+                          ("--min-corners", min_corners), ("--validate-images", validate_images)):
         if value is not None:
             raise InputError("applies to --images only", option=option)
     from kinecal.calibration.diagnostics.noise import check_stated_sigma

@@ -70,11 +70,17 @@ def _parse_robot_noise(text: str | None) -> tuple[float, float] | str | None:
 
 
 def limits_option(min_corners: int | None, board: Any) -> Any:
-    """QualityLimits with ``--min-corners`` checked against the board (4 .. its corners)."""
+    """QualityLimits with ``--min-corners`` checked against the board (4 .. its corners);
+    refused for boards found whole or not at all (chessboards, circle grids)."""
+    from kinecal.vision.boards import Charuco
     from kinecal.vision.detection import QualityLimits
 
     if min_corners is None:
         return QualityLimits()
+    if not isinstance(board, Charuco):
+        raise InputError(f"applies to ChArUco boards, which may be seen in part; the board "
+                         f"{board.spec} is found whole ({board.n_corners} corners) or not "
+                         "at all", option="--min-corners")
     if not 4 <= min_corners <= board.n_corners:
         raise InputError(f"{min_corners}: expected 4 to {board.n_corners} (the corners of "
                          f"{board.spec}; a board pose needs at least 4)",

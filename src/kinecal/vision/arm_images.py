@@ -33,6 +33,7 @@ from kinecal.vision.stages import (
     camera_intrinsics,
     check_arguments,
     detect_all,
+    rejections,
 )
 
 Array = NDArray[np.float64]
@@ -180,12 +181,7 @@ def _joint_rows(images: Sequence[Any], q: Any, what: str) -> Array:
 
 
 def _too_few(n: int, used: int, skipped: list[dict[str, str]], board: Board) -> str:
-    reasons: dict[str, int] = {}
-    for s in skipped:
-        key = s["reason"].split(":")[0].split(";")[0].split("(")[0].strip()
-        reasons[key] = reasons.get(key, 0) + 1
-    summary = ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items(), key=lambda kv: -kv[1]))
-    eg = f"; e.g. {skipped[0]['image']}: {skipped[0]['reason']}" if skipped else ""
     return (f"{used} usable station(s) of {n}: the board {board.spec} was not found or not "
-            f"trusted in the others ({summary}{eg}); calibrating an arm needs at least 3 "
-            "(check the --board spec: chessboards count inner corners)")
+            "trusted in the others; calibrating an arm needs at least 3"
+            + rejections([(s["image"], s["reason"]) for s in skipped])
+            + " (check the --board spec: chessboards count inner corners)")

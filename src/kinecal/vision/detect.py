@@ -41,6 +41,7 @@ from kinecal.errors import InputError
 from kinecal.vision import require_cv2
 from kinecal.vision.boards import Board, Charuco, Chessboard
 from kinecal.vision.circle_grids import CircleGrid
+from kinecal.vision.detect_chessboard import find_chessboard
 from kinecal.vision.detect_circles import detect_circle_grid
 from kinecal.vision.detection import Detection, QualityLimits, edge_width, orientation_ambiguous
 from kinecal.vision.pixels import blurred_around, hull_polygon
@@ -120,65 +121,30 @@ def _orient_chessboard(gray: NDArray[np.uint8], corners: Array, board: Chessboar
 
 def _detect_chessboard(gray: NDArray[np.uint8], board: Chessboard, det: Detection,
                        limits: QualityLimits) -> Detection:
-    cv2 = require_cv2()
-    size = (board.cols, board.rows)
-    flags = cv2.CALIB_CB_ADAPTIVE_THRESH + cv2.CALIB_CB_NORMALIZE_IMAGE
-    found, corners = cv2.findChessboardCorners(gray, size, flags=flags)
-    if not found:
-        try:  # the sector-based detector copes better with blur and strong distortion
-            found, corners = cv2.findChessboardCornersSB(gray, size, 0)
-        except cv2.error:
-            found = False
-    if not found:
-        return det.reject(_why_no_chessboard(gray, board, limits))
-    c = corners.reshape(-1, 2).astype(float)
-    c = _subpix(gray, c, _spacing(c, board.cols))
+    corners, seen = find_chessboard(gray, (board.cols, board.rows))
+    if corners is None:
+        return det.reject(_why_no_chessboard(gray, board, limits, seen))
+    c = _subpix(gray, corners, _spacing(corners, board.cols))
     det.corners = _orient_chessboard(gray, c, board)
     det.ids = np.arange(board.n_corners)
     return det
 
 
-def _why_no_chessboard(gray: NDArray[np.uint8], board: Chessboard,
-                       limits: QualityLimits) -> str:
-    """Reason for a failed chessboard detection: blur, a part of the grid found, nothing."""
-    cv2 = require_cv2()
+def _why_no_chessboard(gray: NDArray[np.uint8], board: Chessboard, limits: QualityLimits,
+                       seen: tuple[int, int] | bool) -> str:
+    """Reason for a failed chessboard detection: a whole grid of another size (`seen`),
+    blur, a part of a grid seen (`seen` True), nothing."""
+    if not isinstance(seen, bool):
+        return (f"board size differs: a whole chessboard of {seen[0]}x{seen[1]} inner "
+                f"corners is seen, not the {board.cols}x{board.rows} of the board spec "
+                "(count the inner corners, where four squares meet)")
     w = edge_width(gray)
     if np.isfinite(w) and w > limits.max_edge_width:
         return f"no board found; the image is blurred (edge width {w:.1f} px)"
-    try:  # any chessboard grid of 3x3 corners or more (sector-based detector, larger allowed)
-        found, grid = cv2.findChessboardCornersSB(gray, (3, 3), flags=cv2.CALIB_CB_LARGER)
-    except cv2.error:
-        found = False
-    if found:
-        seen = _grid_size(grid.reshape(-1, 2), gray.shape)
-        if seen is not None and sorted(seen) != sorted((board.cols, board.rows)):
-            return (f"board size differs: a whole chessboard of {seen[0]}x{seen[1]} inner "
-                    f"corners is seen, not the {board.cols}x{board.rows} of the board spec "
-                    "(count the inner corners, where four squares meet)")
+    if seen:
         return (f"board partly visible: a chessboard grid is seen but not all {board.cols}x"
                 f"{board.rows} inner corners (cut by the image border or occluded)")
     return f"no board found (no {board.cols}x{board.rows} chessboard corner grid)"
-
-
-def _grid_size(pts: Array, shape: tuple[int, ...]) -> tuple[int, int] | None:
-    """Columns and rows of a corner grid listed row by row (``findChessboardCornersSB``
-    with ``CALIB_CB_LARGER``), or None when the grid reaches within a corner spacing of the
-    image border (then it may be a part of a larger board cut by the border)."""
-    if len(pts) < 9:
-        return None
-    step = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    jumps = np.flatnonzero(step > 1.8 * np.median(step))
-    if jumps.size == 0:
-        return None
-    cols = int(jumps[0]) + 1
-    if cols < 3 or len(pts) % cols:
-        return None
-    h, w = shape[:2]
-    margin = float(np.median(step))
-    if (pts.min(axis=0) < margin).any() or pts[:, 0].max() > w - 1 - margin \
-            or pts[:, 1].max() > h - 1 - margin:
-        return None
-    return cols, len(pts) // cols
 
 
 def _detect_charuco(gray: NDArray[np.uint8], board: Charuco, det: Detection,
