@@ -231,7 +231,7 @@ def _export_urdf(model, params, urdf: Path | None, out: Path, what: str, chain_o
             metres_per_unit,
             read_handeye_result,
         )
-        from kinecal.io.urdf_camera import add_camera_mount, chain_links
+        from kinecal.io.urdf_camera import add_camera_mount
 
         X, setup, length_unit = read_handeye_result(camera)
         scale = metres_per_unit(length_unit, unit, camera)

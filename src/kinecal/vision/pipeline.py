@@ -151,17 +151,18 @@ def calibrate_handeye_images(
         obj = [records[k].detection.object_points(board) for k in used]
         pix = [records[k].detection.corners for k in used]
         axis = {"camera_height": camera_height, "board_contact": board_contact}
-        seed, ref, one = _seed_and_refine(F[idx], C, obj, pix, intr, setup, method,
+        seed, ref, one = _seed_and_refine(F[idx], C, obj, pix, intr, setup, method, board,
                                           refine_intrinsics, robot_noise, robust, axis)
         for j, k in enumerate(used):
             records[k].residuals = ref.residuals[j]
         for j in ref.outliers:
             r = records[used[j]]
             r.status = "outlier"
-            r.reason = (f"station inconsistent with the others: corner RMS "
-                        f"{ref.station_rms[j]:.2f} px vs median "
-                        f"{float(np.median(ref.station_rms)):.2f} px (robot pose or image "
-                        "wrong?)")
+            med = float(np.median(ref.station_rms))
+            r.reason = ("station inconsistent with the others: " + (
+                f"corner RMS {ref.station_rms[j]:.2f} px vs median {med:.2f} px"
+                if np.isfinite(ref.station_rms[j]) else "its board would be behind the camera")
+                + " (robot pose or image wrong?)")
         if refine_intrinsics:
             intr = CameraIntrinsics(ref.K, ref.dist, intr.size, intr.rms_px,
                                     intr.source + ", refined with X", intr.per_view_rms,
@@ -190,7 +191,8 @@ def _one_axis(seed: Any, F: Array, setup: str, camera_height: float | None,
 
 
 def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
-                     intr: CameraIntrinsics, setup: str, method: str, refine_intrinsics: bool,
+                     intr: CameraIntrinsics, setup: str, method: str, board: Board,
+                     refine_intrinsics: bool,
                      robot_noise: tuple[float, float] | str | None, robust: bool,
                      axis: dict[str, Any]) -> tuple[Any, ReprojectionRefinement, Any]:
     """The closed form (with the pose-level checks) seeds the refinement on the pixels,
@@ -214,14 +216,47 @@ def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
     # the refinement on the pixels judges the outlier stations: the closed form's own
     # flags (a robust pose-level refinement, `robust=True` with refine "none") would be
     # that work twice; its other checks run
-    seed = calibrate_handeye(F, C, setup=setup, method=method, refine=first,
-                             robust=first == "lm", **axis)
+    with diagnostics.expect("scale-mismatch") as scale:  # said below with the board's size
+        seed = calibrate_handeye(F, C, setup=setup, method=method, refine=first,
+                                 robust=first == "lm", **axis)
+    if scale:
+        _warn_board_scale(board, G, C, seed.X, scale[0].message)
     one = _one_axis(seed, F, setup, axis["camera_height"], axis["board_contact"])
-    ref = refine(seed)
-    if robust and ref.outliers and first == "none":
-        seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm", **axis)
+    try:
+        ref = refine(seed)
+    except InputError:  # a seed pulled by wrong stations puts boards behind the camera
+        if not robust or first != "none":
+            raise
+        ref = None
+    if robust and first == "none" and (ref is None or ref.outliers):
+        with diagnostics.expect("scale-mismatch"):  # the first seed's check said it
+            seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm", **axis)
         ref = refine(seed)
     return seed, ref, one
+
+
+def _warn_board_scale(board: Board, G: Array, C: Array, X: Array, fallback: str) -> None:
+    """``scale-mismatch`` of images: the board poses take their lengths from the board's
+    size, so a factor between the robot's translations and the camera's names the --board
+    square size (or the robot poses' unit)."""
+    from kinecal.calibration.diagnostics.handeye import translation_scale
+
+    sc = translation_scale(G, C, X)
+    if sc is None or not sc.unit_factor:
+        diagnostics.warn("scale-mismatch", fallback)
+        return
+    board_words = (f"the board's size is probably {sc.s:.4g} times larger (corner spacing "
+                   f"{board.pitch * sc.s:.4g}, not {board.pitch:g}: measure the print)")
+    units = min((1e3, 1e-3, 25.4, 1 / 25.4, 10.0, 0.1), key=lambda f: abs(np.log(sc.s / f)))
+    if abs(np.log(sc.s / units)) < np.log(1.05):  # a unit factor: that first
+        from kinecal.calibration.diagnostics.handeye import _units
+
+        why = f"{_units(1.0 / sc.s)} (give both in one unit), or {board_words}"
+    else:
+        why = f"{board_words}, or the robot poses are in another length unit"
+    diagnostics.warn("scale-mismatch",
+                     f"the robot's translations are {sc.s:.4g} times what the images measure "
+                     f"with the board {board.spec}: {why}")
 
 
 def _plausibility(ref: ReprojectionRefinement, records: list[ImageRecord],

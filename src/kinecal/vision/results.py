@@ -52,17 +52,20 @@ class ImageRecord:
 
     @property
     def rms_px(self) -> float | None:
-        """RMS corner residual after the refinement (px)."""
+        """RMS corner residual after the refinement (px); None without residuals or when
+        the station's board is behind the camera for the solution."""
         if self.residuals is None or not len(self.residuals):
             return None
-        return float(np.sqrt(np.mean(np.sum(self.residuals**2, axis=1))))
+        v = float(np.sqrt(np.mean(np.sum(self.residuals**2, axis=1))))
+        return v if np.isfinite(v) else None
 
     @property
     def max_px(self) -> float | None:
         """Largest corner residual after the refinement (px)."""
         if self.residuals is None or not len(self.residuals):
             return None
-        return float(np.max(np.linalg.norm(self.residuals, axis=1)))
+        v = float(np.max(np.linalg.norm(self.residuals, axis=1)))
+        return v if np.isfinite(v) else None
 
     def to_dict(self) -> dict[str, Any]:
         """The per-image entry of the JSON result."""

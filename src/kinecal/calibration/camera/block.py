@@ -164,7 +164,7 @@ class PixelBlock:
         return X, Y, K, d
 
     def predict(self, params: Array, nu: Array, columns: Array | None = None,
-                jac: bool = False, scale_column: bool = False
+                jac: bool = False, scale_column: bool = False, strict: bool = True
                 ) -> tuple[Array, Array | None, Array | None]:
         """Predicted pixels and (optionally) their Jacobians.
 
@@ -181,6 +181,9 @@ class PixelBlock:
         scale_column : bool
             Append to the nuisance Jacobian the column of a uniform scale of the board
             (``P -> (1 + s) P``): the board's size as an unknown.
+        strict : bool
+            False: a corner behind the camera gives NaN pixels instead of the error (the
+            residuals of stations judged after a fit that left them out).
 
         Returns
         -------
@@ -210,11 +213,14 @@ class PixelBlock:
             Rw = np.einsum("mij,mj->mi", RF[s], w)
             u = Rw + tF[s]  # F w, in the base frame
         pc = (u - tX) @ RX  # R_X^T (u - t_X)
-        if np.any(pc[:, 2] <= 0):
-            bad = int(s[np.argmax(pc[:, 2] <= 0)])
-            raise InputError(f"station {bad + 1}: the board is behind the camera for these "
-                             "joints and X: the joints do not fit the images (wrong --setup, "
-                             "joint order or unit?)")
+        behind = pc[:, 2] <= 0
+        if np.any(behind):
+            if strict:
+                bad = int(s[np.argmax(behind)])
+                raise InputError(f"station {bad + 1}: the board is behind the camera for "
+                                 "these joints and X: the joints do not fit the images (wrong "
+                                 "--setup, joint order or unit?)")
+            pc = np.where(behind[:, None], np.nan, pc)
         uv, Jp, Jint = project_jacobian(K, d, pc, rational=self.n_int == 12)
         if not jac:
             return uv, None, None
@@ -244,11 +250,14 @@ class PixelBlock:
             J_nu[:, :, -1] = np.einsum("mij,mj->mi", A, self.P @ RY.T)
         return uv, J_arm, J_nu
 
-    def residuals(self, params: Array, nu: Array) -> Array:
-        """Predicted minus observed pixels ``(M, 2)``."""
-        return self.predict(params, nu)[0] - self.uv
+    def residuals(self, params: Array, nu: Array, strict: bool = True) -> Array:
+        """Predicted minus observed pixels ``(M, 2)`` (NaN behind the camera unless
+        `strict`)."""
+        return self.predict(params, nu, strict=strict)[0] - self.uv
 
     def station_rms(self, r: Array) -> Array:
-        """RMS corner residual ``(n,)`` per station (px) of residuals `r` ``(M, 2)``."""
+        """RMS corner residual ``(n,)`` per station (px) of residuals `r` ``(M, 2)``;
+        infinite for a station with a corner behind the camera (NaN residuals)."""
         ss = np.bincount(self.sid, weights=np.sum(r * r, axis=1), minlength=self.n_stations)
-        return np.sqrt(ss / np.maximum(self.counts, 1))
+        rms = np.sqrt(ss / np.maximum(self.counts, 1))
+        return np.where(np.isfinite(rms), rms, np.inf)

@@ -40,28 +40,24 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal._special import chdtri
-from kinecal.calibration.handeye.bundle import normal_equations, robust_residuals, schur_solve
 from kinecal.calibration.handeye.camera import check_camera
+from kinecal.calibration.handeye.images_fit import Fit, reweighted_passes
 from kinecal.calibration.handeye.refinement import ReprojectionRefinement
 from kinecal.calibration.handeye.reprojection import (
     ReprojectionProblem,
+    behind_camera,
     parameter_names,
-    predict_blocks,
     predict_corners,
-    predict_pixels,
     unpack,
 )
 from kinecal.calibration.handeye.robot_noise import RobotNoise, estimate_robot_noise
 from kinecal.calibration.handeye.scara import AxisHeight, OneAxis
 from kinecal.errors import InputError
-from kinecal.optimize.lm import solve_normal_equations
 
 Array = NDArray[np.float64]
 
 __all__ = ["predict_corners", "refine_reprojection"]
 
-_HUBER = 3.0
-_CAUCHY = 2.5
 
 
 def refine_reprojection(
@@ -148,17 +144,18 @@ def refine_reprojection(
     else:
         noise = _robot_noise(robot_noise, F, P, uv, sid, counts, K, d8, X0, Y0, setup)
     pr = ReprojectionProblem(F, P, uv, sid, setup == "eye-in-hand", K, d8, np.asarray(X0, float),
-                             np.asarray(Y0, float), n_int, noise.prior)
-    fit = _Fit(pr, counts)
+                             np.asarray(Y0, float), n_int, noise.prior, strict=False)
+    fit = Fit(pr, counts)
     p = np.zeros(pr.n_params)
     history: list[float] = []
+    fit.usable = _in_front(pr, p, robust)
     r, srms = fit.residual_stats(p)
-    inlier = np.ones(n, bool)
+    inlier = fit.usable.copy()
     if robust:
-        p, r, srms, sigma = _reweighted_passes(fit, p, r, max_outer, history)
-        inlier = ~_outlier_stations(srms, counts, sigma, outlier_level)
+        p, r, srms, sigma = reweighted_passes(fit, p, r, max_outer, history)
+        inlier = ~_outlier_stations(srms, counts, sigma, outlier_level) & fit.usable
         if inlier.sum() < 3:
-            inlier = np.ones(n, bool)
+            inlier = fit.usable.copy()
         sigma = fit.sigma_of(r, inlier)
     else:
         sigma = max(float(np.sqrt(np.mean(r**2))), 1e-6)
@@ -183,6 +180,20 @@ def refine_reprojection(
                                   outliers, float(sigma), cov,
                                   parameter_names(pr)[:12 + pr.n_int], fit.nfev, history,
                                   time.perf_counter() - t0, noise, corr_std)
+
+
+def _in_front(pr: ReprojectionProblem, p: Array, robust: bool) -> NDArray[np.bool_]:
+    """The stations whose board is in front of the camera at the start `p`; robust, the
+    others are left out (outliers: a wrong robot pose or image can put its board behind the
+    camera for X started from the other stations), else they are an error naming them."""
+    bad = behind_camera(pr, p)
+    if bad.any() and (not robust or (~bad).sum() < 3):
+        names = ", ".join(str(int(i)) for i in np.flatnonzero(bad)[:5])
+        raise InputError(f"station(s) {names} (0-based): the board is behind the camera for "
+                         "the start of X and the board pose; the robot poses do not fit the "
+                         "images (wrong setup or pose convention, or images and robot poses "
+                         "of different stations?)")
+    return ~bad
 
 
 def _robot_noise(robot_noise: tuple[float, float] | str | None, F: Array, P: Array,
@@ -223,116 +234,6 @@ def _check_inputs(flange2base: Array, points: list[Array], pixels: list[Array], 
     if np.any(counts == 0):
         raise InputError(f"station {int(np.argmin(counts))} has no corners")
     return K, d8, F, counts
-
-
-def _reweighted_passes(fit: _Fit, p: Array, r: Array, max_outer: int, history: list[float]
-                       ) -> tuple[Array, Array, Array, float]:
-    """Huber passes with Cauchy station weights on the station RMS relative to the median
-    station (until the weights settle); returns p, residuals, station RMS and sigma."""
-    n = fit.pr.n
-    w = np.ones(n)
-    sigma = fit.sigma_of(r, np.ones(n, bool))
-    srms = np.zeros(n)
-    for _ in range(max_outer):
-        p, cost, _, _ = fit.solve(p, w, sigma, "huber")
-        history.append(cost)
-        r, srms = fit.residual_stats(p)
-        sigma = fit.sigma_of(r, w > 0.5)
-        med = float(np.median(srms))
-        w_new = 1.0 / (1.0 + (srms / (_CAUCHY * max(med, sigma))) ** 2)
-        done = np.max(np.abs(w_new - w)) < 1e-3
-        w = w_new
-        if done:
-            break
-    return p, r, srms, sigma
-
-
-class _Fit:
-    """The reprojection problem's passes: residual statistics, robust scale, and one
-    weighted (robust) least-squares solve on the structured normal equations."""
-
-    def __init__(self, pr: ReprojectionProblem, counts: NDArray[np.intp]) -> None:
-        self.pr = pr
-        self.counts = counts
-        self.starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.intp)
-        self.g = 12 + pr.n_int
-        self.prior = (np.r_[[1.0 / pr.robot[0]] * 3, [1.0 / pr.robot[1]] * 3]
-                      if pr.robot else None)
-        self.nfev = 0
-        self._last: tuple[Array, tuple] | None = None
-
-    def blocks(self, p: Array) -> tuple[Array, Array, Array | None]:
-        """`predict_blocks` at `p`, kept for the next call at the same point (the end of
-        one pass is where the next starts and where the statistics are taken)."""
-        if self._last is None or not np.array_equal(self._last[0], p):
-            self._last = (p.copy(), predict_blocks(self.pr, p))
-        return self._last[1]
-
-    def residual_stats(self, p: Array) -> tuple[Array, Array]:
-        """Residuals ``(M, 2)`` (predicted minus observed, px) and station RMS ``(n,)``."""
-        pred = self.blocks(p)[0] if self._last is not None and \
-            np.array_equal(self._last[0], p) else predict_pixels(self.pr, p, False)[0]
-        r = pred - self.pr.uv
-        ss = np.bincount(self.pr.sid, weights=np.sum(r * r, axis=1), minlength=self.pr.n)
-        return r, np.sqrt(ss / np.maximum(self.counts, 1))
-
-    def sigma_of(self, r: Array, mask: Array) -> float:
-        """Robust corner noise (px per axis) over the stations in `mask`."""
-        sel = r[mask[self.pr.sid]].ravel()
-        s = 1.4826 * float(np.median(np.abs(sel))) if sel.size else 1.0
-        return max(s, 1e-6)
-
-    def solve(self, p: Array, w: Array, sigma: float, loss: str, final: bool = False
-              ) -> tuple[Array, float, Array | None, Array | None]:
-        """Minimise ``sum rho(r^2)`` over corners weighted by station weights `w` ``(n,)``
-        (residuals in units of `sigma`, Huber threshold `_HUBER`) and the robot prior.
-
-        Returns p, the cost (twice scipy's ``0.5 sum rho``) and, for the `final` pass, the
-        normal matrix with scipy's robust scaling of the Jacobian (for the covariance) and
-        the raw residuals of the weighted rows (zero-weight stations left out)."""
-        pr, g, prior = self.pr, self.g, self.prior
-        scale = (np.sqrt(w) / sigma)[pr.sid]  # (M,) per corner
-
-        def rows(q: Array) -> tuple[Array, Array, Array | None, Array | None]:
-            pred, Jg, Je = self.blocks(q)
-            res = (pred - pr.uv) * scale[:, None]
-            Jg = Jg * scale[:, None, None]
-            if Je is not None:
-                Je = Je * scale[:, None, None]
-            rp = None if prior is None else q[g:].reshape(-1, 6) * prior
-            return res, Jg, Je, rp
-
-        def equations(q: Array) -> tuple[Array, Array, Array]:
-            res, Jg, Je, rp = rows(q)
-            pseudo, wr, _ = robust_residuals(res, loss, _HUBER)
-            pri = None
-            out = [pseudo.ravel()]
-            if rp is not None:
-                pp, wp, _ = robust_residuals(rp, loss, _HUBER)
-                pri = (np.broadcast_to(prior, rp.shape), wp, rp)
-                out.append(pp.ravel())
-            A, b = normal_equations(Jg, Je, wr, res, self.starts, pri)
-            return np.concatenate(out), A, b
-
-        # the passes before the last only set the station weights: 1e-9 suffices there
-        tol = 1e-12 if final else 1e-9
-        sol = solve_normal_equations(equations, p,
-                                     linear_solver=lambda A, d, b: schur_solve(A, d, b, g),
-                                     ftol=tol, xtol=tol, gtol=tol, max_nfev=200,
-                                     damping=(1e-9, 1e-3))
-        self.nfev += int(sol.nfev)
-        q = sol.x
-        if not final:
-            return q, float(2.0 * sol.fun), None, None
-        res, Jg, Je, rp = rows(q)
-        _, _, c = robust_residuals(res, loss, _HUBER)
-        pri = None
-        raw = res[w[pr.sid] > 0].ravel()
-        if rp is not None:
-            pri = (np.broadcast_to(prior, rp.shape), robust_residuals(rp, loss, _HUBER)[2], rp)
-            raw = np.concatenate([raw, rp.ravel()])
-        A_cov, _ = normal_equations(Jg, Je, c, res, self.starts, pri)
-        return q, float(2.0 * sol.fun), A_cov, raw
 
 
 def _place_on_axis(pr: ReprojectionProblem, p: Array, axis: OneAxis,
