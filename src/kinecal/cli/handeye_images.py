@@ -217,8 +217,8 @@ def _summary(res: Any) -> str:
         res.refinement.robot_noise.describe("mm") if res.refinement.robot_noise is not None
         else "",
         f"reprojection RMS {res.refinement.rms_px:.3f} px (corner sigma "
-        f"{res.refinement.sigma_px:.3f} px); intrinsics: {intr.source}"
-        + (f", calibration RMS {intr.rms_px:.3f} px" if intr.rms_px is not None else ""),
+        f"{res.refinement.sigma_px:.3f} px)",
+        intr.describe(res.intrinsics_refined),
     ]
     for r in res.records:
         if r.status != "used":

@@ -165,11 +165,29 @@ def calibrate_arm_images(
             model, st, intr.K, intr.dist, setup=setup, free=free,
             refine_intrinsics=refine_intrinsics, rational=intr.rational, loss=loss,
             validate=val, extra={"board": board.spec, "intrinsics_source": intr.source,
+                                 "intrinsics_given": intr.given,
+                                 "intrinsics_line": intr.describe(refine_intrinsics),
                                  "skipped": skipped, "n_images": len(images),
                                  "n_used": len(st.q)})
+        if not intr.given and refine_intrinsics:
+            _check_intrinsics(res, intr.size)
     res.val_names = [] if val is None else list(val.names)
     res.warnings = list(found)
     return res
+
+
+def _check_intrinsics(res: ArmCameraResult, size: tuple[int, int] | None) -> None:
+    """``intrinsics-weak`` of intrinsics estimated from the images and refined with the arm:
+    the covariance of the camera block's unknowns (X, board, intrinsics), the arm's
+    parameters marginalised."""
+    from kinecal.calibration.handeye.camera import check_intrinsics_determined
+
+    k = len(res.free)
+    cov = res.uncertainty.covariance
+    m = len(res.nuisance_names)
+    if cov.shape[0] < k + m:
+        return
+    check_intrinsics_determined(cov[k:k + m, k:k + m], list(res.nuisance_names), res.K, size)
 
 
 def _joint_rows(images: Sequence[Any], q: Any, what: str) -> Array:

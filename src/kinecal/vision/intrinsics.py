@@ -82,11 +82,26 @@ class CameraIntrinsics:
         """Coefficients as OpenCV expects them (5 or 8)."""
         return self.dist if self.rational else self.dist[:5]
 
+    @property
+    def given(self) -> bool:
+        """Read from a file or passed in (not estimated from the images here)."""
+        return self.rms_px is None
+
+    def describe(self, refined: bool) -> str:
+        """Whether the intrinsics were given or estimated, and what X's sigma holds."""
+        if self.given:
+            how = "refined with X" if refined else "held as given"
+            held = ("X's sigma includes their uncertainty" if refined else
+                    "X's sigma leaves out their uncertainty")
+            return f"intrinsics given ({self.source}), {how}: {held}"
+        return (f"intrinsics estimated from the images ({self.source}; calibration RMS "
+                f"{self.rms_px:.3f} px): X's sigma includes their uncertainty")
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON-able dict (``K``, ``dist``, ``size``, ``rms_px``, ``source``)."""
+        """JSON-able dict (``K``, ``dist``, ``size``, ``rms_px``, ``source``, ``given``)."""
         return {"K": self.K.tolist(), "dist": self.cv_dist.tolist(),
                 "size": None if self.size is None else list(self.size),
-                "rms_px": self.rms_px, "source": self.source,
+                "rms_px": self.rms_px, "source": self.source, "given": self.given,
                 "model": "rational_polynomial" if self.rational else "plumb_bob"}
 
 

@@ -168,6 +168,10 @@ def calibrate_handeye_images(
                                     intr.source + ", refined with X", intr.per_view_rms,
                                     intr.rational)
         _plausibility(ref, records, limits)
+        if intrinsics is None:
+            from kinecal.calibration.handeye.camera import check_intrinsics_determined
+
+            check_intrinsics_determined(ref.cov, ref.names, ref.K, size)
     warnings = [d.to_dict() for d in found]
     res = ImageHandEyeResult(ref.X, ref.Y, setup, seed.method, board, intr, refine_intrinsics,
                              records, ref, seed, warnings, time.perf_counter() - t0)
@@ -204,7 +208,8 @@ def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
         return refine_reprojection(F, obj, pix, intr.K, intr.dist, seed.X, seed.target,
                                    setup=setup, refine_intrinsics=refine_intrinsics,
                                    rational=intr.rational, robot_noise=robot_noise,
-                                   robust=robust, one_axis=one)
+                                   robust=robust, one_axis=one,
+                                   intrinsics_estimated=intr.rms_px is not None)
 
     from kinecal.calibration.handeye.scara import detect_one_axis
     from kinecal.spatial import invert_transform

@@ -262,6 +262,8 @@ class ArmCameraResult:
         lines.append("X std (1 sigma): rotation " + ", ".join(f"{v:.4f}" for v in xr)
                      + " deg, translation " + ", ".join(f"{v * shown.factor:.4f}" for v in xt)
                      + f" {shown.name}")
+        if "intrinsics_line" in self.extra:
+            lines.append(str(self.extra["intrinsics_line"]).replace("with X", "with the arm"))
         lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations, "
                      f"{self.seconds:.3g} s")
         if self.outliers:

@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 
 from kinecal._special import chdtri
 from kinecal.calibration.handeye.camera import check_camera
+from kinecal.calibration.handeye.images_cov import covariance, station_aware_covariance
 from kinecal.calibration.handeye.images_fit import Fit, reweighted_passes
 from kinecal.calibration.handeye.refinement import ReprojectionRefinement
 from kinecal.calibration.handeye.reprojection import (
@@ -77,6 +78,7 @@ def refine_reprojection(
     outlier_level: float = 0.999,
     max_outer: int = 8,
     one_axis: tuple[OneAxis, AxisHeight] | None = None,
+    intrinsics_estimated: bool = False,
 ) -> ReprojectionRefinement:
     """Refine X, the board pose (and optionally intrinsics, robot poses) on the pixels.
 
@@ -114,6 +116,9 @@ def refine_reprojection(
         The robot turns about one axis only (SCARA): the pixels do not see X's translation
         along it either (`kinecal.calibration.handeye.scara`, eq. (3)); the solution is put
         where the height says, and the covariance is taken under that constraint.
+    intrinsics_estimated : bool
+        The intrinsics were estimated from the same views and are held (not refined): X's
+        covariance includes their uncertainty (`images_cov.station_aware_covariance`).
 
     Returns
     -------
@@ -138,6 +143,14 @@ def refine_reprojection(
                              first.X, first.Y, setup)
         if not noise.modelled:
             first.robot_noise = noise
+            at = ReprojectionProblem(F, P, uv, sid, setup == "eye-in-hand", first.K, first.dist,
+                                     first.X, first.Y, n_int, None, strict=False)
+            keep = np.ones(n, bool)
+            keep[first.outliers] = False
+            aware = station_aware_covariance(at, np.zeros(at.n_params), keep,
+                                             first.sigma_px, noise, None, n_int)
+            if aware is not None and one_axis is None:
+                first.cov, first.names = aware
             first.seconds = time.perf_counter() - t0
             return first
         K, d8, X0, Y0 = first.K, first.dist, first.X, first.Y
@@ -172,13 +185,17 @@ def refine_reprojection(
         r, srms = fit.residual_stats(p)
     # covariance: the normal matrix of the final pass at the solution, residual variance
     s2 = float(raw @ raw) / max(raw.size - pr.n_params + (row is not None), 1)
-    cov, corr_std = _covariance(A_cov, s2, row, 12 + pr.n_int)
+    cov, corr_std = covariance(A_cov, s2, row, 12 + pr.n_int)
+    names = parameter_names(pr)[:12 + pr.n_int]
+    aware = station_aware_covariance(pr, p, inlier, sigma, noise, row,
+                                     (12 if rational else 9) if intrinsics_estimated else 0)
+    if aware is not None:
+        cov, names = aware
     X, Y, Kf, df, E = unpack(pr, p)
     res = np.split(-r, np.cumsum(counts)[:-1])
     outliers = [int(i) for i in np.flatnonzero(~inlier)]
     return ReprojectionRefinement(X, Y, Kf, df, None if E is None else E.copy(), res, srms,
-                                  outliers, float(sigma), cov,
-                                  parameter_names(pr)[:12 + pr.n_int], fit.nfev, history,
+                                  outliers, float(sigma), cov, names, fit.nfev, history,
                                   time.perf_counter() - t0, noise, corr_std)
 
 
@@ -254,36 +271,6 @@ def _place_on_axis(pr: ReprojectionProblem, p: Array, axis: OneAxis,
     row[0:3] = _jr(q[0:3]).T @ c[0:3]
     row[6:9] = _jr(q[6:9]).T @ c[6:9]
     return q, row
-
-
-def _covariance(A: Array, s2: float, row: Array | None, g: int) -> tuple[Array, Array | None]:
-    """``s2 A^-1`` for the shared unknowns ``(g, g)`` and the standard deviations ``(n, 6)``
-    of the robot-pose corrections (None without them), from the normal matrix ``A = J^T J``
-    ``(p, p)`` with the corrections eliminated by their Schur complement (no dense inverse
-    of the whole matrix); restricted to ``row . p = 0`` when a row is given (a constrained
-    direction of the shared unknowns that J does not see)."""
-    n = (A.shape[0] - g) // 6
-    try:
-        if n:
-            idx = g + 6 * np.arange(n)[:, None] + np.arange(6)
-            Ei = np.linalg.inv(A[idx[:, :, None], idx[:, None, :]])  # (n, 6, 6)
-            Fs = A[:g, g:].reshape(g, n, 6).transpose(1, 0, 2)  # (n, g, 6)
-            EiFt = Ei @ np.swapaxes(Fs, 1, 2)  # (n, 6, g)
-            S = A[:g, :g] - np.einsum("sgi,sih->gh", Fs, EiFt)
-        else:
-            S = A
-        if row is None:
-            Sg = np.linalg.inv(S)
-        else:
-            N = np.linalg.svd(row[:g].reshape(1, -1))[2][1:].T
-            Sg = N @ np.linalg.inv(N.T @ S @ N) @ N.T
-    except np.linalg.LinAlgError:
-        return np.full((g, g), np.inf), None if not n else np.full((n, 6), np.inf)
-    if not n:
-        return s2 * Sg, None
-    # diagonal blocks of the inverse: E^-1 + E^-1 F^T S^-1 F E^-1
-    dE = np.einsum("sig,gh,sih->si", EiFt, Sg, EiFt) + np.diagonal(Ei, axis1=1, axis2=2)
-    return s2 * Sg, np.sqrt(np.clip(s2 * dE, 0.0, None))
 
 
 def _outlier_stations(srms: Array, counts: Array, sigma: float, level: float) -> Array:
