@@ -8,8 +8,10 @@ are none:
    averaging) when its short side is at least `DOWNSCALE_SIDE` pixels: the detector's cost
    grows with the pixels, and the corners it returns only seed the sub-pixel search on the
    full image (their error stays within its window). On failure the full image follows.
-2. When the spec's grid is not found, the grid that *is* seen is surveyed on the reduced
-   image (``cv2.findChessboardCornersSB`` with ``CALIB_CB_LARGER``, the grid's outer
+2. When the spec's grid is not found (on the full image too, unless earlier images of the
+   same session (`Survey`) already showed a grid of another size), the grid that *is* seen
+   is surveyed on the reduced image (``cv2.findChessboardCornersSB`` with
+   ``CALIB_CB_LARGER``, the grid's outer
    rows and columns that are no corner where four squares meet trimmed by the saddle test
    of `_saddle_scores`: the sector detector adds the row between the outermost squares
    and the white margin). A whole grid of another size is named at once ("a whole
@@ -27,7 +29,7 @@ from kinecal.vision import require_cv2
 
 Array = NDArray[np.float64]
 
-__all__ = ["DOWNSCALE_SIDE", "find_chessboard", "seen_grid"]
+__all__ = ["DOWNSCALE_SIDE", "Survey", "find_chessboard", "seen_grid"]
 
 #: images whose short side is at least this (px) are searched reduced by an integer factor
 #: first, to a short side of at least half of it
@@ -51,7 +53,22 @@ def _reduced(gray: NDArray[np.uint8], f: int) -> NDArray[np.uint8]:
                       interpolation=cv2.INTER_AREA)
 
 
-def find_chessboard(gray: NDArray[np.uint8], size: tuple[int, int]
+class Survey:
+    """What one detection session's images showed: after two whole grids of another size
+    than the spec's (a wrong ``--board``), the other images are surveyed before the
+    full-image search, which for a wrong size costs a second each (threads may race on the
+    count: only the order of the searches depends on it, not their outcome)."""
+
+    def __init__(self) -> None:
+        self.other_size = 0
+
+    @property
+    def first(self) -> bool:
+        return self.other_size >= 2
+
+
+def find_chessboard(gray: NDArray[np.uint8], size: tuple[int, int],
+                    session: Survey | None = None
                     ) -> tuple[Array | None, tuple[int, int] | bool]:
     """The inner corners ``(cols * rows, 2)`` of a chessboard of `size` ``(cols, rows)`` in
     OpenCV's listing (full-image pixels), or None and what the survey saw instead: the
@@ -64,12 +81,19 @@ def find_chessboard(gray: NDArray[np.uint8], size: tuple[int, int]
     found, corners = cv2.findChessboardCorners(small, size, flags=flags)
     if found:
         return (corners.reshape(-1, 2).astype(float) + 0.5) * f - 0.5, False
+    survey_first = session is not None and session.first
+    if f > 1 and not survey_first:  # a board too small for the reduced image: the full one
+        found, corners = cv2.findChessboardCorners(gray, size, flags=flags)
+        if found:
+            return corners.reshape(-1, 2).astype(float), False
     seen = seen_grid(small)
     if seen is True and f > 1:  # a part on the reduced image: the full one may show it whole
         seen = seen_grid(gray)
     if not isinstance(seen, bool) and sorted(seen) != sorted(size):
+        if session is not None:
+            session.other_size += 1
         return None, _as_spec(seen, size)
-    if f > 1:
+    if f > 1 and survey_first:
         found, corners = cv2.findChessboardCorners(gray, size, flags=flags)
         if found:
             return corners.reshape(-1, 2).astype(float), False

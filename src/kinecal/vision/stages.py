@@ -19,7 +19,7 @@ from kinecal import diagnostics
 from kinecal.errors import InputError
 from kinecal.vision import require_cv2
 from kinecal.vision.boards import Board
-from kinecal.vision.detect import QualityLimits, as_gray, detect
+from kinecal.vision.detect import QualityLimits, Survey, as_gray, detect
 from kinecal.vision.image_files import check_image_file
 from kinecal.vision.intrinsics import CameraIntrinsics, estimate_intrinsics
 from kinecal.vision.pnp import board_pose
@@ -123,6 +123,7 @@ def detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
     it (`kinecal.vision.image_files.check_image_file`)."""
     pre = _sizes_before_decoding(images)
     size = _session_size([z for z in pre if isinstance(z, tuple)], expected)
+    session = Survey()
 
     def one(item: tuple[str, Any, Any]) -> tuple[ImageRecord, tuple[int, int] | None]:
         name, im, known = item
@@ -136,7 +137,7 @@ def detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
         h, w = gray.shape[:2]
         if size is not None and (w, h) != size:
             return ImageRecord(str(name), "rejected", _odd_size((w, h), size)), (w, h)
-        det = detect(gray, board, limits)
+        det = detect(gray, board, limits, session)
         record = ImageRecord(str(name), "used" if det.ok else "rejected", det.reason, det)
         if pose_of is not None and det.ok:
             pose_of(record)

@@ -116,7 +116,8 @@ def project(K: ArrayLike, dist: ArrayLike | None, P: ArrayLike) -> Array:
 
 
 def project_jacobian(
-    K: Array, dist8: Array, P: Array, rational: bool = False, jacobians: bool = True
+    K: Array, dist8: Array, P: Array, rational: bool = False, jacobians: bool = True,
+    intrinsics: bool = True,
 ) -> tuple[Array, Array | None, Array | None]:
     """Projection of points ``(N, 3)`` and its Jacobians.
 
@@ -131,6 +132,8 @@ def project_jacobian(
         Include ``k4, k5, k6`` in the intrinsic Jacobian (12 columns instead of 9).
     jacobians : bool
         False: the pixels only (both Jacobians None).
+    intrinsics : bool
+        False: no intrinsic Jacobian (None; callers with the intrinsics held).
 
     Returns
     -------
@@ -171,6 +174,8 @@ def project_jacobian(
     J_point[:, 1, 0] = a10 * iz
     J_point[:, 1, 1] = a11 * iz
     J_point[:, 1, 2] = -(a10 * x + a11 * y) * iz
+    if not intrinsics:
+        return uv, J_point, None
     # intrinsics: d(xd, yd) / d coefficient, then through Juv
     r4, r6 = r2 * r2, r2 * r2 * r2
     cols = [

@@ -47,7 +47,7 @@ from kinecal.spatial import skew
 Array = NDArray[np.float64]
 
 __all__ = ["COMPONENTS", "StationNoise", "covariances", "estimate_components",
-           "reml_loglik", "station_components", "whitening"]
+           "reml_loglik", "score_and_information", "station_components", "whitening"]
 
 #: the components' names, in the order of ``theta``
 COMPONENTS = ("camera_rotation", "translation", "robot_rotation")
@@ -191,26 +191,8 @@ def estimate_components(y: Array, J: Array, V: Array, theta: Array, floor: Array
     k = len(theta)
     free = np.array([j not in fixed for j in range(k)])
     rot_like = np.array([j != 1 for j in range(k)])
-    q = J.shape[2]
     for _ in range(max_iter):
-        W = np.linalg.inv(covariances(theta, V, floor))
-        B = W @ J  # (n, 6, q)
-        Ni = _scaled_pinv(J.reshape(-1, q).T @ B.reshape(-1, q))
-        p = Ni @ (B.reshape(-1, q).T @ y.ravel())
-        v = y - J @ p
-        Wv = (W @ v[..., None])[..., 0]
-        WV = W[None] @ V  # (k, n, 6, 6)
-        BtV = np.swapaxes(B, 1, 2)[None] @ V  # (k, n, q, 6)
-        BtVB = (BtV @ B[None]).sum(axis=1)  # (k, q, q)
-        NB = Ni[None] @ BtVB  # (k, q, q)
-        quad = ((V @ Wv[None, :, :, None])[..., 0] * Wv[None]).sum(axis=(1, 2))
-        trPV = np.trace(WV, axis1=2, axis2=3).sum(axis=1) - np.trace(NB, axis1=1, axis2=2)
-        g = 0.5 * (quad - trPV)
-        t1 = WV.reshape(k, -1) @ np.swapaxes(WV, 2, 3).reshape(k, -1).T
-        # tr(N^-1 B^T V_a W V_b B) summed over the stations
-        t2 = ((Ni[None, None] @ BtV) @ W[None]).reshape(k, -1) @ BtV.reshape(k, -1).T
-        t4 = NB.reshape(k, -1) @ np.swapaxes(NB, 1, 2).reshape(k, -1).T
-        F = 0.5 * (t1 - t2 - t2.T + t4)
+        g, F = score_and_information(y, J, V, theta, floor)
         step = np.zeros(k)
         idx = np.flatnonzero(free)
         Fs = F[np.ix_(idx, idx)]
@@ -226,6 +208,33 @@ def estimate_components(y: Array, J: Array, V: Array, theta: Array, floor: Array
         if done:
             break
     return theta
+
+
+def score_and_information(y: Array, J: Array, V: Array, theta: Array, floor: Array
+                          ) -> tuple[Array, Array]:
+    """The restricted log-likelihood's gradient ``(k,)`` in the components and its Fisher
+    information ``(k, k)`` at `theta` (`estimate_components`' arguments): ``g_a = (v^T W
+    V_a W v - tr(P V_a)) / 2``, ``F_ab = tr(P V_a P V_b) / 2`` with ``P = W - W J (J^T W
+    J)^+ J^T W``, every trace taken station by station."""
+    k, q = len(theta), J.shape[2]
+    W = np.linalg.inv(covariances(theta, V, floor))
+    B = W @ J  # (n, 6, q)
+    Ni = _scaled_pinv(J.reshape(-1, q).T @ B.reshape(-1, q))
+    p = Ni @ (B.reshape(-1, q).T @ y.ravel())
+    v = y - J @ p
+    Wv = (W @ v[..., None])[..., 0]
+    WV = W[None] @ V  # (k, n, 6, 6)
+    BtV = np.swapaxes(B, 1, 2)[None] @ V  # (k, n, q, 6)
+    BtVB = (BtV @ B[None]).sum(axis=1)  # (k, q, q)
+    NB = Ni[None] @ BtVB  # (k, q, q)
+    quad = ((V @ Wv[None, :, :, None])[..., 0] * Wv[None]).sum(axis=(1, 2))
+    trPV = np.trace(WV, axis1=2, axis2=3).sum(axis=1) - np.trace(NB, axis1=1, axis2=2)
+    g = 0.5 * (quad - trPV)
+    t1 = WV.reshape(k, -1) @ np.swapaxes(WV, 2, 3).reshape(k, -1).T
+    # tr(N^-1 B^T V_a W V_b B) summed over the stations
+    t2 = ((Ni[None, None] @ BtV) @ W[None]).reshape(k, -1) @ BtV.reshape(k, -1).T
+    t4 = NB.reshape(k, -1) @ np.swapaxes(NB, 1, 2).reshape(k, -1).T
+    return g, 0.5 * (t1 - t2 - t2.T + t4)
 
 
 def reml_loglik(y: Array, J: Array, V: Array, theta: Array, floor: Array) -> float:

@@ -35,6 +35,7 @@ from kinecal.calibration.handeye.camera import project_jacobian
 from kinecal.calibration.handeye.noise import (
     estimate_components,
     reml_loglik,
+    score_and_information,
     station_components,
 )
 from kinecal.calibration.handeye.refine import _jr_inv, residuals_and_jacobian
@@ -209,9 +210,24 @@ def estimate_robot_noise(F: Array, P: Array, uv: Array, sid: Array, counts: Arra
                       float(np.median(np.diagonal(V[0], axis1=1, axis2=2)[:, :3]))])
     keep = np.ones(n, bool)
     y = np.concatenate([rot, tr], axis=1)
+    # the score test at no robot noise first: on exact robot poses (the usual recording)
+    # the likelihood falls when any robot noise is added, and no estimate is needed
+    th0 = np.array([1.0, 0.0, 0.0])
+    g, Fi = score_and_information(y, J, V, th0, floor)
+    try:
+        step = np.linalg.solve(Fi[1:, 1:], g[1:])
+        score = float(g[1:] @ step)
+    except np.linalg.LinAlgError:
+        step, score = np.zeros(2), np.inf
+    if score < SIGNIFICANCE / 2 or np.all(g[1:] <= 0):
+        one = np.sqrt(np.clip(step, 0.0, None))  # one scoring step, for the record
+        return RobotNoise(float(one[1]), float(one[0]), "estimated-negligible",
+                          0.0, max(score, 0.0) if np.isfinite(score) else None)
     bound = float(chdtri(6, 1e-3))
     for _ in range(3):
-        theta = estimate_components(y[keep], J[keep], V[:, keep], theta, floor, fixed=(0,))
+        # a percent on a standard deviation is more than its estimate's own precision
+        theta = estimate_components(y[keep], J[keep], V[:, keep], theta, floor, fixed=(0,),
+                                    max_iter=12, tol=1e-2)
         S = np.einsum("k,knij->nij", theta, V) + np.diag(floor)
         d2 = np.einsum("ni,ni->n", y, np.linalg.solve(S, y[..., None])[..., 0])
         new = d2 <= bound * max(float(np.median(d2)) / 5.35, 1.0)
@@ -222,7 +238,6 @@ def estimate_robot_noise(F: Array, P: Array, uv: Array, sid: Array, counts: Arra
     share = float(np.mean(np.einsum("nii->n", np.linalg.solve(V[0] + np.diag(floor), robot)))
                   / 6.0)
     rot_sd, tr_sd = float(np.sqrt(theta[2])), float(np.sqrt(theta[1]))
-    th0 = np.array([1.0, 0.0, 0.0])
     stat = 2.0 * (reml_loglik(y[keep], J[keep], V[:, keep], theta, floor)
                   - reml_loglik(y[keep], J[keep], V[:, keep], th0, floor))
     source = "estimated" if stat > SIGNIFICANCE else "estimated-negligible"
