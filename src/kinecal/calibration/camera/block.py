@@ -52,6 +52,16 @@ __all__ = ["SETUPS", "PixelBlock", "nuisance_names"]
 SETUPS = ("eye-in-hand", "eye-to-hand")
 
 
+def _jr_of(w: Array) -> Array:
+    """The right Jacobian of SO(3) at one rotation vector `w` ``(3,)`` (the increments of
+    X and the board pose; `kinecal.calibration.handeye.refine._jr` for stacks): the identity
+    at zero, where every fit starts and most evaluations are."""
+    w = np.asarray(w, float)
+    if not w.any():
+        return np.eye(3)
+    return _jr(w)
+
+
 def _cross_rows(V: Array, a: Array) -> Array:
     """``V_c,r x a_c`` ``(M, r, 3)`` for rows `V` ``(M, r, 3)`` and vectors `a` ``(M, 3)``
     (``v^T [a]x = (v x a)^T``), written out: numpy's cross is several times slower here."""
@@ -297,11 +307,11 @@ class PixelBlock:
         J = np.empty((M, 2, self.n_nuisance + (1 if scale_column else 0)))
         # v^T [a]x = (v x a)^T: the rows of Jp [pc]x are Jp's rows crossed with pc
         J[:, :, 0:3] = (_cross_rows(Jp, pc).reshape(-1, 3)
-                        @ _jr(np.asarray(nu[0:3], float))).reshape(M, 2, 3)
+                        @ _jr_of(nu[0:3])).reshape(M, 2, 3)
         J[:, :, 3:6] = (Jp.reshape(-1, 3) @ -RX.T).reshape(M, 2, 3)
         AR = (A.reshape(-1, 3) @ RY).reshape(M, 2, 3)
         J[:, :, 6:9] = (-_cross_rows(AR, self.P).reshape(-1, 3)
-                        @ _jr(np.asarray(nu[6:9], float))).reshape(M, 2, 3)
+                        @ _jr_of(nu[6:9])).reshape(M, 2, 3)
         J[:, :, 9:12] = A
         if self.n_int:
             J[:, :, 12:12 + self.n_int] = Jint

@@ -123,8 +123,11 @@ class Passes:
         rot, tr, J = residuals_and_jacobian(G, C, X, Y, np.zeros(12), Gi)
         V = station_components(G, C, X, Y, rot, self.eye_in_hand)
         # while reweighting, a few steps from the last estimate suffice (the weights move it)
-        return estimate_components(np.concatenate([rot, tr], axis=1), J, V, theta,
-                                   self.floor, max_iter=30 if final else 4)
+        theta = estimate_components(np.concatenate([rot, tr], axis=1), J, V, theta,
+                                    self.floor, max_iter=30 if final else 4)
+        if final:  # below the round-off floor a component is zero (noise-free readings)
+            theta = np.where(theta < self.floor[[0, 3, 0]], 0.0, theta)
+        return theta
 
     def reweighted(self, X: Array, Y: Array, robust: bool, outlier_level: float,
                    max_outer: int, start_inliers: Array | None
