@@ -26,7 +26,8 @@ __all__ = ["calibrate_images"]
 #: options of ``calibrate`` that measured positions use and images do not
 _POSITION_ONLY = {"error_model": "--error-model", "harmonics": "--harmonics",
                   "folds": "--folds", "rotation_weight": "--rotation-weight",
-                  "sigma": "--sigma", "maxiter": "--maxiter", "target": "--target"}
+                  "sigma": "--sigma", "maxiter": "--maxiter", "target": "--target",
+                  "fixture": "--fixture"}
 
 
 def _one(value: Any, option: str) -> str | None:
@@ -48,14 +49,15 @@ def _match(folder: Path, path: Path, names: list[str], by_name: dict[str, Path])
 
 
 def _validation(model: Any, path: Path, folder: Path, images: Path, by_name: dict[str, Path],
-                names: list[str], listed: set[str]) -> tuple[Any, set[str]]:
+                names: list[str], listed: set[str], angle_unit: str | None = None
+                ) -> tuple[Any, set[str]]:
     """The held-out stations of ``--validate`` (their images in `folder`: ``--images`` or
     ``--validate-images``) and the image names of ``--images`` now accounted for. A
     validation image that is also a calibration image is refused (same file)."""
     from kinecal.cli.handeye_images import list_images
     from kinecal.io.stations import read_stations
 
-    vnames, vq = read_stations(path, model)
+    vnames, vq = read_stations(path, model, angle_unit=angle_unit)
     same = folder.resolve() == images.resolve()
     vby = by_name if same else {p.name: p for p in list_images(folder)}
     _match(folder, path, vnames, vby)
@@ -92,7 +94,7 @@ def calibrate_images(args: dict[str, Any]) -> None:
          out=args["out"], model_out=args["model_out"], report=args["report"],
          json_out=args["json_out"], quiet=args["quiet"], strict=args["strict"],
          min_corners=args["min_corners"], unit=args["unit"],
-         validate_images=args["validate_images"],
+         validate_images=args["validate_images"], angle_unit=args.get("angle_unit"),
          record=(args["instrument"], args["operator"], args["note"]))
 
 
@@ -101,7 +103,7 @@ def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
          validate: str | None, free: Any, loss: str, out: Path | None,
          model_out: Path | None, report: Path | None, json_out: bool, quiet: bool,
          strict: bool, min_corners: int | None = None, unit: str = "auto",
-         validate_images: Path | None = None,
+         validate_images: Path | None = None, angle_unit: str | None = None,
          record: tuple[str | None, str | None, str | None] = (None, None, None)) -> None:
     from kinecal.cli.handeye_images import IMAGE_SUFFIXES, limits_option, list_images
 
@@ -138,14 +140,14 @@ def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
         the_board = parse_board(board)
         limits = limits_option(min_corners, the_board)
         m = load_model_arg(model, base_link, tip_link)
-        names, q = read_stations(Path(data), m)
+        names, q = read_stations(Path(data), m, angle_unit=angle_unit)
         files = list_images(images)
         by_name = {p.name: p for p in files}
         _match(images, Path(data), names, by_name)
         val, listed = None, set(names)
         if validate is not None:
             val, listed = _validation(m, Path(validate), validate_images or images, images,
-                                      by_name, names, listed)
+                                      by_name, names, listed, angle_unit)
         unlisted = sorted(set(by_name) - listed)
         if unlisted:
             raise InputError(f"{len(unlisted)} image(s) in {images} without joints (no row in "
