@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from kinecal import diagnostics
 from kinecal.calibration.handeye import calibrate_handeye
+from kinecal.calibration.handeye.board_scale import warn_board_scale
 from kinecal.calibration.handeye.images import refine_reprojection
 from kinecal.calibration.handeye.refinement import ReprojectionRefinement
 from kinecal.errors import InputError
@@ -225,7 +226,7 @@ def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
         seed = calibrate_handeye(F, C, setup=setup, method=method, refine=first,
                                  robust=first == "lm", **axis)
     if scale:
-        _warn_board_scale(board, G, C, seed.X, scale[0].message)
+        warn_board_scale(board.spec, board.pitch, G, C, seed.X, scale[0].message)
     one = _one_axis(seed, F, setup, axis["camera_height"], axis["board_contact"])
     try:
         ref = refine(seed)
@@ -238,30 +239,6 @@ def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
             seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm", **axis)
         ref = refine(seed)
     return seed, ref, one
-
-
-def _warn_board_scale(board: Board, G: Array, C: Array, X: Array, fallback: str) -> None:
-    """``scale-mismatch`` of images: the board poses take their lengths from the board's
-    size, so a factor between the robot's translations and the camera's names the --board
-    square size (or the robot poses' unit)."""
-    from kinecal.calibration.diagnostics.handeye import translation_scale
-
-    sc = translation_scale(G, C, X)
-    if sc is None or not sc.unit_factor:
-        diagnostics.warn("scale-mismatch", fallback)
-        return
-    board_words = (f"the board's size is probably {sc.s:.4g} times larger (corner spacing "
-                   f"{board.pitch * sc.s:.4g}, not {board.pitch:g}: measure the print)")
-    units = min((1e3, 1e-3, 25.4, 1 / 25.4, 10.0, 0.1), key=lambda f: abs(np.log(sc.s / f)))
-    if abs(np.log(sc.s / units)) < np.log(1.05):  # a unit factor: that first
-        from kinecal.calibration.diagnostics.handeye import _units
-
-        why = f"{_units(1.0 / sc.s)} (give both in one unit), or {board_words}"
-    else:
-        why = f"{board_words}, or the robot poses are in another length unit"
-    diagnostics.warn("scale-mismatch",
-                     f"the robot's translations are {sc.s:.4g} times what the images measure "
-                     f"with the board {board.spec}: {why}")
 
 
 def _plausibility(ref: ReprojectionRefinement, records: list[ImageRecord],

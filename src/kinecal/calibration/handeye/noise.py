@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.calibration.handeye.refine import _jr_inv
+from kinecal.calibration.handeye.residuals import _jr_inv
 from kinecal.spatial import skew
 
 Array = NDArray[np.float64]

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.calibration.handeye.refine import (
+from kinecal.calibration.handeye.residuals import (
     _CAUCHY_C,
     _MIN_ESTIMATED,
     _chi2_isf6,
