@@ -27,7 +27,9 @@ __all__ = ["calibrate_images"]
 _POSITION_ONLY = {"error_model": "--error-model", "harmonics": "--harmonics",
                   "folds": "--folds", "rotation_weight": "--rotation-weight",
                   "sigma": "--sigma", "maxiter": "--maxiter", "target": "--target",
-                  "fixture": "--fixture"}
+                  "fixture": "--fixture", "orientation_format": "--orientation-format",
+                  "station_per_file": "--station-per-file",
+                  "validate_register": "--validate-register"}
 
 
 def _one(value: Any, option: str) -> str | None:
@@ -83,7 +85,8 @@ def calibrate_images(args: dict[str, Any]) -> None:
     work."""
     from kinecal.cli._serial_common import free_option
 
-    given = [opt for key, opt in _POSITION_ONLY.items() if args.get(key) not in (None, [])]
+    given = [opt for key, opt in _POSITION_ONLY.items()
+             if args.get(key) not in (None, [], False)]
     if given:
         raise InputError("applies to measured positions, not to --images", option=given[0])
     data, validate = _one(args["data"], "STATIONS"), _one(args["validate"], "--validate")
