@@ -59,6 +59,7 @@ class PriorStack(StackedProblem):
     def __init__(self, problem: StackedProblem, prior: Prior, noise: float) -> None:
         super().__init__(problem.model, problem.blocks, problem.free, problem.sigma,
                          problem.base_params)
+        self.exclude(problem.excluded)  # observations a robust start left out stay out
         self.w = noise * np.sqrt(prior.precision)
         self.mean = np.asarray(prior.mean, dtype=float)
 

@@ -67,7 +67,7 @@ OPTION = "--prior"
 
 def is_setup(name: str) -> bool:
     """True for the measurement set-up's parameters (base frame, tool points, markers)."""
-    return name in BASE_NAMES or name.startswith("tool.")
+    return name in BASE_NAMES or name.startswith(("base@", "tool."))
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import OptimizeResult
 
-from kinecal.calibration.serial.cross_validation import CVScore, FoldedRows, fold_of
+from kinecal.calibration.serial.cross_validation import (
+    CVScore,
+    FoldedRows,
+    data_poses,
+    fold_of,
+    n_poses,
+)
 from kinecal.calibration.serial.prior import Prior, PriorSpec, resolve_prior, tolerance_sigma
 from kinecal.calibration.serial.prior_fit import (
     PriorFit,
@@ -154,8 +160,8 @@ def choose_strength(problem: CalibrationProblem, res: OptimizeResult, spec: Prio
         With ``strength`` None when no prior is chosen; ``choice`` holds the table.
     """
     model, names = problem.model, list(problem.free)
-    n = len(problem.data)
-    refit = n <= REFIT_ROWS
+    n = n_poses(problem.data)  # rows at several markers of one pose fold together
+    refit = len(problem.data) <= REFIT_ROWS
     k_folds = min((REFIT_FOLDS if refit else DEFAULT_FOLDS) if folds is None else int(folds), n)
     if k_folds < 2:
         raise InputError(f"--prior auto: {n} poses leave no folds to cross-validate on",
@@ -165,7 +171,7 @@ def choose_strength(problem: CalibrationProblem, res: OptimizeResult, spec: Prio
         out.choice = {"folds": k_folds, "candidates": [], "chosen": None}
         return out
     cols = [list(range(len(names)))]
-    folds_of = fold_of(len(problem.data), k_folds)
+    folds_of = fold_of(len(problem.data), k_folds, data_poses(problem.data))
 
     def fit(prior: Prior, x: Array) -> Array:
         return np.asarray(map_from_both(PriorProblem(problem, prior, noise), prior, x).x,
