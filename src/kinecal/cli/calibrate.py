@@ -10,7 +10,9 @@ import typer
 
 from kinecal._limits import check_count, check_finite
 from kinecal.calibration.method_options import check_error_model_options, check_method_options
+from kinecal.cli import _calibrate_options as opt
 from kinecal.cli._app import app
+from kinecal.cli._calibrate_options import ERROR_MODELS
 from kinecal.cli._common import (
     check_paths,
     echo_json,
@@ -21,7 +23,6 @@ from kinecal.cli._common import (
     write_json,
 )
 from kinecal.cli._options import (
-    CALIBRATION_METHOD_CHOICES,
     MODEL_HELP,
     base_link_option,
     check_unit,
@@ -45,9 +46,6 @@ from kinecal.cli.calibrate_kinds import (
     parse_sigma,
 )
 from kinecal.errors import InputError
-
-#: --error-model values (and families joined by '+')
-ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto")
 
 
 @app.command()
@@ -143,64 +141,34 @@ def calibrate(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
-    data: list[str] = typer.Argument(..., help="Measurement CSV(s) or NAME:PART; several "
-                                     "files of any kinds make one problem "
-                                     "(docs/measurement-kinds.md)."),
-    method: str = typer.Option("lm", "--method", metavar=choices(*CALIBRATION_METHOD_CHOICES),
-                               help="Levenberg-Marquardt, Householder Gauss-Newton, a "
-                               "metaheuristic, or least squares then a metaheuristic "
-                               "(hybrid-ga, ...). See docs/optimizers.md."),
-    validate: list[str] | None = typer.Option(
-        None, "--validate", help="Validation CSV or NAME:PART (any kind; repeatable)."),
-    free: str = typer.Option("identifiable", "--free",
-                             metavar=choices("identifiable", "all", "NAMES"),
-                             help="The identifiable parameters, all or comma-separated "
-                             "names."),
+    data: list[str] = opt.DATA,
+    method: str = opt.METHOD,
+    validate: list[str] | None = opt.VALIDATE,
+    free: str = opt.FREE,
     seed: int = seed_option("Random seed (metaheuristics; an integer >= 0)."),
-    loss: str = typer.Option("linear", "--loss", metavar=choices(
-        "linear", "huber", "soft_l1", "cauchy", "arctan"), help="Loss of the residuals (robust "
-        "losses with lm only)."),
-    maxiter: int | None = typer.Option(None, "--maxiter", help="Iteration budget."),
-    target: float | None = typer.Option(None, "--target", help="Stop at this mean distance "
-                                        "error (model length unit; metaheuristics)."),
-    out: Path | None = typer.Option(None, "--out", help="Result JSON to write."),
-    model_out: Path | None = typer.Option(None, "--model-out", help="Calibrated model YAML."),
+    loss: str = opt.LOSS,
+    maxiter: int | None = opt.MAXITER,
+    target: float | None = opt.TARGET,
+    out: Path | None = opt.OUT,
+    model_out: Path | None = opt.MODEL_OUT,
     report: Path | None = report_option(),
-    json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
+    json_out: bool = opt.JSON,
     unit: str = unit_option(),
     quiet: bool = quiet_option(),
     strict: bool = strict_option(),
-    rotation_weight: float | None = typer.Option(
-        None, "--rotation-weight", help="With measured orientations: length units per rad of "
-        "rotation error (default: the workspace's characteristic length)."),
-    error_model: str | None = typer.Option(
-        None, "--error-model", metavar=choices(*ERROR_MODELS), help="auto: chosen by "
-        "cross-validation on the calibration poses; or families joined by '+' (default: the "
-        "model file's joint_errors, else geometric). See docs/error-models.md."),
-    harmonics: int | None = typer.Option(
-        None, "--harmonics", help="Harmonic order (default 2; auto tries 1..3)."),
-    folds: int | None = typer.Option(None, "--folds", help="Cross-validation folds "
-                                     "(--error-model auto; default 10)."),
-    sigma: list[str] | None = typer.Option(
-        None, "--sigma", help="The instrument's stated 1-sigma noise per coordinate (length "
-        "unit): the residual is tested against it (chi-square) and the standard errors with "
-        "it known are added. Several files: FILE=SIGMA (repeatable) or SIGMA,SIGMA,... in "
-        "file order. See docs/diagnostics.md."),
+    rotation_weight: float | None = opt.ROTATION_WEIGHT,
+    error_model: str | None = opt.ERROR_MODEL,
+    harmonics: int | None = opt.HARMONICS,
+    folds: int | None = opt.FOLDS,
+    sigma: list[str] | None = opt.SIGMA,
     instrument: str | None = instrument_option(),
     operator: str | None = operator_option(),
     note: str | None = note_option(),
-    images: Path | None = typer.Option(None, "--images", help="Folder of board images: "
-                                       "DATA is then STATIONS.csv (image,q1..qn). See "
-                                       "docs/arm-from-images.md."),
-    board: str | None = typer.Option(None, "--board", help="With --images: the board, "
-                                     "e.g. chessboard:9x6:25."),
-    intrinsics: Path | None = typer.Option(None, "--intrinsics", help="With --images: "
-                                           "camera YAML (default: from the images)."),
-    setup: str = typer.Option("eye-in-hand", "--setup", help="With --images: eye-in-hand "
-                              "or eye-to-hand."),
-    min_corners: int | None = typer.Option(None, "--min-corners", help="With --images: "
-                                           "fewest corners an image must show (ChArUco, "
-                                           "seen in part; default 60 % of the board's)."),
+    images: Path | None = opt.IMAGES,
+    board: str | None = opt.BOARD,
+    intrinsics: Path | None = opt.INTRINSICS,
+    setup: str = opt.SETUP,
+    min_corners: int | None = opt.MIN_CORNERS,
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
     or from board images with --images."""
