@@ -18,7 +18,12 @@ import numpy as np
 from kinecal import diagnostics
 from kinecal.calibration.blocks.analysis import analyse_stack, report_for, unseen_words
 from kinecal.calibration.blocks.base import ResidualBlock
-from kinecal.calibration.blocks.checks import check_block_data, check_blocks, check_fits
+from kinecal.calibration.blocks.checks import (
+    check_block_data,
+    check_blocks,
+    check_fits,
+    check_validation_overlap,
+)
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
 from kinecal.calibration.blocks.result import KindsCalibrationResult, kind_entry
 from kinecal.calibration.blocks.solve import fit_stack
@@ -164,6 +169,7 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
     ana0 = analyse_stack(start, start.pack(p0, nuis0), rank_tol, check=True)
     names = ana0.report.identifiable if free == "identifiable" else cand
     check_blocks(model, blocks, nuis0, before, ana0, names)
+    check_validation_overlap(blocks, val_blocks)
     vb = _check_validation(model, val_blocks, ana0.report.names)
     fit = fit_stack(model, blocks, list(names), cand, p0, nuis0, sig0, known, tol=rank_tol,
                     grow=free == "identifiable", loss=loss, f_scale=f_scale)

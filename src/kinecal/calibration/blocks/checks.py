@@ -25,7 +25,7 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.chain import BASE_NAMES
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["check_block_data", "check_blocks", "check_fits"]
+__all__ = ["check_block_data", "check_blocks", "check_fits", "check_validation_overlap"]
 
 
 def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, before,
@@ -69,6 +69,31 @@ def check_block_data(model: SerialModel, blocks: Sequence[ResidualBlock], nuisan
         if b.unit == "length" and e.size and not warned:
             check_initial_error(name, float(np.sqrt(np.mean(e**2))), ref.reach,
                                 ref.tolerance_error, model.length_unit)
+
+
+def check_validation_overlap(blocks: Sequence[ResidualBlock],
+                             validation: Sequence[ResidualBlock]) -> None:
+    """``validation-overlap``: rows of a validation set whose joint readings (and marker)
+    repeat rows of a calibration set of the same kind (one file given as both, or poses
+    measured for both): its statistics are then not independent of the fit. Another kind
+    at the same pose (a ballbar row where the tracker measured) is another measurement."""
+    for v in validation:
+        same = [b for b in blocks if b.kind == v.kind and np.shape(b.q)[1:] == np.shape(v.q)[1:]]
+        if not same or not len(v.q):
+            continue
+        q = np.concatenate([b.q for b in same] + [v.q])
+        marks = [np.zeros(len(b.q)) if b.marker is None else b.marker for b in [*same, v]]
+        groups, _ = repeat_groups(q, np.concatenate(marks)[:, None])
+        n_cal = len(q) - len(v.q)
+        n = int(np.isin(groups[n_cal:], groups[:n_cal]).sum())
+        if n:
+            names = ", ".join(b.name for b in same)
+            warn("validation-overlap",
+                 f"validation {v.name}: {n} of {plural(len(v.q), 'row')} repeat the joint "
+                 f"readings of {names}"
+                 + (" (the validation set is a calibration set)" if n == len(v.q) else "")
+                 + ": validation statistics are then not independent of the fit; validate "
+                 "on poses not used for calibration")
 
 
 def _check_same_sets(blocks: Sequence[ResidualBlock], what: str) -> None:
