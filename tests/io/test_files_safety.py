@@ -15,11 +15,10 @@ from kinecal import _files
 from kinecal._files import (
     STALE_TEMP_SECONDS,
     atomic_open,
-    load_yaml,
-    read_yaml_mapping,
     sweep_stale_temp_files,
     write_text_atomic,
 )
+from kinecal._yaml import load_yaml, read_yaml_mapping
 from kinecal.errors import InputError
 
 SRC = str(Path(__file__).resolve().parents[2] / "src")

@@ -347,7 +347,7 @@ def simulate(
 
 def _geometry_unit(spec: str) -> str:
     """The length unit a geometry file declares (``m`` when it says nothing)."""
-    from kinecal._files import read_yaml_mapping
+    from kinecal._yaml import read_yaml_mapping
     from kinecal.io.geometry import geometry_path
 
     unit = read_yaml_mapping(geometry_path(spec)).get("length_unit", "m")
