@@ -12,8 +12,8 @@ from pathlib import Path
 SRC = Path(__file__).resolve().parents[1] / "src" / "kinecal"
 
 #: modules of the ground floor: everything may import them
-GROUND = {"spatial", "errors", "diagnostics", "_files", "_yaml", "_limits", "data", "_lazy",
-          "_special"}
+GROUND = {"spatial", "errors", "diagnostics", "_files", "_temps", "_yaml", "_limits", "data",
+          "_lazy", "_special"}
 #: shared helpers of every calibration kind (``kinecal.calibration.<module>``)
 CALIBRATION_SHARED = {"identifiability", "uncertainty", "covariance", "method_options"}
 

@@ -4,12 +4,9 @@ Writes go to a temporary file in the target directory, then a rename: an existin
 is never half overwritten. Reads turn every failure into `kinecal.InputError` naming the
 file. (This module sits beside `kinecal.errors`, below all layers.)
 
-Temporary files are named ``.<name>.kinecal-<host>-<pid>.<random>.tmp`` (``<host>``: 8 hex
-digits of a hash of the host name, ``<pid>``: the writing process). A write that is killed
-before its rename (SIGKILL, power loss) leaves one behind; the next write into the same
-folder removes every such file whose writer process is gone (same host) or that has not
-been touched for `STALE_TEMP_SECONDS` (any host), so a killed 500 MB write does not stay
-on the disk for good.
+A write killed before its rename leaves its temporary file; the next write into the same
+folder removes it (`kinecal._temps`). `all_or_nothing` commits the several files of one
+command together.
 """
 
 from __future__ import annotations
@@ -18,39 +15,30 @@ import contextlib
 import errno
 import json
 import os
-import re
 import stat
 import tempfile
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
+from kinecal._temps import sweep_once, temp_prefix
 from kinecal.errors import InputError
 
 __all__ = [
     "MAX_TEXT_BYTES",
-    "STALE_TEMP_SECONDS",
+    "all_or_nothing",
     "atomic_open",
     "check_input_file",
     "probe_writable",
     "read_json",
     "read_text",
-    "sweep_stale_temp_files",
     "write_bytes_atomic",
     "write_text_atomic",
+    "written_in_place",
 ]
 
-#: a temporary file of another host (or of a recycled pid) untouched this long is stale
-STALE_TEMP_SECONDS = 24 * 3600.0
 #: largest text input (model, geometry, jobs, JSON, FileStorage YAML) read into memory
 MAX_TEXT_BYTES = 256_000_000
-#: the part of the target's name kept in a temporary name (names are limited to 255 bytes)
-_NAME_KEEP = 100
-
-_TEMP_RE = re.compile(r"^\..*\.kinecal-([0-9a-f]{8})-(\d+)\.[^.]+\.tmp$", re.DOTALL)
-#: folders already swept by this process (a sweep lists the folder: once is enough)
-_SWEPT: set[str] = set()
 #: errors of the path itself (a user mistake, exit 2), as opposed to the disk (exit 1)
 _PATH_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENAMETOOLONG, errno.ENOTDIR,
                 errno.EISDIR, errno.ELOOP, errno.ENOENT}
@@ -58,66 +46,6 @@ _PATH_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENAMETOOLONG, errn
 
 #: errors of the disk (exit 1), not of the path
 _DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO}
-
-
-def _host_tag() -> str:
-    import hashlib  # lazily: 4 ms of every command's start-up
-    import socket
-
-    return hashlib.sha1(socket.gethostname().encode("utf-8", "replace")).hexdigest()[:8]
-
-
-def pid_alive(pid: int) -> bool:
-    """Whether process `pid` exists (True when it cannot be probed: Windows, no permission)."""
-    if os.name == "nt":  # os.kill(pid, 0) is not a probe there: rely on the age rule
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except (PermissionError, OverflowError, OSError):  # exists, or cannot be probed
-        return True
-    return True
-
-
-def sweep_stale_temp_files(folder: str | Path, *, now: float | None = None) -> list[Path]:
-    """Remove kinecal's own stale temporary files in `folder`; return the removed paths.
-
-    A temporary file (see the module docstring for the naming) is stale when it was
-    written on this host by a process that no longer exists, or when it has not been
-    modified for `STALE_TEMP_SECONDS`. Other files are never touched; errors (a file
-    removed meanwhile, no permission) are ignored.
-    """
-    folder = Path(folder)
-    now = time.time() if now is None else now
-    host, removed = _host_tag(), []
-    try:
-        entries = list(os.scandir(folder))
-    except OSError:
-        return removed
-    for entry in entries:
-        m = _TEMP_RE.match(entry.name)
-        if m is None:
-            continue
-        try:
-            st = entry.stat(follow_symlinks=False)
-            if not stat.S_ISREG(st.st_mode):
-                continue
-            dead = m.group(1) == host and int(m.group(2)) != os.getpid() \
-                and not pid_alive(int(m.group(2)))
-            if dead or now - st.st_mtime > STALE_TEMP_SECONDS:
-                os.unlink(entry.path)
-                removed.append(Path(entry.path))
-        except OSError:
-            continue
-    return removed
-
-
-def _sweep_once(folder: Path) -> None:
-    key = os.path.abspath(folder)
-    if key not in _SWEPT:
-        _SWEPT.add(key)
-        sweep_stale_temp_files(folder)
 
 
 def _path_error(exc: OSError, path: Path) -> Exception:
@@ -134,11 +62,43 @@ def _named(exc: OSError, path: Path) -> OSError:
     return exc
 
 
+def _open_fd(path: Path) -> int | None:
+    """The descriptor behind `path` when it names one of this process's open files
+    (``/dev/stdout``, ``/dev/stderr``, ``/dev/fd/N``, ``/proc/self/fd/N``): the output the
+    shell redirected, written through that descriptor (a pipe, a terminal, a file opened
+    for appending), never replaced. None for any other path."""
+    names = {"/dev/stdout": 1, "/dev/stderr": 2}
+    text = os.path.abspath(path)
+    for _ in range(8):  # /dev/stdout -> /proc/self/fd/1 -> ...
+        if text in names:
+            return names[text]
+        for prefix in ("/dev/fd/", "/proc/self/fd/", f"/proc/{os.getpid()}/fd/"):
+            if text.startswith(prefix) and text[len(prefix):].isdigit():
+                return int(text[len(prefix):])
+        try:
+            link = os.readlink(text)
+        except OSError:
+            return None
+        text = os.path.normpath(os.path.join(os.path.dirname(text), link))
+    return None
+
+
+def written_in_place(path: str | Path) -> bool:
+    """True when a write to `path` goes into it directly rather than by a rename: an open
+    descriptor (`_open_fd`), a device (``/dev/null``), a FIFO."""
+    if _open_fd(Path(path)) is not None:
+        return True
+    try:
+        return not stat.S_ISREG(os.stat(path).st_mode)
+    except (OSError, ValueError):
+        return False
+
+
 def probe_writable(path: str | Path) -> None:
     """Create and remove a temporary file beside `path`, as `atomic_open` will: the one
     sure test that the folder takes a new file (``/proc``, a read-only mount, a full
-    inode table refuse it whatever the permission bits say). Devices and FIFOs, written in
-    place, and missing folders are left to the writer.
+    inode table refuse it whatever the permission bits say). Devices, FIFOs and open
+    descriptors, written in place, and missing folders are left to the writer.
 
     Raises
     ------
@@ -146,22 +106,99 @@ def probe_writable(path: str | Path) -> None:
         The folder refuses the file (with the reason).
     """
     path = Path(path)
-    target = Path(os.path.realpath(path)) if path.is_symlink() else path
-    try:
-        if target.exists() and not target.is_file():
-            return
-    except OSError:
+    if written_in_place(path):
         return
+    target = Path(os.path.realpath(path)) if path.is_symlink() else path
     if not target.parent.is_dir():
         return
-    prefix = f".{target.name[:_NAME_KEEP]}.kinecal-{_host_tag()}-{os.getpid()}."
     try:
-        fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=".tmp", dir=target.parent)
+        fd, tmp = tempfile.mkstemp(prefix=temp_prefix(target), suffix=".tmp", dir=target.parent)
     except OSError as exc:
         raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None
     os.close(fd)
     with contextlib.suppress(OSError):
         os.unlink(tmp)
+
+
+#: the writes of the open `all_or_nothing` block: target -> its finished temporary file
+_PENDING: dict[Path, str] | None = None
+
+
+@contextlib.contextmanager
+def all_or_nothing() -> Iterator[None]:
+    """Commit every `atomic_open` write of the block together, or none of them.
+
+    Inside the block each file is written, flushed and synced to its temporary file as
+    usual, but not yet renamed; when the block ends normally every temporary file is
+    renamed over its target (with Ctrl-C, SIGTERM and SIGHUP held back for those few
+    renames). When the block ends by an exception (a disk full while the report is
+    written, Ctrl-C while a PDF is rendered, a ``ulimit -f`` exceeded), every temporary
+    file is removed and no earlier output is replaced: a command's result JSON, model and
+    report are either all new or all as they were. Writes in place (`written_in_place`:
+    ``/dev/stdout``, a device, a FIFO) cannot wait and are made at once. Blocks nest: the
+    outermost one commits.
+    """
+    global _PENDING
+    if _PENDING is not None:
+        yield
+        return
+    _PENDING = pending = {}
+    try:
+        yield
+    except BaseException:
+        _discard(pending)
+        raise
+    finally:
+        _PENDING = None
+    _commit(pending)
+
+
+def _discard(pending: dict[Path, str]) -> None:
+    for tmp in pending.values():
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+    pending.clear()
+
+
+def _commit(pending: dict[Path, str]) -> None:
+    """Rename every finished temporary file over its target, signals held back meanwhile."""
+    import signal
+    import threading
+
+    held = [getattr(signal, s) for s in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, s)]
+    block = hasattr(signal, "pthread_sigmask") and \
+        threading.current_thread() is threading.main_thread()
+    if block:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        for target in list(pending):
+            try:
+                os.replace(pending[target], target)
+            except OSError as exc:
+                raise _path_error(exc, target) from None
+            del pending[target]
+    finally:
+        _discard(pending)
+        if block:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+@contextlib.contextmanager
+def _in_place(path: Path, target: Path, fd: int | None, mode: str,
+              encoding: str | None) -> Iterator[IO]:
+    """Write a device, a FIFO or an open descriptor (`fd`) directly."""
+    try:
+        if fd is not None:  # the redirected output: its own descriptor, not a reopening
+            fh = os.fdopen(os.dup(fd), mode, encoding=encoding)
+        else:
+            fh = open(target, mode, encoding=encoding)
+    except OSError as exc:
+        raise _path_error(exc, path) from None
+    try:
+        with fh:
+            yield fh
+    except OSError as exc:  # /dev/full: name the file written
+        raise _named(exc, path) from None
 
 
 @contextlib.contextmanager
@@ -171,29 +208,25 @@ def atomic_open(path: str | Path, mode: str = "w", encoding: str | None = "utf-8
     An exception inside the ``with`` block removes the temporary file and leaves any
     existing `path` untouched. A symbolic link is followed (the file it points to is
     replaced, the link stays); an existing target that is not a regular file (a device
-    such as ``/dev/null``, a FIFO) is written directly, never replaced. An existing file
-    without write permission is refused. Stale temporary files of earlier killed writes
-    in the folder are removed first (`sweep_stale_temp_files`).
+    such as ``/dev/null``, a FIFO) and an open descriptor (``/dev/stdout``, written through
+    the descriptor the shell redirected) are written directly, never replaced. An existing
+    file without write permission is refused. Stale temporary files of earlier killed
+    writes in the folder are removed first (`sweep_stale_temp_files`). Inside an
+    `all_or_nothing` block the rename waits for the end of the block.
     """
     path = Path(path)
-    if path.is_dir():
+    encoding = None if "b" in mode else encoding
+    fd = _open_fd(path)
+    if fd is None and path.is_dir():
         raise InputError("is a directory; expected a file path to write", file=path)
     target = Path(os.path.realpath(path)) if path.is_symlink() else path
-    binary = "b" in mode
     try:
         st = target.stat()
     except OSError:
         st = None
-    if st is not None and not stat.S_ISREG(st.st_mode):  # /dev/null, a FIFO: no rename
-        try:
-            fh = open(target, mode, encoding=None if binary else encoding)
-        except OSError as exc:
-            raise _path_error(exc, path) from None
-        try:
-            with fh:
-                yield fh
-        except OSError as exc:  # /dev/full: name the file written
-            raise _named(exc, path) from None
+    if fd is not None or (st is not None and not stat.S_ISREG(st.st_mode)):
+        with _in_place(path, target, fd, mode, encoding) as fh:
+            yield fh
         return
     if st is not None and not os.access(target, os.W_OK):
         raise InputError("is read-only; refusing to replace it (change its permissions or "
@@ -202,21 +235,26 @@ def atomic_open(path: str | Path, mode: str = "w", encoding: str | None = "utf-8
         raise InputError("file name too long (at most 255 bytes)", file=path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        _sweep_once(target.parent)
-        prefix = f".{target.name[:_NAME_KEEP]}.kinecal-{_host_tag()}-{os.getpid()}."
-        fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=".tmp", dir=target.parent)
+        sweep_once(target.parent)
+        fd, tmp = tempfile.mkstemp(prefix=temp_prefix(target), suffix=".tmp", dir=target.parent)
     except OSError as exc:  # parent is a file, no permission, read-only file system
         raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None
     try:
         os.chmod(tmp, _file_mode(target))  # mkstemp makes 0600; a result file is 0644-like
         try:
-            with os.fdopen(fd, mode, encoding=None if binary else encoding,
-                           newline=None) as fh:
+            with os.fdopen(fd, mode, encoding=encoding, newline=None) as fh:
                 yield fh
                 fh.flush()
                 os.fsync(fh.fileno())
         except OSError as exc:
             raise _named(exc, path) from None
+        if _PENDING is not None:  # all_or_nothing: renamed with the others at its end
+            old = _PENDING.pop(target, None)
+            _PENDING[target] = tmp
+            if old is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(old)
+            return
         try:
             os.replace(tmp, target)
         except OSError as exc:
