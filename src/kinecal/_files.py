@@ -89,9 +89,10 @@ def written_in_place(path: str | Path) -> bool:
     if _open_fd(Path(path)) is not None:
         return True
     try:
-        return not stat.S_ISREG(os.stat(path).st_mode)
+        mode = os.stat(path).st_mode
     except (OSError, ValueError):
         return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
 
 
 def probe_writable(path: str | Path) -> None:

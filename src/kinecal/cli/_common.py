@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from kinecal._files import check_input_file, probe_writable, write_text_atomic
+from kinecal._files import atomic_open, check_input_file, probe_writable, written_in_place
 from kinecal.errors import InputError
 
 __all__ = [
@@ -22,9 +22,11 @@ __all__ = [
     "progress_columns",
     "report_record",
     "resolve_data_path",
+    "status",
     "to_jsonable",
     "warnings_scope",
     "with_warnings",
+    "without_times",
     "write_json",
 ]
 
@@ -48,14 +50,40 @@ def to_jsonable(obj: Any) -> Any:
     return obj
 
 
+#: keys of a result dictionary that hold the time a run took
+TIME_KEYS = ("seconds", "seconds_mean", "elapsed")
+
+
+def without_times(obj: Any) -> Any:
+    """`obj` (a result dictionary) with every time a run took (`TIME_KEYS`) set to None
+    when ``SOURCE_DATE_EPOCH`` is set (`kinecal._reproducible.reproducible`): two runs
+    then print and write the same bytes. `obj` itself otherwise."""
+    from kinecal._reproducible import reproducible
+
+    if not reproducible():
+        return obj
+
+    def strip(o: Any) -> Any:
+        if isinstance(o, dict):
+            return {k: None if k in TIME_KEYS else strip(v) for k, v in o.items()}
+        if isinstance(o, list | tuple):
+            return [strip(v) for v in o]
+        return o
+
+    return strip(obj)
+
+
 def echo_json(obj: Any) -> None:
-    """Print `obj` as indented JSON on stdout."""
-    sys.stdout.write(json.dumps(to_jsonable(obj), indent=2) + "\n")
+    """Print `obj` as indented JSON on stdout (`without_times`)."""
+    sys.stdout.write(json.dumps(to_jsonable(without_times(obj)), indent=2) + "\n")
 
 
 def write_json(path: str | Path, obj: Any) -> None:
-    """Write `obj` as JSON to `path` atomically."""
-    write_text_atomic(path, json.dumps(to_jsonable(obj), indent=2) + "\n")
+    """Write `obj` as indented JSON to `path` atomically (`without_times`), encoded piece
+    by piece into the file rather than as one string."""
+    with atomic_open(path, "w") as fh:
+        json.dump(to_jsonable(without_times(obj)), fh, indent=2)
+        fh.write("\n")
 
 
 def resolve_data_path(spec: str, option: str = "DATA") -> Path:
@@ -145,6 +173,13 @@ def check_paths(
     in_dirs = {name: Path(os.path.realpath(p)) for name, p in ins.items() if p.is_dir()}
     seen: list[tuple[str, Path]] = []
     for opt, path in outs:
+        if (raw := _given_as_folder(opt)) is not None:
+            raise InputError(f"{raw} names a folder (it ends in {raw[-1]!r}): expected a file "
+                             f"to write, such as {raw}NAME", option=opt)
+        if written_in_place(path):  # /dev/stdout, /dev/null, a FIFO: no folder to check
+            _check_not_input(opt, path, ins)
+            seen.append((opt, path))
+            continue
         if len(os.fsencode(path.name)) > 255:
             raise InputError(f"file name too long ({len(os.fsencode(path.name))} bytes, at "
                              "most 255)", option=opt)
@@ -160,10 +195,7 @@ def check_paths(
             raise InputError(f"folder {folder} is not writable", option=opt)
         if path.is_file() and not os.access(path, os.W_OK):
             raise InputError(f"{path} is read-only; refusing to replace it", option=opt)
-        for name, src in ins.items():
-            if _same_file(path, src):
-                raise InputError(f"{path} is also the input {name}: refusing to overwrite an "
-                                 "input, choose another output path", option=opt)
+        _check_not_input(opt, path, ins)
         _check_in_folders(opt, path, in_dirs, reads or {})
         for other, prev in seen:
             if _same_file(path, prev):
@@ -171,11 +203,38 @@ def check_paths(
                 raise InputError(f"{path} is also {what}: two outputs cannot share a path",
                                  option=opt)
         seen.append((opt, path))
+    if seen:  # a malformed SOURCE_DATE_EPOCH is refused before any work, not at the end
+        from kinecal._reproducible import source_date_epoch
+
+        source_date_epoch()
     for opt, path in seen:  # last, after the cheap checks: a file is created and removed
         try:
             probe_writable(path)
         except InputError as exc:
             raise InputError(f"{path}: {exc.message}", option=opt) from None
+
+
+def _check_not_input(opt: str, path: Path, ins: dict[str, Path]) -> None:
+    for name, src in ins.items():
+        if _same_file(path, src):
+            raise InputError(f"{path} is also the input {name}: refusing to overwrite an "
+                             "input, choose another output path", option=opt)
+
+
+def _given_as_folder(option: str) -> str | None:
+    """The value of `option` on the command line when it ends in a path separator (``--out
+    d/``: typer hands the command ``Path("d")``, which would write a file named ``d``)."""
+    args = COMMAND_LINE or []
+    seps = tuple(s for s in (os.sep, os.altsep) if s)
+    for i, arg in enumerate(args):
+        value = None
+        if arg == option and i + 1 < len(args):
+            value = args[i + 1]
+        elif arg.startswith(option + "="):
+            value = arg[len(option) + 1:]
+        if value and value.endswith(seps):
+            return value
+    return None
 
 
 def _check_in_folders(opt: str, path: Path, in_dirs: dict[str, Path],
@@ -312,3 +371,20 @@ def progress(
             bar.update(task, advance=advance, **fields)
 
         yield update
+
+
+@contextlib.contextmanager
+def status(description: str, quiet: bool = False) -> Iterator[None]:
+    """A transient line on stderr (a spinner, `description` and the time so far) while the
+    block runs: a step that takes seconds without a count (a report rendered, a PDF laid
+    out). Silent like `progress`: under `quiet` or when stderr is not a terminal."""
+    if quiet_requested(quiet):
+        yield
+        return
+    from rich.console import Console
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
+                  console=Console(stderr=True), transient=True) as bar:
+        bar.add_task(description, total=None)
+        yield

@@ -4,6 +4,7 @@ identify the most)."""
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import typer
@@ -20,7 +21,6 @@ from kinecal.cli._common import (
     resolve_data_path,
     warnings_scope,
     with_warnings,
-    write_json,
 )
 from kinecal.cli._options import (
     MODEL_HELP,
@@ -38,6 +38,7 @@ from kinecal.cli._options import (
     tip_link_option,
     unit_option,
 )
+from kinecal.cli._outputs import write_outputs
 from kinecal.cli._serial_common import POSE_BYTES, free_option
 from kinecal.cli.calibrate_kinds import (
     calibrate_files,
@@ -180,11 +181,7 @@ def calibrate(
                           ("--min-corners", min_corners)):
         if value is not None:
             raise InputError("applies to --images only", option=option)
-    from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.serial.api import CALIBRATION_METHODS
-    from kinecal.calibration.serial.api import calibrate as run
-    from kinecal.cli._common import progress
-    from kinecal.io.measurements import read_measurements
 
     if method not in CALIBRATION_METHODS:
         raise InputError(f"unknown method {method!r}; expected one of "
@@ -202,65 +199,78 @@ def calibrate(
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
                            "--folds": folds}, record=(instrument, operator, note),
             unit=shown)
-    data, validate = data[0], (validate[0] if validate else None)
-    sigma = parse_sigma(sigma, [data])[0]
-    check_paths({"MODEL": model, "DATA": data, "--validate": validate},
-                {"--out": out, "--model-out": model_out, "--report": report})
-    record = report_record(report, {"MODEL": model, "DATA": data, "--validate": validate},
-                           instrument, operator, note)
-    if model_out is not None:
+    return _calibrate_tracker(SimpleNamespace(**locals()), shown)
+
+
+def _calibrate_tracker(a: SimpleNamespace, shown: str | None) -> None:
+    """``kinecal calibrate MODEL DATA.csv``: one tracker file (`a`: the command's
+    arguments; `shown`: the summary's unit)."""
+    from kinecal.calibration.diagnostics.noise import check_stated_sigma
+    from kinecal.cli._common import progress
+    from kinecal.io.measurements import read_measurements
+
+    data, validate = a.data[0], (a.validate[0] if a.validate else None)
+    sigma = parse_sigma(a.sigma, [data])[0]
+    check_paths({"MODEL": a.model, "DATA": data, "--validate": validate},
+                {"--out": a.out, "--model-out": a.model_out, "--report": a.report})
+    record = report_record(a.report, {"MODEL": a.model, "DATA": data, "--validate": validate},
+                           a.instrument, a.operator, a.note)
+    if a.model_out is not None:
         from kinecal.io.models import check_model_file_name
 
-        check_model_file_name(model_out, "--model-out")
-    if maxiter is not None and maxiter < 1:
-        raise InputError(f"expected a positive iteration budget, got {maxiter}",
+        check_model_file_name(a.model_out, "--model-out")
+    if a.maxiter is not None and a.maxiter < 1:
+        raise InputError(f"expected a positive iteration budget, got {a.maxiter}",
                          option="--maxiter")
-    check_finite(target, "--target")
-    check_finite(rotation_weight, "--rotation-weight", positive=True)
+    check_finite(a.target, "--target")
+    check_finite(a.rotation_weight, "--rotation-weight", positive=True)
     check_finite(sigma, "--sigma", positive=True)
-    check_method_options(method, loss=loss, maxiter=maxiter, target=target)
-    check_error_model_options(error_model, harmonics=harmonics, folds=folds)
-    with warnings_scope(strict) as found:
-        m = load_model_arg(model, base_link, tip_link)
+    check_method_options(a.method, loss=a.loss, maxiter=a.maxiter, target=a.target)
+    check_error_model_options(a.error_model, harmonics=a.harmonics, folds=a.folds)
+    with warnings_scope(a.strict) as found:
+        m = load_model_arg(a.model, a.base_link, a.tip_link)
         check_stated_sigma(m, sigma)  # not larger than the machine
         meas = read_measurements(resolve_data_path(data, "DATA"), m)
-        if rotation_weight is not None and meas.rotations is None:
+        if a.rotation_weight is not None and meas.rotations is None:
             raise InputError("applies to measured orientations (qw..qz columns) only",
                              option="--rotation-weight")
         val = None
         if validate is not None:
             val = read_measurements(resolve_data_path(validate, "--validate"), m)
-        iterative = method not in ("lm",)
-        with progress(f"calibrate {m.name} ({method})", maxiter if iterative else None,
-                      quiet or json_out) as update:
-            kw = dict(free=free_option(free), validate=val, rng=seed, loss=loss,
-                      maxiter=maxiter, target=target, rotation_weight=rotation_weight,
+        iterative = a.method not in ("lm",)
+        with progress(f"calibrate {m.name} ({a.method})", a.maxiter if iterative else None,
+                      a.quiet or a.json_out) as update:
+            kw = dict(free=free_option(a.free), validate=val, rng=a.seed, loss=a.loss,
+                      maxiter=a.maxiter, target=a.target, rotation_weight=a.rotation_weight,
                       sigma=sigma,
                       progress=(lambda it, best: update(1, best)) if iterative else None)
-            if error_model is None and m.joint_errors is None and harmonics is None:
-                res = run(m, meas, method, **kw)
+            if a.error_model is None and m.joint_errors is None and a.harmonics is None:
+                from kinecal.calibration.serial.api import calibrate as run
+
+                res = run(m, meas, a.method, **kw)
             else:
                 from kinecal.calibration.serial.error_model import calibrate_error_model
 
-                res = calibrate_error_model(m, meas, error_model or "model", method=method,
-                                            harmonics=harmonics, **kw,
-                                            **({} if folds is None else {"folds": folds}))
+                res = calibrate_error_model(m, meas, a.error_model or "model", method=a.method,
+                                            harmonics=a.harmonics, **kw,
+                                            **({} if a.folds is None else {"folds": a.folds}))
         res.warnings = list(found)  # the readers' warnings as well as the calibration's
-        # the result dictionary (per-pose lists of Python floats: a kilobyte or two per
-        # pose) only when it is written
-        result = with_warnings(res.to_dict(), found) if out is not None or json_out else None
-        if out is not None:
-            write_json(out, result)
-        if model_out is not None:
-            res.save_model(model_out)
-        if report is not None:
-            from kinecal.report.html import calibration_report
-
-            calibration_report(res, report, provenance=record, validation=val)
-    if json_out:
+        result = (with_warnings(res.to_dict(), found) if a.out is not None or a.json_out
+                  else None)
+        write_outputs(out=a.out, result=result, model_out=a.model_out,
+                      save_model=res.save_model, report=a.report,
+                      write_report=lambda path: _report(res, path, record, val),
+                      quiet=a.quiet or a.json_out)
+    if a.json_out:
         echo_json(result)
-    elif not quiet:
+    elif not a.quiet:
         typer.echo(res.summary(shown))
+
+
+def _report(res, path: Path, record, validation) -> None:
+    from kinecal.report.html import calibration_report
+
+    calibration_report(res, path, provenance=record, validation=validation)
 
 
 @app.command("select-poses")

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal._files import write_text_atomic
+from kinecal._reproducible import seconds_text
 from kinecal.calibration.identifiability import IdentifiabilityReport
 from kinecal.calibration.uncertainty import Uncertainty
 from kinecal.diagnostics import Diagnostic
@@ -354,8 +355,8 @@ class CalibrationResult:
             from kinecal.calibration.diagnostics.noise import noise_lines
 
             lines += noise_lines(self, shown)
-        lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations, "
-                     f"{self.seconds:.3g} s")
+        lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations"
+                     + seconds_text(self.seconds))
         if self.outliers:
             how = ("down-weighted by the robust loss" if self.extra.get("loss", "linear") !=
                    "linear" else "median/MAD rule")
