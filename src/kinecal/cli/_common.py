@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import sys
@@ -161,11 +162,14 @@ def check_paths(
         if spec is not None and (path := input_file(spec)) is not None:
             ins[name] = path
     outs: list[tuple[str, Path]] = [(k, Path(v)) for k, v in outputs.items() if v is not None]
+    for opt, path in outs:
+        _check_no_loop(opt, path)
     made: set[Path] = set()  # output folders: created by the command
     for opt, (folder, names) in (folders or {}).items():
         if folder is None:
             continue
         folder = Path(folder)
+        _check_no_loop(opt, folder)
         if folder.exists() and not folder.is_dir():
             raise InputError(f"{folder} is a file, expected a directory", option=opt)
         made.add(folder.resolve())
@@ -212,6 +216,19 @@ def check_paths(
             probe_writable(path)
         except InputError as exc:
             raise InputError(f"{path}: {exc.message}", option=opt) from None
+
+
+def _check_no_loop(opt: str, path: Path) -> None:
+    """Refuse a path through a loop of symbolic links (``ln -s loop loop``): every later
+    look-up of it would fail."""
+    try:
+        os.stat(path)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise InputError(f"{path}: a loop of symbolic links (it points back to itself); "
+                             "expected a folder or file path", option=opt) from None
+    except ValueError:
+        pass
 
 
 def _check_not_input(opt: str, path: Path, ins: dict[str, Path]) -> None:
