@@ -22,6 +22,8 @@ from kinecal.calibration.blocks.checks import (
     check_block_data,
     check_blocks,
     check_fits,
+    check_stack_rows,
+    check_stack_unknowns,
     check_validation_overlap,
 )
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
@@ -158,8 +160,11 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
     _check_arguments(method, loss, data, f_scale, rank_tol)
     t0 = time.perf_counter()
     model = model_for_markers(model, marker_names(list(data) + list(validate or [])))
+    check_stack_rows(data)
+    check_stack_rows(list(validate or []), "validation ")
     blocks = make_blocks(model, data, sigma, rotation_weight)
     val_blocks = make_blocks(model, validate or [], validate_sigma, rotation_weight)
+    check_stack_unknowns(blocks, len(candidate_names(model, free)))
     p0 = model.nominal
     nuis0, r0 = start_blocks(model, blocks, p0)
     before = [b.observation_errors(r) for b, r in zip(blocks, r0, strict=True)]

@@ -25,7 +25,43 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.chain import BASE_NAMES
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["check_block_data", "check_blocks", "check_fits", "check_validation_overlap"]
+__all__ = ["MAX_STACK_ROWS", "MAX_STACK_UNKNOWNS", "check_block_data", "check_blocks",
+           "check_fits", "check_stack_rows", "check_stack_unknowns",
+           "check_validation_overlap"]
+
+#: most file rows of one stacked calibration: every iteration evaluates every row (1e5
+#: pair rows: 4 s of CPU on consistent data; a ballbar test has tens to thousands)
+MAX_STACK_ROWS = 200_000
+#: most unknowns (arm and the gauges' own) of one stacked calibration: its normal
+#: equations are dense, each iteration solves them (2 430 unknowns, a ballbar and 200 files
+#: of 4 fixed points: 25 s of CPU)
+MAX_STACK_UNKNOWNS = 2_500
+
+
+def check_stack_rows(data: Sequence, what: str = "") -> None:
+    """Refuse, before any block is made, measurement sets of more than `MAX_STACK_ROWS`
+    file rows in all: every iteration of the fit evaluates every row."""
+    rows = [len(d) for d in data]
+    if sum(rows) > MAX_STACK_ROWS:
+        big = data[int(np.argmax(rows))]
+        name = getattr(big, "source", None) or getattr(big, "name", "a set")
+        raise InputError(f"{sum(rows):,} {what}rows in {plural(len(rows), 'set')} ({name}: "
+                         f"{max(rows):,}): more than the {MAX_STACK_ROWS:,} one calibration "
+                         "of several kinds takes (every iteration evaluates every row); keep "
+                         "the rows that identify the most (kinecal select-poses --kind KIND) "
+                         "or thin the files")
+
+
+def check_stack_unknowns(blocks: Sequence[ResidualBlock], n_arm: int) -> None:
+    """Refuse, before any fit, more than `MAX_STACK_UNKNOWNS` unknowns (`n_arm` of the arm
+    and the blocks' own): the normal equations are dense, their cost the cube of it."""
+    own = sum(b.n_nuisance for b in blocks)
+    if n_arm + own > MAX_STACK_UNKNOWNS:
+        raise InputError(f"{n_arm + own:,} unknowns ({n_arm} of the arm, {own:,} of the "
+                         f"gauges' own in {plural(len(blocks), 'set')}): more than the "
+                         f"{MAX_STACK_UNKNOWNS:,} one calibration of several kinds takes (its "
+                         "normal equations are dense); measure fewer pivots, points or planes "
+                         "per calibration, or merge the files of one gauge")
 
 
 def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, before,

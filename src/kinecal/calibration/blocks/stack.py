@@ -125,7 +125,9 @@ class StackedProblem:
         return np.concatenate([ri * w for ri, w in zip(r, self.row_weight, strict=True)]
                               ) if r else np.zeros(0)
 
-    def _weighted_rows(self, x: Array):
+    def weighted_rows(self, x: Array):
+        """Each block's ``(r, J_arm, J_nuisance, nuisance slice)`` at `x`, rows weighted
+        by ``1 / sigma`` (a generator, one block at a time)."""
         p = self.params(x)
         pts = self._points(p, True)
         for i, (b, v, w, s) in enumerate(zip(self.blocks, self.nuisance(x), self.row_weight,
@@ -136,7 +138,7 @@ class StackedProblem:
     def jacobian(self, x: Array) -> Array:
         """Dense weighted Jacobian ``(m, n)`` of `residuals`."""
         J = np.zeros((self.m, self.n))
-        for (_, Ja, Jn, s), rs in zip(self._weighted_rows(x), self.row_slices, strict=True):
+        for (_, Ja, Jn, s), rs in zip(self.weighted_rows(x), self.row_slices, strict=True):
             J[rs, :self.k] = Ja
             J[rs, s] = Jn
         return J
@@ -147,7 +149,7 @@ class StackedProblem:
         g = np.zeros(self.n)
         parts = []
         k = self.k
-        for r, Ja, Jn, s in self._weighted_rows(x):
+        for r, Ja, Jn, s in self.weighted_rows(x):
             parts.append(r)
             A[:k, :k] += Ja.T @ Ja
             A[:k, s] = Ja.T @ Jn
@@ -156,16 +158,6 @@ class StackedProblem:
             g[:k] += Ja.T @ r
             g[s] = Jn.T @ r
         return (np.concatenate(parts) if parts else np.zeros(0)), A, g
-
-    def block_grams(self, x: Array) -> list[Array]:
-        """Each block's share ``J_b^T J_b`` ``(n, n)`` of the normal matrix (weighted)."""
-        out = []
-        for _, Ja, Jn, s in self._weighted_rows(x):
-            Jb = np.zeros((Ja.shape[0], self.n))
-            Jb[:, :self.k] = Ja
-            Jb[:, s] = Jn
-            out.append(Jb.T @ Jb)
-        return out
 
     def monitor(self, r: Array) -> float:
         """RMS of the weighted residual (1 when the noise is what was stated)."""
