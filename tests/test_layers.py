@@ -214,3 +214,16 @@ def test_the_batch_modules_import_each_other_one_way_even_for_annotations():
     batch = [m for m in graph if m.startswith("kinecal.batch.")]
     pairs = [(a, b) for a in batch for b in graph[a] if b in batch and a in graph[b]]
     assert not pairs, pairs
+
+
+def test_no_source_text_names_an_issue_number():
+    """A reader of the code has no issue tracker: docstrings and comments name the module
+    or the docs page instead (another project's issue, such as OpenCV's, may be cited)."""
+    import re
+
+    pattern = re.compile(r"\bissues? ?#?\d+|\bissue \d+'s", re.IGNORECASE)
+    found = [f"{p.relative_to(SRC)}:{n}: {line.strip()}"
+             for p in SRC.rglob("*.py")
+             for n, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+             if pattern.search(line) and not re.search(r"(OpenCV|its) issue \d+", line)]
+    assert not found, found

@@ -1,7 +1,8 @@
-"""Command plumbing for several measurement files of any kinds (issue 25): ``calibrate MODEL
-A.csv B.csv ...``, ``identifiability MODEL --data A.csv --data B.csv``, ``simulate MODEL
---kind ballbar|pair|point|plane ...``. No command is registered here: `kinecal.cli.calibrate`
-and `kinecal.cli.simulate` call these functions, so that their own modules stay small.
+"""Command plumbing for several measurement files of any kinds (docs/measurement-kinds.md):
+``calibrate MODEL A.csv B.csv ...``, ``identifiability MODEL --data A.csv --data B.csv``,
+``simulate MODEL --kind ballbar|pair|point|plane ...``. No command is registered here:
+`kinecal.cli.calibrate` and `kinecal.cli.simulate` call these functions, so that their own
+modules stay small.
 
 ``--sigma`` takes, for each file, the stated 1-sigma noise in the model's length unit:
 ``--sigma A.csv=0.002`` (repeatable, by file name), ``--sigma 0.002,0.01`` (in file order,

@@ -1,7 +1,7 @@
 """Calibrate a serial arm from camera images: arm, camera mount and board in one bundle
-adjustment (issue 24).
+adjustment (docs/arm-from-images.md).
 
-The camera pixels are one residual block of issue 25's stacked calibration
+The camera pixels are one residual block of the stacked calibration of several kinds
 (`kinecal.calibration.blocks`): `CameraBlock` (`kinecal.calibration.camera.residual_block`)
 mixes with tracker points, ballbars, sockets and planes in one problem.
 

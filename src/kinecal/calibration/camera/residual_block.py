@@ -1,5 +1,5 @@
 """`CameraBlock`: camera pixels as one residual block of the stacked calibration
-(`kinecal.calibration.blocks`, issue 25's framework).
+(`kinecal.calibration.blocks`, docs/measurement-kinds.md).
 
 An observation is one image (station); its rows are the two pixel coordinates of every
 corner found in it. The nuisance is the block's camera mount X, board pose and (optionally)
