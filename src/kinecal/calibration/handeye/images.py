@@ -110,7 +110,7 @@ def refine_reprojection(
         Reweighting passes.
     one_axis : (OneAxis, AxisHeight), optional
         The robot turns about one axis only (SCARA): the pixels do not see X's translation
-        along it either (`kinecal.calibration.handeye.scara`, eq. (3)); the solution is put
+        along it either (`kinecal.calibration.handeye.scara`, [S3]); the solution is put
         where the height says, and the covariance is taken under that constraint.
 
     Returns
@@ -147,7 +147,7 @@ def refine_reprojection(
     if not robust:
         sigma = max(float(np.sqrt(np.sum(r**2) / max(r.size - pr.n_params, 1))), 1e-12)
     row = None
-    if one_axis is not None:  # eq. (8) of `scara`: move along the null direction, constrain
+    if one_axis is not None:  # [S8] of `scara`: move along the null direction, constrain
         p, row = _place_on_axis(pr, p, *one_axis)
         r, srms = fit.residual_stats(p)
     # covariance: the normal matrix of the final pass at the solution, residual variance

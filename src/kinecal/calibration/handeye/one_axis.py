@@ -100,7 +100,7 @@ def calibrate_one_axis(F: Array, C: Array, G: Array, setup: str, axis: OneAxis,
         res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **options)
         X, history, nfev = res.X, res.history, res.nfev
         Y = mean_target_pose(G, X, C)
-    X, Y = height.place(axis, X, Y)  # eq. (8) again: the refiners may drift along eq. (3)
+    X, Y = height.place(axis, X, Y)  # scara [S8] again: the refiners may drift along [S3]
     if refine != "lm" and robust:
         outliers = flag_outliers(G, C, X, Y)
     rot, tr = station_residuals(G, X, C, Y)
