@@ -21,7 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from kinecal._temps import sweep_once, temp_prefix
+from kinecal._temps import remove_own_temp_files, sweep_once, temp_prefix
 from kinecal.errors import InputError
 
 __all__ = [
@@ -123,6 +123,9 @@ def probe_writable(path: str | Path) -> None:
 
 #: the writes of the open `all_or_nothing` block: target -> its finished temporary file
 _PENDING: dict[Path, str] | None = None
+#: the folders the open block writes into (cleaned of this process's temporary files when
+#: the block fails, even one whose writer was interrupted before it could remove it)
+_FOLDERS: set[Path] = set()
 
 
 @contextlib.contextmanager
@@ -144,10 +147,13 @@ def all_or_nothing() -> Iterator[None]:
         yield
         return
     _PENDING = pending = {}
+    _FOLDERS.clear()
     try:
         yield
     except BaseException:
         _discard(pending)
+        for folder in _FOLDERS:
+            remove_own_temp_files(folder)
         raise
     finally:
         _PENDING = None
@@ -237,6 +243,8 @@ def atomic_open(path: str | Path, mode: str = "w", encoding: str | None = "utf-8
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         sweep_once(target.parent)
+        if _PENDING is not None:
+            _FOLDERS.add(target.parent)
         fd, tmp = tempfile.mkstemp(prefix=temp_prefix(target), suffix=".tmp", dir=target.parent)
     except OSError as exc:  # parent is a file, no permission, read-only file system
         raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None

@@ -16,8 +16,8 @@ import stat
 import time
 from pathlib import Path
 
-__all__ = ["STALE_TEMP_SECONDS", "host_tag", "pid_alive", "sweep_once",
-           "sweep_stale_temp_files", "temp_prefix"]
+__all__ = ["STALE_TEMP_SECONDS", "host_tag", "pid_alive", "remove_own_temp_files",
+           "sweep_once", "sweep_stale_temp_files", "temp_prefix"]
 
 #: a temporary file of another host (or of a recycled pid) untouched this long is stale
 STALE_TEMP_SECONDS = 24 * 3600.0
@@ -95,3 +95,20 @@ def sweep_once(folder: Path) -> None:
     if key not in _SWEPT:
         _SWEPT.add(key)
         sweep_stale_temp_files(folder)
+
+
+def remove_own_temp_files(folder: Path) -> None:
+    """Remove this process's temporary files in `folder` (an interrupted group of writes:
+    Ctrl-C may land between a temporary file's creation and its writer's clean-up)."""
+    host, pid = host_tag(), str(os.getpid())
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return
+    for entry in entries:
+        m = _TEMP_RE.match(entry.name)
+        if m is not None and m.group(1) == host and m.group(2) == pid:
+            try:
+                os.unlink(entry.path)
+            except OSError:
+                continue

@@ -7,6 +7,10 @@ import typer
 
 from kinecal.cli._options import CALIBRATION_METHOD_CHOICES, choices
 
+#: help of --fixture (calibrate, identifiability)
+FIXTURE_HELP = ("Known fixtures: CSV of point,px,py,pz or plane,px,py,pz,nx,ny,nz rows (base "
+                "frame, length unit) for the point or plane files' ids (repeatable). See "
+                "docs/measurement-kinds.md.")
 #: --error-model values (and families joined by '+')
 ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto")
 
@@ -55,3 +59,4 @@ SETUP = typer.Option("eye-in-hand", "--setup", help="With --images: eye-in-hand 
                      "eye-to-hand.")
 MIN_CORNERS = typer.Option(None, "--min-corners", help="With --images: fewest corners an image "
                            "must show (ChArUco, seen in part; default 60 % of the board's).")
+FIXTURE = typer.Option(None, "--fixture", help=FIXTURE_HELP)

@@ -145,8 +145,8 @@ def export(
                                            "the camera's (optical) frame (default "
                                            "camera_optical_frame)."),
     robot: str | None = typer.Option(None, "--robot", help="ur-kinematics: the UR type whose "
-                                     "link frames the export keeps (default: the type within "
-                                     "5 mm of the model)."),
+                                     "link frames the export keeps (default: the type the "
+                                     "model is a calibration of)."),
     strict: bool = strict_option(),
 ) -> None:
     """Write a model, or a calibrated one, as URDF (metres, radians), as a model file or as
@@ -284,7 +284,7 @@ def _export_ur(model, params, out: Path, what: str, robot: str | None) -> None:
                "radians);\nchain from base_link_inertia (UR's base frame, D-H frame 0) to "
                "wrist_3 = tool0 (D-H frame 6); the model's base and tool are not part of it\n"
                + (f"link frames kept next to the nominal {ref}'s" if ref else
-                  "no UR type within 5 mm: plain regrouping of the D-H table"))
+                  "no UR type the model is a calibration of: plain regrouping of the D-H table"))
     save_ur_kinematics(out, model, params, ref, comment)
     typer.echo(f"wrote {out} (ur-kinematics, {model.name}, metres, radians; reference "
                f"{ref or 'none'}) from {what}; load it with ur_robot_driver's "

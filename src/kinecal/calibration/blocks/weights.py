@@ -53,7 +53,8 @@ def initial_sigma(blocks: Sequence[ResidualBlock]) -> tuple[list[Array], list[bo
 
 
 def redundancies(problem: StackedProblem, x: Array) -> Array:
-    """Redundancy ``r_b`` of each block at `x` (they sum to ``m - rank``).
+    """Redundancy ``r_b`` of each block at `x` (they sum to ``m - rank``; rows left out of
+    the fit count in neither).
 
     ``trace(A^-1 J_b^T J_b)`` is summed over the block's own columns only (the arm's and
     its nuisance): the normal matrix ``A`` is formed once, never a matrix of the whole
@@ -64,10 +65,10 @@ def redundancies(problem: StackedProblem, x: Array) -> Array:
     d = np.where(d > 0, d, 1.0)
     Ainv = np.linalg.pinv(A / np.outer(d, d), rcond=1e-12, hermitian=True) / np.outer(d, d)
     out = []
-    for b, (_, Ja, Jn, s) in zip(problem.blocks, problem.weighted_rows(x), strict=True):
+    for m, (_, Ja, Jn, s) in zip(problem.used_rows, problem.weighted_rows(x), strict=True):
         cols = np.r_[np.arange(problem.k), np.arange(s.start, s.stop)]
         Jb = np.hstack([Ja, Jn])
-        out.append(b.n_rows - float(np.sum((Jb @ Ainv[np.ix_(cols, cols)]) * Jb)))
+        out.append(m - float(np.sum((Jb @ Ainv[np.ix_(cols, cols)]) * Jb)))
     return np.array(out)
 
 
@@ -79,5 +80,5 @@ def variance_factors(problem: StackedProblem, x: Array, residuals: list[Array]
     rss = np.array([float(np.sum((ri * w) ** 2)) for ri, w in
                     zip(residuals, problem.row_weight, strict=True)])
     with np.errstate(divide="ignore", invalid="ignore"):
-        f = np.where(r > 1e-6 * np.array([b.n_rows for b in problem.blocks]), rss / r, np.nan)
+        f = np.where(r > 1e-6 * np.array(problem.used_rows), rss / r, np.nan)
     return f, r

@@ -73,8 +73,11 @@ CODES: dict[str, str] = {
     "urdf-joint-limits": "a URDF revolute joint without usable limits",
     "joint-errors-not-exported": "joint-error terms left out of a URDF export (geometry only)",
     "camera-mount-far": "a hand-eye camera exported more than 10 m from its parent frame",
-    "ur-conf-implausible": "UR calibration.conf deltas larger than a factory calibration gives",
-    "ur-kinematics-not-ur": "an ur-kinematics export of a model within 5 mm of no UR type",
+    "ur-conf-implausible": ("UR calibration.conf deltas moving the flange more than a "
+                            "factory calibration does"),
+    "ur-kinematics-not-ur": ("an ur-kinematics export of a model that is no calibration "
+                             "of its UR type"),
+    "ros-dwell-moving": "bag dwells dropped: the measurement moved while the joints read still",
     "ros-joint-units": "bag JointState revolute positions beyond two turns (degrees?)",
     "ros-samples-skipped": "JointState messages of a bag left out (positions not matching the "
                            "names, not finite, time not increasing)",
