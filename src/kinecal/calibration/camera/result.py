@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal._files import write_text_atomic
+from kinecal._reproducible import seconds_text
 from kinecal.calibration.camera.identify import CameraIdentifiability
 from kinecal.calibration.uncertainty import Uncertainty
 from kinecal.diagnostics import Diagnostic
@@ -256,8 +257,8 @@ class ArmCameraResult:
         lines.append("X std (1 sigma): rotation " + ", ".join(f"{v:.4f}" for v in xr)
                      + " deg, translation " + ", ".join(f"{v:.4f}" for v in xt)
                      + f" {nom.length_unit}")
-        lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations, "
-                     f"{self.seconds:.3g} s")
+        lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations"
+                     + seconds_text(self.seconds))
         if self.outliers:
             lines.append("outlier stations: " + ", ".join(self.station_names[i]
                                                           for i in self.outliers))
