@@ -112,3 +112,17 @@ def test_bytes_that_are_not_utf8_are_shown_in_the_record(data, tmp_path):
                  "--operator", "Zo\u00eb", "--quiet"]) == 0
     text = rep.read_text(encoding="utf-8")
     assert "caf\\xe9 \\xff" in text and "cal\\xff.csv" in text and "Zo\u00eb" in text
+
+
+def test_rendering_a_pdf_leaves_pillow_refusing_truncated_images():
+    """WeasyPrint, once imported, made Pillow accept truncated files process-wide: a
+    truncated board image then passed kinecal's check (and libjpeg wrote on stderr)."""
+    pytest.importorskip("weasyprint", reason="PDF reports need the pdf extra")
+    code = ("from PIL import ImageFile\n"
+            "from kinecal.report.document import check_report_path\n"
+            "check_report_path('r.pdf')\n"
+            "import weasyprint\n"
+            "assert ImageFile.LOAD_TRUNCATED_IMAGES is False\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       env={**os.environ, "PYTHONPATH": SRC}, timeout=120)
+    assert p.returncode == 0, p.stderr
