@@ -112,13 +112,15 @@ def probe_writable(path: str | Path) -> None:
     target = Path(os.path.realpath(path)) if path.is_symlink() else path
     if not target.parent.is_dir():
         return
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=temp_prefix(target), suffix=".tmp", dir=target.parent)
-    except OSError as exc:
-        raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None
-    os.close(fd)
-    with contextlib.suppress(OSError):
-        os.unlink(tmp)
+    with _signals_held():  # Ctrl-C between the creation and the removal would leave it
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=temp_prefix(target), suffix=".tmp",
+                                       dir=target.parent)
+        except OSError as exc:
+            raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None
+        os.close(fd)
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
 
 
 #: the writes of the open `all_or_nothing` block: target -> its finished temporary file
@@ -167,27 +169,37 @@ def _discard(pending: dict[Path, str]) -> None:
     pending.clear()
 
 
-def _commit(pending: dict[Path, str]) -> None:
-    """Rename every finished temporary file over its target, signals held back meanwhile."""
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Ctrl-C, SIGTERM and SIGHUP held back (delivered at the end) for a few system calls
+    that must not be cut apart (POSIX, main thread; elsewhere nothing is held)."""
     import signal
     import threading
 
+    if not hasattr(signal, "pthread_sigmask") or \
+            threading.current_thread() is not threading.main_thread():
+        yield
+        return
     held = [getattr(signal, s) for s in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, s)]
-    block = hasattr(signal, "pthread_sigmask") and \
-        threading.current_thread() is threading.main_thread()
-    if block:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
     try:
-        for target in list(pending):
-            try:
-                os.replace(pending[target], target)
-            except OSError as exc:
-                raise _path_error(exc, target) from None
-            del pending[target]
+        yield
     finally:
-        _discard(pending)
-        if block:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _commit(pending: dict[Path, str]) -> None:
+    """Rename every finished temporary file over its target, signals held back meanwhile."""
+    with _signals_held():
+        try:
+            for target in list(pending):
+                try:
+                    os.replace(pending[target], target)
+                except OSError as exc:
+                    raise _path_error(exc, target) from None
+                del pending[target]
+        finally:
+            _discard(pending)
 
 
 @contextlib.contextmanager
