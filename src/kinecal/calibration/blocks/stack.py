@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.blocks.base import ResidualBlock, tool_points
+from kinecal.calibration.blocks.tips import column_groups
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.optimize.lsq import levenberg_marquardt
@@ -61,6 +62,8 @@ class StackedProblem:
         #: observations left out of the fit (weight zero): ``(block, observation)``
         self.excluded: list[tuple[int, int]] = []
         self.set_sigma(sigma)
+        # a robot system's rows reach their chains' columns only (`tips.column_groups`)
+        self.groups = [column_groups(model, b, self.index) for b in self.blocks]
         # the blocks whose tool points one shared sweep computes
         self._shared = [i for i, b in enumerate(self.blocks) if b.shares_tool_points]
         if self._shared:
@@ -148,9 +151,7 @@ class StackedProblem:
         return np.concatenate([ri * w for ri, w in zip(r, self.row_weight, strict=True)]
                               ) if r else np.zeros(0)
 
-    def weighted_rows(self, x: Array):
-        """Each block's ``(r, J_arm, J_nuisance, nuisance slice)`` at `x`, rows weighted
-        by ``1 / sigma`` (a generator, one block at a time)."""
+    def _weighted_rows(self, x: Array):
         p = self.params(x)
         pts = self._points(p, True)
         for i, (b, v, w, s) in enumerate(zip(self.blocks, self.nuisance(x), self.row_weight,
@@ -161,10 +162,22 @@ class StackedProblem:
     def jacobian(self, x: Array) -> Array:
         """Dense weighted Jacobian ``(m, n)`` of `residuals`."""
         J = np.zeros((self.m, self.n))
-        for (_, Ja, Jn, s), rs in zip(self.weighted_rows(x), self.row_slices, strict=True):
+        for (_, Ja, Jn, s), rs in zip(self._weighted_rows(x), self.row_slices, strict=True):
             J[rs, :self.k] = Ja
             J[rs, s] = Jn
         return J
+
+    def arm_gram(self, i: int, Ja: Array) -> Array:
+        """``Ja^T Ja`` ``(k, k)`` of block `i`'s weighted arm rows, group by group where the
+        rows of a robot system's chains reach some columns only (`groups`)."""
+        groups = self.groups[i]
+        if groups is None:
+            return Ja.T @ Ja
+        G = np.zeros((self.k, self.k))
+        for rows, cols in groups:
+            Jg = Ja[np.ix_(rows, cols)]
+            G[np.ix_(cols, cols)] += Jg.T @ Jg
+        return G
 
     def normal_equations(self, x: Array) -> tuple[Array, Array, Array]:
         """``(residuals, J^T J, J^T r)`` at `x`, assembled block by block."""
@@ -172,15 +185,28 @@ class StackedProblem:
         g = np.zeros(self.n)
         parts = []
         k = self.k
-        for r, Ja, Jn, s in self.weighted_rows(x):
+        for i, (r, Ja, Jn, s) in enumerate(self._weighted_rows(x)):
             parts.append(r)
-            A[:k, :k] += Ja.T @ Ja
+            A[:k, :k] += self.arm_gram(i, Ja)
             A[:k, s] = Ja.T @ Jn
             A[s, :k] = A[:k, s].T
             A[s, s] = Jn.T @ Jn
             g[:k] += Ja.T @ r
             g[s] = Jn.T @ r
         return (np.concatenate(parts) if parts else np.zeros(0)), A, g
+
+    def block_grams(self, x: Array) -> list[Array]:
+        """Each block's share ``J_b^T J_b`` ``(n, n)`` of the normal matrix (weighted)."""
+        out = []
+        k = self.k
+        for i, (_, Ja, Jn, s) in enumerate(self._weighted_rows(x)):
+            G = np.zeros((self.n, self.n))
+            G[:k, :k] = self.arm_gram(i, Ja)
+            G[:k, s] = Ja.T @ Jn
+            G[s, :k] = G[:k, s].T
+            G[s, s] = Jn.T @ Jn
+            out.append(G)
+        return out
 
     def monitor(self, r: Array) -> float:
         """RMS of the weighted residual (1 when the noise is what was stated)."""

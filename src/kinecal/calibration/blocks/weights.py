@@ -65,7 +65,7 @@ def redundancies(problem: StackedProblem, x: Array) -> Array:
     d = np.where(d > 0, d, 1.0)
     Ainv = np.linalg.pinv(A / np.outer(d, d), rcond=1e-12, hermitian=True) / np.outer(d, d)
     out = []
-    for m, (_, Ja, Jn, s) in zip(problem.used_rows, problem.weighted_rows(x), strict=True):
+    for m, (_, Ja, Jn, s) in zip(problem.used_rows, problem._weighted_rows(x), strict=True):
         cols = np.r_[np.arange(problem.k), np.arange(s.start, s.stop)]
         Jb = np.hstack([Ja, Jn])
         out.append(m - float(np.sum((Jb @ Ainv[np.ix_(cols, cols)]) * Jb)))
