@@ -130,3 +130,18 @@ def test_a_distance_that_is_no_reading_of_the_gauge_names_its_row(kind, value):
                        rf"(pair )?distance {re.escape(f'{value:.6g}')} is [0-9.e+-]+ times the "
                        r"file's median"):
         calibrate_blocks(m, [bad])
+
+
+def test_the_blind_motions_need_no_square_matrix_of_the_tool_points(mix):
+    """The motions the arm can produce were judged with the full left singular vectors of
+    a (3N, 7) matrix: 0.75 GB for 100 files of fixed points; the peak of the analysis now
+    stays within a few normal matrices."""
+    _, _, prob, x = mix
+    from kinecal.calibration.blocks.analysis import analyse_stack
+
+    n_points = sum(len(b.q) for b in prob.blocks)
+    tracemalloc.start()
+    analyse_stack(prob, x, 1e-4)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 0.25 * (3 * n_points) ** 2 * 8, (peak, n_points)
