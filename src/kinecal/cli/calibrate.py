@@ -50,6 +50,13 @@ from kinecal.cli.calibrate_kinds import (
     identifiability_files,
     parse_sigma,
 )
+from kinecal.cli.tracker_options import (
+    check_tracker_options,
+    has_station_column,
+    orientation_format_option,
+    station_per_file_option,
+    validate_register_option,
+)
 from kinecal.errors import InputError
 
 
@@ -106,7 +113,8 @@ def identifiability(
         raise InputError("applies to --data point and plane files", option="--fixture")
     if check_angle_unit(angle_unit) and not data:
         raise InputError("applies to --data files", option="--angle-unit")
-    if data and (len(data) > 1 or fixture or file_kind(data[0], "--data") != "tracker"):
+    if data and (len(data) > 1 or fixture or file_kind(data[0], "--data") != "tracker"
+                 or has_station_column(data[0], "--data")):
         if error_model is not None or harmonics is not None:
             raise InputError("applies to one tracker file only", option="--error-model")
         return identifiability_files(model, data, base_link=base_link, tip_link=tip_link,
@@ -201,6 +209,9 @@ def calibrate(
     min_corners: int | None = opt.MIN_CORNERS,
     fixture: list[Path] | None = opt.FIXTURE,
     angle_unit: str | None = angle_unit_option("the data files' joint columns"),
+    orientation_format: str | None = orientation_format_option(),
+    station_per_file: bool = station_per_file_option(),
+    validate_register: str | None = validate_register_option(),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
     or from board images with --images; a robot system from rows of its chains."""
@@ -230,7 +241,10 @@ def calibrate(
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
     shown = check_unit(unit)
     validate = validate or []
-    if len(data) > 1 or len(validate) > 1 or fixture or any(
+    check_tracker_options(orientation_format, validate_register, validate)
+    tracker = {"orientation": orientation_format, "station_per_file": station_per_file,
+               "register": validate_register}
+    if station_per_file or len(data) > 1 or len(validate) > 1 or fixture or any(
             file_kind(f, o) != "tracker" for f, o in [(data[0], "DATA")]
             + [(v, "--validate") for v in validate]):
         return calibrate_files(
@@ -240,7 +254,7 @@ def calibrate(
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
                            "--folds": folds}, record=(instrument, operator, note),
-            unit=shown, fixture=fixture, angle_unit=angle_unit)
+            unit=shown, fixture=fixture, angle_unit=angle_unit, tracker=tracker)
     return _calibrate_tracker(SimpleNamespace(**locals()), shown)
 
 
@@ -272,7 +286,7 @@ def _calibrate_tracker(a: SimpleNamespace, shown: str | None) -> None:
     with warnings_scope(a.strict) as found:
         m = load_model_arg(a.model, a.base_link, a.tip_link)
         check_stated_sigma(m, sigma)  # not larger than the machine
-        meas = read_measurements(resolve_data_path(data, "DATA"), m,
+        meas = read_measurements(resolve_data_path(data, "DATA"), m, a.orientation_format,
                                  angle_unit=a.angle_unit)
         if a.rotation_weight is not None and meas.rotations is None:
             raise InputError("applies to measured orientations (qw..qz columns) only",
@@ -280,13 +294,13 @@ def _calibrate_tracker(a: SimpleNamespace, shown: str | None) -> None:
         val = None
         if validate is not None:
             val = read_measurements(resolve_data_path(validate, "--validate"), m,
-                                    angle_unit=a.angle_unit)
+                                    a.orientation_format, angle_unit=a.angle_unit)
         iterative = a.method not in ("lm",)
         with progress(f"calibrate {m.name} ({a.method})", a.maxiter if iterative else None,
                       a.quiet or a.json_out) as update:
             kw = dict(free=free_option(a.free), validate=val, rng=a.seed, loss=a.loss,
                       maxiter=a.maxiter, target=a.target, rotation_weight=a.rotation_weight,
-                      sigma=sigma,
+                      sigma=sigma, validate_register=a.validate_register,
                       progress=(lambda it, best: update(1, best)) if iterative else None)
             if a.error_model is None and m.joint_errors is None and a.harmonics is None:
                 from kinecal.calibration.serial.api import calibrate as run
