@@ -1,4 +1,5 @@
-"""Helpers shared by the command modules: output, bundled data paths, progress bars."""
+"""Helpers shared by the command modules: output, bundled data paths, the path checks; the
+progress bars of `kinecal.cli._progress` (imported here for the command modules)."""
 
 from __future__ import annotations
 
@@ -7,13 +8,14 @@ import errno
 import json
 import os
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from kinecal._files import atomic_open, check_input_file, probe_writable, written_in_place
+from kinecal.cli._progress import progress, progress_columns, quiet_requested, status
 from kinecal.errors import InputError
 
 __all__ = [
@@ -21,6 +23,7 @@ __all__ = [
     "echo_json",
     "progress",
     "progress_columns",
+    "quiet_requested",
     "report_record",
     "resolve_data_path",
     "status",
@@ -348,60 +351,3 @@ def with_warnings(obj: dict, found: list) -> dict:
             own.append(d.to_dict())
             seen.add((d.code, d.message))
     return {**obj, "warnings": own}
-
-
-def quiet_requested(quiet: bool) -> bool:
-    """True when progress bars must stay off (asked for, or stderr is not a terminal)."""
-    return quiet or not sys.stderr.isatty()
-
-
-def progress_columns(total: int | None) -> list:
-    """The columns of a progress bar: ``done/total`` when the total is known, else the
-    count of steps done alone (an iteration count with no budget: never ``19/None``)."""
-    from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
-
-    count = "{task.completed}/{task.total}" if total is not None else "{task.completed} it."
-    return [TextColumn("[bold]{task.description}"), BarColumn(), TextColumn(count),
-            TextColumn("{task.fields[best]}"), TimeElapsedColumn()]
-
-
-@contextlib.contextmanager
-def progress(
-    description: str, total: int | None, quiet: bool = False
-) -> Iterator[Callable[..., None]]:
-    """Context manager yielding ``update(advance=1, best=None)`` that drives a rich bar.
-
-    The bar goes to stderr and is silent when `quiet` or stderr is not a terminal.
-    """
-    if quiet_requested(quiet):
-        yield lambda advance=1, best=None: None
-        return
-    from rich.console import Console
-    from rich.progress import Progress
-
-    with Progress(*progress_columns(total), console=Console(stderr=True),
-                  transient=True) as bar:
-        task = bar.add_task(description, total=total, best="")
-
-        def update(advance: int = 1, best: float | None = None) -> None:
-            fields = {} if best is None else {"best": f"best {best:.4g}"}
-            bar.update(task, advance=advance, **fields)
-
-        yield update
-
-
-@contextlib.contextmanager
-def status(description: str, quiet: bool = False) -> Iterator[None]:
-    """A transient line on stderr (a spinner, `description` and the time so far) while the
-    block runs: a step that takes seconds without a count (a report rendered, a PDF laid
-    out). Silent like `progress`: under `quiet` or when stderr is not a terminal."""
-    if quiet_requested(quiet):
-        yield
-        return
-    from rich.console import Console
-    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-
-    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
-                  console=Console(stderr=True), transient=True) as bar:
-        bar.add_task(description, total=None)
-        yield
