@@ -85,11 +85,6 @@ class PriorStack(StackedProblem):
     def monitor(self, r: Array) -> float:
         return super().monitor(np.asarray(r)[:self.m])
 
-    def extra_information(self) -> Array:
-        out = np.zeros((self.n, self.n))
-        out[:self.k, :self.k] = np.diag(self.w**2)
-        return out
-
 
 @dataclass
 class StackPriorFit:

@@ -195,11 +195,6 @@ class StackedProblem:
             g[s] = Jn.T @ r
         return (np.concatenate(parts) if parts else np.zeros(0)), A, g
 
-    def extra_information(self) -> Array | float:
-        """Information ``(n, n)`` of rows beyond the blocks' (a prior's, in
-        `kinecal.calibration.blocks.prior`); 0 here."""
-        return 0.0
-
     def block_grams(self, x: Array) -> list[Array]:
         """Each block's share ``J_b^T J_b`` ``(n, n)`` of the normal matrix (weighted)."""
         out = []
