@@ -34,6 +34,8 @@ CODES: dict[str, str] = {
     "residual-below-noise": "the residual is far below the instrument's stated noise (--sigma)",
     "outliers": "poses whose error is far outside the others' spread",
     "optimizer-stalled": "a metaheuristic stopped far above what a least-squares polish reaches",
+    "implausible-change": "the calibrated arm is not a calibration of the same arm (fk, export "
+                          "and compensate refuse it)",
     # measurement kinds: ballbar and pair distances, fixed points, planes
     "pivot-moved": "a ballbar's distances fit no single pivot to the noise",
     "point-spread": "a fixed point's touches disagree by more than the noise",
@@ -54,6 +56,7 @@ CODES: dict[str, str] = {
     "board-turned": "images of a symmetric board turned back to fit the robot poses",
     "intrinsics-size": "intrinsics made for another image size than the images'",
     "intrinsics-rms": "the camera calibration from the images leaves more than 1 px RMS",
+    "intrinsics-weak": "the views leave the intrinsics estimated from them poorly determined",
     "pnp-rms": "the board poses fit the detected corners poorly (wrong intrinsics or board)",
     "images-rejected": "more than half of the images rejected",
     "reprojection-rms": "the hand-eye solution reprojects the corners poorly",
