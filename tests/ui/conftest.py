@@ -23,6 +23,9 @@ FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-
          "--enable-unsafe-swiftshader", "--force-device-scale-factor=1"]
 ROOT = Path(__file__).resolve().parents[2]
 DOCS_IMG = ROOT / "docs" / "img"
+#: the Plan view's program languages (its dropdown's labels) and their suffixes
+ROBOT_LANGUAGES = {"URScript (.script)": ".script", "ABB RAPID (.mod)": ".mod",
+                   "KUKA KRL (.src)": ".src", "ROS 2 JointTrajectory (.yaml)": ".yaml"}
 
 
 @pytest.fixture(scope="module")
@@ -80,6 +83,21 @@ class Page:
             "xpath=ancestor::div[contains(@class,'mantine-Flex-root')][1]//input").last
         box.fill(str(value))
         box.press("Enter")
+
+    def set_sliders(self, handles, values, timeout: float = 10.0) -> None:
+        """Type `values` into sliders and wait until the workbench has them all (each
+        update travels over the websocket on its own)."""
+        import time
+
+        for h, v in zip(handles, values, strict=True):
+            self.set_slider(h, v)
+        end = time.monotonic() + timeout
+        while not all(abs(float(h.value) - float(v)) < 1e-9
+                      for h, v in zip(handles, values, strict=True)):
+            if time.monotonic() > end:
+                raise AssertionError(f"sliders at {[h.value for h in handles]}, typed "
+                                     f"{list(values)}")
+            time.sleep(0.02)
 
     def tab(self, name: str) -> None:
         self.page.get_by_role("tab", name=name, exact=True).click()

@@ -4,9 +4,6 @@ and its figures are those of the identifiability analysis."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 from tests.ui.conftest import open_page
@@ -36,17 +33,30 @@ def bench(workdir):
 
 @pytest.fixture(scope="module")
 def page(browser, bench):
-    p = open_page(browser, bench)
+    p = open_page(browser, bench, width=1000, height=700)  # a smaller 3D view draws faster
     yield p
     assert p.outside == [], p.outside
     p.page.context.close()
 
 
+def cli(args: list[str]) -> tuple[int, str, str]:
+    """``kinecal ARGS`` in this process (the command line's own entry point): status,
+    stdout, stderr."""
+    import contextlib
+    import io
+
+    from kinecal.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([str(a) for a in args])
+    return code, out.getvalue(), err.getvalue()
+
+
 def cli_error(args: list[str]) -> str:
-    proc = subprocess.run([sys.executable, "-m", "kinecal", *args], capture_output=True,
-                          text=True, timeout=120, check=False)
-    assert proc.returncode == 2, proc.stderr
-    return proc.stderr.strip().splitlines()[-1]
+    code, _, err = cli(args)
+    assert code == 2, err
+    return err.strip().splitlines()[-1]
 
 
 @pytest.mark.parametrize("name, text", [
@@ -78,29 +88,83 @@ def test_a_good_file_dropped_is_loaded(page, bench):
 
 
 def test_plan_by_hand_is_saved_as_select_poses_writes(page, bench, workdir):
+    import re
+
     from kinecal.io.csvtable import read_table
 
     page.tab("Plan")
     rng = np.random.default_rng(3)
-    wanted = rng.uniform(-150, 150, (8, 6)).round(1)
-    for q in wanted:
-        for sl, v in zip(bench.plan.sliders, q, strict=True):
-            page.set_slider(sl, v)
-        page.page.wait_for_timeout(150)
+    wanted = rng.uniform(-150, 150, (4, 6)).round(1)
+    for k, q in enumerate(wanted):
+        page.set_sliders(bench.plan.sliders, q)
         page.el(bench.plan.add).click()
-    text = page.wait_text("kc-plan", "plan: 8 poses")
+        page.wait_text("kc-plan", f"plan: {k + 1} poses")
+    text = page.text("kc-plan")
     assert np.allclose(bench.session.plan / bench.session.model.joint_scale(), wanted,
                        atol=1e-9)
-    # the figures are the analysis of `kinecal identifiability --data PLAN.csv`
     page.el(bench.plan.save_csv).click()
     page.wait_text("kc-saved", "plan.csv")
     path = workdir / "kinecal-ui" / "plans" / "plan.csv"
     cols = read_table(path, [f"q{i}" for i in range(1, 7)])
     assert np.allclose(np.stack([cols[f"q{i}"] for i in range(1, 7)], axis=1), wanted)
-    out = subprocess.run([sys.executable, "-m", "kinecal", "identifiability", "ur5", "--data",
-                          str(path)], capture_output=True, text=True, check=True).stdout
-    rank = out.split("rank ")[1].split(" of ")
-    assert f"rank {rank[0]} of {rank[1].split(';')[0]}" in text
-    cond = out.split("condition number ")[1].split(" ")[0]
-    assert f"condition number {float(cond):.3g}"[:20] in f"condition number " \
-        f"{float(text.split('condition number ')[1].split()[0]):.3g}"
+    # the figures are the analysis of `kinecal identifiability --data PLAN.csv`
+    code, out, _ = cli(["identifiability", "ur5", "--data", path])
+    assert code == 0
+    rank, n, cond = re.match(r"rank (\d+) of (\d+); condition number (\S+)", out).groups()
+    shown = re.search(r"rank (\d+) of (\d+); condition number (\S+)", text).groups()
+    assert shown[:2] == (rank, n) and int(rank) < int(n)  # 4 poses cannot identify all
+    assert float(shown[2]) == pytest.approx(float(cond), rel=5e-3)  # 4 vs 3 digits shown
+    held = re.search(r"held at nominal: (.*)", text).group(1).split(", ")
+    assert len(held) == int(n) - int(rank)
+
+
+def test_robot_programs_saved_from_the_plan(page, bench, workdir):
+    """The plan of the test above as each robot language: its joint values read back by
+    each language's parser; without the program writers, one line says so."""
+    import importlib.util
+
+    from tests.ui.conftest import ROBOT_LANGUAGES
+
+    page.tab("Plan")
+    plan = bench.session.plan
+    assert plan is not None and len(plan) == 4
+    writers = importlib.util.find_spec("kinecal.io.programs") is not None
+    for label, suffix in ROBOT_LANGUAGES.items():
+        page.choose(bench.plan.language, label)
+        page.page.wait_for_function("([id, v]) => document.querySelector(`[id='${id}']`)"
+                                    ".value === v", arg=[bench.plan.language._impl.uuid,
+                                                         label], timeout=5000)
+        page.el(bench.plan.save_program).click()
+        path = workdir / "kinecal-ui" / "plans" / f"plan{suffix}"
+        if not writers:
+            text = page.wait_text("kc-status", "robot programs")
+            assert text == ("kinecal: error: robot programs (kinecal select-poses --program) "
+                            "are not in this build of kinecal")
+            assert not path.exists()
+            continue
+        page.wait_text("kc-saved", f"plan{suffix}")
+        joints = _program_joints(path.read_text(), suffix)
+        assert np.allclose(joints, plan, atol=1e-8), (suffix, joints)
+
+
+def _program_joints(text: str, suffix: str) -> np.ndarray:
+    """Joint values (rad) of a program, by the parsers of tests/io/test_robot_programs.py
+    (the writers' own tests: one parser per language)."""
+    import yaml
+    from tests.io import test_robot_programs as parsers
+
+    if suffix == ".script":
+        moves, waits = parsers.parse_urscript(text)
+    elif suffix == ".mod":
+        moves, _, waits = parsers.parse_rapid(text)
+        moves = np.radians(moves)
+    elif suffix == ".src":
+        found, waits = parsers.parse_krl(text)
+        moves = np.radians([[m[f"A{i}"] for i in range(1, 7)] for m in found])
+    else:
+        doc = yaml.safe_load(text)
+        moves = np.array([p["positions"] for p in doc["points"]])
+        waits = [2.0] * len(moves)
+        assert len(doc["joint_names"]) == 6
+    assert len(waits) == len(moves)
+    return np.asarray(moves)

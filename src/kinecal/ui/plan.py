@@ -39,6 +39,7 @@ class PlanView:
         self._model = None
         self._selecting: Run | None = None
         self._touched = False  # the ghost shows once a joint slider has moved
+        self._figures: tuple | None = None  # (plan key, lines) of the last figures
         gui = server.gui
         with tab:
             self.joints = gui.add_folder("Joints")
@@ -206,8 +207,6 @@ class PlanView:
 
     def update_figures(self) -> None:
         """Recompute and show the plan's figures (module docstring)."""
-        from kinecal.ui.planning import plan_figures
-
         s = self.app.session
         if s.model is None or s.is_system:
             self.figures.content = _html("kc-plan", "Plan views of robot systems: use "
@@ -227,9 +226,20 @@ class PlanView:
             lines.append("plan: no poses yet (Add this pose, or Select poses)")
             self.figures.content = _html("kc-plan", "\n".join(lines))
             return
-        f = plan_figures(s.model, plan, float(self.noise.value))
-        unit = s.model.length_unit
-        lines += [f"plan: {f.n_poses} poses; rank {f.rank} of {f.n_params}; condition "
+        lines += self._plan_lines(s.model, plan, float(self.noise.value))
+        self.figures.content = _html("kc-plan", "\n".join(lines))
+
+    def _plan_lines(self, model, plan: Array, noise: float) -> list[str]:
+        """The plan's figures in words, recomputed only when the plan or the noise changed
+        (a joint slider's move changes neither)."""
+        from kinecal.ui.planning import plan_figures
+
+        key = (id(model), plan.tobytes(), noise)
+        if self._figures is not None and self._figures[0] == key:
+            return self._figures[1]
+        f = plan_figures(model, plan, noise)
+        unit = model.length_unit
+        lines = [f"plan: {f.n_poses} poses; rank {f.rank} of {f.n_params}; condition "
                   f"number {f.condition_number:.4g}",
                   f"predicted position uncertainty after calibration: {f.position_sigma:.3g} "
                   f"{unit} (1 sigma, rms over the poses)"]
@@ -241,7 +251,8 @@ class PlanView:
                 for n, v in worst))
         if f.unidentifiable:
             lines.append("held at nominal: " + ", ".join(f.unidentifiable))
-        self.figures.content = _html("kc-plan", "\n".join(lines))
+        self._figures = (key, lines)
+        return lines
 
     # ------------------------------------------------------------------ select, save
     def select_poses(self) -> str:
@@ -285,14 +296,16 @@ class PlanView:
         return self._saved(path)
 
     def write_program(self) -> str:
+        """The plan as a robot program by the writers of ``select-poses --program``
+        (`kinecal.io.programs.write_robot_program`, the one call made here)."""
         try:
             from kinecal.io.programs import write_robot_program
         except ImportError:
-            raise InputError("robot programs are not in this build of kinecal") from None
+            raise InputError("robot programs (kinecal select-poses --program) are not in "
+                             "this build of kinecal") from None
         s, path = self._target(PROGRAMS[self.language.value])
-        names = _joint_labels(s.model)
         write_robot_program(path, self.plan, prismatic=s.model.is_prismatic(),
-                            length_unit=s.model.length_unit, joint_names=names,
+                            length_unit=s.model.length_unit, joint_names=_joint_labels(s.model),
                             comment=f"kinecal workbench plan for {s.model.name}")
         return self._saved(path)
 
