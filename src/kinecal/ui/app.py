@@ -157,6 +157,7 @@ class Workbench:
         self.see.refresh()
         self.plan.refresh()
         self.run.refresh()
+        self.check.refresh()
 
     def _model_chosen(self, _event) -> None:
         name = self.model_box.value

@@ -2,7 +2,7 @@
 process, so that the page never waits for one and a run is the CLI's to the byte.
 
 A run is ``python -m kinecal ARGS`` in the working folder with ``KINECAL_PROGRESS=lines``
-(`kinecal.cli._common.progress` then writes its steps as lines on stderr); a thread reads
+(`kinecal.cli._progress.progress` then writes its steps as lines on stderr); a thread reads
 its stderr as it comes (progress, ``kinecal: warning:`` lines, the one ``kinecal: error:``
 line of a refused input) and calls back on every change. Stopping a run ends its process
 (the command line's clean-up runs: no half-written output).
@@ -40,12 +40,16 @@ class Run:
         Where it writes its files.
     status : str
         ``waiting``, ``running``, ``done``, ``failed`` or ``stopped``.
+    ok_codes : tuple of int
+        Exit statuses of a run that did its work (``kinecal check`` exits 3 or 4 with its
+        verdict); another status is a failure.
     """
 
     label: str
     args: list[str]
     folder: Path
     on_change: Callable[[Run], None] | None = None
+    ok_codes: tuple[int, ...] = (0,)
     status: str = "waiting"
     task: str = ""
     done: int = 0
@@ -117,7 +121,7 @@ class Run:
         self.returncode = proc.wait()
         self.stdout = "".join(out)
         self.status = ("stopped" if self._stopping else
-                       "done" if self.returncode == 0 else "failed")
+                       "done" if self.returncode in self.ok_codes else "failed")
         if self.returncode not in (0, 2) and self.error is None and self.status == "failed":
             self.error = f"kinecal exited with status {self.returncode}"
         self._changed()
