@@ -43,6 +43,11 @@ class Measurements:
         `marker_names`; None when the arm carries one tool point.
     marker_names : tuple of str
         Names of the markers `marker` indexes (the model's markers, in its order).
+    temperature : ndarray, shape (N,) or None
+        Temperature at each pose (deg C), carried into the report.
+    time : ndarray, shape (N,) or None
+        When each pose was measured (s; from ISO 8601 dates: s since 1970-01-01 UTC):
+        time-ordered data are cross-validated in blocks of time as well.
     """
 
     q: NDArray[np.float64]
@@ -52,6 +57,8 @@ class Measurements:
     rotations: NDArray[np.float64] | None = None
     marker: NDArray[np.intp] | None = None
     marker_names: tuple[str, ...] = ()
+    temperature: NDArray[np.float64] | None = None
+    time: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         q = np.asarray(self.q, dtype=float)
@@ -80,6 +87,11 @@ class Measurements:
                                  f"(marker_names {list(self.marker_names)})")
         elif self.marker_names:
             raise InputError("marker_names without marker indices")
+        for name in ("temperature", "time"):
+            v = getattr(self, name)
+            if v is not None and (np.shape(v) != (q.shape[0],)
+                                  or not np.isfinite(np.asarray(v, dtype=float)).all()):
+                raise InputError(f"{name}: expected {q.shape[0]} finite values")
 
     def __repr__(self) -> str:
         what = "poses" + (" with orientations" if self.rotations is not None else "")
@@ -95,8 +107,10 @@ class Measurements:
         w = None if self.weights is None else np.asarray(self.weights)[index]
         R = None if self.rotations is None else np.asarray(self.rotations)[index]
         m = None if self.marker is None else np.asarray(self.marker)[index]
+        extra = {k: None if getattr(self, k) is None else np.asarray(getattr(self, k))[index]
+                 for k in ("temperature", "time")}
         return Measurements(np.asarray(self.q)[index], np.asarray(self.xyz)[index], w,
-                            f"{self.source}[subset]", R, m, self.marker_names)
+                            f"{self.source}[subset]", R, m, self.marker_names, **extra)
 
 
 #: measurement kinds of `GaugeMeasurements` -> the CSV column naming each row's group

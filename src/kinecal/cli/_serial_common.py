@@ -49,9 +49,11 @@ def _check_same_arm(model, p: np.ndarray, path: Path) -> None:
 
     from kinecal.compensation.same_arm import check_same_arm
 
-    def flange(m):  # markers: the arm up to its flange (the markers' points are lengths)
+    def flange(m):  # markers: the arm up to its flange (the markers' points are lengths);
+        # its joint-error terms go too (their reference geometry names the markers)
         return m if not m.marker_names else dataclasses.replace(
-            m, markers=None, tool=None, joint_limits=np.array(m.joint_limits),
+            m, markers=None, tool=None, joint_errors=None,
+            joint_limits=np.array(m.joint_limits),
             tolerances=dict(m.tolerances or {}),
             fixed=tuple(f for f in m.fixed if not f.startswith("tool.")))
 

@@ -6,6 +6,9 @@ optional ``weight`` column; joint values in the model's angle unit, positions in
 The laser-tracker export of the bundled UR5 dataset (``joint_1..joint_n, x_t, y_t, z_t,
 x_dif, y_dif, z_dif``; degrees, mm) is read as well: measured = target + dif.
 
+Optional ``temperature`` (deg C) and ``time`` (seconds or ISO 8601) columns are carried
+into the report (`kinecal.io.conditions`).
+
 An optional ``marker`` column says which marker (tool point) each row measured: a name of
 the model's ``markers`` or its number 1..M in the model's order. A model without markers
 takes the names the file uses (`kinecal.kinematics.serial.markers.model_for_markers` then gives
@@ -27,6 +30,7 @@ from numpy.typing import NDArray
 from kinecal import diagnostics
 from kinecal.data import Measurements
 from kinecal.errors import InputError
+from kinecal.io.conditions import read_conditions
 from kinecal.io.csvtable import check_separator, read_column, read_table, write_table
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
@@ -38,7 +42,8 @@ __all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "read_j
 #: columns with a meaning of their own in measurement and program files: a joint of that
 #: name can only be given as q1..qn
 _RESERVED = frozenset(("x", "y", "z", "qw", "qx", "qy", "qz", "weight", "marker", "pose",
-                       "pivot", "pair", "point", "plane", "distance", "sigma"))
+                       "pivot", "pair", "point", "plane", "distance", "sigma", "temperature",
+                       "time"))
 
 
 def _q_column(name: str) -> bool:
@@ -251,7 +256,8 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
                              "quaternion", file=path, row=row)
         rotations = matrix_from_quaternion(qv)
     marker, names = read_markers(path, model)
-    return Measurements(q, xyz, weights, str(path), rotations, marker, names)
+    return Measurements(q, xyz, weights, str(path), rotations, marker, names,
+                        **read_conditions(path))
 
 
 def write_measurements(path: str | Path, data: Measurements, model: SerialModel) -> None:
@@ -267,4 +273,7 @@ def write_measurements(path: str | Path, data: Measurements, model: SerialModel)
         columns["weight"] = np.asarray(data.weights)
     if data.marker is not None:
         columns["marker"] = np.asarray(data.marker_names, dtype=str)[np.asarray(data.marker)]
+    for name in ("temperature", "time"):
+        if getattr(data, name) is not None:
+            columns[name] = np.asarray(getattr(data, name), dtype=float)
     write_table(path, columns)

@@ -70,8 +70,9 @@ def model_for_data(model: SerialModel, data: Any, path: Path) -> SerialModel:
     from kinecal.kinematics.serial.markers import model_for_markers
 
     params = serial_result_parameters(data, path)
-    model = _with_result_joint_errors(model, data, path)
-    return model_for_markers(model, result_markers(params))
+    # the markers first: the terms' reference geometry names the markers' tool points
+    model = model_for_markers(model, result_markers(params))
+    return _with_result_joint_errors(model, data, path)
 
 
 def parameters_from_result(model: SerialModel, path: str | Path) -> Array:

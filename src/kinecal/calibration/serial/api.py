@@ -44,7 +44,7 @@ from kinecal.optimize.factor import gram_root
 from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
 from kinecal.optimize.lsq import LOSSES, householder_gauss_newton, levenberg_marquardt
 
-__all__ = ["CALIBRATION_METHODS", "calibrate"]
+__all__ = ["CALIBRATION_METHODS", "calibrate", "with_model_markers"]
 
 CALIBRATION_METHODS: tuple[str, ...] = ("lm", "householder", *METHODS, *hybrid_methods())
 
@@ -112,7 +112,7 @@ def _solution_report(problem: CalibrationProblem, x: np.ndarray, report, normal,
         singular_values=sub.singular_values, observability=sub.observability)
 
 
-def _with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
+def with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
     """`data` with its marker indices into `model`'s markers (matched by name)."""
     if data.marker is None or data.marker_names == model.marker_names:
         return data
@@ -326,8 +326,8 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
                options, progress, rank_tol, rotation_weight, sigma) -> CalibrationResult:
     _check_arguments(method, loss, f_scale, maxiter, target, options, model, sigma, data)
     model = model_for_markers(model, data.marker_names)  # one tool point per marker seen
-    data = _with_model_markers(data, model)
-    validate = None if validate is None else _with_model_markers(validate, model)
+    data = with_model_markers(data, model)
+    validate = None if validate is None else with_model_markers(validate, model)
     seed = int(rng) if isinstance(rng, int | np.integer) else None
     t0 = time.perf_counter()
     problem, res, names, report, info, first_report = _setup(

@@ -36,8 +36,18 @@ import numpy as np
 
 from kinecal.calibration.diagnostics import CODES
 from kinecal.calibration.identifiability import IdentifiabilityReport
-from kinecal.calibration.serial.api import CALIBRATION_RANK_TOL, calibrate
-from kinecal.calibration.serial.cross_validation import CVScore, FoldedRows, one_standard_error
+from kinecal.calibration.serial.api import (
+    CALIBRATION_RANK_TOL,
+    calibrate,
+    with_model_markers,
+)
+from kinecal.calibration.serial.cross_validation import (
+    CVScore,
+    FoldedRows,
+    one_standard_error,
+    partitions,
+    within_and_beyond,
+)
 from kinecal.calibration.serial.error_model_result import ErrorModelResult, error_model_text
 from kinecal.calibration.serial.error_model_spec import (
     AUTO_HARMONICS,
@@ -56,7 +66,10 @@ from kinecal.data import Measurements
 from kinecal.diagnostics import expect, warn
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.joint_errors import FAMILIES, JointErrors, joint_errors_for
+from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope
+from kinecal.kinematics.serial.markers import model_for_markers
 from kinecal.kinematics.serial.model import SerialModel
+from kinecal.kinematics.serial.motions import PRISMATIC
 
 __all__ = ["AUTO_HARMONICS", "DEFAULT_FOLDS", "DEFAULT_HARMONICS", "ERROR_MODELS", "LSQ_METHODS",
            "MAX_HARMONICS", "ErrorModelResult", "calibrate_error_model", "candidates",
@@ -138,6 +151,10 @@ def calibrate_error_model(
     """
     model = as_model(model)
     data, validate = as_measurements(data, model), as_measurements(validate, model, "validate")
+    # one tool point per marker the data names, as `calibrate` gives a model without them
+    model = model_for_markers(model, data.marker_names)
+    data = with_model_markers(data, model)
+    validate = None if validate is None else with_model_markers(validate, model)
     families = parse_error_model(error_model)
     if error_model == "model" and model.joint_errors is None:
         families = ()  # the model has no joint-error terms: a geometric calibration
@@ -181,8 +198,9 @@ def calibrate_error_model(
             geo.extra["error_model"] = _choice(error_model, "geometric", k, table, geo)
             return ErrorModelResult.of(geo, geo, data)
         final_spec = joint_errors_for(plain, chosen, chosen_order, base=model.joint_errors)
-    # 3. the chosen model: geometry and identifiable coefficients together
-    final_model = _with_terms(model, final_spec)
+    # 3. the chosen model: geometry and identifiable coefficients together, its terms held
+    # at the edges of the calibration poses' joint readings
+    final_model = _with_terms(model, final_spec.within(_envelope(plain, data)))
     res, ident = _fit_chosen(final_model, data, method, geo, geo_seen, analysis,
                              [n for n in final_model.parameter_names[plain.n_params:]
                               if n not in model.fixed_names],
@@ -195,6 +213,11 @@ def calibrate_error_model(
     res.extra["error_model"] = _choice(error_model, label, k, table, geo)
     res.extra["joint_errors"] = _terms_entry(res, ident)
     return ErrorModelResult.of(res, geo, data)
+
+
+def _envelope(model: SerialModel, data: Measurements) -> JointEnvelope:
+    """The joint readings of the calibration poses (`JointEnvelope`)."""
+    return JointEnvelope.of(data.q, [k != PRISMATIC for k in model.joint_kinds])
 
 
 def _check_arguments(error_model: str, method: str, harmonics: int | None) -> None:
@@ -216,7 +239,8 @@ def _auto_choice(union: SerialModel, data: Measurements, geo: CalibrationResult,
     Returns ``(analysis, table, chosen families, chosen harmonic order)``.
     """
     cols = list(geo.free) + coef_names
-    folded = FoldedRows(union, data, params, union.index(cols), k, rw)
+    parts = partitions(data.q, k, data.time)
+    folded = FoldedRows(union, data, params, union.index(cols), k, rw, parts)
     analysis = CoefficientAnalysis(union, data, geo.free, coef_names, params, rw,
                                    gram=folded.total, positions=folded.positions)
     cands = candidates(order)
@@ -225,20 +249,30 @@ def _auto_choice(union: SerialModel, data: Measurements, geo: CalibrationResult,
         [n for n in coef_names if member(n, fam, h)], rank_tol) for _, fam, h in cands]
     sizes = [len(s_) for s_ in sets]
     pos = {n: i for i, n in enumerate(cols)}
-    scores = folded.scores([[pos[n] for n in s_] for s_ in sets])
+    cand_cols = [[pos[n] for n in s_] for s_ in sets]
+    within = folded.scores(cand_cols)
+    blocked = {p.name: folded.scores(cand_cols, i) for i, p in enumerate(parts) if i}
+    scores = within_and_beyond(within, list(blocked.values()))
     # a candidate with more parameters than a fold's training rows is not fitted by
     # the fold: it cannot be chosen (the geometric model always can)
-    train_rows = folded.rows.rows * (len(data) - int(np.bincount(folded.folds).max()))
-    scores = [sc if i == 0 or sizes[i] <= train_rows else
-              CVScore(float("inf"), float("inf"), sc.fold_means)
-              for i, sc in enumerate(scores)]
+    train_rows = folded.rows.rows * (len(data) - max(int(np.bincount(p.folds).max())
+                                                      for p in parts))
+    fits = [i == 0 or sizes[i] <= train_rows for i in range(len(cands))]
+    scores = [sc if ok else CVScore(float("inf"), float("inf"), sc.fold_means)
+              for sc, ok in zip(scores, fits, strict=True)]
     best, pick = one_standard_error(scores, sizes)
+
+    def number(v: float) -> float | None:
+        return float(v) if np.isfinite(v) else None
+
     table = [{"model": label, "parameters": sizes[i],
               "coefficients": sizes[i] - len(geo.free),
-              "cv_mean": sc.mean if np.isfinite(sc.mean) else None,
-              "cv_se": sc.se if np.isfinite(sc.se) else None,
+              "score": number(scores[i].mean), "cv_se": number(scores[i].se),
+              "cv_mean": number(within[i].mean) if fits[i] else None,
+              "cv_blocked": ({nm: number(bs[i].mean) for nm, bs in blocked.items()}
+                             if fits[i] else {}),
               "best": i == best, "chosen": i == pick}
-             for i, ((label, _, _), sc) in enumerate(zip(cands, scores, strict=True))]
+             for i, (label, _, _) in enumerate(cands)]
     return analysis, table, cands[pick][1], cands[pick][2]
 
 
