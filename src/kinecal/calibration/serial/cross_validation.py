@@ -159,14 +159,18 @@ class FoldedRows:
             self.positions[sel] = P
             if self._kept is not None:
                 self._kept.append((sel, e, Jt))
-            B = np.concatenate([Jt[:m].reshape(m, -1),
-                                np.ascontiguousarray(e.T).reshape(1, -1)])
-            B = B.reshape(m + 1, Jt.shape[1], -1)
+            # rows [J | r] pose-major: a fold's poses are then one contiguous block
+            B = np.concatenate([Jt[:m], e.T[None]], axis=0).transpose(0, 2, 1)
             for p, part in enumerate(self.parts):
                 f = part.folds[sel]
-                for fold in np.unique(f):
-                    Bf = B[:, :, f == fold].reshape(m + 1, -1)
-                    G[p][fold] += Bf @ Bf.T
+                order = np.argsort(f, kind="stable")
+                Bo = np.ascontiguousarray(B[:, order])
+                bounds = np.searchsorted(f[order], np.arange(part.k + 1))
+                for fold in range(part.k):
+                    lo, hi = bounds[fold], bounds[fold + 1]
+                    if hi > lo:
+                        Bf = Bo[:, lo:hi].reshape(m + 1, -1)
+                        G[p][fold] += Bf @ Bf.T
         self._grams = G
         self.grams = G[0]
         self.total = G[0].sum(axis=0)
@@ -204,7 +208,13 @@ class FoldedRows:
         joint = self._terms.joint_of[self._coef_term]
         for fold in np.unique(folds):
             at = np.flatnonzero(folds == fold)
-            W = self._terms.basis_within(q[at], envelopes[fold])[:, self._coef_term]
+            env = envelopes[fold]
+            # rows within the fold's raw readings: the all-pose basis as it is
+            raw = np.zeros(q.shape[1], dtype=bool)
+            at = at[(env.beyond(q[at], periodic=raw) != 0).any(axis=1)]
+            if not at.size:
+                continue
+            W = self._terms.basis_within(q[at], env)[:, self._coef_term]
             J3[self._coef_pos[:, None], :, at[None, :]] = np.moveaxis(
                 Jq[joint][:, :, at] * W.T[:, None, :], 2, 1)
         return J3

@@ -14,6 +14,7 @@ from kinecal._files import write_text_atomic
 from kinecal.calibration.identifiability import IdentifiabilityReport
 from kinecal.calibration.uncertainty import Uncertainty
 from kinecal.diagnostics import Diagnostic
+from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope, envelope_entry
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.metrology.stats import error_stats, stat_rows
 from kinecal.metrology.units import DisplayUnit, display_unit
@@ -114,6 +115,15 @@ class CalibrationResult:
     lost: list[str] = field(default_factory=list)
 
     # ------------------------------------------------------------------ numbers
+    @property
+    def envelope(self) -> JointEnvelope | None:
+        """The joint readings the calibration saw, per joint the lowest and highest
+        (`kinecal.kinematics.serial.joint_errors_envelope`); None without them."""
+        if self.q_calibration is None or len(self.q_calibration) == 0:
+            return None
+        return JointEnvelope.of(self.q_calibration, [k != "prismatic" for k in
+                                                     self.nominal_model.joint_kinds])
+
     @property
     def calibration_stats(self) -> dict[str, dict[str, float]]:
         """Before/after statistics on the calibration poses."""
@@ -267,6 +277,8 @@ class CalibrationResult:
         out["predicted_error"] = {**self.predicted_error_summary(), "bounded": self.bounded}
         if self.lost:
             out["not_determined"] = list(self.lost)
+        if self.envelope is not None:
+            out["envelope"] = envelope_entry(self.nominal_model, self.envelope)
         out.update(self.extra)
         if "noise" in self.extra:  # the stated noise: its test and known-noise uncertainty
             from kinecal.calibration.diagnostics.noise import noise_entry

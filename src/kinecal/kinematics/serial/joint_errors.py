@@ -84,6 +84,10 @@ class _Term:
     pair: int = -1  # compliance: column of the gravity-force table
 
 
+def _identity(x: Array) -> Array:
+    return x
+
+
 class JointErrorTerms:
     """`JointErrors` bound to a model's chain: names, basis, corrections, derivatives.
 
@@ -144,6 +148,10 @@ class JointErrorTerms:
         for k, v in spec.values.items():
             self.nominal[index[k]] = float(v)
         self.joint_of = np.array([t.joint for t in terms], dtype=np.intp)
+        env = spec.envelope
+        #: where a joint's own terms vanish (the middle of its calibrated range)
+        self._anchor = (None if env is None else
+                        0.5 * (np.asarray(env.low) + np.asarray(env.high)))
         self.families = tuple(t.family for t in terms)
         self._cache: OrderedDict = OrderedDict()
 
@@ -277,6 +285,7 @@ class JointErrorTerms:
         W = np.empty((N, self.n))
         dW = np.zeros((N, self.n, self.n_joints)) if derivatives else None
         tau, dtau = r.blended(self._forces, derivatives)
+        anchor = self._anchor
         for k, t in enumerate(self._terms):
             j = t.joint
             if t.family == "compliance":
@@ -291,8 +300,11 @@ class JointErrorTerms:
                          (lambda x, h=h: np.cos(h * x), lambda x, h=h: -h * np.sin(h * x)))
                 value, slope = r.one_joint(j, f, df, periodic=True)
             else:
-                value, slope = r.one_joint(j, lambda x: x, np.ones_like, periodic=False)
-            W[:, k] = value
+                f = _identity
+                value, slope = r.one_joint(j, f, np.ones_like, periodic=False)
+            # with an envelope, a joint's own terms vanish at the middle of its range: the
+            # joint offset (or what stands in for it) alone carries the constant
+            W[:, k] = value if anchor is None else value - f(anchor[j:j + 1])[0]
             if derivatives:
                 dW[:, k, j] = slope
         return W, dW

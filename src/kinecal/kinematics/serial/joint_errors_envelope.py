@@ -31,13 +31,18 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
 
-__all__ = ["TURN", "JointEnvelope", "Retraction", "smoothstep"]
+if TYPE_CHECKING:
+    from kinecal.kinematics.serial.model import SerialModel
+
+__all__ = ["TURN", "JointEnvelope", "Retraction", "envelope_entry", "envelope_from_entry",
+           "reading_scale", "smoothstep"]
 
 Array = NDArray[np.float64]
 #: one turn (rad)
@@ -158,6 +163,28 @@ class JointEnvelope:
             return cls(tuple(lo / s), tuple(hi / s), tuple(revolute))
         except InputError as exc:
             raise InputError(f"{where}: {exc.message}") from None
+
+
+def reading_scale(model: SerialModel) -> list[float]:
+    """Per joint, rad to the model's unit of a reading (revolute) or 1 (prismatic)."""
+    f = 180.0 / np.pi if model.angle_unit == "deg" else 1.0
+    return [f if k != "prismatic" else 1.0 for k in model.joint_kinds]
+
+
+def envelope_entry(model: SerialModel, envelope: JointEnvelope) -> dict:
+    """The ``envelope`` entry of a result JSON: ``{"joints": ["q1", ...], "low": [...],
+    "high": [...]}`` in the model's units (its angle unit, length unit for prismatic
+    joints)."""
+    return {"joints": [f"q{j + 1}" for j in range(envelope.n_joints)],
+            **envelope.to_dict(reading_scale(model))}
+
+
+def envelope_from_entry(model: SerialModel, entry: object, where: str = "envelope"
+                        ) -> JointEnvelope:
+    """The inverse of `envelope_entry` for `model` (InputError naming `where`)."""
+    raw = {k: v for k, v in entry.items() if k != "joints"} if isinstance(entry, dict) else entry
+    return JointEnvelope.from_dict(raw, reading_scale(model),
+                                   [k != "prismatic" for k in model.joint_kinds], where)
 
 
 def smoothstep(s: Array) -> tuple[Array, Array]:
