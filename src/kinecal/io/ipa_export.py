@@ -14,7 +14,8 @@ the robot base, m and rad), the six joint readings ``shoulder_pan_joint .. wrist
 angles: ``R = Rx(rx) Ry(ry) Rz(rz)``), and in series B-D each value's standard deviation
 ``measurement_std_*``.
 
-`convert_ipa_export` writes kinecal's measurement CSV: ``q1..q6`` (deg), ``x, y, z`` (mm),
+`convert_ipa_export` writes kinecal's measurement CSV: ``q1..q6`` (deg, 12 significant
+digits), ``x, y, z`` (mm),
 ``rx, ry, rz`` (deg, the T-Mac's orientation, same convention), ``sx, sy, sz`` (mm) and
 ``srx, sry, srz`` (deg) where the export has them, ``temperature`` (deg C) and ``time`` (ISO
 8601, the lab's local time, where the export kept it). ``kinecal import SERIES.csv --out
@@ -113,7 +114,9 @@ def read_ipa_export(path: str | Path) -> dict[str, NDArray]:
                 raise InputError(f"column {name}: expected a finite number", file=path, row=r)
         return out
 
-    cols: dict[str, NDArray] = {f"q{i + 1}": np.degrees(numbers(j))
+    # degrees to 12 significant digits (the export gives the radians to 6)
+    cols: dict[str, NDArray] = {f"q{i + 1}": np.array([float(f"{v:.12g}") for v in
+                                                       np.degrees(numbers(j))])
                                 for i, j in enumerate(IPA_JOINTS)}
     cols.update({mine: numbers(theirs) for theirs, mine in _COLUMNS.items() if theirs in header})
     if "Timestamp" in header:

@@ -152,14 +152,14 @@ def plot_residual_maps(maps: ResidualMaps) -> Any:
     return fig
 
 
-def _png_tag(fig: Any, alt: str, caption: str) -> str:
+def _png_tag(fig: Any, alt: str, caption: str, ident: str = "fig-residual-maps") -> str:
     import io
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=_DPI)
     w, h = (round(v * _DPI) for v in fig.get_size_inches())
     data = base64.b64encode(buf.getvalue()).decode("ascii")
-    return (f'<figure id="fig-residual-maps"><img class="fig" src="data:image/png;base64,'
+    return (f'<figure id="{ident}"><img class="fig" src="data:image/png;base64,'
             f'{data}" alt="{html.escape(alt)}" width="{w}" height="{h}">'
             f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 

@@ -32,7 +32,11 @@ from kinecal.calibration.serial.polish import check_local_polish
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
 from kinecal.calibration.serial.solve import solve_lm
-from kinecal.calibration.serial.summaries import result_extra, validation_errors
+from kinecal.calibration.serial.summaries import (
+    conditions_of,
+    result_extra,
+    validation_errors,
+)
 from kinecal.calibration.uncertainty import Uncertainty, subspace_uncertainty
 from kinecal.data import Measurements
 from kinecal.errors import InputError
@@ -394,4 +398,5 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         marker_validation=None if validate is None else validate.marker,
         uncertainty=unc,
         lost=list(info.lost),
+        conditions=conditions_of(data, validate),
     )

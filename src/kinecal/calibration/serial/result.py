@@ -82,6 +82,10 @@ class CalibrationResult:
     lost : list of str
         Parameters that well-spread poses identify but these poses do not
         (``rank-deficient``): the model's uncertainty away from the poses is unbounded.
+    conditions : dict of str to ndarray
+        The measurement conditions the files gave (``temperature`` deg C, ``time`` s) per
+        calibration pose, and ``validation_temperature``, ``validation_time`` per
+        validation pose: the report plots the residual against them.
     """
 
     model: SerialModel
@@ -113,6 +117,7 @@ class CalibrationResult:
     warnings: list[Diagnostic] = field(default_factory=list)
     uncertainty: Uncertainty | None = None
     lost: list[str] = field(default_factory=list)
+    conditions: dict[str, Array] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ numbers
     @property
