@@ -175,10 +175,11 @@ def calibrate(
         "rotation error (default: the workspace's characteristic length)."),
     error_model: str | None = typer.Option(
         None, "--error-model", metavar=choices(*ERROR_MODELS), help="auto: chosen by "
-        "cross-validation on the calibration poses; or families joined by '+' (default: the "
-        "model file's joint_errors, else geometric). See docs/error-models.md."),
+        "cross-validation on the calibration poses, within and beyond their joint ranges; or "
+        "families joined by '+' (default: the model file's joint_errors, else geometric). "
+        "See docs/error-models.md."),
     harmonics: int | None = typer.Option(
-        None, "--harmonics", help="Harmonic order (default 2; auto tries 1..3)."),
+        None, "--harmonics", help="Harmonic order (default 2; auto tries 1..4)."),
     folds: int | None = typer.Option(None, "--folds", help="Cross-validation folds "
                                      "(--error-model auto; default 10)."),
     sigma: list[str] | None = typer.Option(

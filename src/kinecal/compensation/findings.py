@@ -56,8 +56,8 @@ class RowFindings:
             return
         rows = self.offset + np.flatnonzero(out) + 1
         if not self._beyond:
-            self._beyond[:] = [0, rows[:5], np.zeros(d.shape[1]), np.zeros(d.shape[1], int),
-                               envelope, model]
+            self._beyond[:] = [0, np.zeros(0, dtype=int), np.zeros(d.shape[1]),
+                               np.zeros(d.shape[1], dtype=int), envelope, model]
         entry = self._beyond
         entry[0] += int(out.sum())
         if entry[1].size < 5:

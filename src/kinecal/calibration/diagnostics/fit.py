@@ -113,9 +113,10 @@ def check_parameter_tolerance(model: SerialModel, params: Array, std: Array,
     found: list[tuple[float, str]] = []
     if model.joint_errors is not None and q is not None:
         judged = _corrected_joints(model)
+        found = _joint_corrections(model, np.asarray(params, dtype=float), q,
+                                   dict(zip(names, std.tolist(), strict=True)))
         keep = [i for i, n in enumerate(names) if n not in judged]
         names, std = [names[i] for i in keep], std[keep]
-        found = _joint_corrections(model, np.asarray(params, dtype=float), q)
     idx = model.index(names)
     delta = np.asarray(params)[idx] - model.nominal[idx]
     tol = np.array([tol_of(n) for n in names])
@@ -158,21 +159,31 @@ def _corrected_joints(model: SerialModel) -> set[str]:
     return set(model.parameter_names[n_geo:]) | offsets
 
 
-def _joint_corrections(model: SerialModel, params: Array, q: Array) -> list[tuple[float, str]]:
+def _joint_corrections(model: SerialModel, params: Array, q: Array,
+                       std: dict[str, float]) -> list[tuple[float, str]]:
     """``(tolerances, text)`` of the joints whose whole correction at readings `q` (the
     offset's change plus the joint-error terms, against the nominal model's) exceeds
-    `TOLERANCE_MULTIPLE` tolerances."""
+    `TOLERANCE_MULTIPLE` tolerances plus three times a bound of its standard error (the
+    free parameters' standard errors `std` by name, summed with the terms' weights: a
+    correction the poses barely see, such as a last joint's with the tool point near its
+    axis, is not judged by its value)."""
     terms = model._joint_terms
     n_geo = model._n_geometric
     q = np.asarray(q, dtype=float)
+    W = terms.basis(q)
     dq = terms.dq(q, params[n_geo:]) - terms.dq(q, model.nominal[n_geo:])
+    coef = np.array([std.get(n, 0.0) for n in terms.names])
     out = []
     for j in sorted(set(terms.joint_of.tolist())):
         k = int(model._joint_columns[j])
         total = dq[:, j] + (params[k] - model.nominal[k])
+        sel = terms.joint_of == j
+        with np.errstate(invalid="ignore"):
+            bound = std.get(model.parameter_names[k], 0.0) + np.abs(W[:, sel]) @ coef[sel]
         tol = float(model.tolerances["angle" if model.is_angle()[k] else "length"])
+        excess = np.abs(total) - 3.0 * np.nan_to_num(bound, nan=np.inf)
         worst = float(np.abs(total).max(initial=0.0))
-        if worst > TOLERANCE_MULTIPLE * tol:
+        if (excess > TOLERANCE_MULTIPLE * tol).any():
             i = int(np.argmax(np.abs(total)))
             value = _values(model, [model.parameter_names[k]], total[i:i + 1])
             out.append((worst / tol, f"joint {j + 1} offset and terms {value.split(' ', 1)[1]}"))
