@@ -70,16 +70,16 @@ def test_fk_warns_for_rows_beyond_and_names_joint_and_amount(ur5, calibrated, ca
     assert main(["fk", "ur5", str(inside), "--params", str(tmp / "r.json")]) == 0
     assert "outside-calibrated-range" not in capsys.readouterr().err  # clean data: silent
     q = poses(ur5, 5, 3, (-50.0, 50.0))
-    q[1, 0] = 75 * DEG
+    q[1, 0] = 100 * DEG  # 40 deg beyond a 120 deg span: named
     q[3, 0] = -100 * DEG
+    q[4, 0] = 70 * DEG  # 10 deg beyond: within the edge margin (a quarter of the span)
     beyond = joints_csv(tmp / "out.csv", q)
     hi = json.loads((tmp / "r.json").read_text())["envelope"]["high"][0]
     assert main(["fk", "ur5", str(beyond), "--params", str(tmp / "r.json")]) == 0
     err = capsys.readouterr().err
     assert "[outside-calibrated-range]" in err and "2 of 5 rows (rows 2, 4)" in err
     lo = json.loads((tmp / "r.json").read_text())["envelope"]["low"][0]
-    assert f"q1 in 2 rows, up to {lo + 100:.3g} deg below" in err or \
-        f"up to {75 - hi:.3g} deg above" in err
+    assert f"q1 in 2 rows, up to {max(lo + 100, 100 - hi):.3g} deg" in err
     assert main(["fk", "ur5", str(beyond), "--params", str(tmp / "r.json"), "--strict"]) == 2
 
 

@@ -49,8 +49,9 @@ class RowFindings:
         """Count the rows of the current block that lie beyond the calibrated joint range:
         `d` ``(rows, n_joints)`` from
         `kinecal.calibration.diagnostics.envelope.beyond_calibrated_range`."""
-        from kinecal.calibration.diagnostics.envelope import extremes
+        from kinecal.calibration.diagnostics.envelope import extremes, significant
 
+        d = significant(d, envelope)
         out = (d != 0).any(axis=1)
         if not out.any():
             return

@@ -44,7 +44,6 @@ from kinecal.calibration.serial.cross_validation_folds import (
 )
 from kinecal.calibration.serial.rows import PoseRows
 from kinecal.data import Measurements
-from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.kinematics.serial.motions import PRISMATIC
 
@@ -195,28 +194,26 @@ class FoldedRows:
             steps.append((S, dx))
         return steps
 
-    def _held_out(self, sel, Jt: Array, folds: Array, envelopes: list) -> Array:
+    def _held_out(self, sel, Jt: Array, folds: Array, bounds: tuple[Array, Array]) -> Array:
         """Position rows ``(m, 3, n)`` of the poses `sel` as their folds' training fits see
-        them: coefficient columns from the basis within each fold's training envelope."""
+        them: coefficient columns from the basis within each fold's training envelope
+        (`bounds`: per fold the lowest and highest training readings, ``(K, n_joints)``)."""
         m = self.cols.size
         J3 = Jt[:m, :3]
         if not self._coef_pos.size:
             return J3
+        q = self._q[sel]
+        low, high = bounds[0][folds], bounds[1][folds]
+        # rows within their fold's raw readings: the all-pose basis as it is
+        at = np.flatnonzero(((q < low) | (q > high)).any(axis=1))
+        if not at.size:
+            return J3
         J3 = J3.copy()
         Jq = Jt[self._jq_pos, :3]  # (n_joints, 3, n): the chain's joint Jacobian
-        q = self._q[sel]
         joint = self._terms.joint_of[self._coef_term]
-        for fold in np.unique(folds):
-            at = np.flatnonzero(folds == fold)
-            env = envelopes[fold]
-            # rows within the fold's raw readings: the all-pose basis as it is
-            raw = np.zeros(q.shape[1], dtype=bool)
-            at = at[(env.beyond(q[at], periodic=raw) != 0).any(axis=1)]
-            if not at.size:
-                continue
-            W = self._terms.basis_within(q[at], env)[:, self._coef_term]
-            J3[self._coef_pos[:, None], :, at[None, :]] = np.moveaxis(
-                Jq[joint][:, :, at] * W.T[:, None, :], 2, 1)
+        W = self._terms.basis_rows(q[at], low[at], high[at])[:, self._coef_term]
+        J3[self._coef_pos[:, None], :, at[None, :]] = np.moveaxis(
+            Jq[joint][:, :, at] * W.T[:, None, :], 2, 1)
         return J3
 
     def scores(self, candidates: Sequence[Sequence[int]], partition: int = 0
@@ -226,7 +223,8 @@ class FoldedRows:
         k = self.parts[partition].k
         folds = self.parts[partition].folds
         steps = self._steps(candidates, partition)
-        envelopes = [JointEnvelope.of(self._q[folds != f], self._revolute) for f in range(k)]
+        bounds = (np.stack([self._q[folds != f].min(axis=0) for f in range(k)]),
+                  np.stack([self._q[folds != f].max(axis=0) for f in range(k)]))
         n = folds.size
         dist = np.zeros((len(candidates), n))
         chunks = self._kept if self._kept is not None else (
@@ -234,7 +232,7 @@ class FoldedRows:
             for sel in self.rows.chunks(self._eval_cols.size))
         for sel, e, Jt in chunks:
             f = folds[sel]
-            J3 = self._held_out(sel, Jt, f, envelopes)
+            J3 = self._held_out(sel, Jt, f, bounds)
             for c, (S, dx) in enumerate(steps):
                 # held-out prediction r_i + J_i dx_f of each pose with its own fold's step
                 step = np.einsum("krn,nk->nr", J3[S], dx[f]) if S.size else 0.0

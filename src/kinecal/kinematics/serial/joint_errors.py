@@ -278,6 +278,11 @@ class JointErrorTerms:
         as a fit on part of the poses would evaluate the others (cross-validation)."""
         return self._evaluate(Retraction(envelope, q), derivatives=False)[0]
 
+    def basis_rows(self, q: Array, low: Array, high: Array) -> Array:
+        """`basis_within` with an envelope per row, `low` and `high` ``(N, n_joints)``."""
+        revolute = [k != PRISMATIC for k in self.kinds]
+        return self._evaluate(Retraction.rows(q, low, high, revolute), derivatives=False)[0]
+
     def _evaluate(self, r: Retraction, derivatives: bool) -> tuple[Array, Array | None]:
         """Basis ``(N, n)`` at the retracted readings `r` and, with `derivatives`, its
         derivative with respect to the raw readings ``(N, n, n_joints)``."""

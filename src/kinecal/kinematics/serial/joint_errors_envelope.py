@@ -223,87 +223,110 @@ class Retraction:
     def __init__(self, envelope: JointEnvelope | None, q: Array) -> None:
         q = np.asarray(q, dtype=float)
         self.q = q
-        self.envelope = envelope
         self.a = q.copy()
         self.b = q.copy()
         self.t = np.zeros_like(q)
         self.dt = np.zeros_like(q)
         self.slope = np.ones_like(q)
-        if envelope is None:
-            return
-        lo, hi, gap = envelope._arcs()
-        rev = np.asarray(envelope.revolute)
-        full = envelope.full_turn()
-        for j in range(q.shape[1]):
-            x = q[:, j]
-            if rev[j] and not full[j]:
-                up = np.mod(x - hi[j], TURN)  # past high, going up around the circle
-                out = up < gap[j]
-                t, dts = smoothstep(up / gap[j])
-                self.a[:, j] = np.where(out, hi[j], hi[j] + up - TURN)
-                self.b[:, j] = np.where(out, lo[j], self.a[:, j])
-                self.t[:, j] = np.where(out, t, 0.0)
-                self.dt[:, j] = np.where(out, dts / gap[j], 0.0)
-            elif not rev[j]:
-                self.a[:, j] = self.b[:, j] = np.clip(x, lo[j], hi[j])
-                self.slope[:, j] = (x >= lo[j]) & (x <= hi[j])
+        self.low = self.high = None
+        if envelope is not None:
+            self._setup(np.broadcast_to(np.asarray(envelope.low), q.shape),
+                        np.broadcast_to(np.asarray(envelope.high), q.shape),
+                        np.asarray(envelope.revolute))
+
+    @classmethod
+    def rows(cls, q: Array, low: Array, high: Array, revolute) -> Retraction:
+        """Readings `q` ``(N, n_joints)``, each row against its own envelope `low`, `high`
+        ``(N, n_joints)`` (cross-validation: each fold's training poses)."""
+        out = cls(None, q)
+        out._setup(np.asarray(low, dtype=float), np.asarray(high, dtype=float),
+                   np.asarray(revolute, dtype=bool))
+        return out
+
+    def _setup(self, lo: Array, hi: Array, rev: NDArray[np.bool_]) -> None:
+        q = self.q
+        self.low, self.high = lo, hi
+        span = hi - lo
+        gap = np.maximum(TURN - span, 0.0)
+        self.full = rev & (span >= TURN)
+        partial = rev & ~self.full
+        up = np.mod(q - hi, TURN)  # past high, going up around the circle
+        out = partial & (up < gap)
+        t, dts = smoothstep(np.where(out, up / np.where(gap > 0, gap, 1.0), 0.0))
+        self.a = np.where(partial, np.where(out, hi, hi + up - TURN), q)
+        self.b = np.where(out, lo, self.a)
+        self.t = np.where(out, t, 0.0)
+        self.dt = np.where(out, dts / np.where(gap > 0, gap, 1.0), 0.0)
+        clip = np.clip(q, lo, hi)
+        self.a = np.where(rev, self.a, clip)
+        self.b = np.where(rev, self.b, clip)
+        self.slope = np.where(rev, 1.0, (q >= lo) & (q <= hi)).astype(float)
 
     def one_joint(self, j: int, f, df, periodic: bool) -> tuple[Array, Array]:
         """A term ``f`` of joint `j` alone (``df`` its derivative): values ``(N,)`` and
         ``d / d q_j`` ``(N,)``; `periodic` terms (harmonics) see a full-turn envelope as
         no limit, the others (scale) are clipped to it."""
-        env = self.envelope
-        if env is not None and not periodic and env.full_turn()[j]:
-            x = self.q[:, j]
-            lo, hi = env.low[j], env.high[j]
-            return f(np.clip(x, lo, hi)), df(np.clip(x, lo, hi)) * ((x >= lo) & (x <= hi))
         a, b, t = self.a[:, j], self.b[:, j], self.t[:, j]
+        slope = self.slope[:, j]
+        if self.low is not None and not periodic and self.full[:, j].any():
+            x, lo, hi = self.q[:, j], self.low[:, j], self.high[:, j]
+            full = self.full[:, j]
+            a = np.where(full, np.clip(x, lo, hi), a)
+            b = np.where(full, a, b)
+            slope = np.where(full, (x >= lo) & (x <= hi), slope)
         fa = f(a)
         if not t.any():
-            return fa, df(a) * self.slope[:, j]
+            return fa, df(a) * slope
         fb = f(b)
         gap = t > 0
         value = np.where(gap, (1.0 - t) * fa + t * fb, fa)
-        deriv = np.where(gap, (fb - fa) * self.dt[:, j], df(a) * self.slope[:, j])
+        deriv = np.where(gap, (fb - fa) * self.dt[:, j], df(a) * slope)
         return value, deriv
 
     def blended(self, fn, derivatives: bool) -> tuple[Array, Array | None]:
         """A function of the whole configuration, ``fn(Q, derivatives) -> (F (N, k),
         dF (N, k, n_joints) or None)``, blended over the corners of every gap a reading
         lies in (multilinear in the weights ``t``): values ``(N, k)`` and derivatives with
-        respect to the raw readings ``(N, k, n_joints)``."""
+        respect to the raw readings ``(N, k, n_joints)``.
+
+        Two calls of `fn`: the readings in no gap, and every (reading, corner) pair of the
+        others stacked (a reading in gaps of ``g`` joints has ``2^g`` corners)."""
         gap = self.t > 0
         if not gap.any():
             F, dF = fn(self.a, derivatives)
             return F, None if dF is None else dF * self.slope[:, None, :]
+        rows = np.flatnonzero(gap.any(axis=1))
+        plain = np.flatnonzero(~gap.any(axis=1))
+        g = gap[rows]
+        counts = 1 << g.sum(axis=1)
+        row_of = np.repeat(np.arange(rows.size), counts)
+        corner = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+        G = g[row_of]
+        order = np.maximum(np.cumsum(g, axis=1) - 1, 0)[row_of]  # a joint's bit in the corner
+        at_b = G & (((corner[:, None] >> order) & 1) == 1)
+        src = rows[row_of]
+        Q = np.where(at_b, self.b[src], self.a[src])
+        t = self.t[src]
+        wj = np.where(G, np.where(at_b, t, 1.0 - t), 1.0)  # per joint, in (0, 1]
+        w = np.prod(wj, axis=1)
+        Fc, dFc = fn(Q, derivatives)
         N, n = self.q.shape
-        patterns, which = np.unique(gap, axis=0, return_inverse=True)
-        F = dF = None
-        for p, pattern in enumerate(patterns):
-            rows = np.flatnonzero(which.ravel() == p)
-            joints = np.flatnonzero(pattern)
-            for corner in range(1 << joints.size):
-                bits = [(corner >> i) & 1 for i in range(joints.size)]
-                Q = self.a[rows].copy()
-                w = np.ones(rows.size)
-                dw = np.zeros((rows.size, n))
-                for i, (j, bit) in enumerate(zip(joints, bits, strict=True)):
-                    t = self.t[rows, j]
-                    if bit:
-                        Q[:, j] = self.b[rows, j]
-                    others = np.prod([self.t[rows, jj] if bb else 1.0 - self.t[rows, jj]
-                                      for ii, (jj, bb) in enumerate(zip(joints, bits,
-                                                                        strict=True))
-                                      if ii != i], axis=0) if joints.size > 1 else 1.0
-                    w = w * (t if bit else 1.0 - t)
-                    dw[:, j] = (1.0 if bit else -1.0) * others * self.dt[rows, j]
-                Fc, dFc = fn(Q, derivatives)
-                if F is None:
-                    F = np.zeros((N, Fc.shape[1]))
-                    dF = np.zeros((N, Fc.shape[1], n)) if derivatives else None
-                F[rows] += w[:, None] * Fc
-                if derivatives:
-                    free = self.slope[rows] * ~pattern  # joints not in a gap
-                    dF[rows] += (w[:, None, None] * dFc * free[:, None, :]
-                                 + Fc[:, :, None] * dw[:, None, :])
+        F = np.zeros((N, Fc.shape[1]))
+        dF = np.zeros((N, Fc.shape[1], n)) if derivatives else None
+        if plain.size:
+            Fp, dFp = fn(self.a[plain], derivatives)
+            F[plain] = Fp
+            if derivatives:
+                dF[plain] = dFp * self.slope[plain][:, None, :]
+        out = np.zeros((rows.size, Fc.shape[1]))
+        np.add.at(out, row_of, w[:, None] * Fc)
+        F[rows] = out
+        if derivatives:
+            # d w / d q_j for a joint in a gap: +-(product of the others' weights) dt_j/dq_j
+            dw = np.where(G, np.where(at_b, 1.0, -1.0) * w[:, None] / wj * self.dt[src], 0.0)
+            free = self.slope[src] * ~G  # joints in no gap move the corners themselves
+            dout = np.zeros((rows.size, Fc.shape[1], self.q.shape[1]))
+            np.add.at(dout, row_of, w[:, None, None] * dFc * free[:, None, :]
+                      + Fc[:, :, None] * dw[:, None, :])
+            dF[rows] = dout
         return F, dF
