@@ -17,8 +17,8 @@ from numpy.typing import NDArray
 from kinecal.errors import InputError
 from kinecal.spatial import check_rotation
 
-__all__ = ["DISTANCE_KINDS", "GAUGE_KINDS", "GaugeMeasurements", "Measurements",
-           "RepeatedPoses"]
+__all__ = ["DISTANCE_KINDS", "GAUGE_KINDS", "KNOWN_COLUMNS", "GaugeMeasurements",
+           "Measurements", "RepeatedPoses"]
 
 
 @dataclass(frozen=True, repr=False)
@@ -43,6 +43,21 @@ class Measurements:
         `marker_names`; None when the arm carries one tool point.
     marker_names : tuple of str
         Names of the markers `marker` indexes (the model's markers, in its order).
+    station : ndarray of int, shape (N,) or None
+        Which tracker set-up (station) measured each pose, an index into `station_names`:
+        each station has its own base frame (``base@NAME.x ..``; docs/measurement-kinds.md).
+        None: one set-up, the model's base frame.
+    station_names : tuple of str
+        Names of the stations `station` indexes, in order of first appearance.
+    sigma : ndarray, shape (N, 3) or (N, 6), or None
+        Per-row standard deviations of the measured coordinates: x, y, z (length unit)
+        and, with orientations, of the small rotation about the measurement frame's x, y,
+        z axes (rad). They weight the residual rows (`kinecal.calibration.serial.
+        row_weights`) together with `sigma_floor`.
+    sigma_floor : ndarray, shape (2,), or None
+        The unmodelled error added to `sigma` in the weights (position in the length unit,
+        rotation in rad); None until a calibration estimates it (the rows are then
+        weighted as if `sigma` were absent).
     temperature : ndarray, shape (N,) or None
         Temperature at each pose (deg C), carried into the report.
     time : ndarray, shape (N,) or None
@@ -57,6 +72,10 @@ class Measurements:
     rotations: NDArray[np.float64] | None = None
     marker: NDArray[np.intp] | None = None
     marker_names: tuple[str, ...] = ()
+    station: NDArray[np.intp] | None = None
+    station_names: tuple[str, ...] = ()
+    sigma: NDArray[np.float64] | None = None
+    sigma_floor: NDArray[np.float64] | None = None
     temperature: NDArray[np.float64] | None = None
     time: NDArray[np.float64] | None = None
 
@@ -92,10 +111,33 @@ class Measurements:
             if v is not None and (np.shape(v) != (q.shape[0],)
                                   or not np.isfinite(np.asarray(v, dtype=float)).all()):
                 raise InputError(f"{name}: expected {q.shape[0]} finite values")
+        self._check_stations_and_sigma(q.shape[0])
+
+    def _check_stations_and_sigma(self, n: int) -> None:
+        if self.station is not None:
+            st = np.asarray(self.station)
+            if st.shape != (n,) or not np.issubdtype(st.dtype, np.integer) or (
+                    st.size and (st.min() < 0 or st.max() >= len(self.station_names))):
+                raise InputError(f"station: expected {n} indices into the station names "
+                                 f"{list(self.station_names)}")
+        elif self.station_names:
+            raise InputError("station_names without station indices")
+        if self.sigma is not None:
+            s = np.asarray(self.sigma, dtype=float)
+            rows = 3 if self.rotations is None else 6
+            if s.shape != (n, rows) or not np.isfinite(s).all() or (s < 0).any():
+                raise InputError(f"sigma: expected ({n}, {rows}) finite standard deviations "
+                                 f">= 0, got shape {s.shape}")
+        if self.sigma_floor is not None:
+            f = np.asarray(self.sigma_floor, dtype=float)
+            if f.shape != (2,) or not np.isfinite(f).all() or (f < 0).any():
+                raise InputError("sigma_floor: expected 2 finite values >= 0")
 
     def __repr__(self) -> str:
         what = "poses" + (" with orientations" if self.rotations is not None else "")
         markers = f", markers {', '.join(self.marker_names)}" if self.marker_names else ""
+        if self.station_names:
+            markers += f", stations {', '.join(self.station_names)}"
         src = f" from {self.source}" if self.source else ""
         return f"<Measurements {len(self)} {what}, {np.shape(self.q)[1]} joints{markers}{src}>"
 
@@ -107,10 +149,14 @@ class Measurements:
         w = None if self.weights is None else np.asarray(self.weights)[index]
         R = None if self.rotations is None else np.asarray(self.rotations)[index]
         m = None if self.marker is None else np.asarray(self.marker)[index]
+        st = None if self.station is None else np.asarray(self.station)[index]
+        sg = None if self.sigma is None else np.asarray(self.sigma)[index]
         extra = {k: None if getattr(self, k) is None else np.asarray(getattr(self, k))[index]
                  for k in ("temperature", "time")}
         return Measurements(np.asarray(self.q)[index], np.asarray(self.xyz)[index], w,
-                            f"{self.source}[subset]", R, m, self.marker_names, **extra)
+                            f"{self.source}[subset]", R, m, self.marker_names, st,
+                            self.station_names if st is not None else (), sg,
+                            self.sigma_floor, **extra)
 
 
 #: measurement kinds of `GaugeMeasurements` -> the CSV column naming each row's group
@@ -118,6 +164,10 @@ GAUGE_KINDS: dict[str, str] = {"ballbar": "pivot", "pair": "pair", "point": "poi
                                "plane": "plane"}
 #: the kinds whose rows carry a measured (or known) distance
 DISTANCE_KINDS = ("ballbar", "pair")
+#: the kinds whose groups may be known fixtures -> the columns giving them (base frame)
+KNOWN_COLUMNS: dict[str, tuple[str, ...]] = {
+    "point": ("px", "py", "pz"), "plane": ("px", "py", "pz", "nx", "ny", "nz")}
+KNOWN_SIZES = {k: len(v) for k, v in KNOWN_COLUMNS.items()}
 
 
 @dataclass(frozen=True, repr=False)
@@ -149,8 +199,20 @@ class GaugeMeasurements:
     source : str
         Where the data came from (file path or description).
     marker : ndarray of int, shape (N,) or None
-        Which marker (tool point) each row used, as in `Measurements`.
+        Which marker (tool point) each row used, as in `Measurements`; with a robot
+        system, the row's tip (`kinecal.kinematics.tree.SystemModel`).
     marker_names : tuple of str
+    known : ndarray, shape (G, 3) or (G, 6), or None
+        ``point`` and ``plane`` only: per group, its known position in the base frame (a
+        calibration block's socket, a fixture's face): ``px, py, pz`` of a point, or a
+        point ``px, py, pz`` of a plane and its unit normal ``nx, ny, nz`` (length unit);
+        a row of NaN for a group that is unknown (solved with the arm). None: every group
+        unknown.
+    carrier : ndarray of int, shape (N,) or None
+        ``point`` rows of a robot system: the link that carries the touched point (an
+        index into `carrier_names`; -1: the point is fixed in the measurement frame). A
+        probe on an arm touching a workpiece on a positioner: the positioner's table.
+    carrier_names : tuple of str
     """
 
     kind: str
@@ -162,6 +224,9 @@ class GaugeMeasurements:
     source: str = ""
     marker: NDArray[np.intp] | None = None
     marker_names: tuple[str, ...] = ()
+    known: NDArray[np.float64] | None = None
+    carrier: NDArray[np.intp] | None = None
+    carrier_names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.kind not in GAUGE_KINDS:
@@ -193,11 +258,47 @@ class GaugeMeasurements:
                 raise InputError(f"marker: expected {n} indices into {list(self.marker_names)}")
         elif self.marker_names:
             raise InputError("marker_names without marker indices")
+        if self.carrier is not None:
+            c = np.asarray(self.carrier)
+            if self.kind != "point" or c.shape != (n,) or (
+                    c.size and (c.min() < -1 or c.max() >= len(self.carrier_names))):
+                raise InputError(f"carrier: expected {n} indices into "
+                                 f"{list(self.carrier_names)} (or -1) of point rows")
+        if self.known is not None:
+            self._check_known()
+
+    def _check_known(self) -> None:
+        size = KNOWN_SIZES.get(self.kind)
+        if size is None:
+            raise InputError(f"known: {self.kind} measurements have no known geometry (points "
+                             "and planes do)")
+        k = np.asarray(self.known, dtype=float)
+        if k.shape != (len(self.group_names), size):
+            raise InputError(f"known: expected shape ({len(self.group_names)}, {size}) "
+                             f"({', '.join(KNOWN_COLUMNS[self.kind])} per {self.kind} id), "
+                             f"got {k.shape}")
+        given = ~np.isnan(k).all(axis=1)
+        if not np.isfinite(k[given]).all():
+            raise InputError(f"known: each {self.kind}'s row must be all numbers (known) or "
+                             "all NaN (unknown)")
+        if size == 6 and given.any():
+            norm = np.linalg.norm(k[given, 3:], axis=1)
+            if np.abs(norm - 1.0).max() > 1e-9:
+                raise InputError("known: plane normals nx, ny, nz must be unit vectors")
+
+    @property
+    def known_groups(self) -> NDArray[np.bool_]:
+        """Whether each group's geometry is known ``(G,)``."""
+        if self.known is None:
+            return np.zeros(len(self.group_names), dtype=bool)
+        return ~np.isnan(np.asarray(self.known, dtype=float)).all(axis=1)
 
     def __repr__(self) -> str:
         src = f" from {self.source}" if self.source else ""
+        known = int(self.known_groups.sum())
+        more = f" ({known} known)" if known else ""
         return (f"<GaugeMeasurements {self.kind}: {len(self)} rows, {len(self.group_names)} "
-                f"groups{src}>")
+                f"groups{more}{src}>")
 
     def __len__(self) -> int:
         return int(np.shape(self.q)[0])

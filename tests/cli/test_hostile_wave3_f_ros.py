@@ -253,19 +253,25 @@ def test_images_that_are_none_are_refused_and_no_folder_is_left(tmp_path, capsys
 
 # ---- calibration.conf
 
+#: a UR5's file as a controller writes it (made in tests/io/test_ur_calibration_files.py:
+#: the exact D-H table of a UR5 with small link errors; the flange 1.6 mm from nominal)
 CONF = """[mounting]
-delta_theta = [ 1.2e-05, 0.0612, -0.1903, 0.1291, -3.1e-05, 2.2e-05 ]
-delta_a = [ 4.1e-05, 0.00031, 0.0012, 2.9e-05, -5.5e-05, 0 ]
-delta_d = [ 0.00018, 2.01834, -2.50211, 0.48377, -6.2e-05, 0.00029 ]
-delta_alpha = [ 0.00011, 0.0019, 0.0087, 0.00041, -0.00022, 0 ]
-"""
+delta_theta = [ 0.0006798841118, -0.09710428905, -0.1001883061, 0.1984317472, -2.836796251e-05, 0.0002148257605 ]
+delta_a = [ -0.0001529845196, 0.001430047497, 0.007772780593, -0.0004542460468, -0.0003579562423, 0 ]
+delta_d = [ -8.939349411e-05, -143.4112634, -78.49640144, 221.9075546, 0.0002464243471, -5.880265182e-05 ]
+delta_alpha = [ 1.668005261e-05, 0.0002862391237, 0.0003469744957, -7.624388422e-05, -0.0009602654312, 0 ]
+"""  # noqa: E501
 
 
 @pytest.mark.parametrize(("text", "expected"), [
-    (CONF.replace("1.2e-05", "1e300"), "error: delta_theta: 1e+300 is beyond 6.283 rad"),
-    (CONF.replace("4.1e-05, 0.00031, 0.0012", "41, 310, 1200"), "error: delta_a: 1200 is beyond"),
-    (CONF.replace("4.1e-05, 0.00031, 0.0012", "0.041, 0.31, 1.2"), "ur-conf-implausible"),
-    (CONF.replace("0.00018, 2.01834", "0.00018, 2.21834"), "ur-conf-implausible"),
+    (CONF.replace("0.0006798841118", "1e300"),
+     "error: delta_theta: 1e+300 is beyond 4096 rad"),
+    # lengths in mm: the flange moves kilometres (was refused on the size of one delta)
+    (CONF.replace("-0.0001529845196, 0.001430047497, 0.007772780593", "-0.15, 1.43, 7.77"),
+     "error: more than the arm's reach"),
+    (CONF.replace("0.0006798841118, -0.09710428905", "0.0006798841118, -0.04710428905"),
+     "ur-conf-implausible"),  # 0.05 rad off on joint 2: the flange moves centimetres
+    (CONF.replace("-143.4112634", "-143.2112634"), "ur-conf-implausible"),
     ("\ufeff" + CONF, "clean"),  # a byte-order mark: was 'no [mounting] section'
 ])
 def test_calibration_conf_ranges(tmp_path, capsys, text, expected):

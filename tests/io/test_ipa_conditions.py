@@ -58,12 +58,21 @@ def test_ipa_export_converts_units_and_columns(tmp_path):
     cols = read_ipa_export(src)
     np.testing.assert_allclose(cols["q1"], np.degrees([-1.5708, -2.14055]), rtol=1e-11)
     np.testing.assert_array_equal(cols["x"], [2361.9831, 1685.2797])
-    np.testing.assert_array_equal(cols["rz"], [-90.887438, -90.926009])
+    np.testing.assert_array_equal(cols["c"], [-90.887438, -90.926009])
     assert list(cols["time"]) == ["2020-07-14T16:39:04", "2020-07-14T16:39:24"]
     assert "sx" not in cols  # series A has no standard deviations
     assert main(["import", str(src), "--out", str(tmp_path / "A.csv"), "--quiet"]) == 0
     d = kinecal.read_measurements(tmp_path / "A.csv", kinecal.load_model("ur5"))
     assert d.time[1] - d.time[0] == 20.0 and d.temperature[0] == pytest.approx(23.68)
+    assert d.rotations is None  # positions only, unless asked
+    assert main(["import", str(src), "--out", str(tmp_path / "A6.csv"), "--orientation",
+                 "--quiet"]) == 0
+    d6 = kinecal.read_measurements(tmp_path / "A6.csv", kinecal.load_model("ur5"),
+                                   "intrinsic-xyz:deg")
+    from scipy.spatial.transform import Rotation
+
+    np.testing.assert_allclose(d6.rotations[0], Rotation.from_euler(
+        "XYZ", [-90.409151, -59.885105, -90.887438], degrees=True).as_matrix(), atol=1e-12)
     # a spreadsheet-rounded timestamp (series B-D) leaves the time out, the rows in order
     src.write_text(EXPORT.replace("20200714163904", "2,02011E+13"))
     assert "time" not in read_ipa_export(src)
@@ -80,6 +89,9 @@ def test_bundled_ur10_series_and_model(tmp_path, monkeypatch):
     b = kinecal.read_measurements("ur10-ipa:B", model)
     assert len(a) == 11911 and len(b) == 1495
     assert a.time is not None and b.time is None and b.temperature is not None
+    assert b.sigma is not None and a.rotations is None and b.rotations is None
+    b6 = kinecal.read_measurements("ur10-ipa:B-tmac", model, "intrinsic-xyz:deg")
+    assert b6.rotations is not None and b6.sigma.shape == (1495, 6)
     assert np.all(np.diff(a.time[:100]) > 0)
     # Trafo_TM_F: the flange in the T-Mac frame; the T-Mac in the flange frame is then
     # -R^T t, the model's tool point (0, 0, 109) mm

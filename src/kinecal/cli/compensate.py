@@ -24,12 +24,16 @@ from kinecal.cli._common import (
     with_warnings,
 )
 from kinecal.cli._options import (
+    angle_unit_option,
     base_link_option,
+    check_angle_unit,
     check_unit,
     choices,
     quiet_option,
+    single_tip,
     strict_option,
-    tip_link_option,
+    tip_links_option,
+    tip_option,
     unit_option,
 )
 from kinecal.errors import InputError
@@ -155,11 +159,13 @@ def compensate_cmd(
                              "e.g. a tracker reflector: the nominal tool on the calibrated "
                              "arm)."),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: str | None = tip_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the statistics as JSON."),
     unit: str = unit_option(),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
+    angle_unit: str | None = angle_unit_option("the program's joint columns, in and out"),
 ) -> None:
     """Rewrite a joint program or Cartesian targets for the calibrated arm."""
     from kinecal.cli._program import count_rows, program_columns, stream
@@ -167,14 +173,26 @@ def compensate_cmd(
     from kinecal.io.measurements import joint_columns
 
     shown = check_unit(unit)
+    check_angle_unit(angle_unit)
     check_paths({"CALIBRATED": calibrated, "PROGRAM": program, "--nominal": nominal},
                 {"--out": out})
     if base not in ("calibrated", "nominal"):
         raise InputError(f"expected calibrated or nominal, got {base!r}", option="--base")
     if tool not in ("calibrated", "nominal"):
         raise InputError(f"expected calibrated or nominal, got {tool!r}", option="--tool")
+    from kinecal.cli.systems import is_system_arg
+
+    system = nominal is not None and is_system_arg(nominal, base_link, tip_link)
+    if tip is not None and not system:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
     with warnings_scope(strict) as found:
-        nom, cal = load_calibrated(calibrated, nominal, base_link, tip_link, tool)
+        if system:  # one chain of a robot system (--tip)
+            from kinecal.cli.systems import system_arms
+
+            nom, cal = system_arms(calibrated, nominal, base_link, tip_link, tip, tool)
+        else:
+            nom, cal = load_calibrated(calibrated, nominal, base_link, single_tip(tip_link),
+                                       tool)
         path = resolve_data_path(program, "PROGRAM")
         header, required, optional = program_columns(path, nom)
         joints = joint_columns(header, nom, path, required=False)
@@ -187,7 +205,7 @@ def compensate_cmd(
         total = count_rows(path)
         with progress(f"compensate {total} rows", total, quiet or json_out) as bar:
             rows = stream(path, out, header, required, optional, joints, arms,
-                           "position" if position_only else None, bar)
+                           "position" if position_only else None, bar, angle_unit)
     stats = {"program": str(program), "out": str(out), "model": nom.name,
              "base": base, "tool": tool, **rows.stats()}
     if json_out:

@@ -12,13 +12,16 @@ from kinecal.cli._app import app
 from kinecal.cli._common import check_paths, warnings_scope
 from kinecal.cli._options import (
     MODEL_HELP,
+    angle_unit_option,
     base_link_option,
+    check_angle_unit,
     choices,
     load_model_arg,
     quiet_option,
     seed_option,
+    single_tip,
     strict_option,
-    tip_link_option,
+    tip_links_option,
 )
 from kinecal.cli._serial_common import POSE_BYTES
 from kinecal.errors import InputError
@@ -28,7 +31,13 @@ from kinecal.errors import InputError
 def simulate(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: list[str] | None = typer.Option(None, "--tip", help="Robot system: the chains "
+                                         "measured (repeatable; default every tip; --kind "
+                                         "pair: the two hands the bar joins)."),
+    carrier: str | None = typer.Option(None, "--carrier", help="Robot system, --kind point: "
+                                       "the link carrying the points (e.g. a positioner's "
+                                       "table); --point then in its frame."),
     poses: int | None = typer.Option(None, "--poses", help="Number of random poses (a model "
                                      "with markers measures every marker at each: poses x "
                                      "markers rows); gauge kinds: rows per pivot, pairs, "
@@ -83,14 +92,33 @@ def simulate(
                                            "camera (default 800x600 px, f 900 px)."),
     camera_out: Path | None = typer.Option(None, "--camera-out", help="With --images: "
                                            "write the camera (ROS YAML)."),
+    angle_unit: str | None = angle_unit_option("the --joints file's joint columns (the "
+                                               "output keeps the model's)"),
 ) -> None:
     """Simulate measurements of a model with true errors and noise (any measurement kind;
     with --images, rendered board images of its stations)."""
+    from kinecal.cli.systems import is_system_arg
+
+    if is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_simulate
+
+        if (poses is None) == (joints is None):
+            raise InputError("expected --poses N (rows per chain, bars, touches per point "
+                             "and tip) or --joints PLAN.csv, one of them", option="--poses")
+        if check_angle_unit(angle_unit) and joints is None:
+            raise InputError("applies to a --joints file", option="--angle-unit")
+        return system_simulate(dict(locals()))
+    for option, value in (("--tip", tip), ("--carrier", carrier)):
+        if value:
+            raise InputError("applies to a robot system (docs/systems.md)", option=option)
+    tip_link = single_tip(tip_link)
     if (poses is None) == (joints is None):
         raise InputError("expected --poses N (random poses) or --joints FILE (given poses), "
                          "one of them", option="--joints" if joints is not None else "--poses")
     if joints is not None and (images is not None or kind != "tracker"):
         raise InputError("applies to tracker measurements (x,y,z) only", option="--joints")
+    if check_angle_unit(angle_unit) and joints is None:
+        raise InputError("applies to a --joints file", option="--angle-unit")
     if images is not None:  # rendered stations of the arm: its own module
         from kinecal.cli.simulate_images import simulate_images
 
@@ -108,7 +136,7 @@ def simulate(
         m = load_model_arg(model, base_link, tip_link)
         q = marker = None
         if joints is not None:
-            q, marker = _read_joints(m, joints)
+            q, marker = _read_joints(m, joints, angle_unit)
             poses = len(q)
         check_count(poses, "--poses", bytes_per_item=POSE_BYTES * (m.n_joints + 10))
         if errors in ("zero", "random"):
@@ -142,14 +170,14 @@ def simulate(
                    + (f", truth to {truth_out}" if truth_out else ""), err=True)
 
 
-def _read_joints(model, spec: str):
+def _read_joints(model, spec: str, angle_unit: str | None = None):
     """Joint values ``(N, n)`` (rad) of a ``--joints`` CSV and its marker column (the marker
     index per row, or None: every row measured at every marker of the model)."""
     from kinecal.cli._common import resolve_data_path
     from kinecal.io.measurements import read_joints, read_markers
 
     path = resolve_data_path(spec, "--joints")
-    q = read_joints(path, model)
+    q = read_joints(path, model, angle_unit=angle_unit)
     marker, names = read_markers(path, model)
     if marker is not None and tuple(names) != tuple(model.marker_names):
         raise InputError("a marker column needs a model with markers (its names)",

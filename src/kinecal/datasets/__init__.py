@@ -32,14 +32,14 @@ DATASETS: dict[str, dict] = {
             "Universal Robots UR10 carrying a Leica T-Mac measured by a Leica laser tracker "
             "(Landgraf et al., CASE 2021): A, 11911 poses on a grid with temperature and "
             "time; B, 1495 joint configurations in another tracker set-up, with per-axis "
-            "standard deviations. Positions of the T-Mac in the tracker frame (mm), "
-            "orientation as intrinsic X-Y-Z Euler angles (deg), joints in deg; the model "
-            "ur10-tmac.yaml and the T-Mac-to-flange transforms (see docs/datasets.md)."
+            "standard deviations. T-Mac positions in the tracker frame (mm), joints in deg; "
+            "B-tmac with the T-Mac's orientation (--orientation-format intrinsic-xyz:deg); "
+            "the model ur10-tmac.yaml and the T-Mac-to-flange transforms (docs/datasets.md)."
         ),
         "source": "C. Landgraf et al. (2021), github.com/christianlandgraf/ipa-robot-accuracy",
         "license": "MIT",
         "model": "ur10",
-        "parts": {"A": "A.csv", "B": "B.csv", "model": "ur10-tmac.yaml",
+        "parts": {"A": "A.csv", "B": "B.csv", "B-tmac": "B-tmac.csv", "model": "ur10-tmac.yaml",
                   "A-trafo-init": "A-trafo-init.txt", "A-trafo-calib": "A-trafo-calib.txt",
                   "B-trafo-init": "B-trafo-init.txt", "B-trafo-calib": "B-trafo-calib.txt"},
     },
@@ -75,6 +75,21 @@ DATASETS: dict[str, dict] = {
         "license": "BSD",
         "model": None,
         "parts": {"urdf": "kr16_2.urdf"},
+    },
+    "rail-cell": {
+        "description": (
+            "Synthetic measurements of the bundled rail-cell system (a UR10 on a linear rail "
+            "beside a two-axis positioner), made by kinecal simulate from one true cell: "
+            "tracker: 40 rows of the rail's carriage and 40 of the arm's probe (0.02 mm "
+            "noise); touches: 4 workpiece points on the positioner's table, each touched 8 "
+            "times by the probe (0.01 mm); validation: 20 + 20 held-out tracker rows; truth: "
+            "the true deviations (docs/systems.md)."
+        ),
+        "source": "kinecal (synthetic, kinecal simulate; commands in docs/systems.md)",
+        "license": "MIT",
+        "model": "rail-cell",
+        "parts": {"tracker": "tracker.csv", "touches": "touches.csv",
+                  "validation": "validation.csv", "truth": "truth.json"},
     },
     "handeye-formats": {
         "description": (

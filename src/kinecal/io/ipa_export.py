@@ -15,11 +15,11 @@ angles: ``R = Rx(rx) Ry(ry) Rz(rz)``), and in series B-D each value's standard d
 ``measurement_std_*``.
 
 `convert_ipa_export` writes kinecal's measurement CSV: ``q1..q6`` (deg, 12 significant
-digits), ``x, y, z`` (mm),
-``rx, ry, rz`` (deg, the T-Mac's orientation, same convention), ``sx, sy, sz`` (mm) and
-``srx, sry, srz`` (deg) where the export has them, ``temperature`` (deg C) and ``time`` (ISO
-8601, the lab's local time, where the export kept it). ``kinecal import SERIES.csv --out
-FILE.csv`` runs it.
+digits), ``x, y, z`` (mm), ``sx, sy, sz`` (mm) where the export has them, ``temperature``
+(deg C) and ``time`` (ISO 8601, the lab's local time, where the export kept it); with
+`orientation` also ``a, b, c`` (deg, the T-Mac's orientation in the same convention, read
+with ``--orientation-format intrinsic-xyz:deg``) and ``srx, sry, srz`` (deg). ``kinecal
+import SERIES.csv --out FILE.csv [--orientation]`` runs it.
 """
 
 from __future__ import annotations
@@ -33,17 +33,20 @@ from numpy.typing import NDArray
 from kinecal._files import atomic_open
 from kinecal.errors import InputError
 
-__all__ = ["IPA_JOINTS", "convert_ipa_export", "is_ipa_export", "read_ipa_export"]
+__all__ = ["IPA_JOINTS", "ORIENTATION", "convert_ipa_export", "is_ipa_export",
+           "read_ipa_export"]
 
 #: the joint columns of the export, base to flange (UR's joint names)
 IPA_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
               "wrist_2_joint", "wrist_3_joint")
 #: upstream column -> kinecal column (all optional but the joints and positions)
 _COLUMNS = {"measurement_x": "x", "measurement_y": "y", "measurement_z": "z",
-            "measurement_rx": "rx", "measurement_ry": "ry", "measurement_rz": "rz",
+            "measurement_rx": "a", "measurement_ry": "b", "measurement_rz": "c",
             "measurement_std_x": "sx", "measurement_std_y": "sy", "measurement_std_z": "sz",
             "measurement_std_rx": "srx", "measurement_std_ry": "sry",
             "measurement_std_rz": "srz", "measurement_temperature": "temperature"}
+#: the orientation columns (kinecal's names), written with ``orientation`` only
+ORIENTATION = ("a", "b", "c", "srx", "sry", "srz")
 _REQUIRED = (*IPA_JOINTS, "measurement_x", "measurement_y", "measurement_z")
 #: at most this many rows (the largest upstream series has 11910)
 _MAX_ROWS = 1_000_000
@@ -70,8 +73,8 @@ def is_ipa_export(path: str | Path) -> bool:
 
 def read_ipa_export(path: str | Path) -> dict[str, NDArray]:
     """The columns of an IPA export in kinecal's names and units (module docstring):
-    ``q1..q6`` (deg) and the float columns of `_COLUMNS` present; ``time`` (ISO 8601
-    strings) when the timestamps are whole.
+    ``q1..q6`` (deg) and the float columns of `_COLUMNS` present (orientation as ``a, b,
+    c``); ``time`` (ISO 8601 strings) when the timestamps are whole.
 
     Raises
     ------
@@ -138,11 +141,12 @@ def _stamps(cells: list[str]) -> NDArray | None:
     return np.array(out)
 
 
-def convert_ipa_export(source: str | Path, out: str | Path) -> int:
-    """Write an IPA export `source` as kinecal's measurement CSV `out` (module docstring);
-    returns the number of rows. Numbers keep their shortest round-trip digits."""
+def convert_ipa_export(source: str | Path, out: str | Path, orientation: bool = False) -> int:
+    """Write an IPA export `source` as kinecal's measurement CSV `out` (module docstring):
+    positions, or with `orientation` the T-Mac's poses; returns the number of rows. Numbers
+    keep their shortest round-trip digits."""
     cols = read_ipa_export(source)
-    names = list(cols)
+    names = [c for c in cols if orientation or c not in ORIENTATION]
     n = len(cols["q1"])
     text = [[repr(float(v)) for v in cols[c]] if c != "time" else list(cols[c])
             for c in names]

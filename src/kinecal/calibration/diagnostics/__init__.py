@@ -24,6 +24,8 @@ CODES: dict[str, str] = {
     "initial-error": "the data are far from the nominal model: wrong model or frame",
     "validation-overlap": "validation poses repeat calibration poses",
     "outside-calibrated-range": "joint readings beyond the joint range the calibration saw",
+    "validation-frame": "validation data in another frame (a moved tracker): re-register them",
+    "tool-orientation": "measured orientations far from the model's tool frame (stations)",
     "rank-deficient": "the poses identify fewer parameters than well-spread poses do",
     "unidentifiable-free": "free parameters that the poses cannot identify",
     "parameter-tolerance": "an identified parameter moved far beyond its tolerance",
@@ -74,8 +76,11 @@ CODES: dict[str, str] = {
     "urdf-joint-limits": "a URDF revolute joint without usable limits",
     "joint-errors-not-exported": "joint-error terms left out of a URDF export (geometry only)",
     "camera-mount-far": "a hand-eye camera exported more than 10 m from its parent frame",
-    "ur-conf-implausible": "UR calibration.conf deltas larger than a factory calibration gives",
-    "ur-kinematics-not-ur": "an ur-kinematics export of a model within 5 mm of no UR type",
+    "ur-conf-implausible": ("UR calibration.conf deltas moving the flange more than a "
+                            "factory calibration does"),
+    "ur-kinematics-not-ur": ("an ur-kinematics export of a model that is no calibration "
+                             "of its UR type"),
+    "ros-dwell-moving": "bag dwells dropped: the measurement moved while the joints read still",
     "ros-joint-units": "bag JointState revolute positions beyond two turns (degrees?)",
     "ros-samples-skipped": "JointState messages of a bag left out (positions not matching the "
                            "names, not finite, time not increasing)",

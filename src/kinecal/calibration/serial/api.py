@@ -27,7 +27,7 @@ from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stat
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
-from kinecal.calibration.serial.inputs import as_measurements, as_model
+from kinecal.calibration.serial.inputs import as_measurements, as_model, is_system
 from kinecal.calibration.serial.polish import check_local_polish
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
@@ -46,27 +46,17 @@ from kinecal.metrology.stats import axis_stats
 from kinecal.optimize import METHODS, minimize
 from kinecal.optimize.factor import gram_root
 from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
-from kinecal.optimize.lsq import LOSSES, householder_gauss_newton, levenberg_marquardt
+from kinecal.optimize.lsq import LOSSES, householder_gauss_newton
 
 __all__ = ["CALIBRATION_METHODS", "calibrate", "with_model_markers"]
 
 CALIBRATION_METHODS: tuple[str, ...] = ("lm", "householder", *METHODS, *hybrid_methods())
 
-#: robust-loss outlier rule: distance error above median + OUTLIER_K * 1.4826 * MAD
-OUTLIER_K = 5.0
 #: default rank threshold of calibrate's free="identifiable": a direction whose pivot is
 #: below 1e-4 of the largest (a condition number beyond ~1e4 on unit-norm columns) is
 #: identifiable in exact arithmetic but not from real data; freeing it only slows the
 #: solver down (UR5 laser-tracker data: 741 vs 9 evaluations for the same validation error)
 CALIBRATION_RANK_TOL = 1e-4
-
-
-def _outliers(d: np.ndarray) -> list[int]:
-    med = np.median(d)
-    mad = 1.4826 * np.median(np.abs(d - med))
-    if mad <= 0:
-        return []
-    return [int(i) for i in np.flatnonzero(d > med + OUTLIER_K * mad)]
 
 
 def _uncertainty(problem: CalibrationProblem, x: np.ndarray, outliers: list[int],
@@ -141,6 +131,7 @@ def calibrate(
     rank_tol: float = CALIBRATION_RANK_TOL,
     rotation_weight: float | None = None,
     sigma: float | Sequence[float | None] | None = None,
+    validate_register: str | None = None,
 ) -> CalibrationResult:
     """Identify the geometric parameters of `model` from `data`.
 
@@ -192,6 +183,9 @@ def calibrate(
         errors with the noise known are added as ``extra["noise"]``
         (`kinecal.calibration.diagnostics.noise`). With several data sets: one per set
         (None: estimated), the sets weighted by it.
+    validate_register : {"all", "N%"}, optional
+        Validation data from another tracker set-up: base and tool refitted on all (or N %,
+        drawn with `rng`) of its rows first (`kinecal.calibration.serial.validation_frame`).
 
     Returns
     -------
@@ -209,41 +203,51 @@ def calibrate(
     """
     model = as_model(model)
     data, validate = as_measurements(data, model), as_measurements(validate, model, "validate")
-    if not isinstance(data, Measurements) or not (validate is None or isinstance(
-            validate, Measurements)):
-        return _several(model, data, method, free=free, validate=validate, loss=loss,
-                        f_scale=f_scale, rank_tol=rank_tol, rotation_weight=rotation_weight,
-                        sigma=sigma, rng=rng, maxiter=maxiter, target=target,
-                        options=options, progress=progress)
-    with diagnostics.collect(python_warnings=True) as found:
-        res = _calibrate(model, data, method, free=free, validate=validate, rng=rng, loss=loss,
-                         f_scale=f_scale, maxiter=maxiter, target=target, options=options,
-                         progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight,
-                         sigma=sigma)
-    res.warnings = list(found)
+    if is_system(model):  # several chains: the stacked problem, whatever the data
+        from kinecal.calibration.blocks.api import calibrate_system
+
+        if validate_register is not None:
+            raise InputError("applies to a serial arm's tracker rows, not to a system",
+                             option="--validate-register")
+        return calibrate_system(model, data, method, validate=validate, free=free, loss=loss,
+                                f_scale=f_scale, rank_tol=rank_tol, sigma=sigma,
+                                rotation_weight=rotation_weight)
+    if validate_register is not None:  # checked before any work
+        from kinecal.calibration.serial.validation_frame import parse_register
+
+        parse_register(validate_register)
+        if validate is None:
+            raise InputError("applies with validation data only", option="--validate-register")
+    # re-registered validation data are judged after the fit only (their raw errors are
+    # the tracker's move, not the model's)
+    res = _dispatch(model, data, method, free=free, rng=rng, loss=loss,
+                    validate=validate if validate_register is None else None,
+                    f_scale=f_scale, maxiter=maxiter, target=target, options=options,
+                    progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight,
+                    sigma=sigma)
+    if validate is not None:  # re-registered, or checked for another frame
+        from kinecal.calibration.serial.validation_frame import judge_validation
+
+        judge_validation(res, validate, validate_register, rng)
     return res
 
 
-def _several(model, data, method, *, free, validate, loss, f_scale, rank_tol,
-             rotation_weight, sigma, **kw) -> CalibrationResult:
-    """Several data sets or another kind than tracker points: tracker files alone are
-    merged for the fast path (`kinecal.calibration.serial.merge`), anything else is one
-    stacked problem (`kinecal.calibration.blocks.calibrate_blocks`)."""
-    from kinecal.calibration.serial.merge import data_sets, merge_tracker_sets
+def _dispatch(model, data, method, *, validate, sigma, **kw) -> CalibrationResult:
+    """The calibration behind `calibrate`: tracker rows of one set-up on the fast path,
+    anything else stacked (`kinecal.calibration.serial.merge.tracker_input`,
+    `kinecal.calibration.serial.several`)."""
+    from kinecal.calibration.serial.merge import tracker_input
 
-    sets, sig = data_sets(data, sigma, "data")
-    vsets = None if validate is None else data_sets(validate, None, "validation")[0]
-    one = merge_tracker_sets(sets, sig)
-    vone = None if vsets is None else merge_tracker_sets(vsets, [None] * len(vsets))
-    if one is not None and (vsets is None or vone is not None):
-        return calibrate(model, one[0], method, free=free, validate=None if vone is None
-                         else vone[0], loss=loss, f_scale=f_scale, rank_tol=rank_tol,
-                         rotation_weight=rotation_weight, sigma=one[1], **kw)
-    from kinecal.calibration.blocks.api import calibrate_blocks
+    data = tracker_input(model, data, kw["free"], kw["rank_tol"], kw["rotation_weight"])
+    if not isinstance(data, Measurements) or not (validate is None or isinstance(
+            validate, Measurements)):
+        from kinecal.calibration.serial.several import several
 
-    return calibrate_blocks(model, sets, sigma=sig, validate=vsets, method=method, free=free,
-                            loss=loss, f_scale=f_scale, rank_tol=rank_tol,
-                            rotation_weight=rotation_weight)
+        return several(_dispatch, model, data, method, validate=validate, sigma=sigma, **kw)
+    with diagnostics.collect(python_warnings=True) as found:
+        res = _calibrate(model, data, method, validate=validate, sigma=sigma, **kw)
+    res.warnings = list(found)
+    return res
 
 
 def _check_arguments(method: str, loss: str, f_scale, maxiter, target, options, model,
@@ -262,11 +266,12 @@ def _check_arguments(method: str, loss: str, f_scale, maxiter, target, options, 
         raise InputError("no calibration poses")
 
 
-def _setup(model, data, method, free, validate, rank_tol, rotation_weight):
+def _setup(model, data, method, free, validate, rank_tol, rotation_weight, loss, f_scale):
     """The problem, its free names, the identifiability reports and the data checks.
 
-    Returns ``(problem, lm_result or None, names, report, info, first_report)``; for ``lm``
-    the analysis, fit and growth run in few passes (`kinecal.calibration.serial.solve`).
+    Returns ``(problem, lm_solution or None, names, report, info, first_report)``; for
+    ``lm`` the analysis, robust start, fit and growth run in few passes
+    (`kinecal.calibration.serial.solve`), with a robust `loss` the robust fit too.
     """
     found: list[SerialDataInfo] = []
 
@@ -278,8 +283,8 @@ def _setup(model, data, method, free, validate, rank_tol, rotation_weight):
     res = None
     if method == "lm":
         sol = solve_lm(model, data, free, rank_tol=rank_tol, rotation_weight=rotation_weight,
-                       check=check)
-        problem, res, names, report = sol.problem, sol.result, sol.names, sol.report
+                       check=check, loss=loss, f_scale=f_scale)
+        problem, res, names, report = sol.problem, sol, sol.names, sol.report
     else:
         names, report = resolve_free(model, data, free, tol=rank_tol)
         check(names, report)
@@ -288,10 +293,10 @@ def _setup(model, data, method, free, validate, rank_tol, rotation_weight):
     return problem, res, names, report, info, first_report
 
 
-def _run_method(problem: CalibrationProblem, res, method, *, loss, f_scale, rng, maxiter,
-                target, options, progress):
-    """Run `method` on `problem` (``lm``: `res` is the plain fit, refitted with a robust
-    `loss`). Returns ``(OptimizeResult, outlier pose indices)``."""
+def _run_method(problem: CalibrationProblem, res, method, *, rng, maxiter, target, options,
+                progress):
+    """Run `method` on `problem` (``lm``: `res` is `solve_lm`'s solution, already fitted
+    with the loss). Returns ``(OptimizeResult, outlier rows of a robust loss)``."""
     monitor = problem.mean_distance_from_residuals
     outliers: list[int] = []
     options = dict(options or {})
@@ -302,13 +307,8 @@ def _run_method(problem: CalibrationProblem, res, method, *, loss, f_scale, rng,
         return False
 
     if method == "lm":
-        if loss != "linear":
-            d = problem.distances(res.x)
-            scale = f_scale if f_scale is not None else 3.0 * max(float(np.median(d)), 1e-12)
-            res = levenberg_marquardt(problem.residuals, problem.jacobian, res.x, loss=loss,
-                                      f_scale=scale, monitor=monitor)
-            outliers = _outliers(problem.distances(res.x))
-    elif method == "householder":
+        return res.result, list(res.outliers)
+    if method == "householder":
         res = householder_gauss_newton(problem.residuals, problem.jacobian, problem.x0,
                                        maxiter=maxiter or 100, monitor=monitor,
                                        callback=callback)
@@ -335,10 +335,9 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
     seed = int(rng) if isinstance(rng, int | np.integer) else None
     t0 = time.perf_counter()
     problem, res, names, report, info, first_report = _setup(
-        model, data, method, free, validate, rank_tol, rotation_weight)
-    res, outliers = _run_method(problem, res, method, loss=loss, f_scale=f_scale, rng=rng,
-                                maxiter=maxiter, target=target, options=options,
-                                progress=progress)
+        model, data, method, free, validate, rank_tol, rotation_weight, loss, f_scale)
+    res, outliers = _run_method(problem, res, method, rng=rng, maxiter=maxiter, target=target,
+                                options=options, progress=progress)
     x = np.asarray(res.x, dtype=float)
     if method not in ("lm", "householder"):  # did the metaheuristic reach a minimum?
         check_local_polish(problem, x, method, target)
@@ -361,7 +360,7 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         groups=info.groups if info.n_distinct < len(data) else None,
         rank=int(unc.estimable.size - unc.null.shape[1]),
         confounded_with=first_report.confounded_with, normal=normal,
-        residual=res.residual if normal is not None else None)
+        residual=res.residual if normal is not None else None, poses=info.poses)
     outliers = outliers or flagged
     e_before = problem.errors(problem.x0)
     axes = {"calibration": {"before": axis_stats(e_before), "after": axis_stats(e_after)}}

@@ -24,6 +24,12 @@ One pass over the poses accumulates the per-fold Gram matrices of all columns fo
 partition (`kinecal.calibration.serial.cross_validation_folds`: random folds, and folds
 blocked by joint range or time order); every candidate and fold is then ``(k, k)``
 algebra, plus a second pass for the held-out distances. Memory stays linear in the poses.
+
+Folds are deterministic: a fixed permutation (seed 0, independent of the user's seed)
+dealt round-robin into ``K`` folds of equal size (+-1). They deal *poses*, not rows: the
+rows of one arm configuration measured at several markers
+(`kinecal.calibration.diagnostics.observations.pose_groups`) are held out together, so
+that no fold is trained on a pose it is then tested on.
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from kinecal.calibration.diagnostics.observations import pose_groups
 from kinecal.calibration.serial.cross_validation_folds import (
     FOLD_SEED,
     Partition,
@@ -48,8 +55,8 @@ from kinecal.kinematics.serial.model import SerialModel
 from kinecal.kinematics.serial.motions import PRISMATIC
 
 __all__ = ["FOLD_SEED", "CVScore", "FoldedRows", "Partition", "blocked_folds",
-           "cross_validate", "fold_of", "one_standard_error", "partitions",
-           "within_and_beyond"]
+           "cross_validate", "data_poses", "fold_of", "n_poses", "one_standard_error",
+           "partitions", "within_and_beyond"]
 
 Array = NDArray[np.float64]
 #: per-pose Jacobian rows kept between the two passes up to this many numbers
@@ -74,6 +81,20 @@ class CVScore:
     mean: float
     se: float
     fold_means: Array
+
+
+def data_poses(data: Measurements) -> tuple[NDArray[np.intp], int] | None:
+    """The pose of each row of `data` and their number; None when every row is its own
+    pose (one tool point: a repeated row is a repeated measurement)."""
+    if data.marker is None:
+        return None
+    return pose_groups(np.asarray(data.q, dtype=float), np.asarray(data.marker))
+
+
+def n_poses(data: Measurements) -> int:
+    """Number of poses of `data` (rows at several markers of one configuration: one)."""
+    poses = data_poses(data)
+    return len(data) if poses is None else poses[1]
 
 
 def _solve(A: Array, b: Array) -> Array:
@@ -127,7 +148,8 @@ class FoldedRows:
         m = self.cols.size
         n = len(data)
         self.k = k
-        self.parts = list(partitions) if partitions else [Partition("random", fold_of(n, k))]
+        self.parts = list(partitions) if partitions else [
+            Partition("random", fold_of(n, k, data_poses(data)))]
         self.folds = self.parts[0].folds
         self.rows = PoseRows(model, data, rotation_weight, weighted=True)
         self.sw = (np.ones(n) if data.weights is None

@@ -30,24 +30,37 @@ __all__ = ["FOLD_SEED", "Partition", "blocked_folds", "fold_of", "partitions"]
 FOLD_SEED = 0
 
 
-def fold_of(n: int, k: int) -> NDArray[np.intp]:
-    """Fold index ``(n,)`` of every pose: a fixed permutation dealt round-robin."""
-    _check(n, k)
-    perm = np.random.default_rng(FOLD_SEED).permutation(n)
-    folds = np.empty(n, dtype=np.intp)
-    folds[perm] = np.arange(n) % k
-    return folds
+#: the pose of each row and the number of poses (rows of one arm configuration measured at
+#: several markers are one pose), or None: a pose per row
+Poses = tuple[NDArray[np.intp], int] | None
 
 
-def blocked_folds(values: NDArray[np.float64], k: int) -> NDArray[np.intp]:
-    """Fold index ``(n,)``: the poses in the order of `values` (stable: ties in the order
-    given) cut into `k` contiguous blocks of equal size (+-1)."""
-    n = len(values)
-    _check(n, k)
-    order = np.argsort(np.asarray(values, dtype=float), kind="stable")
-    folds = np.empty(n, dtype=np.intp)
-    folds[order] = (np.arange(n) * k) // n
-    return folds
+def fold_of(n: int, k: int, poses: Poses = None) -> NDArray[np.intp]:
+    """Fold index ``(n,)`` of every row: a fixed permutation of the poses dealt
+    round-robin (`poses`: the pose of each row and their number; None: a pose per row)."""
+    group, m = (np.arange(n), n) if poses is None else poses
+    _check(m, k)
+    perm = np.random.default_rng(FOLD_SEED).permutation(m)
+    folds = np.empty(m, dtype=np.intp)
+    folds[perm] = np.arange(m) % k
+    return folds[group]
+
+
+def blocked_folds(values: NDArray[np.float64], k: int, poses: Poses = None
+                  ) -> NDArray[np.intp]:
+    """Fold index ``(n,)`` of every row: the poses in the order of `values` (a pose's first
+    row's; stable: ties in the order given) cut into `k` contiguous blocks of equal size
+    (+-1); a pose's rows stay together."""
+    values = np.asarray(values, dtype=float)
+    group, m = (np.arange(len(values)), len(values)) if poses is None else poses
+    _check(m, k)
+    first = np.full(m, -1, dtype=np.intp)
+    for r in range(len(values) - 1, -1, -1):
+        first[group[r]] = r
+    order = np.argsort(values[first], kind="stable")
+    folds = np.empty(m, dtype=np.intp)
+    folds[order] = (np.arange(m) * k) // m
+    return folds[group]
 
 
 def _check(n: int, k: int) -> None:
@@ -82,15 +95,17 @@ class Partition:
 
 
 def partitions(q: NDArray[np.float64], k: int, time: NDArray[np.float64] | None = None,
-               blocks: int | None = None) -> list[Partition]:
+               blocks: int | None = None, poses: Poses = None) -> list[Partition]:
     """The random partition, then the blocked ones: by time order when `time` ``(N,)`` is
-    given, else by the range of every joint whose readings `q` ``(N, n_joints)`` vary."""
+    given, and by the range of every joint whose readings `q` ``(N, n_joints)`` vary
+    (`blocks` folds each, default `k`; `poses` as in `fold_of`)."""
     q = np.asarray(q, dtype=float)
     blocks = k if blocks is None else blocks
-    out = [Partition("random", fold_of(len(q), k))]
+    out = [Partition("random", fold_of(len(q), k, poses))]
     if time is not None:
-        out.append(Partition("time", blocked_folds(np.asarray(time, dtype=float), blocks)))
+        out.append(Partition("time", blocked_folds(np.asarray(time, dtype=float), blocks,
+                                                   poses)))
     for j in range(q.shape[1]):
         if np.ptp(q[:, j]) > 0:
-            out.append(Partition(f"q{j + 1}", blocked_folds(q[:, j], blocks)))
+            out.append(Partition(f"q{j + 1}", blocked_folds(q[:, j], blocks, poses)))
     return out

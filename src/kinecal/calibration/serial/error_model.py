@@ -51,6 +51,8 @@ from kinecal.calibration.serial.api import (
 from kinecal.calibration.serial.cross_validation import (
     CVScore,
     FoldedRows,
+    data_poses,
+    n_poses,
     one_standard_error,
     partitions,
     within_and_beyond,
@@ -161,6 +163,9 @@ def calibrate_error_model(
     """
     model = as_model(model)
     data, validate = as_measurements(data, model), as_measurements(validate, model, "validate")
+    if getattr(data, "station", None) is not None:  # stations: a stacked, geometric problem
+        raise InputError("applies to tracker rows of one set-up; rows from several stations "
+                         "are calibrated geometrically", option="--error-model")
     # one tool point per marker the data names, as `calibrate` gives a model without them
     model = model_for_markers(model, data.marker_names)
     data = with_model_markers(data, model)
@@ -201,7 +206,7 @@ def calibrate_error_model(
     if not auto:
         analysis = CoefficientAnalysis(union, data, geo.free, coef_names, params, rw)
     else:
-        k = min(DEFAULT_FOLDS, len(data)) if folds is None else int(folds)
+        k = min(DEFAULT_FOLDS, n_poses(data)) if folds is None else int(folds)
         analysis, table, chosen, chosen_order = _auto_choice(
             union, data, geo, coef_names, params, rw, k, order, rank_tol)
         if not chosen:  # the geometric calibration is the result: its findings too
@@ -248,7 +253,7 @@ def _auto_choice(union: SerialModel, data: Measurements, geo: CalibrationResult,
     Returns ``(analysis, table, chosen families, chosen harmonic order)``.
     """
     cols = list(geo.free) + coef_names
-    parts = partitions(data.q, k, data.time)
+    parts = partitions(data.q, k, data.time, poses=data_poses(data))
     folded = FoldedRows(union, data, params, union.index(cols), k, rw, parts)
     analysis = CoefficientAnalysis(union, data, geo.free, coef_names, params, rw,
                                    gram=folded.total, positions=folded.positions)

@@ -1,7 +1,9 @@
 """Per-dwell averages of a measurement stream and the tf tree of a bag.
 
 `StreamAverage` sums a stream's vectors (points, or poses whose quaternions are aligned
-in sign before summing) per dwell and tracks how much of the dwell the stream covered;
+in sign before summing) per dwell and tracks how much of the dwell the stream covered and
+whether the measured position itself stood still (`StreamAverage.motion`: joints that
+froze in the recording, or a ``--still`` too loose, make a "dwell" of a moving arm);
 `TfTree` does the same per tf edge (``/tf``) and keeps the static edges (``/tf_static``),
 then composes, per dwell, the edges on the path between two frames. Inside a dwell every
 edge is still, so composing the edges' averages is the lookup at any time of the dwell.
@@ -17,9 +19,13 @@ from numpy.typing import NDArray
 from kinecal.errors import InputError
 from kinecal.spatial import invert_transform, transform_from_pq
 
-__all__ = ["StreamAverage", "TfTree"]
+__all__ = ["MOTION_FLOOR", "MOTION_SIGMAS", "StreamAverage", "TfTree"]
 
 Array = NDArray[np.float64]
+#: a stream whose position moves by more than this during a dwell (m) and beyond its own
+#: noise (`MOTION_SIGMAS`) is no still measurement
+MOTION_FLOOR = 5e-4
+MOTION_SIGMAS = 6.0
 
 
 class StreamAverage:
@@ -34,15 +40,34 @@ class StreamAverage:
         self.last = np.full(n, np.nan)
         self.gap = np.zeros(n)  # longest silence between two messages inside the dwell
         self._ref = np.zeros((n, 4))
+        # the position's mean over the first and the last third of each dwell, and the sum
+        # of squared steps between messages (its noise): `motion`
+        third = (ends - starts) / 3.0
+        self._early_end, self._late_start = starts + third, ends - third
+        self.early = np.zeros((n, 3))
+        self.late = np.zeros((n, 3))
+        self.n_early = np.zeros(n, dtype=np.int64)
+        self.n_late = np.zeros(n, dtype=np.int64)
+        self.steps = np.zeros(n)
+        self._prev = np.zeros((n, 3))
 
     def add(self, k: int, t: float, v: Array) -> None:
         """Add value `v` measured at time `t` inside dwell `k`."""
+        xyz = v[:3]
         if self.counts[k]:
             self.gap[k] = max(self.gap[k], t - self.last[k])
+            self.steps[k] += float(np.sum((xyz - self._prev[k]) ** 2))
         else:
             self.first[k] = t
             self._ref[k] = v[3:7] if v.size == 7 else 0.0
         self.last[k] = t
+        self._prev[k] = xyz
+        if t <= self._early_end[k]:
+            self.early[k] += xyz
+            self.n_early[k] += 1
+        if t >= self._late_start[k]:
+            self.late[k] += xyz
+            self.n_late[k] += 1
         if v.size == 7 and float(v[3:7] @ self._ref[k]) < 0.0:
             v = np.r_[v[:3], -v[3:7]]  # q and -q are the same rotation
         self.sums[k] += v
@@ -55,13 +80,36 @@ class StreamAverage:
             m[3:] /= np.linalg.norm(m[3:])
         return m
 
+    def motion(self, k: int) -> tuple[float, float]:
+        """How far the position moved during dwell `k` (m: the distance between its means
+        over the first and the last third) and the standard deviation of that distance
+        from the stream's own noise (m, from the steps between messages)."""
+        n = int(self.counts[k])
+        if n < 3 or not (self.n_early[k] and self.n_late[k]):
+            return 0.0, 0.0
+        drift = float(np.linalg.norm(self.late[k] / self.n_late[k]
+                                     - self.early[k] / self.n_early[k]))
+        noise2 = self.steps[k] / (2.0 * (n - 1))  # E|noise|^2 of white noise
+        return drift, float(np.sqrt(noise2 * (1.0 / self.n_early[k] + 1.0 / self.n_late[k])))
+
+    def moving(self, k: int) -> float | None:
+        """The drift (m) of dwell `k` when the position moved (beyond `MOTION_FLOOR` and
+        `MOTION_SIGMAS` of its noise), else None."""
+        drift, sigma = self.motion(k)
+        return drift if drift > max(MOTION_FLOOR, MOTION_SIGMAS * sigma) else None
+
     def problem(self, k: int, what: str) -> str | None:
-        """Why dwell `k` cannot use this stream (None when it can): no message at all, or
-        (3 messages or more) silent over more than half of the dwell."""
+        """Why dwell `k` cannot use this stream (None when it can): no message at all,
+        (3 messages or more) silent over more than half of the dwell, or moving while
+        the joints were still (`moving`)."""
         if not self.counts[k]:
             return f"no {what} message during the dwell"
         if self.counts[k] < 3:
             return None
+        drift = self.moving(k)
+        if drift is not None:
+            return (f"moving: {what} moved {drift * 1000:.4g} mm during the dwell while the "
+                    "joints read still (joint_states frozen, or --still too loose)")
         span = self.ends[k] - self.starts[k]
         silent = max(self.first[k] - self.starts[k], self.ends[k] - self.last[k], self.gap[k])
         if silent > 0.5 * span:

@@ -15,9 +15,9 @@ from pathlib import Path
 
 from kinecal.errors import InputError
 from kinecal.io.ros import require_rosbags
-from kinecal.io.ros.messages import ACCEPTED
+from kinecal.io.ros.messages import ACCEPTED, EXTRA_TYPES
 
-__all__ = ["Bag", "bag_root", "is_bag_path"]
+__all__ = ["Bag", "bag_root", "check_regular", "is_bag_path"]
 
 _BAG_SUFFIXES = (".bag", ".db3", ".mcap")
 #: a Python exception's repr (``KeyError('version')``) or a one-item tuple (``('text',)``)
@@ -43,7 +43,20 @@ def bag_root(path: str | Path) -> Path:
 def is_bag_path(path: str | Path) -> bool:
     """A ROS 2 bag folder (``metadata.yaml`` inside) or a ``.bag``/``.db3``/``.mcap`` file."""
     p = Path(path)
-    return p.suffix.lower() in _BAG_SUFFIXES or (p / "metadata.yaml").is_file()
+    return p.suffix.lower() in _BAG_SUFFIXES or (p / "metadata.yaml").exists()
+
+
+def check_regular(path: Path) -> None:
+    """`InputError` unless the bag's files are regular files (a FIFO or a device would block
+    the reader, or never end): the file itself, or a folder's ``metadata.yaml`` and data
+    files."""
+    files = [path] if not path.is_dir() else [p for p in path.iterdir()
+                                               if p.name == "metadata.yaml"
+                                               or p.suffix.lower() in _BAG_SUFFIXES]
+    for f in files:
+        if f.exists() and not f.is_file():
+            what = "a FIFO (named pipe)" if f.is_fifo() else "not a regular file"
+            raise InputError(f"{f.name} is {what}: expected a bag file on disk", file=path)
 
 
 class Bag:
@@ -62,10 +75,14 @@ class Bag:
         if not is_bag_path(self.path):
             raise InputError("not a ROS bag: expected a ROS 2 bag folder (with metadata.yaml), "
                              "a .db3 or .mcap file, or a ROS 1 .bag file", file=self.path)
+        check_regular(self.path)
         highlevel = require_rosbags()
-        from rosbags.typesys import Stores, get_typestore
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
         store = get_typestore(Stores.ROS2_HUMBLE)
+        for name, text in EXTRA_TYPES.items():  # messages no ROS distribution defines
+            if name not in store.types:
+                store.register(get_types_from_msg(text, name))
         self._reader = self._call(highlevel.AnyReader, [self.path], default_typestore=store)
         self._open = False
 

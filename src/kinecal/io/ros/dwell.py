@@ -77,6 +77,7 @@ class DwellFinder:
         self.short: list[Dwell] = []
         self.samples = 0
         self.skipped = 0  # samples whose time did not increase
+        self.t_last = 0.0  # time of the last sample fed (s)
 
     def _close(self) -> None:
         start, end, total, count = self._run
@@ -99,6 +100,7 @@ class DwellFinder:
         t, q = self._increasing(np.asarray(t, dtype=float), np.asarray(q, dtype=float))
         if not t.size:
             return
+        self.t_last = float(t[-1])
         self.samples += t.size
         self._t, self._q = np.r_[self._t, t], np.vstack([self._q, q])
         self._judge(final=False)

@@ -21,6 +21,7 @@ from kinecal.errors import InputError
 from kinecal.io.ros import messages as msgs
 from kinecal.io.ros.accumulate import StreamAverage, TfTree
 from kinecal.io.ros.bag import Bag
+from kinecal.io.ros.clocks import StreamTimes, check_overlap
 from kinecal.io.ros.dwell import Dwell, DwellFinder
 from kinecal.io.ros.joints import JointMapper
 from kinecal.kinematics.serial.model import SerialModel
@@ -222,7 +223,7 @@ def _warn_skipped(topic: str, samples: int, skipped: dict[str, int]) -> None:
 
 def _second_pass(bag: Bag, kinds: dict, opts: ImportOptions, starts: Array, ends: Array,
                  t0: int, on_image: Callable | None,
-                 bad: dict[str, list]) -> tuple[dict, TfTree | None]:
+                 bad: dict[str, list], clock: StreamTimes) -> tuple[dict, TfTree | None]:
     """Stream the measurement topics into per-dwell averages (and images); values that are
     no measurement are counted in `bad` and left out."""
     acc: dict[str, StreamAverage] = {}
@@ -245,6 +246,8 @@ def _second_pass(bag: Bag, kinds: dict, opts: ImportOptions, starts: Array, ends
         if tree is not None and topic in _TF_TOPICS:
             for parent, child, stamp, pq in msgs.tf_transforms(msg):
                 t = _time(bag_ns, stamp, t0)
+                if topic != "/tf_static":
+                    clock.add(topic, t)
                 if _valid(bad, f"{topic} {parent}->{child}", pq):
                     tree.add(parent, child, dwell_of(t), t, pq, topic == "/tf_static")
                 elif topic != "/tf_static":  # the edge exists, without a value
@@ -252,6 +255,7 @@ def _second_pass(bag: Bag, kinds: dict, opts: ImportOptions, starts: Array, ends
             continue
         v = msgs.point(msg) if topic == opts.points else msgs.pose(msg)
         t = _time(bag_ns, msgs.stamp_ns(msg), t0)
+        clock.add(topic, t)
         k = dwell_of(t)
         if k is not None and _valid(bad, topic, v):
             acc[topic].add(k, t, v)
@@ -323,8 +327,14 @@ def import_bag(path: str | Path, model: SerialModel, opts: ImportOptions,
         if images is not None:
             images.begin(bag, starts, ends, t0)
         bad: dict[str, list] = {}
+        clock = StreamTimes()
         if len(kinds) > 1:
-            acc, tree = _second_pass(bag, kinds, opts, starts, ends, t0, images, bad)
+            acc, tree = _second_pass(bag, kinds, opts, starts, ends, t0, images, bad, clock)
+        used = {t: int(a.counts.sum()) for t, a in acc.items()}
+        if tree is not None:
+            used.update({t: sum(int(a.counts.sum()) for a in tree.dynamic.values())
+                         for t in _TF_TOPICS})
+        check_overlap(clock, opts.joints, (0.0, finder.t_last), t0, used)
         if images is not None:
             images.finish()
         _warn_bad(bad)
@@ -360,6 +370,14 @@ def _rows(out: BagImport, model: SerialModel, opts: ImportOptions, acc: dict,
             pose = pose.copy()
             pose[:3, 3] *= per_m
             poses.append(pose)
+    moving = [k + 1 for k, why in out.dropped if why.startswith("moving:")]
+    if moving:
+        from kinecal.diagnostics import warn
+
+        warn("ros-dwell-moving", f"{len(moving)} of {len(out.dwells)} dwells dropped (dwell "
+             f"{', '.join(map(str, moving[:5]))}{', ...' if len(moving) > 5 else ''}): the "
+             "measurement moved while the joints read still; were the joint_states frozen, "
+             f"or is --still ({opts.still:g}) too loose?")
     out.q = np.array([out.dwells[k].q for k in out.kept]).reshape(-1, model.n_joints)
     out.xyz = np.array(xyz).reshape(-1, 3) if opts.points else None
     out.poses = np.array(poses).reshape(-1, 4, 4) if (opts.poses or opts.tf) else None

@@ -1,15 +1,20 @@
 """JointState names onto a model's joints.
 
 By name when names are known: ``--joint-names`` (one per model joint, in the model's
-order) or the model's own joint names (a URDF model's). Otherwise by the order of the
-first message that has as many joints as the model, with one exception: the six joint
-names of Universal Robots' drivers (``shoulder_pan_joint`` ... ``wrist_3_joint``, any
-prefix), which ROS 2's joint_state_broadcaster publishes in another order, are put in
-the arm's order. Later messages are mapped by the names of that first one.
+order) or the model's own joint names (a URDF model's). A model without joint names (a
+D-H model file) takes the names of the first message when they say the order themselves:
+the six joint names of Universal Robots' drivers (``shoulder_pan_joint`` ...
+``wrist_3_joint``, any prefix), which ROS 2's joint_state_broadcaster publishes in another
+order, in the arm's order; or as many names as the model has joints that differ only by
+their numbers (``joint_1`` ... ``joint_6``, ``a1`` ... ``a6``), in the order of the numbers.
+Any other names are refused: the order of a message says nothing of which joint is which
+(a recording whose names came shuffled would be read scrambled), and ``--joint-names``
+must say it. Later messages are mapped by the names of that first one.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 
 import numpy as np
@@ -32,6 +37,23 @@ def _ur_order(names: Sequence[str]) -> list[str] | None:
             return None
         found.append(hits[0])
     return found
+
+
+_NUMBERED = re.compile(r"^(.*?)(\d+)$")
+
+
+def _numbered(names: Sequence[str]) -> list[str] | None:
+    """The names in the order of their numbers when they differ only by a number running
+    over ``1..n`` or ``0..n-1`` (``joint_1`` ... ``joint_6``), else None."""
+    found = [_NUMBERED.match(n) for n in names]
+    if not all(found) or len({m.group(1) for m in found}) != 1:
+        return None
+    numbers = sorted((int(m.group(2)), m.group(0)) for m in found)
+    first = numbers[0][0]
+    if first not in (0, 1) or [k for k, _ in numbers] != list(range(first,
+                                                                  first + len(names))):
+        return None
+    return [n for _, n in numbers]
 
 
 def _repeated(names: Sequence[str]) -> list[str]:
@@ -63,10 +85,11 @@ class JointMapper:
 
     def _first(self, names: tuple[str, ...]) -> None:
         ur = _ur_order(names) if self.n == 6 else None
+        numbered = _numbered(names) if len(names) == self.n else None
         if ur is not None:
             self.wanted, self.how = ur, "by UR joint names"
-        elif len(names) == self.n:
-            self.wanted, self.how = list(names), "by order"
+        elif numbered is not None:
+            self.wanted, self.how = numbered, "by joint number"
 
     def index(self, names: tuple[str, ...]) -> NDArray[np.intp] | None:
         """Indices of the model's joints in a message's `names` (None: not all there)."""
@@ -89,8 +112,10 @@ class JointMapper:
         """The error when no message carried the model's joints."""
         seen = ", ".join(self.seen or ()) or "no names"
         if self.wanted is None:
-            return InputError(f"{self.topic}: JointState joints ({seen}) are not the model's "
-                              f"{self.n}: give --joint-names (the bag's name of each model "
-                              "joint, in order)", option="--joints")
+            return InputError(f"{self.topic}: JointState joints ({seen}) do not say which of "
+                              f"the model's {self.n} joints each is (the model names none, "
+                              "and the order of a message is no answer): give --joint-names "
+                              "(the bag's name of each model joint, in order)",
+                              option="--joint-names")
         return InputError(f"{self.topic}: joint names ({seen}) match no model joint; expected "
                           f"{', '.join(self.wanted)} (--joint-names)", option="--joints")

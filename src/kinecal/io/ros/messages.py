@@ -15,16 +15,23 @@ from numpy.typing import NDArray
 from kinecal.errors import InputError
 from kinecal.io.ros.png import encode_png
 
-__all__ = ["ACCEPTED", "camera_info", "camera_problem", "image_file", "joint_state", "point",
-           "pose", "stamp_ns", "tf_transforms", "value_problem"]
+__all__ = ["ACCEPTED", "CAPTURE_CONFIG", "EXTRA_TYPES", "camera_info", "camera_problem",
+           "image_file", "joint_state", "point", "pose", "stamp_ns", "tf_transforms",
+           "value_problem"]
 
 Array = NDArray[np.float64]
 #: coordinates beyond this (m) are no measurement of a robot cell
 MAX_METRES = 1e4
 
+#: the definitions of message types that no ROS distribution's type store has, registered
+#: when a bag is opened: robot_calibration's capture pose (robot_calibration_msgs, its
+#: ``msg/CaptureConfig.msg``: the joints to move to and the feature detectors to run)
+CAPTURE_CONFIG = "robot_calibration_msgs/msg/CaptureConfig"
+EXTRA_TYPES = {CAPTURE_CONFIG: "sensor_msgs/JointState joint_states\nstring[] features\n"}
+
 #: the message types each option takes
 ACCEPTED = {
-    "--joints": ("sensor_msgs/msg/JointState",),
+    "--joints": ("sensor_msgs/msg/JointState", CAPTURE_CONFIG),
     "--points": ("geometry_msgs/msg/PointStamped",),
     "--poses": ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/TransformStamped"),
     "--tf": ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage"),
@@ -44,13 +51,17 @@ _ENCODINGS = {
 
 
 def stamp_ns(msg) -> int:
-    """``header.stamp`` in nanoseconds (0 when the publisher left it unset)."""
-    s = msg.header.stamp
+    """``header.stamp`` in nanoseconds (0 when the publisher left it unset); a
+    CaptureConfig's is its JointState's."""
+    header = getattr(msg, "header", None)
+    s = (header if header is not None else msg.joint_states.header).stamp
     return int(s.sec) * 1_000_000_000 + int(s.nanosec)
 
 
 def joint_state(msg) -> tuple[tuple[str, ...], Array]:
-    """Joint names and positions (rad; metres for prismatic joints) of a JointState."""
+    """Joint names and positions (rad; metres for prismatic joints) of a JointState, or of
+    the JointState a CaptureConfig carries."""
+    msg = getattr(msg, "joint_states", msg)
     return tuple(msg.name), np.asarray(msg.position, dtype=float)
 
 

@@ -6,13 +6,17 @@ kept dwell, ``camera.yaml``, ``stations.csv`` (``image, q1..qn``), ``robot_poses
 (``image`` and the flange pose ``flange_x .. flange_qz`` that ``kinecal handeye-images``
 reads: from ``--tf`` / ``--poses`` when given, else the model's flange, D-H frame n in the
 robot base, without the model file's base and tool) and ``measurements.csv`` with
-``--points`` / ``--poses`` / ``--tf``. The folder is built beside its destination and
-moved into place when complete: nothing half-written.
+``--points`` / ``--poses`` / ``--tf``. The folder is built beside its destination
+(``.NAME.kinecal-import-PID``) and moved into place when complete: nothing half-written.
+A run that finds such a folder of a process no longer running (one killed mid-way) removes
+it; a run that finds the destination filled by another meanwhile leaves it alone and fails.
 """
 
 from __future__ import annotations
 
+import errno
 import os
+import re
 import shutil
 from pathlib import Path
 
@@ -23,9 +27,9 @@ from kinecal.io.csvtable import write_table
 from kinecal.io.ros.images import ImageWriter
 from kinecal.io.ros.importer import BagImport, ImportOptions, import_bag
 from kinecal.kinematics.serial.model import SerialModel
-from kinecal.spatial import pq_from_transform
+from kinecal.spatial import invert_transform, pq_from_transform
 
-__all__ = ["flange_poses", "write_folder", "write_rows"]
+__all__ = ["clean_stale", "flange_poses", "write_folder", "write_rows"]
 
 _QUAT = ("qw", "qx", "qy", "qz")
 
@@ -62,18 +66,72 @@ def flange_poses(res: BagImport, model: SerialModel) -> np.ndarray:
     (base and tool of the model file left out)."""
     if res.poses is not None:
         return res.poses
+    from kinecal.kinematics.serial.frames import frame_transform
+
     p = model.nominal
     for k, name in enumerate(model.parameter_names):
         if name.startswith(("base.", "tool.")):
             p[k] = 0.0
-    return model.fk(res.q, p)
+    T = model.fk(res.q, p)  # the nominal orientations of the base and tool frames remain
+    T = invert_transform(frame_transform(model, p, "base")) @ T
+    if "tool.rx" in model.parameter_names:
+        T = T @ invert_transform(frame_transform(model, p, "tool"))
+    return T
+
+
+_TMP = ".{name}.kinecal-import-"
+
+
+def _alive(pid: int) -> bool:
+    """True when a process `pid` runs (or may: one of another user)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, ValueError):
+        return True
+    return True
+
+
+def clean_stale(out: Path) -> list[Path]:
+    """Remove the build folders of `out` left by processes that no longer run (killed
+    mid-way); the folders removed."""
+    prefix = _TMP.format(name=out.name)
+    pattern = re.compile(re.escape(prefix) + r"(\d+)$")
+    gone = []
+    try:
+        siblings = list(out.parent.iterdir())
+    except OSError:
+        return gone
+    for p in siblings:
+        m = pattern.match(p.name)
+        if m and p.is_dir() and not p.is_symlink() and int(m.group(1)) != os.getpid() \
+                and not _alive(int(m.group(1))):
+            shutil.rmtree(p, ignore_errors=True)
+            gone.append(p)
+    return gone
+
+
+def _move_into_place(tmp: Path, out: Path) -> None:
+    """Rename the finished folder `tmp` to `out` (new, or an empty folder); another run
+    that filled `out` meanwhile wins, this one fails with nothing changed."""
+    try:
+        if out.is_dir() and not out.is_symlink() and not any(out.iterdir()):
+            out.rmdir()
+        os.rename(tmp, out)
+    except OSError as exc:
+        if exc.errno in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
+            raise InputError(f"{out} was filled by another run while this one worked: "
+                             "nothing written", option="--out") from None
+        raise
 
 
 def write_folder(bag: str | Path, model: SerialModel, opts: ImportOptions,
                  out: str | Path) -> BagImport:
     """Import `bag` with images into the folder `out` (new or empty; module docstring)."""
     out = Path(out)
-    tmp = out.parent / f".{out.name}.kinecal-import-{os.getpid()}"
+    clean_stale(out)
+    tmp = out.parent / (_TMP.format(name=out.name) + str(os.getpid()))
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     try:
@@ -94,9 +152,7 @@ def write_folder(bag: str | Path, model: SerialModel, opts: ImportOptions,
         for f in tmp.iterdir():  # images of dropped dwells
             if f.name.startswith("dwell_") and f.name not in kept:
                 f.unlink()
-        if out.exists():
-            out.rmdir()
-        os.replace(tmp, out)
+        _move_into_place(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -39,8 +39,9 @@ def encode_png(pixels: NDArray, level: int = 1) -> bytes:
     h, w, c = a.shape
     depth = 8 if a.dtype == np.uint8 else 16
     rows = np.ascontiguousarray(a.astype(">u2") if depth == 16 else a).reshape(h, -1)
-    raw = np.zeros((h, rows.shape[1] + 1), dtype=np.uint8)  # filter byte 0 per row
-    raw[:, 1:] = rows.view(np.uint8).reshape(h, -1)
+    data = rows.view(np.uint8).reshape(h, -1)  # bytes: two per sample at depth 16
+    raw = np.zeros((h, data.shape[1] + 1), dtype=np.uint8)  # filter byte 0 per row
+    raw[:, 1:] = data
     header = struct.pack(">IIBBBBB", w, h, depth, _COLOUR[c], 0, 0, 0)
     return (_SIGNATURE + _chunk(b"IHDR", header)
             + _chunk(b"IDAT", zlib.compress(raw.tobytes(), level)) + _chunk(b"IEND", b""))

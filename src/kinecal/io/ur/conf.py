@@ -19,18 +19,16 @@ from numpy.typing import NDArray
 from kinecal._files import read_text
 from kinecal.errors import InputError
 
-__all__ = ["DELTA_KEYS", "read_calibration_conf"]
+__all__ = ["DELTA_KEYS", "check_calibration", "read_calibration_conf"]
 
 #: the keys read, in the column order of the returned table (theta, a, d, alpha)
 DELTA_KEYS = ("delta_theta", "delta_a", "delta_d", "delta_alpha")
 _SECTION = "mounting"
 _ANGLES = ("delta_theta", "delta_alpha")
-#: keys whose joints 2-4 are judged by their sum (the parallel axes)
-_PARALLEL = ("delta_theta", "delta_d")
-#: a length delta beyond this (m) is no calibration: refused
-MAX_LENGTH = 100.0
-#: the largest delta a factory calibration gives (m, rad), beyond which a warning is given
-PLAUSIBLE = {"delta_theta": 0.05, "delta_a": 0.01, "delta_d": 0.01, "delta_alpha": 0.05}
+#: beyond these magnitudes (rad, m) a double keeps no 1e-12 rad / 1e-10 m of a value: no
+#: calibration writes them (real files: up to 7.2 rad and 450 m)
+MAX_ANGLE = 4096.0
+MAX_LENGTH = 1e6
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$")
 
 
@@ -76,7 +74,8 @@ def read_calibration_conf(path: str | Path) -> NDArray[np.float64]:
     ------
     InputError
         No ``[mounting]`` section, a missing or repeated key, a list without exactly six
-        finite numbers (file and line named).
+        finite numbers, a value too large to carry any precision (file and line named).
+        The geometry the deltas give is judged by `check_calibration`.
     """
     path = Path(path)
     text = read_text(path)
@@ -106,30 +105,70 @@ def read_calibration_conf(path: str | Path) -> NDArray[np.float64]:
 
 
 def _check_ranges(deltas: NDArray[np.float64], path: Path, rows: dict[str, int]) -> None:
-    """Refuse deltas no calibration has (an angle beyond a turn, a length beyond
-    `MAX_LENGTH`: another unit); warn (``ur-conf-implausible``) beyond what a factory
-    calibration gives: `PLAUSIBLE` per key, for joints 2-4 (parallel axes, whose theta
-    and d deltas may be large and opposite) on their sum."""
+    """Refuse values whose size leaves no precision (`MAX_ANGLE`, `MAX_LENGTH`). Large
+    deltas as such are no fault: real files have ``delta_d`` of hundreds of metres on the
+    parallel joints and ``delta_theta`` beyond a turn; their geometry is judged by
+    `check_calibration`."""
     for col, key in enumerate(DELTA_KEYS):
         v = deltas[:, col]
-        limit, unit, word = ((2 * math.pi, "rad", "radians") if key in _ANGLES else
-                             (MAX_LENGTH, "m", "metres"))
+        limit, unit = (MAX_ANGLE, "rad") if key in _ANGLES else (MAX_LENGTH, "m")
         if np.abs(v).max() > limit:
             raise InputError(f"line {rows[key]}: {key}: {v[np.abs(v).argmax()]:.6g} is beyond "
-                             f"{limit:.4g} {unit}: expected {word} (a factory calibration's "
-                             "deltas are small)", file=path)
-    found = []
-    for col, key in enumerate(DELTA_KEYS):
-        v = deltas[:, col]
-        parts = [v[0], v[1:4].sum(), v[4], v[5]] if key in _PARALLEL else list(v)
-        worst = float(np.abs(parts).max())
-        if worst > PLAUSIBLE[key]:
-            found.append(f"{key} {worst:.4g}" + (" (joints 2-4 summed)" if key in _PARALLEL
-                                                  and worst == abs(parts[1]) else ""))
-    if found:
-        from kinecal.diagnostics import warn
+                             f"{limit:g} {unit}, where a double keeps no useful precision: "
+                             "expected radians and metres", file=path)
 
-        warn("ur-conf-implausible", f"{path}: factory deltas larger than a UR calibration "
-             f"gives: {', '.join(found)} (expected at most {PLAUSIBLE['delta_a']:g} m and "
-             f"{PLAUSIBLE['delta_alpha']:g} rad): another unit (mm, degrees) or another "
-             "robot's file?")
+
+def check_calibration(deltas: NDArray[np.float64], robot: str, path: str | Path) -> float:
+    """Judge a file's deltas by the arm they give (`kinecal.io.ur.geometry`).
+
+    Parameters
+    ----------
+    deltas : ndarray, shape (6, 4)
+        `read_calibration_conf`'s table.
+    robot : str
+        The UR type the file is said to be of.
+    path : str or Path
+        For messages.
+
+    Returns
+    -------
+    float
+        The largest distance (m) of the calibrated flange from the nominal `robot`'s over
+        the joint range.
+
+    Raises
+    ------
+    InputError
+        The flange moves by more than the arm's reach: no calibration of this type (deltas
+        in mm or degrees?).
+
+    Warns ``ur-conf-implausible`` beyond what a factory calibration gives
+    (`kinecal.io.ur.geometry.FACTORY_FRACTION` of the reach), naming the type the deltas
+    fit when there is one.
+    """
+    from kinecal.io.ur.geometry import fitting_types, reach, within_factory
+
+    robot = robot.strip().lower()
+    fits = dict(fitting_types(deltas))
+    dev, arm = fits[robot], reach(robot)
+    others = [f"{t} ({e * 1000:.3g} mm)" for t, e in fits.items()
+              if t != robot and within_factory(t, e)]
+    hint = (f"; they fit a {' or '.join(others[:3])}: give that --robot?" if others else
+            ": deltas in another unit (mm, degrees), or not a controller's file?")
+    if dev > arm:
+        raise InputError(f"the deltas move the {robot}'s flange by up to "
+                         f"{_mm(dev)} over the joint range, more than the arm's reach "
+                         f"({arm * 1000:.0f} mm): no calibration of a {robot}{hint}", file=path)
+    if not within_factory(robot, dev):
+        from kinecal.diagnostics import warn
+        from kinecal.io.ur.geometry import FACTORY_FRACTION
+
+        warn("ur-conf-implausible", f"{path}: the deltas move the {robot}'s flange by up to "
+             f"{_mm(dev)} over the joint range, more than a factory calibration does (at most "
+             f"{FACTORY_FRACTION:.0%} of the reach, {FACTORY_FRACTION * arm * 1000:.3g} mm)"
+             f"{hint}")
+    return dev
+
+
+def _mm(metres: float) -> str:
+    return f"{metres * 1000:.4g} mm" if np.isfinite(metres) else "an undefined distance"

@@ -32,7 +32,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinecal._files import write_text_atomic
 from kinecal.errors import InputError
-from kinecal.io.ur.robots import nominal_dh, robot_type
+from kinecal.io.ur.geometry import (
+    FACTORY_FRACTION,
+    closest_types,
+    reach,
+    robot_type,
+    within_factory,
+)
+from kinecal.io.ur.robots import nominal_dh
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import rot_x, rot_z, rpy_from_matrix
 
@@ -165,8 +172,9 @@ def ur_kinematics(model: SerialModel, params: ArrayLike | None = None,
         Identified parameters (default nominal).
     robot : str, optional
         The UR type whose link frames the exported ones are moved next to (default: the
-        type whose lengths are within 5 mm of the model's, `robot_type`; none: the plain
-        regrouping).
+        type the model is a calibration of, `kinecal.io.ur.geometry.robot_type`; none: the
+        plain regrouping). A type the model's flange strays from by more than a factory
+        calibration does is used, with a warning (``ur-kinematics-not-ur``).
 
     Returns
     -------
@@ -180,6 +188,10 @@ def ur_kinematics(model: SerialModel, params: ArrayLike | None = None,
         robot = robot_type(table)
         if robot is None:
             _warn_not_ur(model, table)
+    else:
+        nominal_dh(robot)  # an unknown type is refused
+        robot = robot.strip().lower()
+        _check_type(model, table, robot)
     ref = nominal_dh(robot) if robot is not None else None
     origins = joint_origins(table, ref)
     out: dict = {}
@@ -196,12 +208,35 @@ def ur_kinematics(model: SerialModel, params: ArrayLike | None = None,
 def _warn_not_ur(model: SerialModel, table: Array) -> None:
     from kinecal.diagnostics import warn
 
+    name, dev = closest_types(table)[0]
     warn("ur-kinematics-not-ur",
          f"model {model.name!r} (d1 {table[0, 2] * 1000:.1f} mm, a2 {table[1, 1] * 1000:.1f} "
-         f"mm, a3 {table[2, 1] * 1000:.1f} mm) is within 5 mm of no UR type: the file is its "
-         "exact kinematics, but ur_description draws a UR's links and meshes along it; for "
-         "an arm that is not a UR export --format urdf (give --robot TYPE to keep a UR "
-         "type's link frames anyway)")
+         f"mm, a3 {table[2, 1] * 1000:.1f} mm) is no calibration of a UR type (its flange "
+         f"strays {_mm(dev)} from the closest, a {name}'s, over the joint range): the "
+         "file is its exact kinematics, but ur_description draws a UR's links and meshes "
+         "along it; for an arm that is not a UR export --format urdf (give --robot TYPE to "
+         "keep a UR type's link frames anyway)")
+
+
+def _check_type(model: SerialModel, table: Array, robot: str) -> None:
+    """Warn when `model` is no calibration of the `robot` the user named."""
+    ranked = dict(closest_types(table))
+    if within_factory(robot, ranked[robot]):
+        return
+    from kinecal.diagnostics import warn
+
+    fits = [t for t, e in ranked.items() if within_factory(t, e)]
+    warn("ur-kinematics-not-ur",
+         f"model {model.name!r} is no {robot}: its flange strays {_mm(ranked[robot])} from "
+         f"a nominal {robot}'s over the joint range (a factory calibration: at most "
+         f"{FACTORY_FRACTION * reach(robot) * 1000:.3g} mm); "
+         + (f"it is a {' or '.join(fits)}: give --robot {fits[0]}. " if fits else "")
+         + f"The file is the model's exact kinematics, but ur_description draws a {robot}'s "
+         "links and meshes along it")
+
+
+def _mm(metres: float) -> str:
+    return f"{metres * 1000:.4g} mm" if np.isfinite(metres) else "an undefined distance"
 
 
 def ur_kinematics_text(model: SerialModel, params: ArrayLike | None = None,

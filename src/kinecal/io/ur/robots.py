@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["UR_ALPHA", "UR_TYPES", "nominal_dh", "robot_type", "ur_model"]
+__all__ = ["UR_ALPHA", "UR_TYPES", "nominal_dh", "ur_model"]
 
 Array = NDArray[np.float64]
 
@@ -109,18 +109,3 @@ def ur_model(robot: str, deltas: ArrayLike | None = None, *, name: str | None = 
         joint_limits=np.tile([-2 * np.pi, 2 * np.pi], (6, 1)),
         tolerances={"length": 1.0 * s / 1000.0, "angle": np.radians(0.5)},
         description=description)
-
-
-def robot_type(table: ArrayLike, tol: float = 0.005) -> str | None:
-    """The UR type whose nominal lengths are within `tol` metres of a D-H table's
-    ``(6, 4)`` (theta, a, d, alpha; m) d1, a2, a3, d5, d6 (d2 .. d4 are left out: along
-    parallel axes a calibration may shift them by metres, keeping their sum); None when
-    no type is that close."""
-    t = np.asarray(table, dtype=float)
-    got = np.array([t[0, 2], t[1, 1], t[2, 1], t[4, 2], t[5, 2]])
-    best, err = None, tol
-    for name, (d1, a2, a3, _d4, d5, d6) in UR_TYPES.items():
-        e = float(np.max(np.abs(got - (d1, a2, a3, d5, d6))))
-        if e <= err:
-            best, err = name, e
-    return best
