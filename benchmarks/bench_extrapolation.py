@@ -6,8 +6,9 @@ Studies:
   their upstream exports when given with ``--series C=FILE D=FILE``). Calibrate on one
   series (T-Mac positions only, model ``ur10-tmac.yaml``), then *re-register* the base
   frame and the tool point on the held-out series with the arm held fixed (each series is
-  its own tracker set-up; done here in the script: ``calibrate(model, held, free=base and
-  tool)``), and report the held-out mean distance error. Every fixed error model and
+  its own tracker set-up; kinecal's ``--validate-register all``,
+  `kinecal.calibration.serial.validation_frame.apply_validation_register`), and report the
+  held-out mean distance error. Every fixed error model and
   ``auto``; each twice: with its terms held at the edges of the calibrated joint range
   (kinecal) and, for comparison, free (the same fit evaluated with an envelope of a
   million turns: terms as fitted, anywhere).
@@ -23,6 +24,7 @@ results in ``benchmarks/results/extrapolation.md``.
 from __future__ import annotations
 
 import argparse
+import copy
 import dataclasses
 import os
 import time
@@ -35,6 +37,7 @@ import numpy as np
 
 import kinecal
 from kinecal.calibration.serial.simulate import random_configurations, simulate
+from kinecal.calibration.serial.validation_frame import apply_validation_register
 from kinecal.diagnostics import KinecalWarning
 from kinecal.io.ipa_export import convert_ipa_export
 from kinecal.kinematics.serial.joint_errors import JointErrors
@@ -52,13 +55,16 @@ def ur10_model() -> kinecal.SerialModel:
     return kinecal.load_model(bundled_csv("ur10-ipa:model"))
 
 
-def registration(model) -> list[str]:
-    return [n for n in model.parameter_names if n.startswith(("base.", "tool."))]
-
-
-def reregistered(model, held) -> float:
-    """Held-out mean distance error after refitting base and tool on `held` (arm fixed)."""
-    return float(np.mean(kinecal.calibrate(model, held, free=registration(model)).errors_after))
+def reregistered(res, held, free: bool = False) -> float:
+    """Held-out mean distance error of calibration `res` after re-registering base and tool
+    on all of `held` with the arm held (kinecal's ``--validate-register all``); `free`: the
+    same fit with its terms free beyond the calibrated range."""
+    r = copy.copy(res)
+    r.extra = dict(res.extra)
+    if free:
+        r.nominal_model = free_terms(res.nominal_model)
+    apply_validation_register(r, held, "all", 1.0, None)
+    return float(np.mean(r.val_after))
 
 
 def free_terms(model):
@@ -94,17 +100,16 @@ def study_ur10(data: dict, splits: list[tuple[str, str]], fixed: list) -> list[s
              "|---|---|---|---|" + "---|" * len(fixed)]
     for cal, held in splits:
         geo = kinecal.calibrate(m, data[cal])
-        g = reregistered(geo.model, data[held])
+        g = reregistered(geo, data[held])
         t = time.perf_counter()
         auto = kinecal.calibrate_error_model(m, data[cal], "auto")
         seconds = time.perf_counter() - t
-        a, a_free = reregistered(auto.model, data[held]), reregistered(
-            free_terms(auto.model), data[held])
+        a, a_free = reregistered(auto, data[held]), reregistered(auto, data[held], True)
         cells = []
         for fam, h in fixed:
             r = kinecal.calibrate_error_model(m, data[cal], fam, harmonics=h)
-            cells.append(f"{reregistered(r.model, data[held]):.3f} "
-                         f"({reregistered(free_terms(r.model), data[held]):.3f})")
+            cells.append(f"{reregistered(r, data[held]):.3f} "
+                         f"({reregistered(r, data[held], True):.3f})")
         lines.append(f"| {cal} -> {held} | {g:.3f} | {a:.3f} ({a_free:.3f}), "
                      f"{auto.extra['error_model']['selected']}, {seconds:.0f} s | "
                      f"{100 * (a / g - 1):+.1f} % | " + " | ".join(cells) + " |")

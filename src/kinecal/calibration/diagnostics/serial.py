@@ -3,9 +3,7 @@
 `check_serial_data` runs them all from `kinecal.calibrate`; each check is also a plain
 function of arrays and the model, with its stable code (docs/diagnostics.md):
 ``too-few-poses`` (an `InputError`), ``few-poses``, ``duplicate-poses``,
-``validation-overlap``, ``outside-calibrated-range`` (validation poses beyond the
-calibration poses' joint range, `kinecal.calibration.diagnostics.envelope`),
-``rank-deficient``, and those of `units` (``joint-limits``,
+``validation-overlap``, ``rank-deficient``, and those of `units` (``joint-limits``,
 ``joint-units``, ``scale-mismatch``, ``mirrored-frame``, ``initial-error``).
 
 The reference for "what this model can identify" is a set of well-spread random poses
@@ -22,7 +20,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.diagnostics._common import JOINT_RESOLUTION, plural, repeat_groups
-from kinecal.calibration.diagnostics.envelope import check_calibrated_range
 from kinecal.calibration.diagnostics.observations import pose_groups
 from kinecal.calibration.diagnostics.units import (
     check_frame_and_units,
@@ -34,7 +31,6 @@ from kinecal.data import Measurements
 from kinecal.diagnostics import warn
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.chain import BASE_NAMES
-from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope
 from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = [
@@ -325,8 +321,6 @@ def check_serial_data(model: SerialModel, data: Measurements, names: Sequence[st
     if validate is not None:
         check_validation_overlap(data, validate)
         check_joint_limits(model, validate.q, "validation poses")
-        check_calibrated_range(validate.q, JointEnvelope.of(data.q, [
-            k != "prismatic" for k in model.joint_kinds]), model, "validation poses")
         if len(validate) >= 2:
             warned = check_joint_units(model, validate.q, "validation poses")
             check_frame_and_units(model, validate, ref, base_free, "validation poses", warned)

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from kinecal import diagnostics
+from kinecal.calibration.diagnostics.envelope import check_calibrated_range
 from kinecal.calibration.diagnostics.fit import check_serial_fit
 from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stated_sigma
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
@@ -229,6 +230,11 @@ def calibrate(
         from kinecal.calibration.serial.validation_frame import judge_validation
 
         judge_validation(res, validate, validate_register, rng)
+    if isinstance(validate, Measurements):  # validation poses beyond the calibrated range
+        with diagnostics.collect(python_warnings=True) as found:
+            check_calibrated_range(validate.q, res.envelope, res.nominal_model,
+                                   "validation poses")
+        res.warnings = list(dict.fromkeys([*res.warnings, *found]))
     return res
 
 
