@@ -178,10 +178,11 @@ def _joint_corrections(model: SerialModel, params: Array, q: Array,
         k = int(model._joint_columns[j])
         total = dq[:, j] + (params[k] - model.nominal[k])
         sel = terms.joint_of == j
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore"):  # 0 * inf: a free coefficient without a std
             bound = std.get(model.parameter_names[k], 0.0) + np.abs(W[:, sel]) @ coef[sel]
+        bound = np.where(np.isfinite(bound), bound, np.inf)
         tol = float(model.tolerances["angle" if model.is_angle()[k] else "length"])
-        excess = np.abs(total) - 3.0 * np.nan_to_num(bound, nan=np.inf)
+        excess = np.abs(total) - 3.0 * bound
         worst = float(np.abs(total).max(initial=0.0))
         if (excess > TOLERANCE_MULTIPLE * tol).any():
             i = int(np.argmax(np.abs(total)))

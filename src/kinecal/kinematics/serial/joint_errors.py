@@ -32,6 +32,12 @@ derivatives of the sines, cosines and gravity forces.
 The coefficients are extra named parameters appended to the model's parameter vector
 (`kinecal.kinematics.serial.model.SerialModel`, field ``joint_errors``); a model without joint
 errors is unchanged.
+
+A model whose terms carry the joint envelope they were fitted on (``JointErrors.envelope``,
+every calibrated model) evaluates them on readings retracted onto it: held at its edges
+beyond it (`kinecal.kinematics.serial.joint_errors_envelope`); and a joint's own terms
+(harmonics, scale) are taken relative to their value at the middle of its range, so that
+they vanish there and the joint offset alone carries the constant.
 """
 
 from __future__ import annotations
