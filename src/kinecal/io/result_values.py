@@ -148,10 +148,13 @@ def parameters_from_data(model: SerialModel, data: Any, path: Path) -> Array:
 def result_envelope(model: SerialModel, data: Any, path: str | Path) -> JointEnvelope | None:
     """The joint envelope a result stores (``envelope``: per joint the lowest and highest
     calibration reading, model units) for `model`; None when the result has none (written
-    before results stored it)."""
+    before results stored it) or is a robot system's read for one of its chains."""
     entry = data.get("envelope") if isinstance(data, dict) else None
     if entry is None:
         return None
+    low = entry.get("low") if isinstance(entry, dict) else None
+    if isinstance(low, list) and len(low) != model.n_joints and "system" in data:
+        return None  # a robot system's joints, read for one of its chains: not mapped
     try:
         return envelope_from_entry(model, entry)
     except InputError as exc:
