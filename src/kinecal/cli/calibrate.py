@@ -201,9 +201,21 @@ def calibrate(
     min_corners: int | None = typer.Option(None, "--min-corners", help="With --images: "
                                            "fewest corners an image must show (ChArUco, "
                                            "seen in part; default 60 % of the board's)."),
+    register: str | None = typer.Option(None, "--register", metavar="SERIAL", help="Also "
+                                        "record the result for this robot in the registry "
+                                        "(docs/robot-life.md)."),
+    db: str | None = typer.Option(None, "--db", help="With --register: the registry (default "
+                                  "$KINECAL_DB, else kinecal.db)."),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
     or from board images with --images."""
+    if register is not None:  # the calibration, then its record: kinecal.cli.registry
+        args = dict(locals())
+        from kinecal.cli._registry_common import registering
+
+        return registering(args, calibrate)
+    if db is not None:
+        raise InputError("applies to --register only", option="--db")
     if images is not None:  # the arm from camera images: its own module
         from kinecal.cli.calibrate_images import calibrate_images
 
