@@ -37,6 +37,7 @@ from kinecal.cli._options import (
     tip_link_option,
     unit_option,
 )
+from kinecal.cli._programs import program_option, wait_option, write_program_for
 from kinecal.cli._serial_common import POSE_BYTES, free_option
 from kinecal.cli.calibrate_kinds import (
     calibrate_files,
@@ -325,15 +326,21 @@ def select_poses_cmd(
         None, "--gauge", help="Gauge kinds: a pivot or point X,Y,Z, or a plane "
         "X,Y,Z,NX,NY,NZ (repeatable; default reachable ones)."),
     length: float | None = typer.Option(None, "--length", help="Ballbar or bar length."),
+    program: Path | None = program_option(),
+    wait: float = wait_option(),
 ) -> None:
     """Choose calibration poses maximising observability (O1, D-optimal); for a gauge kind
     the rows of its file (docs/measurement-kinds.md)."""
+    if program is not None:
+        from kinecal.io.programs import program_format
+
+        program_format(program)
     if kind != "tracker":
         from kinecal.cli.calibrate_kinds import select_kind_file
 
         return select_kind_file(model, kind, count=count, candidates=candidates, seed=seed,
                                 out=out, gauge=gauge, length=length, base_link=base_link,
-                                tip_link=tip_link)
+                                tip_link=tip_link, program=(program, wait))
     for option, value in (("--gauge", gauge), ("--length", length)):
         if value:
             raise InputError("applies to the gauge kinds (--kind ballbar, pair, point, plane)",
@@ -344,7 +351,7 @@ def select_poses_cmd(
     from kinecal.calibration.serial.simulate import random_configurations
     from kinecal.io.csvtable import write_table
 
-    check_paths({"MODEL": model}, {"--out": out})
+    check_paths({"MODEL": model}, {"--out": out, "--program": program})
     m = load_model_arg(model, base_link, tip_link)
     check_count(candidates, "--candidates", bytes_per_item=128 * m.n_params, what="candidates")
     q = random_configurations(m, candidates, np.random.default_rng(seed))
@@ -352,5 +359,9 @@ def select_poses_cmd(
     idx, obs = select_poses(m, q, count, free=ident)
     scale = 1.0 / m.joint_scale()  # to the file's units per joint column
     write_table(out, {f"q{i + 1}": q[idx, i] * scale[i] for i in range(m.n_joints)})
-    typer.echo(f"wrote {count} poses to {out}; O1 = {obs['O1']:.4g}, O2 = {obs['O2']:.4g} "
+    if program is not None:
+        write_program_for(program, m, q[idx], wait, f"kinecal select-poses {m.name}: "
+                          "calibration poses")
+    also = f" and {program}" if program else ""
+    typer.echo(f"wrote {count} poses to {out}{also}; O1 = {obs['O1']:.4g}, O2 = {obs['O2']:.4g} "
                f"({len(ident)} identifiable parameters)", err=True)

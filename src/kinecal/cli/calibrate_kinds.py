@@ -251,7 +251,7 @@ def simulate_kind_file(m, kind: str, *, poses: int, noise: float, true_params, s
 
 def select_kind_file(model: str, kind: str, *, count: int, candidates: int | None, seed: int,
                      out: Path, gauge: list[str] | None, length: float | None, base_link,
-                     tip_link) -> None:
+                     tip_link, program: tuple = (None, 2.0)) -> None:
     """``kinecal select-poses MODEL --kind K --count N --out PLAN.csv``: D-optimal rows of a
     gauge kind (`kinecal.calibration.blocks.plan.select_kind_poses`)."""
     from kinecal.calibration.blocks.plan import select_kind_poses
@@ -261,7 +261,7 @@ def select_kind_file(model: str, kind: str, *, count: int, candidates: int | Non
     if kind not in GAUGE_KINDS:
         raise InputError(f"unknown kind {kind!r}; expected one of tracker, "
                          f"{', '.join(GAUGE_KINDS)}", option="--kind")
-    check_paths({"MODEL": model}, {"--out": out})
+    check_paths({"MODEL": model}, {"--out": out, "--program": program[0]})
     check_finite(length, "--length", positive=True)
     from kinecal._limits import check_count
 
@@ -278,6 +278,11 @@ def select_kind_file(model: str, kind: str, *, count: int, candidates: int | Non
     m = load_model_arg(model, base_link, tip_link)
     plan, info = select_kind_poses(m, kind, count, candidates=candidates, rng=seed, **geometry)
     write_gauge(out, plan, m)
+    if program[0] is not None:  # a robot program visiting the rows in order
+        from kinecal.cli._programs import write_program_for
+
+        write_program_for(program[0], m, plan.q, program[1], f"kinecal select-poses "
+                          f"{m.name} --kind {kind}: calibration poses")
     typer.echo(f"wrote {len(plan)} {kind} rows to {out}; O1 = {info['O1']:.4g}, O2 = "
                f"{info['O2']:.4g} ({info['rank']} identifiable parameters"
                + (f"; not seen: {', '.join(info['not_seen'])}" if info["not_seen"] else "")

@@ -18,6 +18,7 @@ from kinecal.cli._options import (
     strict_option,
     tip_link_option,
 )
+from kinecal.cli._programs import program_option, wait_option, write_program_for
 from kinecal.cli._registry_common import (
     check_serial,
     command_text,
@@ -61,9 +62,9 @@ def check(
     the registry. Exit 0 valid, 3 drifted (within the limit), 4 recalibrate."""
     from kinecal.cli._common import resolve_data_path, write_json
     from kinecal.cli.calibrate_kinds import parse_sigma
-    from kinecal.registry.check import calibrated_from_result, run_check
-    from kinecal.registry.records import check_row, file_entry, load_stored_model, source_of
-    from kinecal.registry.store import StaleCalibration, open_registry
+    from kinecal.registry.check import EXIT_CODES
+    from kinecal.registry.fleet import check_robot
+    from kinecal.registry.store import open_registry
 
     serial = check_serial(serial)
     if register not in (None, "base"):
@@ -73,31 +74,13 @@ def check(
     stated = parse_sigma(sigma, data)
     when = parse_date_option(date)
     with open_registry(db) as reg, warnings_scope(strict) as found:
-        reg.require(serial)
-        for _attempt in range(3):  # again when another calibration became current meanwhile
-            ev = reg.current(serial)
-            cal = calibrated_from_result(load_stored_model(source_of(ev)), ev["document"],
-                                         f"calibration {ev['id']} of {serial}")
-            sets = _read(paths, cal.model)
-            res = run_check(cal, sets, sigma=stated, limit=limit, alpha=alpha,
-                            register_base=register == "base")
-            res.warnings = [d.to_dict() for d in found]
-            doc = res.to_dict()
-            row = check_row(serial, ev["id"], doc, inputs=[
-                file_entry(f"DATA {d}", p) for d, p in zip(data, paths, strict=True)],
-                date=when, operator=operator, instrument=instrument, note=note,
-                command=command_text())
-            try:
-                stored, new = reg.add_event(serial, row, check_current=ev["id"],
-                                            on_duplicate="return")
-                break
-            except StaleCalibration:
-                continue
-        else:
-            raise InputError("the current calibration kept changing while the check ran",
-                             option="SERIAL")
-    result = with_warnings({"serial": serial, "id": stored["id"], "calibration": ev["id"],
-                            "date": stored["date"], **doc}, found)
+        doc, stored, new = check_robot(
+            reg, serial, paths, sigma=stated, limit=limit, alpha=alpha,
+            register_base=register == "base", date=when, operator=operator,
+            instrument=instrument, note=note, command=command_text(),
+            warnings=lambda: list(found))
+    result = with_warnings({"serial": serial, "id": stored["id"], "date": stored["date"],
+                            **doc}, found)
     if out is not None:
         write_json(out, result)
     if not new:
@@ -106,37 +89,31 @@ def check(
     if json_out:
         echo_json(result)
     else:
-        typer.echo(_text(serial, stored, ev, res))
-    raise typer.Exit(res.exit_code if new else {"valid": 0, "drifted": 3,
-                                                 "recalibrate": 4}[stored["verdict"]])
+        typer.echo(_text(serial, stored, doc))
+    raise typer.Exit(EXIT_CODES[stored["verdict"]])
 
 
-def _read(paths: list[Path], model) -> list:
-    from kinecal.io.kinds import read_kind
-
-    return [read_kind(p, model) for p in paths]
-
-
-def _text(serial: str, stored: dict, ev: dict, res) -> str:
-    unit = res.length_unit
-    test = "chi-square" if res.noise_dof is None else f"F (noise dof {res.noise_dof:.0f})"
+def _text(serial: str, stored: dict, res: dict) -> str:
+    unit = res["length_unit"]
+    dof = res["noise_dof"]
+    test = "chi-square" if dof is None else f"F (noise dof {dof:.0f})"
+    d = res["directed"]
     lines = [
-        f"{serial}: {res.verdict.upper()} (check {stored['id']} of calibration {ev['id']}, "
-        f"{ev['date']})",
-        f"  overall {test} test: statistic {res.statistic:.4g} on {res.dof} dof, "
-        f"p = {res.p_value:.3g}; directed test ({res.directed['dof']} directions): "
-        f"statistic {res.directed['statistic']:.4g}, p = {res.directed['p_value']:.3g}; "
-        f"alpha {res.alpha:g}",
-        f"  systematic error {res.deviation:.4g} {unit} RMS per pose (limit {res.limit:.4g} "
-        f"{unit})",
+        f"{serial}: {res['verdict'].upper()} (check {stored['id']}, {stored['date']}, of "
+        f"calibration {res['calibration']})",
+        f"  overall {test} test: statistic {res['statistic']:.4g} on {res['dof']} dof, "
+        f"p = {res['p_value']:.3g}; directed test ({d['dof']} directions): "
+        f"statistic {d['statistic']:.4g}, p = {d['p_value']:.3g}; alpha {res['alpha']:g}",
+        f"  systematic error {res['deviation']:.4g} {unit} RMS per pose (limit "
+        f"{res['limit']:.4g} {unit})",
     ]
-    big = sorted(res.directions.items(), key=lambda kv: -abs(kv[1]["change"]) /
+    big = sorted(res["directions"].items(), key=lambda kv: -abs(kv[1]["change"]) /
                  max(kv[1]["std"], 1e-300))[:3]
     for name, d in big:
         if abs(d["change"]) > 3 * d["std"]:
             lines.append(f"  {name} changed by {d['change']:+.4g} +- {d['std']:.2g} "
                          f"{d['unit']}")
-    worst = sorted(res.poses, key=lambda p: -(p["ratio"] or 0))[:3]
+    worst = sorted(res["poses"], key=lambda p: -(p["ratio"] or 0))[:3]
     for p in worst:
         lines.append(f"  pose {p['set']}:{p['row']}: error {p['error']:.4g} {unit} "
                      f"(expected {p['expected']:.3g} without a change)")
@@ -151,15 +128,14 @@ def plan_check_cmd(
     poses: int = typer.Option(10, "--poses", help="Number of check poses (3 to 200)."),
     out: Path = typer.Option(..., "--out", help="CSV of the poses' joints q1..qn (model "
                              "units)."),
-    program: Path | None = typer.Option(None, "--program", help="Also a robot program "
-                                        "visiting them: .script, .mod, .src or .yaml."),
+    program: Path | None = program_option(),
     candidates: int = typer.Option(2000, "--candidates", help="Random candidate poses."),
     seed: int = seed_option("Random seed for the candidates (an integer >= 0)."),
     sigma: float | None = typer.Option(None, "--sigma", help="The instrument's noise (length "
                                        "unit): say what each change must be to be seen."),
     limit: float | None = typer.Option(None, "--limit", help="The check's limit (length "
                                        "unit): say how large each change is at the limit."),
-    wait: float = typer.Option(2.0, "--wait", help="--program: seconds at each pose."),
+    wait: float = wait_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the plan as JSON."),
 ) -> None:
     """Choose the few poses that best reveal joint offsets, a moved base and a bent link."""
@@ -196,16 +172,3 @@ def plan_check_cmd(
             parts.append(f"seen at {d['std']:.2g} {d['unit']} (1 sigma)")
         typer.echo(f"  {name:16s} " + ", ".join(parts))
 
-
-def write_program_for(path: Path, model, q, wait: float, comment: str) -> None:
-    """The robot program of `q` for `model` (`kinecal.io.programs`)."""
-    from kinecal.io.measurements import joint_names
-    from kinecal.io.programs import write_robot_program
-
-    names = joint_names(model) or None
-    if names is None and model.n_joints == 6 and model.name.startswith("ur"):
-        from kinecal.io.ros.joints import UR_JOINTS
-
-        names = list(UR_JOINTS)
-    write_robot_program(path, q, prismatic=model.is_prismatic(), length_unit=model.length_unit,
-                        joint_names=names, wait=wait, comment=comment)

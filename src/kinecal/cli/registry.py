@@ -307,3 +307,90 @@ def verify(db: str | None = db_option()) -> None:
             typer.echo(f"kinecal: error: {p}", err=True)
         raise typer.Exit(1)
     typer.echo(f"{reg.location.shown}: sound ({text})")
+
+
+@registry_app.command("check-fleet")
+def check_fleet_cmd(
+    checks: Path = typer.Argument(..., metavar="CHECKS.csv", help="One row per robot: serial, "
+                                  "data (files joined by ';', relative to CHECKS.csv), "
+                                  "optional date and sigma."),
+    executor: str = typer.Option("local", "--executor", metavar="[local|dask]",
+                                 help="A local process pool or a Dask cluster."),
+    scheduler: str | None = typer.Option(None, "--scheduler", help="Dask scheduler address "
+                                         "(tcp://host:port; default a local cluster)."),
+    workers: int | None = typer.Option(None, "--workers", help="Worker processes (a local "
+                                       "pool or a local Dask cluster)."),
+    limit: float | None = typer.Option(None, "--limit", help="As kinecal check --limit."),
+    alpha: float = typer.Option(1e-3, "--alpha", help="As kinecal check --alpha."),
+    db: str | None = db_option(),
+    json_out: bool = typer.Option(False, "--json", help="Print every robot's outcome."),
+) -> None:
+    """Check many robots at once (one transaction per robot; a PostgreSQL registry for a
+    fleet): counts per verdict; exit 0 when every check was recorded, 1 otherwise."""
+    import contextlib
+    import dataclasses
+
+    from kinecal.batch.executors import dask_executor, local_executor
+    from kinecal.registry.fleet import check_fleet
+    from kinecal.registry.location import locate
+    from kinecal.registry.store import open_registry
+
+    if executor not in ("local", "dask"):
+        raise InputError(f"expected local or dask, got {executor!r}", option="--executor")
+    if scheduler is not None and executor != "dask":
+        raise InputError("--scheduler needs --executor dask", option="--scheduler")
+    items = _fleet_list(checks, limit, alpha)
+    target = locate(db).target
+    open_registry(target).close()  # refused here, before any worker starts
+    with contextlib.ExitStack() as stack:
+        ex = stack.enter_context(dask_executor(scheduler, workers) if executor == "dask"
+                                 else local_executor(workers))
+        outcomes = check_fleet(target, items, executor=ex)
+    counts: dict[str, int] = {}
+    for o in outcomes:
+        key = o.verdict or "failed"
+        counts[key] = counts.get(key, 0) + 1
+    if json_out:
+        echo_json({"outcomes": [dataclasses.asdict(o) for o in outcomes], "counts": counts})
+    for o in outcomes:
+        if o.error:
+            typer.echo(f"kinecal: error: {o.serial}: {o.error}", err=True)
+    typer.echo(f"{len(outcomes)} robots: " + ", ".join(f"{n} {k}" for k, n in
+                                                      sorted(counts.items())), err=True)
+    if "failed" in counts:
+        raise typer.Exit(1)
+
+
+def _fleet_list(path: Path, limit: float | None, alpha: float) -> list:
+    """The rows of CHECKS.csv as `kinecal.registry.fleet.FleetCheck`."""
+    import csv
+
+    from kinecal.registry.fleet import FleetCheck
+    from kinecal.registry.location import parse_date
+
+    if not path.is_file():
+        raise InputError("file not found", file=path)
+    items = []
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            rows = list(csv.DictReader(fh))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"cannot read CSV: {exc}", file=path) from None
+    for k, row in enumerate(rows, 1):
+        if not row.get("serial") or not row.get("data"):
+            raise InputError("expected columns serial and data", file=path, row=k)
+        files = [path.parent / f.strip() for f in row["data"].split(";") if f.strip()]
+        for f in files:
+            if not f.is_file():
+                raise InputError(f"data file {f} not found", file=path, row=k)
+        sigma = row.get("sigma") or None
+        try:
+            sigma = None if sigma is None else float(sigma)
+        except ValueError:
+            raise InputError(f"sigma {sigma!r} is not a number", file=path, row=k) from None
+        items.append(FleetCheck(
+            check_serial(row["serial"]), tuple(str(f) for f in files),
+            date=parse_date(row["date"], "date") if row.get("date") else None,
+            sigma=None if sigma is None else (sigma,) * len(files), limit=limit,
+            alpha=alpha))
+    return items

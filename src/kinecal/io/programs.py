@@ -19,8 +19,8 @@ Joint values are written with enough digits that reading them back loses nothing
 controller can resolve (1e-9 rad, 1e-6 deg, 1e-6 mm). A URScript program moves six
 revolute joints; RAPID and KRL take up to six robot axes and six external ones (the
 seventh joint on is an external axis: ``eax_a``.., ``E1``..). A trajectory controller
-does not wait at a point: the YAML gives each point the time to reach it and to stay
-(``time_from_start`` grows by the move and the wait), and names the wait in a comment.
+does not wait at a point: the YAML spaces the points by the move and the wait
+(``time_from_start``) and says in its comments to send one point at a time and wait.
 """
 
 from __future__ import annotations
@@ -137,9 +137,11 @@ def _ros2(q: np.ndarray, prismatic: np.ndarray, length_unit: str, names: Sequenc
     vals = _lengths(q, prismatic, length_unit, 1000.0)  # prismatic joints in metres
     zeros = "[" + ", ".join(["0.0"] * q.shape[1]) + "]"
     lines = [f"# {h}" for h in head] + [
-        "# trajectory_msgs/msg/JointTrajectory: a point per pose in plan order; each point's",
-        f"# time_from_start leaves {MOVE_SECONDS:g} s to reach it and {wait:g} s to measure "
-        "there (the next point starts after the wait)",
+        "# trajectory_msgs/msg/JointTrajectory: a point per pose in plan order, reached at its",
+        f"# time_from_start, the next {MOVE_SECONDS:g} + {wait:g} s later; a trajectory "
+        "controller moves on at once:",
+        "# to measure at each pose, send one point at a time and wait there "
+        f"{wait:g} s",
         "header:", "  stamp: {sec: 0, nanosec: 0}", "  frame_id: ''",
         "joint_names: [" + ", ".join(_yaml_string(n) for n in names) + "]", "points:"]
     t = 0.0
