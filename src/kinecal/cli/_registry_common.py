@@ -119,10 +119,12 @@ def registering(args: dict[str, Any], command: Any) -> None:
 
 
 def command_text() -> str | None:
-    """The running command line, shell-quoted (None outside the CLI)."""
+    """The running command line, shell-quoted, a URL's password hidden (None outside the
+    CLI)."""
     import shlex
 
     from kinecal.cli import _common
+    from kinecal.registry.location import hide_password
 
     line = _common.COMMAND_LINE
-    return None if line is None else shlex.join(str(c) for c in line)
+    return None if line is None else shlex.join(hide_password(str(c)) for c in line)

@@ -16,7 +16,8 @@ from pathlib import Path
 
 from kinecal.errors import InputError
 
-__all__ = ["DEFAULT_FILE", "ENV", "Location", "format_date", "locate", "now", "parse_date"]
+__all__ = ["DEFAULT_FILE", "ENV", "Location", "format_date", "hide_password", "locate", "now",
+           "parse_date"]
 
 #: the registry file in the working folder when neither --db nor $KINECAL_DB says otherwise
 DEFAULT_FILE = "kinecal.db"
@@ -54,8 +55,9 @@ class Location:
         return Path(self.target)
 
 
-def _hide_password(url: str) -> str:
-    return re.sub(r"(://[^:/@]+):[^@]*@", r"\1:***@", url)
+def hide_password(text: str) -> str:
+    """`text` with the password of any URL in it replaced by ``***``."""
+    return re.sub(r"(://[^:/@\s]+):[^@/\s]*@", r"\1:***@", text)
 
 
 def locate(db: str | os.PathLike | None = None) -> Location:
@@ -71,7 +73,7 @@ def locate(db: str | os.PathLike | None = None) -> Location:
                          option=option)
     if text.startswith(_POSTGRES):
         rest = text.split("://", 1)[1]
-        return Location("postgresql", "postgresql+psycopg://" + rest, _hide_password(text),
+        return Location("postgresql", "postgresql+psycopg://" + rest, hide_password(text),
                         option)
     if _URL.match(text) and not text.lower().startswith("sqlite:"):
         scheme = text.split("://", 1)[0]

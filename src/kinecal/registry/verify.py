@@ -24,6 +24,7 @@ def verify_registry(reg: Any) -> tuple[list[str], dict[str, int]]:
             if found != ["ok"]:
                 problems += [f"SQLite integrity check: {f}" for f in found[:10]]
         owner: dict[int, tuple[int, str]] = {}
+        links = []
         n_events = 0
         for row in conn.execute(sa.select(events.c.id, events.c.robot_id, events.c.kind,
                                           events.c.calibration_id, events.c.document,
@@ -33,10 +34,12 @@ def verify_registry(reg: Any) -> tuple[list[str], dict[str, int]]:
             digest = hashlib.sha256(row.document.encode("utf-8")).hexdigest()
             if digest != row.document_sha256:
                 problems.append(f"record {row.id}: its document does not match its SHA-256")
-            if row.kind == "check" and owner.get(row.calibration_id, (None, None)) != (
-                    row.robot_id, "calibration"):
-                problems.append(f"check {row.id}: its calibration {row.calibration_id} is "
-                                "not one of the robot's")
+            if row.kind == "check":
+                links.append((row.id, row.robot_id, row.calibration_id))
+        for eid, rid, cal in links:
+            if owner.get(cal, (None, None)) != (rid, "calibration"):
+                problems.append(f"check {eid}: its calibration {cal} is not one of the "
+                                "robot's")
         for table, name in ((current_changes, "current change"), (corrections,
                                                                   "retraction")):
             for row in conn.execute(sa.select(table.c.id, table.c.robot_id,
