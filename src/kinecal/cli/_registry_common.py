@@ -71,7 +71,10 @@ def register_result(serial: str, db: str | None, data: dict, where: str | Path, 
     serial = check_serial(serial)
     subject = result_subject(data, where)
     source = model_source(model, data, base_link, tip_link) if subject == "arm" else None
-    entries = [file_entry(name, p) for name, p in (inputs or {}).items()
+    from kinecal.io.bundled import input_file
+
+    found = {name: input_file(p) for name, p in (inputs or {}).items() if p is not None}
+    entries = [file_entry(name, p) for name, p in found.items()
                if p is not None and Path(p).is_file()]
     if Path(where).is_file():
         entries.append(file_entry("RESULT", where))

@@ -272,7 +272,8 @@ def run_check(cal: Calibrated, data: list, *, sigma: list[float | None] | None =
          "p_value": j.directed_p_value, "directions": [directions[k] for k in
                                                        np.flatnonzero(np.isfinite(j.change))]},
         poses, _direction_table(model, directions, -j.change, j.change_std),
-        {b.name: float(np.median(n)) for b, n in zip(blocks, noise, strict=True)},
+        {(Path(b.source).name or b.kind): float(np.median(n))
+         for b, n in zip(blocks, noise, strict=True)},
         register_base, model.length_unit)
 
 
