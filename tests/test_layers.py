@@ -69,8 +69,8 @@ LATE_ALLOWED: dict[str, set[str]] = {
     "experiments": {"cli"},
     "registry": {"io", "kinecal", "optimize", "report", "metrology", "calibration",
                  "calibration.serial", "calibration.blocks", "calibration.diagnostics"},
-    "cli": {"registry", "batch", "calibration.blocks", "calibration.camera", "calibration.diagnostics",
-            "calibration.handeye", "calibration.serial", "calibration.stewart",
+    "cli": {"registry", "batch", "calibration.blocks", "calibration.camera",
+            "calibration.diagnostics", "calibration.handeye", "calibration.serial", "calibration.stewart",
             "compensation", "datasets", "io", "kinematics.serial", "kinematics.stewart",
             "report", "vision", "metrology", "kinecal"},
 }

@@ -81,7 +81,7 @@ def test_krl_round_trip_with_a_linear_axis(tmp_path):
                                np.degrees(q[:, :6]), atol=5e-7)
     np.testing.assert_allclose([m["E1"] for m in moves], q[:, 6] * 1000, atol=5e-7)
     assert waits == [2.0] * 5
-    rob, ext, _ = parse_rapid(program_text(tmp_path / "plan.mod", q, prismatic=lin,
+    _, ext, _ = parse_rapid(program_text(tmp_path / "plan.mod", q, prismatic=lin,
                                            length_unit="m"))
     np.testing.assert_allclose(ext[:, 0], q[:, 6] * 1000, atol=5e-7)
     assert (ext[:, 1:] == 9e9).all()

@@ -40,7 +40,7 @@ def test_whitened_tests_hold_their_size_on_linear_gaussian_data():
     D = rng.normal(size=(m, q)) * 30
     N = rng.normal(size=(m, 2))  # two unknowns fitted today
     obs = np.repeat(np.arange(10), 3)
-    p, dp, est = [], [], []
+    p, dp = [], []
     for _ in range(4000):
         r = rng.normal(0, 0.03, m) + A @ rng.multivariate_normal(np.zeros(k), C) \
             + N @ rng.normal(0, 5, 2)
@@ -102,8 +102,6 @@ def test_a_joint_offset_change_is_found_and_measured(arm):
     from kinecal.io.kinds import read_kind
     from kinecal.registry.check import calibrated_from_result, run_check
 
-    import kinecal
-
     data = json.loads(arm.result.read_text())
     cal = calibrated_from_result(arm.model, data, arm.result)
     for value, verdict in ((0.0, "valid"), (0.03, "drifted"), (0.3, "recalibrate")):
@@ -117,7 +115,6 @@ def test_a_joint_offset_change_is_found_and_measured(arm):
             others = [abs(v["change"]) / v["std"] for n, v in res.directions.items()
                       if n != "theta3"]
             assert max(others) < 5  # the change is put on its joint, not spread
-    assert kinecal.load_model("ur5").n_joints == 6
 
 
 def test_a_ballbar_check_fits_its_pivot_today(arm, tmp_path):

@@ -116,7 +116,6 @@ def check_robot(reg: Any, serial: str, data: Sequence[Any], *,
     from kinecal.registry.records import check_row
     from kinecal.registry.store import StaleCalibration
 
-    reg.require(serial)
     inputs = [_data_entry(k, d) for k, d in enumerate(data)]
     for _ in range(attempts):
         ev = reg.current(serial)

@@ -268,14 +268,16 @@ class Registry:
         """The current `subject` calibration of `serial`, with its document and model."""
         from kinecal.registry import history as hist
 
-        self.require(serial)
-
-        def get(conn: Any) -> dict[str, Any] | None:
+        def get(conn: Any) -> tuple[bool, dict[str, Any] | None]:
             rid = self._robot_id(conn, serial, create=False, lock=False)
+            if rid is None:
+                return False, None
             eid = hist.current_id(conn, rid, subject)
-            return None if eid is None else hist.event_by_id(conn, eid, full=True)
+            return True, None if eid is None else hist.event_by_id(conn, eid, full=True)
 
-        ev = self.read(get)
+        known, ev = self.read(get)
+        if not known:
+            self.require(serial)
         if ev is None:
             raise InputError(f"{serial} has no current {subject} calibration (registry add "
                              f"{serial} RESULT.json records one)", option="SERIAL")
