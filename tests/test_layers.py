@@ -70,9 +70,9 @@ LATE_ALLOWED: dict[str, set[str]] = {
     "registry": {"io", "kinecal", "optimize", "report", "metrology", "calibration",
                  "calibration.serial", "calibration.blocks", "calibration.diagnostics"},
     "cli": {"registry", "batch", "calibration.blocks", "calibration.camera",
-            "calibration.diagnostics", "calibration.handeye", "calibration.serial", "calibration.stewart",
-            "compensation", "datasets", "io", "kinematics.serial", "kinematics.stewart",
-            "report", "vision", "metrology", "kinecal"},
+            "calibration.diagnostics", "calibration.handeye", "calibration.serial",
+            "calibration.stewart", "compensation", "datasets", "io", "kinematics.serial",
+            "kinematics.stewart", "report", "vision", "metrology", "kinecal"},
 }
 #: below no kind of machine: compensation is the apply step on top of calibration results
 NEVER = [("calibration", "compensation"), ("io", "calibration"), ("kinematics", "calibration"),
