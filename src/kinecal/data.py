@@ -17,8 +17,8 @@ from numpy.typing import NDArray
 from kinecal.errors import InputError
 from kinecal.spatial import check_rotation
 
-__all__ = ["DISTANCE_KINDS", "GAUGE_KINDS", "GaugeMeasurements", "Measurements",
-           "RepeatedPoses"]
+__all__ = ["DISTANCE_KINDS", "GAUGE_KINDS", "KNOWN_COLUMNS", "GaugeMeasurements",
+           "Measurements", "RepeatedPoses"]
 
 
 @dataclass(frozen=True, repr=False)
@@ -104,6 +104,10 @@ GAUGE_KINDS: dict[str, str] = {"ballbar": "pivot", "pair": "pair", "point": "poi
                                "plane": "plane"}
 #: the kinds whose rows carry a measured (or known) distance
 DISTANCE_KINDS = ("ballbar", "pair")
+#: the kinds whose groups may be known fixtures -> the columns giving them (base frame)
+KNOWN_COLUMNS: dict[str, tuple[str, ...]] = {
+    "point": ("px", "py", "pz"), "plane": ("px", "py", "pz", "nx", "ny", "nz")}
+KNOWN_SIZES = {k: len(v) for k, v in KNOWN_COLUMNS.items()}
 
 
 @dataclass(frozen=True, repr=False)
@@ -137,6 +141,12 @@ class GaugeMeasurements:
     marker : ndarray of int, shape (N,) or None
         Which marker (tool point) each row used, as in `Measurements`.
     marker_names : tuple of str
+    known : ndarray, shape (G, 3) or (G, 6), or None
+        ``point`` and ``plane`` only: per group, its known position in the base frame (a
+        calibration block's socket, a fixture's face): ``px, py, pz`` of a point, or a
+        point ``px, py, pz`` of a plane and its unit normal ``nx, ny, nz`` (length unit);
+        a row of NaN for a group that is unknown (solved with the arm). None: every group
+        unknown.
     """
 
     kind: str
@@ -148,6 +158,7 @@ class GaugeMeasurements:
     source: str = ""
     marker: NDArray[np.intp] | None = None
     marker_names: tuple[str, ...] = ()
+    known: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in GAUGE_KINDS:
@@ -179,11 +190,41 @@ class GaugeMeasurements:
                 raise InputError(f"marker: expected {n} indices into {list(self.marker_names)}")
         elif self.marker_names:
             raise InputError("marker_names without marker indices")
+        if self.known is not None:
+            self._check_known()
+
+    def _check_known(self) -> None:
+        size = KNOWN_SIZES.get(self.kind)
+        if size is None:
+            raise InputError(f"known: {self.kind} measurements have no known geometry (points "
+                             "and planes do)")
+        k = np.asarray(self.known, dtype=float)
+        if k.shape != (len(self.group_names), size):
+            raise InputError(f"known: expected shape ({len(self.group_names)}, {size}) "
+                             f"({', '.join(KNOWN_COLUMNS[self.kind])} per {self.kind} id), "
+                             f"got {k.shape}")
+        given = ~np.isnan(k).all(axis=1)
+        if not np.isfinite(k[given]).all():
+            raise InputError(f"known: each {self.kind}'s row must be all numbers (known) or "
+                             "all NaN (unknown)")
+        if size == 6 and given.any():
+            norm = np.linalg.norm(k[given, 3:], axis=1)
+            if np.abs(norm - 1.0).max() > 1e-9:
+                raise InputError("known: plane normals nx, ny, nz must be unit vectors")
+
+    @property
+    def known_groups(self) -> NDArray[np.bool_]:
+        """Whether each group's geometry is known ``(G,)``."""
+        if self.known is None:
+            return np.zeros(len(self.group_names), dtype=bool)
+        return ~np.isnan(np.asarray(self.known, dtype=float)).all(axis=1)
 
     def __repr__(self) -> str:
         src = f" from {self.source}" if self.source else ""
+        known = int(self.known_groups.sum())
+        more = f" ({known} known)" if known else ""
         return (f"<GaugeMeasurements {self.kind}: {len(self)} rows, {len(self.group_names)} "
-                f"groups{src}>")
+                f"groups{more}{src}>")
 
     def __len__(self) -> int:
         return int(np.shape(self.q)[0])

@@ -10,10 +10,11 @@ from typing import Any
 
 from kinecal.errors import InputError
 
-__all__ = ["CALIBRATION_METHOD_CHOICES", "MODEL_HELP", "UNITS", "base_link_option",
-           "check_unit", "choices", "instrument_option", "load_model_arg", "note_option",
-           "operator_option", "quiet_option", "report_option", "seed_option",
-           "strict_option", "tip_link_option", "unit_option"]
+__all__ = ["CALIBRATION_METHOD_CHOICES", "MODEL_HELP", "UNITS", "angle_unit_option",
+           "base_link_option", "check_angle_unit", "check_unit", "choices",
+           "instrument_option", "load_model_arg", "note_option", "operator_option",
+           "quiet_option", "report_option", "seed_option", "strict_option", "tip_link_option",
+           "unit_option"]
 
 
 def choices(*values: str) -> str:
@@ -51,6 +52,22 @@ def check_unit(unit: str) -> str | None:
         raise InputError(f"unknown unit {unit!r}; expected one of {', '.join(UNITS)}",
                          option="--unit")
     return None if unit == "auto" else unit
+
+
+def angle_unit_option(what: str = "the joint columns of the files read") -> Any:
+    """The ``--angle-unit`` option: the unit of revolute joint columns in files."""
+    import typer
+
+    return typer.Option(None, "--angle-unit", metavar=choices("deg", "rad"),
+                        help=f"Unit of {what} (default: the model's angle unit).")
+
+
+def check_angle_unit(unit: str | None) -> str | None:
+    """A ``--angle-unit`` value (None: the model's); `InputError` when unknown."""
+    if unit not in (None, "deg", "rad"):
+        raise InputError(f"unknown angle unit {unit!r}; expected deg or rad",
+                         option="--angle-unit")
+    return unit
 
 
 def seed_option(help: str = "Random seed (an integer >= 0).") -> Any:

@@ -102,13 +102,15 @@ def _bool(v: np.ndarray) -> list[str]:
 
 
 def stream(path: Path, out: Path, header: list[str], required: list[str],
-            optional: list[str], joints: list[str], arms, outputs: str | None, bar):
+            optional: list[str], joints: list[str], arms, outputs: str | None, bar,
+            angle_unit: str | None = None):
     """Compensate the program a block of `BLOCK` rows at a time, each block written as it
     is done: memory stays that of one block (the cells of a million-line program as Python
     strings, and the rows' 4x4 poses, would take gigabytes) plus a few numbers per row for
     the statistics (`ProgramRows`). Every row's answer is that of one call on the whole
     program; the per-row warnings count the whole program (`RowFindings`), issued before
-    the output is committed (``--strict`` leaves no file). Returns the `ProgramRows`."""
+    the output is committed (``--strict`` leaves no file). Joint columns in and out are in
+    `angle_unit` (default the model's). Returns the `ProgramRows`."""
     from kinecal._files import atomic_open
     from kinecal.calibration.diagnostics.serial import check_joint_units
     from kinecal.compensation.api import BLOCK, compensate
@@ -117,7 +119,7 @@ def stream(path: Path, out: Path, header: list[str], required: list[str],
     from kinecal.io.csvtable import read_blocks
 
     nom = arms.nominal
-    scale = nom.joint_scale()  # file units -> API units per joint
+    scale = nom.joint_scale(angle_unit)  # file units -> API units per joint
     targets = "x" in required
     findings = RowFindings()
     span = _JointSpan(nom.n_joints)
@@ -148,7 +150,7 @@ def stream(path: Path, out: Path, header: list[str], required: list[str],
                 if exc.row is None or exc.file is not None:
                     raise
                 raise InputError(exc.message, file=path, row=first + exc.row) from None
-            extra = program_output_columns(res, nom, joints)
+            extra = program_output_columns(res, nom, joints, angle_unit)
             replace = {c: res.q[:, k] / scale[k] for k, c in enumerate(joints)}
             if cols is None:
                 cols = list(header) + [c for c in replace if c not in header] + list(extra)
@@ -193,12 +195,13 @@ def count_rows(path: Path) -> int:
     return max(n - 1, 0)
 
 
-def program_output_columns(res, nom, joints: list[str]) -> dict:
-    """The compensation columns, in the model file's units."""
+def program_output_columns(res, nom, joints: list[str], angle_unit: str | None = None) -> dict:
+    """The compensation columns, in the model file's units (angles in `angle_unit` when
+    given)."""
     from kinecal.spatial import pq_from_transform
 
     extra: dict = {}
-    deg = nom.angle_unit == "deg"
+    deg = (angle_unit or nom.angle_unit) == "deg"
     angle = (lambda a: np.degrees(a)) if deg else (lambda a: a)
     if res.kind == "targets":
         f = res.filtered
@@ -208,7 +211,7 @@ def program_output_columns(res, nom, joints: list[str]) -> dict:
         else:
             pq, names = f, ["x", "y", "z"]
         extra.update({f"filtered_{c}": pq[:, k] for k, c in enumerate(names)})
-    scale = nom.joint_scale()
+    scale = nom.joint_scale(angle_unit)
     extra.update({f"d{c}": res.dq[:, k] / scale[k] for k, c in enumerate(joints)})
     extra["correction"] = res.correction
     if res.outputs == "pose":

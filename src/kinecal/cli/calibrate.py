@@ -23,7 +23,9 @@ from kinecal.cli._common import (
 from kinecal.cli._options import (
     CALIBRATION_METHOD_CHOICES,
     MODEL_HELP,
+    angle_unit_option,
     base_link_option,
+    check_angle_unit,
     check_unit,
     choices,
     instrument_option,
@@ -47,6 +49,9 @@ from kinecal.cli.calibrate_kinds import (
 )
 from kinecal.errors import InputError
 
+FIXTURE_HELP = ("Known fixtures: CSV of point,px,py,pz or plane,px,py,pz,nx,ny,nz rows (base "
+                "frame, length unit) for the point or plane files' ids (repeatable). See "
+                "docs/measurement-kinds.md.")
 #: --error-model values (and families joined by '+')
 ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto")
 
@@ -76,9 +81,13 @@ def identifiability(
         "joint_errors)."),
     harmonics: int | None = typer.Option(None, "--harmonics",
                                          help="Harmonic order (default 2)."),
+    fixture: list[Path] | None = typer.Option(None, "--fixture", help=FIXTURE_HELP),
+    angle_unit: str | None = angle_unit_option("the --data files' joint columns"),
 ) -> None:
-    """Rank, identifiable and unidentifiable parameters, condition number, O1-O5."""
+    """Rank, identifiable and unidentifiable parameters, condition number, O1-O5; with
+    --data, what calibrate would free from those poses."""
     from kinecal.calibration.diagnostics.serial import check_pose_set
+    from kinecal.calibration.serial.api import CALIBRATION_RANK_TOL
     from kinecal.calibration.serial.problem import resolve_free
     from kinecal.calibration.serial.simulate import simulate as run
     from kinecal.kinematics.serial.markers import model_for_markers
@@ -86,17 +95,21 @@ def identifiability(
     for option, value in (("--poses", poses), ("--seed", seed)):
         if data and value is not None:
             raise InputError("applies to random poses only, not with --data", option=option)
-    if data and (len(data) > 1 or file_kind(data[0], "--data") != "tracker"):
+    if fixture and not data:
+        raise InputError("applies to --data point and plane files", option="--fixture")
+    if check_angle_unit(angle_unit) and not data:
+        raise InputError("applies to --data files", option="--angle-unit")
+    if data and (len(data) > 1 or fixture or file_kind(data[0], "--data") != "tracker"):
         if error_model is not None or harmonics is not None:
             raise InputError("applies to one tracker file only", option="--error-model")
         return identifiability_files(model, data, base_link=base_link, tip_link=tip_link,
                                      free=free_option(free), json_out=json_out, quiet=quiet,
-                                     strict=strict)
+                                     strict=strict, fixture=fixture, angle_unit=angle_unit)
     data = data[0] if data else None
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
         if data is not None:
-            meas = _poses_to_analyse(m, resolve_data_path(data, "--data"))
+            meas = _poses_to_analyse(m, resolve_data_path(data, "--data"), angle_unit)
         else:
             poses = check_count(50 if poses is None else poses, "--poses",
                                 bytes_per_item=POSE_BYTES * (m.n_joints + 10))
@@ -108,10 +121,15 @@ def identifiability(
             # the geometry first, then the joint-error coefficients beyond it
             m, report = identifiability_with_terms(m, meas, free_option(free), error_model,
                                                    harmonics)
+        elif data is not None:  # what calibrate frees from these poses: its own rule
+            from kinecal.calibration.serial.solve import data_identifiability
+
+            report = data_identifiability(m, meas, free_option(free),
+                                          rank_tol=CALIBRATION_RANK_TOL)
         else:
             _, report = resolve_free(m, meas, free_option(free))
         if data is not None:
-            check_pose_set(m, meas, report)
+            check_pose_set(m, meas, report, CALIBRATION_RANK_TOL)
     if json_out:
         echo_json(with_warnings(report.to_dict(), found))
         return
@@ -123,18 +141,19 @@ def identifiability(
                                              for k, v in report.observability.items()))
 
 
-def _poses_to_analyse(model, path):
+def _poses_to_analyse(model, path, angle_unit: str | None = None):
     """The `Measurements` of ``identifiability --data``: a measurement file as it is, or a
     joints-only file (``q1..qn``, what ``select-poses`` writes) measured by the nominal
     model (only the poses matter to the analysis)."""
     from kinecal.calibration.serial.simulate import simulate as run
     from kinecal.io.measurements import read_joints, read_markers, read_measurements
     from kinecal.io.poses import first_csv_row
+    from kinecal.io.wide import is_wide
 
-    header = set(first_csv_row(path))
-    if header & {"x", "y", "z", "x_t"}:
-        return read_measurements(path, model)
-    q = read_joints(path, model)
+    header = first_csv_row(path)
+    if set(header) & {"x", "y", "z", "x_t"} or is_wide(header):
+        return read_measurements(path, model, angle_unit=angle_unit)
+    q = read_joints(path, model, angle_unit=angle_unit)
     marker, _ = read_markers(path, model)
     return run(model, len(q), errors="zero", q=q, marker=marker).data
 
@@ -202,6 +221,8 @@ def calibrate(
     min_corners: int | None = typer.Option(None, "--min-corners", help="With --images: "
                                            "fewest corners an image must show (ChArUco, "
                                            "seen in part; default 60 % of the board's)."),
+    fixture: list[Path] | None = typer.Option(None, "--fixture", help=FIXTURE_HELP),
+    angle_unit: str | None = angle_unit_option("the data files' joint columns"),
     register: str | None = typer.Option(None, "--register", metavar="SERIAL", help="Also "
                                         "record the result for this robot in the registry "
                                         "(docs/robot-life.md)."),
@@ -217,6 +238,7 @@ def calibrate(
         return registering(args, calibrate)
     if db is not None:
         raise InputError("applies to --register only", option="--db")
+    check_angle_unit(angle_unit)
     if images is not None:  # the arm from camera images: its own module
         from kinecal.cli.calibrate_images import calibrate_images
 
@@ -236,7 +258,7 @@ def calibrate(
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
     shown = check_unit(unit)
     validate = validate or []
-    if len(data) > 1 or len(validate) > 1 or any(
+    if len(data) > 1 or len(validate) > 1 or fixture or any(
             file_kind(f, o) != "tracker" for f, o in [(data[0], "DATA")]
             + [(v, "--validate") for v in validate]):
         return calibrate_files(
@@ -246,7 +268,7 @@ def calibrate(
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
                            "--folds": folds}, record=(instrument, operator, note),
-            unit=shown)
+            unit=shown, fixture=fixture, angle_unit=angle_unit)
     data, validate = data[0], (validate[0] if validate else None)
     sigma = parse_sigma(sigma, [data])[0]
     check_paths({"MODEL": model, "DATA": data, "--validate": validate},
@@ -268,13 +290,14 @@ def calibrate(
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
         check_stated_sigma(m, sigma)  # not larger than the machine
-        meas = read_measurements(resolve_data_path(data, "DATA"), m)
+        meas = read_measurements(resolve_data_path(data, "DATA"), m, angle_unit=angle_unit)
         if rotation_weight is not None and meas.rotations is None:
             raise InputError("applies to measured orientations (qw..qz columns) only",
                              option="--rotation-weight")
         val = None
         if validate is not None:
-            val = read_measurements(resolve_data_path(validate, "--validate"), m)
+            val = read_measurements(resolve_data_path(validate, "--validate"), m,
+                                    angle_unit=angle_unit)
         iterative = method not in ("lm",)
         with progress(f"calibrate {m.name} ({method})", maxiter if iterative else None,
                       quiet or json_out) as update:
@@ -326,11 +349,13 @@ def select_poses_cmd(
         None, "--gauge", help="Gauge kinds: a pivot or point X,Y,Z, or a plane "
         "X,Y,Z,NX,NY,NZ (repeatable; default reachable ones)."),
     length: float | None = typer.Option(None, "--length", help="Ballbar or bar length."),
+    angle_unit: str | None = angle_unit_option("the plan's joint columns"),
     program: Path | None = program_option(),
     wait: float = wait_option(),
 ) -> None:
     """Choose calibration poses maximising observability (O1, D-optimal); for a gauge kind
     the rows of its file (docs/measurement-kinds.md)."""
+    check_angle_unit(angle_unit)
     if program is not None:
         from kinecal.io.programs import program_format
 
@@ -340,7 +365,8 @@ def select_poses_cmd(
 
         return select_kind_file(model, kind, count=count, candidates=candidates, seed=seed,
                                 out=out, gauge=gauge, length=length, base_link=base_link,
-                                tip_link=tip_link, program=(program, wait))
+                                tip_link=tip_link, angle_unit=angle_unit,
+                                program=(program, wait))
     for option, value in (("--gauge", gauge), ("--length", length)):
         if value:
             raise InputError("applies to the gauge kinds (--kind ballbar, pair, point, plane)",
@@ -357,7 +383,7 @@ def select_poses_cmd(
     q = random_configurations(m, candidates, np.random.default_rng(seed))
     ident, _ = resolve_free(m, candidate_measurements(m, q), "identifiable", tol=1e-4)
     idx, obs = select_poses(m, q, count, free=ident)
-    scale = 1.0 / m.joint_scale()  # to the file's units per joint column
+    scale = 1.0 / m.joint_scale(angle_unit)  # to the file's units per joint column
     write_table(out, {f"q{i + 1}": q[idx, i] * scale[i] for i in range(m.n_joints)})
     if program is not None:
         write_program_for(program, m, q[idx], wait, f"kinecal select-poses {m.name}: "

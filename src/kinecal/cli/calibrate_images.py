@@ -25,7 +25,8 @@ __all__ = ["calibrate_images"]
 #: options of ``calibrate`` that measured positions use and images do not
 _POSITION_ONLY = {"error_model": "--error-model", "harmonics": "--harmonics",
                   "folds": "--folds", "rotation_weight": "--rotation-weight",
-                  "sigma": "--sigma", "maxiter": "--maxiter", "target": "--target"}
+                  "sigma": "--sigma", "maxiter": "--maxiter", "target": "--target",
+                  "fixture": "--fixture"}
 
 
 def _one(value: Any, option: str) -> str | None:
@@ -62,14 +63,15 @@ def calibrate_images(args: dict[str, Any]) -> None:
          validate=validate, free=free_option(args["free"]), loss=args["loss"],
          out=args["out"], model_out=args["model_out"], report=args["report"],
          json_out=args["json_out"], quiet=args["quiet"], strict=args["strict"],
-         min_corners=args["min_corners"])
+         min_corners=args["min_corners"], angle_unit=args.get("angle_unit"))
 
 
 def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
          images: Path, board: str | None, intrinsics: Path | None, setup: str, method: str,
          validate: str | None, free: Any, loss: str, out: Path | None,
          model_out: Path | None, report: Path | None, json_out: bool, quiet: bool,
-         strict: bool, min_corners: int | None = None) -> None:
+         strict: bool, min_corners: int | None = None,
+         angle_unit: str | None = None) -> None:
     from kinecal.cli.handeye_images import IMAGE_SUFFIXES, limits_option, list_images
 
     if method != "lm":
@@ -98,14 +100,14 @@ def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
         the_board = parse_board(board)
         limits = limits_option(min_corners, the_board)
         m = load_model_arg(model, base_link, tip_link)
-        names, q = read_stations(Path(data), m)
+        names, q = read_stations(Path(data), m, angle_unit=angle_unit)
         files = list_images(images)
         by_name = {p.name: p for p in files}
         _match(images, Path(data), names, by_name)
         val = None
         listed = set(names)
         if validate is not None:
-            vnames, vq = read_stations(Path(validate), m)
+            vnames, vq = read_stations(Path(validate), m, angle_unit=angle_unit)
             _match(images, Path(validate), vnames, by_name)
             both = [n for n in vnames if n in listed]
             if both:

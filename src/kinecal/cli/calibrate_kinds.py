@@ -1,7 +1,8 @@
-"""Command plumbing for several measurement files of any kinds (issue 25): ``calibrate MODEL
-A.csv B.csv ...``, ``identifiability MODEL --data A.csv --data B.csv``, ``simulate MODEL
---kind ballbar|pair|point|plane ...``. No command is registered here: `kinecal.cli.calibrate`
-and `kinecal.cli.simulate` call these functions, so that their own modules stay small.
+"""Command plumbing for several measurement files of any kinds (docs/measurement-kinds.md):
+``calibrate MODEL A.csv B.csv ...``, ``identifiability MODEL --data A.csv --data B.csv``,
+``simulate MODEL --kind ballbar|pair|point|plane ...``, known fixtures (``--fixture``). No
+command is registered here: `kinecal.cli.calibrate` and `kinecal.cli.simulate` call these
+functions, so that their own modules stay small.
 
 ``--sigma`` takes, for each file, the stated 1-sigma noise in the model's length unit:
 ``--sigma A.csv=0.002`` (repeatable, by file name), ``--sigma 0.002,0.01`` (in file order,
@@ -30,8 +31,9 @@ from kinecal.cli._common import (
 from kinecal.cli._options import load_model_arg
 from kinecal.errors import InputError
 
-__all__ = ["calibrate_files", "file_kind", "identifiability_files", "parse_sigma",
-           "select_kind_file", "simulate_gauge", "simulate_kind_file"]
+__all__ = ["calibrate_files", "check_fixtures_used", "file_kind", "identifiability_files",
+           "parse_sigma", "read_fixtures", "select_kind_file", "simulate_gauge",
+           "simulate_kind_file"]
 
 
 def file_kind(spec: str, option: str = "DATA") -> str:
@@ -77,10 +79,38 @@ def parse_sigma(values: list[str] | None, files: list[str]) -> list[float | None
     return out
 
 
-def _read_all(m, files: list[str], option: str) -> list:
+def _read_all(m, files: list[str], option: str, fixtures: list | None = None,
+              angle_unit: str | None = None) -> list:
+    """The data sets of `files` (joint columns in `angle_unit`), point and plane sets with
+    the known geometry of the `fixtures` (`kinecal.io.fixtures.Fixture`) added by id."""
+    from kinecal.io.fixtures import with_fixture
     from kinecal.io.kinds import read_kind
 
-    return [read_kind(resolve_data_path(f, option), m) for f in files]
+    sets = [read_kind(resolve_data_path(f, option), m, angle_unit=angle_unit) for f in files]
+    if fixtures:
+        sets = [with_fixture(d, fixtures) if getattr(d, "kind", None) in ("point", "plane")
+                else d for d in sets]
+    return sets
+
+
+def read_fixtures(paths: list[Path] | None) -> list:
+    """The ``--fixture`` files (`kinecal.io.fixtures.read_fixture`)."""
+    from kinecal.io.fixtures import read_fixture
+
+    for p in paths or []:
+        if not Path(p).is_file():
+            raise InputError(f"{p}: no such file", option="--fixture")
+    return [read_fixture(p) for p in paths or []]
+
+
+def check_fixtures_used(fixtures: list, sets: list) -> None:
+    """Refuse a fixture none of whose ids a point or plane file of its kind touches."""
+    for f in fixtures:
+        ids = {n for d in sets if getattr(d, "kind", None) == f.kind for n in d.group_names}
+        if not ids & set(f.values):
+            raise InputError(f"{Path(f.source).name}: none of its {f.kind}s "
+                             f"({', '.join(list(f.values)[:6])}) is touched by a {f.kind} "
+                             "file of the calibration (ids must match)", option="--fixture")
 
 
 def calibrate_files(model: str, files: list[str], *, base_link, tip_link, validate: list[str],
@@ -88,10 +118,11 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                     out: Path | None, model_out: Path | None, report: Path | None,
                     json_out: bool, quiet: bool, strict: bool, rotation_weight,
                     sigma: list[str] | None, extra_options: dict[str, Any],
-                    record: tuple = (None, None, None), unit: str | None = None) -> None:
+                    record: tuple = (None, None, None), unit: str | None = None,
+                    fixture: list[Path] | None = None, angle_unit: str | None = None) -> None:
     """``kinecal calibrate MODEL A.csv B.csv ...`` (several files or another kind);
     `record`: ``--instrument``, ``--operator``, ``--note`` of the report; `unit`: the
-    summary's length unit (None: the model's)."""
+    summary's length unit (None: the model's); `fixture`: ``--fixture`` files."""
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.method_options import check_method_options
     from kinecal.calibration.serial.api import calibrate
@@ -101,7 +132,8 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
         raise InputError("applies to one tracker file (x,y,z columns) only, not to "
                          f"{len(files)} files or other kinds", option=given[0])
     inputs = {"MODEL": model, **{f"DATA {f}": f for f in files},
-              **{f"--validate {v}": v for v in validate}}
+              **{f"--validate {v}": v for v in validate},
+              **{f"--fixture {f}": str(f) for f in fixture or []}}
     check_paths(inputs, {"--out": out, "--model-out": model_out, "--report": report})
     provenance = report_record(report, inputs, *record)
     if model_out is not None:
@@ -115,8 +147,10 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
         m = load_model_arg(model, base_link, tip_link)
         for s in stated:
             check_stated_sigma(m, s)
-        sets = _read_all(m, files, "DATA")
-        vsets = _read_all(m, validate, "--validate") or None
+        fixtures = read_fixtures(fixture)
+        sets = _read_all(m, files, "DATA", fixtures, angle_unit)
+        check_fixtures_used(fixtures, sets)
+        vsets = _read_all(m, validate, "--validate", fixtures, angle_unit) or None
         if rotation_weight is not None and not any(getattr(d, "rotations", None) is not None
                                                    for d in sets):
             raise InputError("applies to measured orientations (qw..qz columns) only",
@@ -142,24 +176,30 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
 
 def identifiability_files(model: str, files: list[str], *, base_link, tip_link, free,
                           json_out: bool, quiet: bool, strict: bool,
-                          sigma: list[str] | None = None) -> None:
-    """``kinecal identifiability MODEL --data A.csv --data B.csv``: what a mix identifies."""
+                          sigma: list[str] | None = None,
+                          fixture: list[Path] | None = None,
+                          angle_unit: str | None = None) -> None:
+    """``kinecal identifiability MODEL --data A.csv --data B.csv``: what a mix identifies
+    (what `calibrate` would free from it), with ``--fixture`` files."""
     from kinecal.calibration.blocks.plan import analyse_kinds
 
     stated = parse_sigma(sigma, files)
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
-        sets = _read_all(m, files, "--data")
+        fixtures = read_fixtures(fixture)
+        sets = _read_all(m, files, "--data", fixtures, angle_unit)
+        check_fixtures_used(fixtures, sets)
         ana, kinds = analyse_kinds(m, sets, free, sigma=stated)
     out = ana.report.to_dict()
     out["not_seen"] = list(ana.unseen)
+    out["fixtures_show"] = list(ana.shown_by_fixtures)
     out["kinds"] = kinds
     if json_out:
         echo_json(with_warnings(out, found))
         return
     if quiet:
         return
-    from kinecal.calibration.blocks.analysis import unseen_words
+    from kinecal.calibration.blocks.analysis import fixture_words, unseen_words
 
     typer.echo(ana.report.explain())
     typer.echo("identifiable: " + ", ".join(ana.report.identifiable))
@@ -167,9 +207,12 @@ def identifiability_files(model: str, files: list[str], *, base_link, tip_link, 
                                              for k, v in ana.report.observability.items()))
     for k in kinds:
         typer.echo(f"{k['kind']} ({Path(k['file']).name}): {k['observations']} observations,"
-                   f" {k['unknowns']} unknowns of its own")
+                   f" {k['unknowns']} unknowns of its own"
+                   + (f", {k['known']} known" if k.get("known") else ""))
     if ana.unseen:
         typer.echo(f"not seen by this mix: {unseen_words(ana.unseen)}")
+    if ana.shown_by_fixtures:
+        typer.echo(f"known fixtures make visible: {fixture_words(ana.shown_by_fixtures)}")
 
 
 def _vectors(values: list[str] | None, size: int, option: str) -> np.ndarray | None:
@@ -251,7 +294,8 @@ def simulate_kind_file(m, kind: str, *, poses: int, noise: float, true_params, s
 
 def select_kind_file(model: str, kind: str, *, count: int, candidates: int | None, seed: int,
                      out: Path, gauge: list[str] | None, length: float | None, base_link,
-                     tip_link, program: tuple = (None, 2.0)) -> None:
+                     tip_link, angle_unit: str | None = None,
+                     program: tuple = (None, 2.0)) -> None:
     """``kinecal select-poses MODEL --kind K --count N --out PLAN.csv``: D-optimal rows of a
     gauge kind (`kinecal.calibration.blocks.plan.select_kind_poses`)."""
     from kinecal.calibration.blocks.plan import select_kind_poses
@@ -277,7 +321,7 @@ def select_kind_file(model: str, kind: str, *, count: int, candidates: int | Non
         raise InputError(f"applies to --kind ballbar or pair, not {kind}", option="--length")
     m = load_model_arg(model, base_link, tip_link)
     plan, info = select_kind_poses(m, kind, count, candidates=candidates, rng=seed, **geometry)
-    write_gauge(out, plan, m)
+    write_gauge(out, plan, m, angle_unit=angle_unit)
     if program[0] is not None:  # a robot program visiting the rows in order
         from kinecal.cli._programs import write_program_for
 

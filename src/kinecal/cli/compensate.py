@@ -24,7 +24,9 @@ from kinecal.cli._common import (
     with_warnings,
 )
 from kinecal.cli._options import (
+    angle_unit_option,
     base_link_option,
+    check_angle_unit,
     check_unit,
     choices,
     quiet_option,
@@ -160,6 +162,7 @@ def compensate_cmd(
     unit: str = unit_option(),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
+    angle_unit: str | None = angle_unit_option("the program's joint columns, in and out"),
 ) -> None:
     """Rewrite a joint program or Cartesian targets for the calibrated arm."""
     from kinecal.cli._program import count_rows, program_columns, stream
@@ -167,6 +170,7 @@ def compensate_cmd(
     from kinecal.io.measurements import joint_columns
 
     shown = check_unit(unit)
+    check_angle_unit(angle_unit)
     check_paths({"CALIBRATED": calibrated, "PROGRAM": program, "--nominal": nominal},
                 {"--out": out})
     if base not in ("calibrated", "nominal"):
@@ -182,7 +186,7 @@ def compensate_cmd(
         total = count_rows(path)
         with progress(f"compensate {total} rows", total, quiet or json_out) as bar:
             rows = stream(path, out, header, required, optional, joints, arms,
-                           "position" if position_only else None, bar)
+                           "position" if position_only else None, bar, angle_unit)
     stats = {"program": str(program), "out": str(out), "model": nom.name,
              "base": base, "tool": tool, **rows.stats()}
     if json_out:

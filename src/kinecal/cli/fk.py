@@ -12,7 +12,9 @@ from kinecal.cli._app import app
 from kinecal.cli._common import echo_json, resolve_data_path, warnings_scope
 from kinecal.cli._options import (
     MODEL_HELP,
+    angle_unit_option,
     base_link_option,
+    check_angle_unit,
     load_model_arg,
     quiet_option,
     strict_option,
@@ -71,6 +73,7 @@ def fk(
     params: Path | None = typer.Option(None, "--params", help="Calibration result JSON."),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
+    angle_unit: str | None = angle_unit_option("JOINTS"),
 ) -> None:
     """Forward kinematics: tool-point positions (CSV on stdout)."""
     from kinecal.calibration.diagnostics.serial import check_joint_limits, check_joint_units
@@ -79,12 +82,13 @@ def fk(
     from kinecal.io.result_values import model_for_result
     from kinecal.spatial import quaternion_from_matrix
 
+    check_angle_unit(angle_unit)
     with warnings_scope(strict):
         m = load_model_arg(model, base_link, tip_link)
         if params is not None:
             m = model_for_result(m, params)
         path = resolve_data_path(joints, "JOINTS")
-        q = read_joints(path, m)
+        q = read_joints(path, m, angle_unit=angle_unit)
         marker = read_markers(path, m)[0] if m.marker_names else None
         check_joint_limits(m, q, "joint readings")
         check_joint_units(m, q, "joint readings")

@@ -20,7 +20,9 @@ from kinecal.cli._common import (
 )
 from kinecal.cli._options import (
     MODEL_HELP,
+    angle_unit_option,
     base_link_option,
+    check_angle_unit,
     instrument_option,
     load_model_arg,
     note_option,
@@ -104,8 +106,11 @@ def iso9283_cmd(
     instrument: str | None = instrument_option(),
     operator: str | None = operator_option(),
     note: str | None = note_option(),
+    angle_unit: str | None = angle_unit_option("the joint columns (with --model)"),
 ) -> None:
     """ISO 9283 pose accuracy AP, repeatability RP and distance figures AD, RD."""
+    if check_angle_unit(angle_unit) and model is None:
+        raise InputError("applies to joint columns, with --model", option="--angle-unit")
     check_paths({"MEAS": meas, "--model": model, "--params": params}, {"--report": report})
     record = report_record(report, {"MEAS": meas, "--model": model, "--params": params},
                            instrument, operator, note)
@@ -121,7 +126,7 @@ def iso9283_cmd(
     with warnings_scope(strict) as found:
         m = None if model is None else load_model_arg(model, base_link, tip_link)
         path = resolve_data_path(meas, "MEAS")
-        data = read_repeatability(path, m, length_unit)
+        data = read_repeatability(path, m, length_unit, angle_unit=angle_unit)
         before = None
         if params is not None:
             from kinecal.cli._serial_common import parameters_from_result

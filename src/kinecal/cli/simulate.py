@@ -12,7 +12,9 @@ from kinecal.cli._app import app
 from kinecal.cli._common import check_paths, warnings_scope
 from kinecal.cli._options import (
     MODEL_HELP,
+    angle_unit_option,
     base_link_option,
+    check_angle_unit,
     choices,
     load_model_arg,
     quiet_option,
@@ -83,6 +85,8 @@ def simulate(
                                            "camera (default 800x600 px, f 900 px)."),
     camera_out: Path | None = typer.Option(None, "--camera-out", help="With --images: "
                                            "write the camera (ROS YAML)."),
+    angle_unit: str | None = angle_unit_option("the --joints file's joint columns (the "
+                                               "output keeps the model's)"),
 ) -> None:
     """Simulate measurements of a model with true errors and noise (any measurement kind;
     with --images, rendered board images of its stations)."""
@@ -91,6 +95,8 @@ def simulate(
                          "one of them", option="--joints" if joints is not None else "--poses")
     if joints is not None and (images is not None or kind != "tracker"):
         raise InputError("applies to tracker measurements (x,y,z) only", option="--joints")
+    if check_angle_unit(angle_unit) and joints is None:
+        raise InputError("applies to a --joints file", option="--angle-unit")
     if images is not None:  # rendered stations of the arm: its own module
         from kinecal.cli.simulate_images import simulate_images
 
@@ -108,7 +114,7 @@ def simulate(
         m = load_model_arg(model, base_link, tip_link)
         q = marker = None
         if joints is not None:
-            q, marker = _read_joints(m, joints)
+            q, marker = _read_joints(m, joints, angle_unit)
             poses = len(q)
         check_count(poses, "--poses", bytes_per_item=POSE_BYTES * (m.n_joints + 10))
         if errors in ("zero", "random"):
@@ -142,14 +148,14 @@ def simulate(
                    + (f", truth to {truth_out}" if truth_out else ""), err=True)
 
 
-def _read_joints(model, spec: str):
+def _read_joints(model, spec: str, angle_unit: str | None = None):
     """Joint values ``(N, n)`` (rad) of a ``--joints`` CSV and its marker column (the marker
     index per row, or None: every row measured at every marker of the model)."""
     from kinecal.cli._common import resolve_data_path
     from kinecal.io.measurements import read_joints, read_markers
 
     path = resolve_data_path(spec, "--joints")
-    q = read_joints(path, model)
+    q = read_joints(path, model, angle_unit=angle_unit)
     marker, names = read_markers(path, model)
     if marker is not None and tuple(names) != tuple(model.marker_names):
         raise InputError("a marker column needs a model with markers (its names)",

@@ -33,8 +33,8 @@ from numpy.typing import NDArray
 from kinecal._files import atomic_open
 from kinecal.errors import InputError
 
-__all__ = ["MAX_CELL", "check_separator", "read_blocks", "read_column", "read_table",
-           "write_table"]
+__all__ = ["MAX_CELL", "check_separator", "read_blocks", "read_column", "read_columns",
+           "read_table", "write_table"]
 
 #: lines per block of the checked (second) reading pass
 BLOCK_LINES = 65536
@@ -328,17 +328,26 @@ def read_blocks(path: str | Path, required: Sequence[str], optional: Sequence[st
 def read_column(path: str | Path, name: str) -> list[str] | None:
     """The cells of text column `name` (stripped, one per non-blank data row, as
     `read_table` counts rows), or None when the header has no such column."""
+    return read_columns(path, [name]).get(name)
+
+
+def read_columns(path: str | Path, names: Sequence[str]) -> dict[str, list[str]]:
+    """The cells of the text columns `names` the header has (stripped, one per non-blank
+    data row, as `read_table` counts rows), in one pass over the file; columns the header
+    lacks are left out."""
     path = Path(path)
     try:
-        header, skip = _header(path, [name])
+        header, skip = _header(path, list(names))
     except InputError as exc:
         if exc.message.startswith("empty file"):
-            return None
+            return {}
         raise
-    if name not in header:
-        return None
-    k = header.index(name)
-    out = []
+    found = [n for n in names if n in header]
+    if not found:
+        return {}
+    ks = [header.index(n) for n in found]
+    out: dict[str, list[str]] = {n: [] for n in found}
+    cols = list(out.values())
     with _open(path) as fh:
         try:
             for _ in range(skip):
@@ -348,7 +357,8 @@ def read_column(path: str | Path, name: str) -> list[str] | None:
                 if len(row) != len(header):
                     raise InputError(f"{len(row)} fields, expected {len(header)} as in the "
                                      "header", file=path, row=r)
-                out.append(row[k].strip())
+                for col, k in zip(cols, ks, strict=True):
+                    col.append(row[k].strip())
         except (OSError, UnicodeDecodeError, csv.Error) as exc:
             raise InputError(f"cannot read CSV: {exc}", file=path) from None
     return out

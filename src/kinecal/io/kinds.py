@@ -14,7 +14,9 @@ Joints are ``q1..qn`` or the model's joint names, in the model's units, as for t
 files (`kinecal.io.measurements.joint_columns`); ``pivot``, ``pair``, ``point`` and
 ``plane`` hold ids (any text without commas: ``P1``, ``3``); ``distance`` is in the
 model's length unit; an optional ``sigma`` column states each row's 1-sigma noise (length
-unit); an optional ``marker`` column says which tool point touched (several markers).
+unit); an optional ``marker`` column says which tool point touched (several markers);
+point and plane files may give known fixtures (``px,py,pz[,nx,ny,nz]``,
+`kinecal.io.fixtures`).
 """
 
 from __future__ import annotations
@@ -23,9 +25,16 @@ from pathlib import Path
 
 import numpy as np
 
-from kinecal.data import DISTANCE_KINDS, GAUGE_KINDS, GaugeMeasurements, Measurements
+from kinecal.data import (
+    DISTANCE_KINDS,
+    GAUGE_KINDS,
+    KNOWN_COLUMNS,
+    GaugeMeasurements,
+    Measurements,
+)
 from kinecal.errors import InputError
 from kinecal.io.csvtable import read_column, read_table, write_table
+from kinecal.io.fixtures import read_known
 from kinecal.io.measurements import (
     csv_header,
     joint_columns,
@@ -80,13 +89,15 @@ def kind_of_columns(header: list[str], path: Path | None = None) -> str:
     return "tracker"
 
 
-def read_kind(path: str | Path, model: SerialModel) -> Measurements | GaugeMeasurements:
-    """Read a measurement file of any kind for `model` (the kind from its columns)."""
+def read_kind(path: str | Path, model: SerialModel, *, angle_unit: str | None = None
+              ) -> Measurements | GaugeMeasurements:
+    """Read a measurement file of any kind for `model` (the kind from its columns; joint
+    columns in `angle_unit`, default the model's)."""
     path = resolve_csv(path)
     kind = kind_of_columns(csv_header(path), path)
     if kind == "tracker":
-        return read_measurements(path, model)
-    return read_gauge(path, model, kind)
+        return read_measurements(path, model, angle_unit=angle_unit)
+    return read_gauge(path, model, kind, angle_unit=angle_unit)
 
 
 def _ids(path: Path, column: str, n: int) -> tuple[np.ndarray, tuple[str, ...]]:
@@ -103,9 +114,10 @@ def _ids(path: Path, column: str, n: int) -> tuple[np.ndarray, tuple[str, ...]]:
     return idx, tuple(lookup)
 
 
-def read_gauge(path: str | Path, model: SerialModel, kind: str | None = None
-               ) -> GaugeMeasurements:
-    """Read a ballbar, pair, point or plane file for `model`.
+def read_gauge(path: str | Path, model: SerialModel, kind: str | None = None, *,
+               angle_unit: str | None = None) -> GaugeMeasurements:
+    """Read a ballbar, pair, point or plane file for `model` (joint columns in
+    `angle_unit`, default the model's).
 
     Raises
     ------
@@ -129,7 +141,7 @@ def read_gauge(path: str | Path, model: SerialModel, kind: str | None = None
                          + (f" or {', '.join(names)}" if names else ""), file=path)
     numeric = joints + (["distance"] if kind in DISTANCE_KINDS else [])
     cols = read_table(path, numeric, optional=["sigma"])
-    q = np.column_stack([cols[c] for c in joints]) * model.joint_scale()
+    q = np.column_stack([cols[c] for c in joints]) * model.joint_scale(angle_unit)
     for name in ("distance", "sigma"):
         v = cols.get(name)
         if v is not None and not (v > 0).all():
@@ -137,14 +149,17 @@ def read_gauge(path: str | Path, model: SerialModel, kind: str | None = None
             raise InputError(f"column {name}: {v[row - 1]:g}, expected a positive length "
                              f"({model.length_unit})", file=path, row=row)
     group, names = _ids(path, GAUGE_KINDS[kind], len(q))
+    known = read_known(path, kind, group, names)
     marker, markers = read_markers(path, model)
     return GaugeMeasurements(kind, q, group, names, cols.get("distance"), cols.get("sigma"),
-                             str(path), marker, markers)
+                             str(path), marker, markers, known)
 
 
-def write_gauge(path: str | Path, data: GaugeMeasurements, model: SerialModel) -> None:
-    """Write gauge measurements in their kind's CSV format (joints in the model's units)."""
-    q = np.asarray(data.q) / model.joint_scale()
+def write_gauge(path: str | Path, data: GaugeMeasurements, model: SerialModel, *,
+                angle_unit: str | None = None) -> None:
+    """Write gauge measurements in their kind's CSV format (joints in the model's units, or
+    revolute ones in `angle_unit`)."""
+    q = np.asarray(data.q) / model.joint_scale(angle_unit)
     columns: dict[str, np.ndarray] = {f"q{i + 1}": q[:, i] for i in range(q.shape[1])}
     columns[GAUGE_KINDS[data.kind]] = np.asarray(data.group_names, dtype=str)[data.group]
     if data.distance is not None:
@@ -153,4 +168,9 @@ def write_gauge(path: str | Path, data: GaugeMeasurements, model: SerialModel) -
         columns["sigma"] = np.asarray(data.sigma)
     if data.marker is not None:
         columns["marker"] = np.asarray(data.marker_names, dtype=str)[np.asarray(data.marker)]
+    if data.known is not None:  # known fixtures: their rows carry them, unknown ones blank
+        known = np.asarray(data.known, dtype=float)[np.asarray(data.group)]
+        for k, c in enumerate(KNOWN_COLUMNS[data.kind]):
+            columns[c] = np.array(["" if np.isnan(v) else repr(float(v)) for v in known[:, k]],
+                                  dtype=object)
     write_table(path, columns)

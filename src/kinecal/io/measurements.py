@@ -13,7 +13,12 @@ it one tool point per name).
 
 The joint columns may instead carry the model's joint names (a URDF model's joint names,
 as a ROS ``joint_states`` export has them), in the same units as ``q1..qn``: either
-``q1..qn`` or every joint name, never a mix (`joint_columns`).
+``q1..qn`` or every joint name, never a mix (`joint_columns`). Every reader takes an
+``angle_unit`` (``deg`` or ``rad``) for joint columns written in another unit than the
+model's (``--angle-unit``).
+
+Wide marker tables (``x1,y1,z1,x2,...``: markers 1..k of one pose in one row, the layout of
+motion-capture exports such as FIGAROH's) are read into the long form (`kinecal.io.wide`).
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from kinecal import diagnostics
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.io.csvtable import check_separator, read_column, read_table, write_table
+from kinecal.io.wide import is_wide, read_wide
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
@@ -38,7 +44,8 @@ __all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "read_j
 #: columns with a meaning of their own in measurement and program files: a joint of that
 #: name can only be given as q1..qn
 _RESERVED = frozenset(("x", "y", "z", "qw", "qx", "qy", "qz", "weight", "marker", "pose",
-                       "pivot", "pair", "point", "plane", "distance", "sigma"))
+                       "pivot", "pair", "point", "plane", "distance", "sigma",
+                       "px", "py", "pz", "nx", "ny", "nz"))
 
 
 def _q_column(name: str) -> bool:
@@ -176,26 +183,116 @@ def read_markers(path: str | Path, model: SerialModel
     return idx, tuple(names)
 
 
-def read_joints(path: str | Path, model: SerialModel) -> NDArray[np.float64]:
+def read_joints(path: str | Path, model: SerialModel, *, angle_unit: str | None = None
+                ) -> NDArray[np.float64]:
     """Joint values ``(N, n_joints)`` (rad; prismatic: length unit) from a CSV with
-    ``q1..qn`` or the model's joint names (model angle unit; other columns ignored) or a
-    laser-tracker export (``joint_1..``, degrees)."""
+    ``q1..qn`` or the model's joint names (in `angle_unit`, default the model's; other
+    columns ignored) or a laser-tracker export (``joint_1..``, degrees)."""
     model = _as_model(model)
     path = resolve_csv(path)
     header = csv_header(path)
-    if "joint_1" in header and "x_t" in header:
-        return read_measurements(path, model).q
+    if _tracker_export(header):
+        return read_measurements(path, model, angle_unit=angle_unit).q
     names = joint_columns(header, model, path)
     cols = read_table(path, names)
     q = np.column_stack([cols[n] for n in names])
-    q *= model.joint_scale()
+    q *= model.joint_scale(angle_unit)
     return q
 
 
-def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
+#: orientation columns of 6-DoF rows (a unit quaternion of the measured tool frame)
+QUATERNION = ("qw", "qx", "qy", "qz")
+
+
+def _tracker_export(header: list[str]) -> bool:
+    """The bundled UR5 laser-tracker export's columns (``joint_1..``, ``x_t``, ``x_dif``)."""
+    return "x_t" in header and "joint_1" in header
+
+
+def _read_tracker_export(path: Path, header: list[str], model: SerialModel,
+                         angle_unit: str | None) -> Measurements:
+    """measured = target + dif; joints in degrees (the export's own unit)."""
+    n = model.n_joints
+    if angle_unit not in (None, "deg"):
+        raise InputError("a laser-tracker export (joint_1.., x_t, x_dif) has its joints in "
+                         "degrees: --angle-unit does not apply", file=path)
+    joints = [f"joint_{i}" for i in range(1, n + 1)]
+    if f"joint_{n + 1}" in header:
+        raise InputError(f"more joint columns than the model's {n} joints", file=path)
+    cols = read_table(path, joints + ["x_t", "y_t", "z_t", "x_dif", "y_dif", "z_dif"])
+    q = np.column_stack([cols[c] for c in joints])
+    q *= model.joint_scale("deg")
+    xyz = np.column_stack([cols[f"{a}_t"] + cols[f"{a}_dif"] for a in "xyz"])
+    return Measurements(q, xyz, None, str(path))
+
+
+def _checked_joint_columns(header: list[str], model: SerialModel, path: Path) -> list[str]:
+    """`joint_columns`, with a ``q`` column count other than the model's refused."""
+    n = model.n_joints
+    joints = joint_columns(header, model, path)
+    qcols = [c for c in header if _q_column(c)]
+    if qcols and len(qcols) != n:
+        names = joint_names(model)
+        raise InputError(
+            f"{len(qcols)} joint columns ({', '.join(qcols)}), model {model.name!r} has {n} "
+            f"joints: expected q1..q{n}" + (f" or {', '.join(names)}" if names else ""),
+            file=path)
+    return joints
+
+
+def _orientation_columns(header: list[str], path: Path) -> list[str]:
+    """``qw, qx, qy, qz`` when the header has them (all four or none)."""
+    present = [c for c in QUATERNION if c in header]
+    if present and len(present) != 4:
+        raise InputError(
+            f"orientation columns {', '.join(present)} without the others: expected all of "
+            "qw, qx, qy, qz (tool orientation as a unit quaternion) or none",
+            file=path,
+        )
+    return present
+
+
+def _weights(cols: dict[str, NDArray[np.float64]], path: Path) -> NDArray[np.float64] | None:
+    weights = cols.get("weight")
+    if weights is not None and not (weights > 0).all():
+        row = int(np.argmax(~(weights > 0))) + 1
+        raise InputError("column weight: expected a positive number", file=path, row=row)
+    return weights
+
+
+def _rotations(cols: dict[str, NDArray[np.float64]], quat: list[str], path: Path
+               ) -> NDArray[np.float64] | None:
+    if not quat:
+        return None
+    qv = np.column_stack([cols[c] for c in quat])
+    norm = np.linalg.norm(qv, axis=1)
+    bad = np.abs(norm - 1.0) > 1e-3
+    if bad.any():
+        row = int(np.argmax(bad)) + 1
+        raise InputError(f"qw, qx, qy, qz: norm {norm[row - 1]:.6f}, expected a unit "
+                         "quaternion", file=path, row=row)
+    return matrix_from_quaternion(qv)
+
+
+def _read_wide(path: Path, header: list[str], model: SerialModel, joints: list[str],
+               scale: NDArray[np.float64]) -> Measurements:
+    """A wide marker table (`kinecal.io.wide`): one row per pose, markers side by side."""
+    rows, xyz, marker, names = read_wide(path, header, model.marker_names)
+    cols = read_table(path, joints, optional=["weight"])
+    q = np.column_stack([cols[c] for c in joints])[rows] * scale
+    weights = _weights(cols, path)
+    return Measurements(q, xyz, None if weights is None else weights[rows], str(path), None,
+                        marker, names)
+
+
+def read_measurements(path: str | Path, model: SerialModel, *,
+                      angle_unit: str | None = None) -> Measurements:
     """Read a measurement CSV for `model` (a path or a bundled ``NAME:PART``).
 
-    `model` may also be a bundled name or a model file path (loaded).
+    `model` may also be a bundled name or a model file path (loaded). Joint columns are in
+    `angle_unit` (``deg`` or ``rad``; default the model's). The positions are ``x,y,z``
+    (one row per measured point, an optional ``marker`` column) or a wide marker table
+    ``x1,y1,z1,x2,...`` (one row per pose, `kinecal.io.wide`).
 
     Raises
     ------
@@ -205,51 +302,20 @@ def read_measurements(path: str | Path, model: SerialModel) -> Measurements:
     model = _as_model(model)
     path = resolve_csv(path)
     header = csv_header(path)
-    n = model.n_joints
-    scale = model.joint_scale()  # per joint column: revolute in the angle unit, prismatic length
-    if "x_t" in header and "joint_1" in header:  # laser-tracker export (degrees)
-        joints = [f"joint_{i}" for i in range(1, n + 1)]
-        if f"joint_{n + 1}" in header:
-            raise InputError(f"more joint columns than the model's {n} joints", file=path)
-        cols = read_table(path, joints + ["x_t", "y_t", "z_t", "x_dif", "y_dif", "z_dif"])
-        q = np.column_stack([cols[c] for c in joints])
-        q *= model.joint_scale("deg")
-        xyz = np.column_stack([cols[f"{a}_t"] + cols[f"{a}_dif"] for a in "xyz"])
-        return Measurements(q, xyz, None, str(path))
-    joints = joint_columns(header, model, path)
-    qcols = [c for c in header if _q_column(c)]
-    if qcols and len(qcols) != n:
-        names = joint_names(model)
-        raise InputError(
-            f"{len(qcols)} joint columns ({', '.join(qcols)}), model {model.name!r} has {n} "
-            f"joints: expected q1..q{n}" + (f" or {', '.join(names)}" if names else ""),
-            file=path)
-    quat = ["qw", "qx", "qy", "qz"]
-    present = [c for c in quat if c in header]
-    if present and len(present) != 4:
-        raise InputError(
-            f"orientation columns {', '.join(present)} without the others: expected all of "
-            "qw, qx, qy, qz (tool orientation as a unit quaternion) or none",
-            file=path,
-        )
+    if _tracker_export(header):  # laser-tracker export (degrees)
+        return _read_tracker_export(path, header, model, angle_unit)
+    # per joint column: revolute in the angle unit, prismatic length
+    scale = model.joint_scale(angle_unit)
+    joints = _checked_joint_columns(header, model, path)
+    if is_wide(header):
+        return _read_wide(path, header, model, joints, scale)
+    quat = _orientation_columns(header, path)
     cols = read_table(path, joints + ["x", "y", "z"], optional=["weight", *quat])
     q = np.column_stack([cols[c] for c in joints])
     q *= scale
     xyz = np.column_stack([cols[c] for c in "xyz"])
-    weights = cols.get("weight")
-    if weights is not None and not (weights > 0).all():
-        row = int(np.argmax(~(weights > 0))) + 1
-        raise InputError("column weight: expected a positive number", file=path, row=row)
-    rotations = None
-    if present:
-        qv = np.column_stack([cols[c] for c in quat])
-        norm = np.linalg.norm(qv, axis=1)
-        bad = np.abs(norm - 1.0) > 1e-3
-        if bad.any():
-            row = int(np.argmax(bad)) + 1
-            raise InputError(f"qw, qx, qy, qz: norm {norm[row - 1]:.6f}, expected a unit "
-                             "quaternion", file=path, row=row)
-        rotations = matrix_from_quaternion(qv)
+    weights = _weights(cols, path)
+    rotations = _rotations(cols, quat, path)
     marker, names = read_markers(path, model)
     return Measurements(q, xyz, weights, str(path), rotations, marker, names)
 

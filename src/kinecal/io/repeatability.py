@@ -175,7 +175,8 @@ def _commanded_source(header: list[str], model: Any, path: Path) -> list[str] | 
 
 
 def read_repeatability(path: str | Path, model: Any = None,
-                       length_unit: str | None = None) -> RepeatedPoses:
+                       length_unit: str | None = None, *,
+                       angle_unit: str | None = None) -> RepeatedPoses:
     """Read an ISO 9283 repeated-measurement CSV (module docstring).
 
     Parameters
@@ -187,6 +188,8 @@ def read_repeatability(path: str | Path, model: Any = None,
         frame), in its length unit.
     length_unit : str, optional
         Unit label of a file without model (default ``mm``).
+    angle_unit : {"deg", "rad"}, optional
+        Unit of the joint columns (default the model's).
 
     Returns
     -------
@@ -227,7 +230,7 @@ def read_repeatability(path: str | Path, model: Any = None,
     values = _per_pose(cells, wanted, rows, names, path)
     q_cmd = commanded_rot = None
     if joints is not None:
-        q_cmd = values * model.joint_scale()
+        q_cmd = values * model.joint_scale(angle_unit)
         T = model.fk(q_cmd)
         commanded, commanded_rot = T[:, :3, 3], T[:, :3, :3]
         unit = model.length_unit

@@ -22,7 +22,8 @@ from kinecal.kinematics.serial.model import SerialModel
 __all__ = ["IMAGE_COLUMN", "read_stations"]
 
 
-def read_stations(path: str | Path, model: SerialModel) -> tuple[list[str], NDArray[np.float64]]:
+def read_stations(path: str | Path, model: SerialModel, *, angle_unit: str | None = None
+                  ) -> tuple[list[str], NDArray[np.float64]]:
     """Image names and joint readings of a STATIONS.csv.
 
     Returns
@@ -59,7 +60,7 @@ def read_stations(path: str | Path, model: SerialModel) -> tuple[list[str], NDAr
     for r, name in enumerate(cells, start=1):
         check_image_name(name, seen, path, r)
     cols = read_table(path, joints)
-    q = np.column_stack([cols[c] for c in joints]) * model.joint_scale()
+    q = np.column_stack([cols[c] for c in joints]) * model.joint_scale(angle_unit)
     if len(q) != len(cells):  # pragma: no cover - both readers count the same rows
         raise InputError(f"{len(cells)} image names but {len(q)} joint rows", file=path)
     return list(cells), q

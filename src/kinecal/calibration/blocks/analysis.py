@@ -22,11 +22,12 @@ of the true problem, and names the motions in words.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal.calibration.blocks.base import MOTION_WORDS
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.identifiability import IdentifiabilityReport, analyse_factor
 from kinecal.calibration.serial.problem import column_scale
@@ -34,8 +35,9 @@ from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.optimize.factor import qr_update
 
-__all__ = ["MOTIONS", "StackAnalysis", "analyse_stack", "blind_basis", "report_for",
-           "stack_scale", "unseen_words"]
+__all__ = ["MOTIONS", "StackAnalysis", "analyse_stack", "blind_basis", "blind_motions",
+           "fixture_visibility", "fixture_words", "motion_names", "report_for", "stack_scale",
+           "unseen_words"]
 
 Array = NDArray[np.float64]
 
@@ -70,6 +72,12 @@ class StackAnalysis:
         Column scale of the arm's candidates (1 for lengths, 1 / L for angles).
     length : float
         The workspace's characteristic length L.
+    n_rows : int
+        Residual rows left after the unknowns (and rows left out of the fit).
+    shown_by_fixtures : list of str
+        What the known fixtures make visible (``translation``, ``rotation``, ``scale`` of
+        the whole arm) that the mix would not see were they unknown
+        (`fixture_visibility`).
     """
 
     report: IdentifiabilityReport
@@ -79,6 +87,7 @@ class StackAnalysis:
     scale: Array
     length: float
     n_rows: int = 0
+    shown_by_fixtures: list[str] = field(default_factory=list)
 
 
 def _configurations(problem: StackedProblem) -> tuple[Array, NDArray[np.intp] | None]:
@@ -131,43 +140,168 @@ def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool) 
     return np.zeros((n, n)) if R is None else R
 
 
-def blind_basis(problem: StackedProblem, params: Array, q: Array, P: Array, D: Array,
-                ) -> tuple[Array, list[str]]:
-    """Orthonormal arm directions ``(k, b)`` (columns scaled by `D`) producing the mix's
-    blind motions on the tool points `P` ``(N, 3)`` of the configurations `q`, and the
-    motions' names (`stack_scale` gives `D`, `q` and `P`)."""
-    blind = None
-    for b in problem.blocks:
-        blind = set(b.blind_to) if blind is None else blind & set(b.blind_to)
-    if not blind or problem.k == 0:
-        return np.zeros((problem.k, 0)), []
+def blind_motions(blocks, known: bool = True) -> Array:
+    """Orthonormal basis ``(7, b)`` of the motions ``(t, w, s)`` every block is blind to
+    (the null space of their stacked `ResidualBlock.blind_constraints`); with
+    ``known=False``, as if every known fixture were unknown (the blocks' `blind_to`)."""
+    rows = [b.blind_constraints() if known else
+            np.eye(7)[[i for i, w in enumerate(MOTION_WORDS) if w not in b.blind_to]]
+            for b in blocks]
+    C = np.concatenate(rows) if rows else np.zeros((0, 7))
+    if C.shape[0] == 0:
+        return np.eye(7)
+    _, s, Vt = np.linalg.svd(C)
+    rank = int((s > 1e-9 * max(float(s.max(initial=0.0)), 1e-300)).sum())
+    return Vt[rank:].T
+
+
+def _fields(P: Array) -> Array:
+    """The seven unit motions on the tool points ``P (N, 3)``: ``(3N, 7)``."""
+    F = np.zeros((P.size, 7))
+    for a in range(3):
+        t = np.zeros_like(P)
+        t[:, a] = 1.0
+        F[:, a] = t.ravel()
+        F[:, 3 + a] = np.cross(np.eye(3)[a], P).ravel()
+    F[:, 6] = P.ravel()
+    return F
+
+
+def _producible(problem: StackedProblem, params: Array, q: Array, P: Array, D: Array,
+                known: bool) -> tuple[Array, Array]:
+    """The blind motions the candidate parameters can make on the tool points: the arm
+    directions ``(k, p)`` (unscaled least-squares solutions) and the motions ``(7, p)``."""
+    M = blind_motions(problem.blocks, known)
+    if M.shape[1] == 0 or problem.k == 0:
+        return np.zeros((problem.k, 0)), np.zeros((7, 0))
     _, marker = _configurations(problem)
     J = problem.model.identification_jacobian(q, params, marker=marker)[:, :, problem.index]
     J = J.reshape(-1, problem.k)
-    fields, names = [], []
-    for word in ("translation", "rotation", "scale"):
-        if word not in blind:
-            continue
-        for a, name in enumerate(MOTIONS[word]):
-            if word == "translation":
-                f = np.zeros_like(P)
-                f[:, a] = 1.0
-            elif word == "rotation":
-                f = np.cross(np.eye(3)[a], P)
-            else:
-                f = P.copy()
-            fields.append(f.ravel())
-            names.append(name)
-    F = np.column_stack(fields)
-    v, *_ = np.linalg.lstsq(J, F, rcond=None)
-    left = np.linalg.norm(J @ v - F, axis=0) / np.maximum(np.linalg.norm(F, axis=0), 1e-300)
-    made = left <= PRODUCIBLE
-    if not made.any():
+    W = _fields(P) @ M  # the blind motions' fields
+    _, sw, Vwt = np.linalg.svd(W, full_matrices=False)
+    keep = sw > 1e-12 * max(float(sw.max(initial=0.0)), 1e-300)
+    C = Vwt[keep].T / sw[keep]  # motion combinations with orthonormal fields
+    v, *_ = np.linalg.lstsq(J, W @ C, rcond=None)
+    _, sl, Vlt = np.linalg.svd(J @ v - W @ C, full_matrices=True)
+    sl = np.r_[sl, np.zeros(Vlt.shape[0] - sl.size)]
+    made = Vlt[sl <= PRODUCIBLE].T  # combinations the parameters produce
+    return v @ made, M @ C @ made
+
+
+def blind_basis(problem: StackedProblem, params: Array, q: Array, P: Array, D: Array,
+                known: bool = True) -> tuple[Array, list[str]]:
+    """Orthonormal arm directions ``(k, b)`` (columns scaled by `D`) producing the mix's
+    blind motions on the tool points `P` ``(N, 3)`` of the configurations `q`, and the
+    motions' names (`stack_scale` gives `D`, `q` and `P`; `known`: as `blind_motions`).
+
+    The blind motions are those every block is blind to (`blind_motions`); of them, the
+    ones the candidate parameters can make on the tool points (least squares on the
+    tool-point Jacobian leaves less than `PRODUCIBLE` of the motion's field) are named
+    (`motion_names`) and returned.
+    """
+    v, motions = _producible(problem, params, q, P, D, known)
+    if v.shape[1] == 0:
         return np.zeros((problem.k, 0)), []
-    V = v[:, made] / D[:, None]  # scaled coordinates
-    U, s, _ = np.linalg.svd(V, full_matrices=False)
+    U, s, _ = np.linalg.svd(v / D[:, None], full_matrices=False)
     rank = int((s > 1e-9 * max(s.max(), 1e-300)).sum())
-    return U[:, :rank], [n for n, m in zip(names, made, strict=True) if m]
+    return U[:, :rank], motion_names(motions)
+
+
+def fixture_visibility(problem: StackedProblem, params: Array, q: Array, P: Array,
+                       D: Array) -> list[str]:
+    """What the blocks' known fixtures make visible, of ``translation``, ``rotation`` and
+    ``scale`` of the whole arm: those the mix would not see were the fixtures unknown and
+    sees with them. A translation is unseen when some blind motion is a pure translation,
+    a rotation or the scale when some blind motion has a rotation or scale component."""
+    if not any(getattr(b, "known", None) is not None and b.known_mask.any()
+               for b in problem.blocks):
+        return []
+    unseen = [_unseen_kinds(_producible(problem, params, q, P, D, k)[1]) for k in (False, True)]
+    return [w for w in ("translation", "rotation", "scale")
+            if w in unseen[0] and w not in unseen[1]]
+
+
+def _unseen_kinds(motions: Array) -> set[str]:
+    """Which of translation, rotation, scale the blind motions ``(7, p)`` hold."""
+    if motions.shape[1] == 0:
+        return set()
+    Q, _ = np.linalg.qr(motions)
+
+    def rank(A: Array) -> int:
+        s = np.linalg.svd(A, compute_uv=False)
+        return int((s > 1e-9).sum())
+
+    out = set()
+    if Q.shape[1] - rank(Q[3:]) > 0:  # a motion with no rotation nor scale part
+        out.add("translation")
+    if rank(Q[3:6]) > 0:
+        out.add("rotation")
+    if rank(Q[6:]) > 0:
+        out.add("scale")
+    return out
+
+
+def motion_names(M: Array) -> list[str]:
+    """Names of the motions spanned by the columns of ``M (7, b)`` (`MOTION_WORDS`
+    coordinates): ``translation x`` ... ``rotation z``, ``scale`` when they are spanned by
+    those unit motions, else each basis motion in words (``scale about (500, 300, 200)``,
+    ``rotation about (0, 0, 1) through (100, 0, 0)``)."""
+    if M.shape[1] == 0:
+        return []
+    Q, _ = np.linalg.qr(M)
+    inside = [i for i in range(7) if np.linalg.norm(Q.T[:, i]) > 1.0 - 1e-9]
+    if len(inside) == M.shape[1]:
+        return [name for i, name in enumerate(_UNIT_NAMES) if i in inside]
+    # a canonical basis: scale first, then rotations, then translations as pivots
+    order = [6, 3, 4, 5, 0, 1, 2]
+    B = _rref(M.T[:, order])[:, np.argsort(order)]
+    return [_motion_words(b) for b in B]
+
+
+_UNIT_NAMES = tuple(n for w in ("translation", "rotation", "scale") for n in MOTIONS[w])
+
+
+def _rref(A: Array, tol: float = 1e-9) -> Array:
+    """Reduced row echelon form of the rows of `A` (a basis of their span)."""
+    A = np.array(A, dtype=float)
+    r = 0
+    for c in range(A.shape[1]):
+        if r == A.shape[0]:
+            break
+        p = r + int(np.argmax(np.abs(A[r:, c])))
+        if abs(A[p, c]) <= tol:
+            continue
+        A[[r, p]] = A[[p, r]]
+        A[r] /= A[r, c]
+        others = np.arange(A.shape[0]) != r
+        A[others] -= np.outer(A[others, c], A[r])
+        r += 1
+    return A[:r]
+
+
+def _vector(v: Array) -> str:
+    return "(" + ", ".join(f"{x:.4g}" for x in np.where(np.abs(v) < 1e-9, 0.0, v)) + ")"
+
+
+def _motion_words(m: Array) -> str:
+    """One motion ``(t, w, s)`` in words: a scale, rotation or translation about a point."""
+    t, w, s = m[:3], m[3:6], float(m[6])
+    if abs(s) > 1e-12 and np.linalg.norm(w) <= 1e-12:
+        return f"scale about {_vector(-t / s)}"
+    if np.linalg.norm(w) > 1e-12 and abs(s) <= 1e-12:
+        u = w / np.linalg.norm(w)
+        c = np.cross(w, t) / float(w @ w)  # the axis point nearest the origin
+        axis = next((f"rotation {a}" for a, e in zip("xyz", np.eye(3), strict=True)
+                     if abs(abs(u @ e) - 1.0) < 1e-12), f"rotation about {_vector(u)}")
+        pitch = float(w @ t) / float(w @ w)
+        return (axis + (f" through {_vector(c)}" if np.linalg.norm(c) > 1e-9 else "")
+                + (f" with a translation of {pitch:.4g} per rad" if abs(pitch) > 1e-9
+                   else ""))
+    if np.linalg.norm(w) <= 1e-12 and abs(s) <= 1e-12:
+        u = t / np.linalg.norm(t)
+        return next((f"translation {a}" for a, e in zip("xyz", np.eye(3), strict=True)
+                     if abs(abs(u @ e) - 1.0) < 1e-12), f"translation along {_vector(u)}")
+    return f"the motion t = {_vector(t)}, w = {_vector(w)}, s = {s:.4g}"
 
 
 def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = False
@@ -192,9 +326,10 @@ def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = F
     Raa = R[nn:, nn:]
     Q, unseen = blind_basis(problem, params, q, P, D)
     B = Raa - (Raa @ Q) @ Q.T if Q.size else Raa
-    n_rows = max(problem.m - nn, 1)
+    n_rows = max(problem.m_used - nn, 1)
     report = analyse_factor(B / D, problem.free, n_rows, tol=tol, scale=D)
-    return StackAnalysis(report, unseen, Raa / D, B, D, L, n_rows)
+    return StackAnalysis(report, unseen, Raa / D, B, D, L, n_rows,
+                         fixture_visibility(problem, params, q, P, D))
 
 
 def report_for(analysis: StackAnalysis, free: list[str], tol: float) -> IdentifiabilityReport:
@@ -236,11 +371,27 @@ def unseen_words(unseen: list[str]) -> str:
     parts = []
     t = [u for u in unseen if u.startswith("translation")]
     r = [u for u in unseen if u.startswith("rotation")]
-    if len(t) == 3 and len(r) == 3:
+    if len(t) == 3 and len(r) == 3 and all(" " not in u[len("rotation "):] for u in r):
         parts.append("the base frame (where the arm stands: translation and rotation of the "
                      "whole arm)")
     else:
         parts += t + r
     if "scale" in unseen:
         parts.append("scale (every length of the arm in proportion)")
+    parts += [u + " (every length of the arm in proportion about that point)"
+              for u in unseen if u.startswith("scale about")]
+    parts += [u for u in unseen if u.startswith("the motion")]
     return ", ".join(parts)
+
+
+def fixture_words(shown: list[str]) -> str:
+    """What known fixtures make visible, in words (`StackAnalysis.shown_by_fixtures`)."""
+    parts = []
+    if "translation" in shown and "rotation" in shown:
+        parts.append("the base frame (where the arm stands: translation and rotation)")
+    else:
+        parts += [f"the {w} of the base frame" for w in ("translation", "rotation")
+                  if w in shown]
+    if "scale" in shown:
+        parts.append("the scale")
+    return " and ".join(parts)

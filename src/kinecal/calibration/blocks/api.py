@@ -16,15 +16,13 @@ from collections.abc import Sequence
 import numpy as np
 
 from kinecal import diagnostics
-from kinecal.calibration.blocks.analysis import analyse_stack, report_for, unseen_words
+from kinecal.calibration.blocks.analysis import unseen_words
 from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.checks import check_block_data, check_blocks, check_fits
+from kinecal.calibration.blocks.decide import solve_blocks, start_blocks
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
 from kinecal.calibration.blocks.result import KindsCalibrationResult, kind_entry
-from kinecal.calibration.blocks.solve import fit_stack
-from kinecal.calibration.blocks.stack import StackedProblem, fit_nuisance
 from kinecal.calibration.blocks.uncertainty import stack_uncertainty
-from kinecal.calibration.blocks.weights import initial_sigma
 from kinecal.calibration.diagnostics.fit import (
     check_parameter_tolerance,
     check_unidentifiable_free,
@@ -113,18 +111,6 @@ def _check_arguments(method: str, loss: str, data: list, f_scale, rank_tol) -> N
         raise InputError(f"rank_tol: expected 0 < rank_tol < 1, got {rank_tol}")
 
 
-def start_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], params: np.ndarray
-                 ) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """Each block's unknowns fitted to its data with the arm at `params`, and its
-    residuals there."""
-    nuis, res = [], []
-    for b in blocks:
-        v, r = fit_nuisance(b, model, params, b.start(model, params), b.stated_sigma())
-        nuis.append(v)
-        res.append(r)
-    return nuis, res
-
-
 def validation_errors(model: SerialModel, blocks: Sequence[ResidualBlock],
                       params: np.ndarray) -> list[np.ndarray]:
     """Error per observation of each validation block at `params`, its unknowns fitted."""
@@ -155,23 +141,18 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
     model = model_for_markers(model, marker_names(list(data) + list(validate or [])))
     blocks = make_blocks(model, data, sigma, rotation_weight)
     val_blocks = make_blocks(model, validate or [], validate_sigma, rotation_weight)
-    p0 = model.nominal
-    nuis0, r0 = start_blocks(model, blocks, p0)
-    before = [b.observation_errors(r) for b, r in zip(blocks, r0, strict=True)]
-    sig0, known = initial_sigma(blocks)
     cand = candidate_names(model, free)
-    start = StackedProblem(model, blocks, cand, sig0)
-    ana0 = analyse_stack(start, start.pack(p0, nuis0), rank_tol, check=True)
-    names = ana0.report.identifiable if free == "identifiable" else cand
-    check_blocks(model, blocks, nuis0, before, ana0, names)
-    vb = _check_validation(model, val_blocks, ana0.report.names)
-    fit = fit_stack(model, blocks, list(names), cand, p0, nuis0, sig0, known, tol=rank_tol,
-                    grow=free == "identifiable", loss=loss, f_scale=f_scale)
+    vb: list[np.ndarray] = []
+
+    def check(nuis0, before, ana0, names) -> None:  # before the fit
+        check_blocks(model, blocks, nuis0, before, ana0, names)
+        vb.extend(_check_validation(model, val_blocks, ana0.report.names))
+
+    sol = solve_blocks(model, blocks, cand, free == "identifiable", rank_tol=rank_tol,
+                       loss=loss, f_scale=f_scale, check=check)
+    fit, ana, before = sol.fit, sol.analysis, sol.before
     prob, x = fit.problem, np.asarray(fit.result.x, dtype=float)
     params, nuis = prob.params(x), prob.nuisance(x)
-    final = StackedProblem(model, blocks, cand, prob.sigma, params)
-    ana = analyse_stack(final, final.pack(params, nuis), rank_tol)
-    ana.report = report_for(ana, prob.free, rank_tol)
     unc, nuis_std = stack_uncertainty(prob, x, ana, fit.outliers if loss != "linear" else [])
     unc.estimable &= ~np.isin(prob.free, ana.report.unidentifiable)
     check_unidentifiable_free([n for n, e in zip(prob.free, unc.estimable, strict=True)
@@ -215,6 +196,8 @@ def _result(model, prob, fit, ana, unc, params, before, after, entries, val_entr
     extra = {"kinds": entries, "not_seen": list(ana.unseen),
              "not_seen_words": unseen_words(ana.unseen), "noise_rounds": int(fit.rounds),
              "data": [b.source for b in blocks]}
+    if ana.shown_by_fixtures:
+        extra["fixtures_show"] = list(ana.shown_by_fixtures)
     if val_entries:
         extra["validation_kinds"] = val_entries
         extra["validation_data"] = [b.source for b in val_blocks]

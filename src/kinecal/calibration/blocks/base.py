@@ -15,6 +15,8 @@ What a block provides (each method's docstring has the shapes and units):
                           another unit (``px``); the weights ``1 / sigma`` make rows unitless
 ``blind_to``              the motions of the whole arm the residuals cannot see
                           (``translation``, ``rotation``, ``scale``)
+``blind_constraints()``   the same as linear conditions on a motion ``(t, w, s)`` (known
+                          geometry sees some combinations: a known point stays put)
 ``obs_dof``               residual rows per observation (for outlier tests), e.g. 3 for a
                           touched point, 1 for a distance
 ``n_obs``, ``obs_index``  observations (file rows, pairs, images) and the observation of
@@ -31,6 +33,8 @@ What a block provides (each method's docstring has the shapes and units):
                           sweep for all such blocks)
 ``observation_errors(r)`` per-observation error sizes from the residual (before / after
                           statistics, outliers)
+``observation_poses()``   the pose of each observation (rows of one configuration at
+                          several markers: one pose of the outlier test)
 ``check_data``, ``check_fit``  plausibility hooks (`kinecal.diagnostics.warn` with a stable
                           code) before the fit at the start values, and after it
 ``nuisance_report``       the solved nuisance in words and numbers (JSON, report)
@@ -56,12 +60,46 @@ from numpy.typing import NDArray
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["BlockRows", "ResidualBlock", "group_rows", "tool_points"]
+__all__ = [
+    "MOTION_WORDS",
+    "BlockRows",
+    "ResidualBlock",
+    "group_rows",
+    "plane_constraint",
+    "point_constraint",
+    "tool_points",
+]
 
 Array = NDArray[np.float64]
 
 #: poses per forward-kinematics sweep of `tool_points` (one sweep keeps every frame)
 SWEEP_POSES = 4096
+#: the similarity motions of the measurement frame, ``delta x = t + w x x + s x``, as
+#: coordinates ``(t_x, t_y, t_z, w_x, w_y, w_z, s)``: the word of each coordinate
+MOTION_WORDS = ("translation",) * 3 + ("rotation",) * 3 + ("scale",)
+
+
+def _cross(v: Array) -> Array:
+    """``[v]_x`` ``(3, 3)``: ``[v]_x w = v x w``."""
+    x, y, z = v
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def point_constraint(c: Array) -> Array:
+    """Rows ``(3, 7)`` on a motion ``(t, w, s)`` that leave the known point `c` in place:
+    ``t + w x c + s c = 0``."""
+    c = np.asarray(c, dtype=float)[:3]
+    return np.hstack([np.eye(3), -_cross(c), c[:, None]])
+
+
+def plane_constraint(p: Array, n: Array) -> Array:
+    """Rows ``(4, 7)`` on a motion that maps the known plane through `p` with unit normal
+    `n` onto itself: the rotation about `n` only (``n x w = 0``) and ``n . t + s (n . p)
+    = 0``."""
+    n = np.asarray(n, dtype=float)
+    rot = np.hstack([np.zeros((3, 3)), _cross(n), np.zeros((3, 1))])
+    off = np.r_[n, np.zeros(3), float(n @ np.asarray(p, dtype=float))][None, :]
+    return np.vstack([rot, off])
 
 
 @dataclass
@@ -189,6 +227,19 @@ class ResidualBlock(ABC):
         """One label per observation (``file:row``) for outlier lists."""
         stem = Path(self.source).name or self.source
         return [f"{stem}:{i + 1}" for i in range(self.n_obs)]
+
+    def blind_constraints(self) -> Array:
+        """Linear conditions ``C (r, 7)`` on a motion ``m = (t, w, s)`` of the whole arm
+        (`MOTION_WORDS`): the residuals are blind to `m` when ``C m = 0``. Default: the
+        coordinates of the motions not in `blind_to` are zero."""
+        return np.eye(7)[[i for i, w in enumerate(MOTION_WORDS) if w not in self.blind_to]]
+
+    def observation_poses(self) -> tuple[NDArray[np.intp], int]:
+        """The pose of each observation ``(n_obs,)`` and the number of poses: the
+        observations one arm configuration made at several markers are one pose of the
+        outlier test (`kinecal.calibration.diagnostics.observations`). Default: each
+        observation its own pose."""
+        return np.arange(self.n_obs, dtype=np.intp), self.n_obs
 
     def configurations(self) -> tuple[Array, NDArray[np.intp] | None]:
         """Joint readings and markers of the tool points the block measures."""

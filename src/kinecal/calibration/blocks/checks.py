@@ -110,11 +110,35 @@ def check_fits(model: SerialModel, problem: StackedProblem, x: np.ndarray, resid
             check_block_noise(b.name, rss, float(fit.redundancy[i]), b.noise_of)
     if not fit.outliers:
         return []
-    labels = [problem.blocks[i].observation_labels()[j] for i, j in fit.outliers]
+    labels = pose_labels(problem.blocks, fit.outliers)
     shown = ", ".join(labels[:8]) + (", ..." if len(labels) > 8 else "")
     if loss == "linear":
-        warn("outliers", f"{plural(len(labels), 'observation')} ({shown}) far outside the "
+        what = ("observation" if len(labels) == len(fit.outliers) else "pose")
+        warn("outliers", f"{plural(len(labels), what)} ({shown}) far outside the "
              "spread of their measurement set: outliers pull a least-squares fit; check "
              "those rows or calibrate with a robust loss (--loss soft_l1)")
         return list(fit.outliers)
     return []
+
+
+def pose_labels(blocks: Sequence[ResidualBlock], observations: Sequence[tuple[int, int]]
+                ) -> list[str]:
+    """One label per pose of the ``(block, observation)`` pairs: ``file:row`` for a pose of
+    one observation, ``file:82-84`` for one measured at three markers (rows 82-84)."""
+    out, seen = [], set()
+    for i, j in observations:
+        group, _ = blocks[i].observation_poses()
+        if (i, int(group[j])) in seen:
+            continue
+        seen.add((i, int(group[j])))
+        mine = [int(k) for k in np.flatnonzero(group == group[j])]
+        labels = blocks[i].observation_labels()
+        if len(mine) == 1:
+            out.append(labels[j])
+            continue
+        stem = labels[mine[0]].rpartition(":")[0]
+        rows = [labels[k].rpartition(":")[2] for k in mine]
+        consecutive = mine[-1] - mine[0] == len(mine) - 1
+        out.append(f"{stem}:{rows[0]}-{rows[-1]}" if consecutive else
+                   f"{stem}:{'+'.join(rows)}")
+    return out

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from kinecal.calibration.blocks.base import ResidualBlock, group_rows
 from kinecal.calibration.diagnostics._common import repeat_groups
 from kinecal.calibration.diagnostics.kinds import check_group_spread
+from kinecal.calibration.diagnostics.observations import pose_groups
 from kinecal.data import GaugeMeasurements
 from kinecal.diagnostics import warn
 from kinecal.errors import InputError
@@ -46,6 +47,8 @@ class GaugeBlock(ResidualBlock):
     per_group: ClassVar[int] = 0
     min_rows: ClassVar[int] = 1
     min_reason: ClassVar[str] = ""
+    #: fewest rows of a known group (a fixture: every touch informs the arm)
+    min_rows_known: ClassVar[int] = 1
     shares_tool_points = True
     #: code of the per-group spread check after the fit (docs/diagnostics.md)
     spread_code: ClassVar[str] = ""
@@ -57,6 +60,9 @@ class GaugeBlock(ResidualBlock):
                              f"{self.kind} block")
         self.data = data
         self.groups = group_rows(np.asarray(data.group), len(data.group_names))
+        #: groups whose geometry is known (fixtures, `kinecal.io.fixtures`) ``(G,)``
+        self.known_mask = data.known_groups
+        self.known = None if data.known is None else np.asarray(data.known, dtype=float)
         super().__init__(data.source, data.q, data.marker, sigma,
                          obs_sigma=None if sigma is not None else self._obs_sigma(data))
         self._check_groups()
@@ -71,6 +77,12 @@ class GaugeBlock(ResidualBlock):
         """The row of every residual (`obs_dof` residuals per row)."""
         return np.repeat(np.arange(len(self.data), dtype=np.intp), self.obs_dof)
 
+    def observation_poses(self) -> tuple[NDArray[np.intp], int]:
+        """Rows of one arm configuration at several markers are one pose."""
+        if self.marker is None:
+            return np.arange(self.n_obs, dtype=np.intp), self.n_obs
+        return pose_groups(self.q, self.marker)
+
     def _obs_sigma(self, data: GaugeMeasurements) -> Array | None:
         return None if data.sigma is None else np.asarray(data.sigma, dtype=float)
 
@@ -81,10 +93,12 @@ class GaugeBlock(ResidualBlock):
         if self.marker is not None:
             key = np.column_stack([key, self.marker])
         repeats = 0
-        for name, rows in zip(self.data.group_names, self.groups, strict=True):
+        for g, (name, rows) in enumerate(zip(self.data.group_names, self.groups,
+                                             strict=True)):
             distinct = repeat_groups(key[rows])[1]
             repeats += rows.size - distinct
-            if 0 < distinct < self.min_rows:
+            least = self.min_rows_known if self.known_mask[g] else self.min_rows
+            if 0 < distinct < least:
                 where = "" if rows.size == 1 else f" ({_rows_text(rows)})"
                 raise InputError(
                     f"{self.name}: {self.group_word} {name!r} has {rows.size} "
@@ -92,7 +106,7 @@ class GaugeBlock(ResidualBlock):
                     + (f" in {distinct} distinct arm configuration"
                        f"{'' if distinct == 1 else 's'} (the others repeat their joint "
                        "readings)" if distinct < rows.size else "")
-                    + f": expected at least {self.min_rows} distinct ({self.min_reason})",
+                    + f": expected at least {least} distinct ({self.min_reason})",
                     file=self.source, row=int(rows[0]) + 1)
         if repeats:
             warn("duplicate-poses",
@@ -107,9 +121,14 @@ class GaugeBlock(ResidualBlock):
         return [g for g, rows in enumerate(self.groups) if rows.size]
 
     @property
+    def solved_groups(self) -> list[int]:
+        """Groups with rows whose geometry is solved with the arm (not known)."""
+        return [g for g in self.live_groups if not self.known_mask[g]]
+
+    @property
     def nuisance_names(self) -> list[str]:
         names = self.data.group_names
-        return [f"{self.group_word}.{names[g]}.{c}" for g in self.live_groups
+        return [f"{self.group_word}.{names[g]}.{c}" for g in self.solved_groups
                 for c in self.nuisance_components]
 
     nuisance_components: ClassVar[tuple[str, ...]] = ()
@@ -129,7 +148,8 @@ class GaugeBlock(ResidualBlock):
         w = np.asarray(r) / sigma[self.obs_index]
         live = self.live_groups
         rss = np.array([float(np.sum(w[self.group_residual_rows(g)] ** 2)) for g in live])
-        dof = np.array([self.group_residual_rows(g).size - self.per_group for g in live])
+        dof = np.array([self.group_residual_rows(g).size
+                        - (0 if self.known_mask[g] else self.per_group) for g in live])
         check_group_spread(self.spread_code, self.name, self.group_word,
                            [self.data.group_names[g] for g in live], rss, dof,
                            stated=self.stated_sigma() is not None,

@@ -77,6 +77,10 @@ class PairBlock(GaugeBlock):
     def obs_index(self) -> NDArray[np.intp]:
         return np.arange(self.a.size, dtype=np.intp)
 
+    def observation_poses(self) -> tuple[NDArray[np.intp], int]:
+        """Each pair its own observation (two configurations)."""
+        return np.arange(self.n_obs, dtype=np.intp), self.n_obs
+
     def observation_labels(self) -> list[str]:
         stem = Path(self.source).name or self.source
         return [f"{stem}:{a + 1}+{b + 1}" for a, b in zip(self.a, self.b, strict=True)]

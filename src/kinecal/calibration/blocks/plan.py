@@ -15,13 +15,12 @@ from typing import Any
 import numpy as np
 
 from kinecal.calibration.blocks.analysis import StackAnalysis, analyse_stack
-from kinecal.calibration.blocks.api import start_blocks
+from kinecal.calibration.blocks.api import RANK_TOL as CAL_RANK_TOL
 from kinecal.calibration.blocks.checks import check_block_data
+from kinecal.calibration.blocks.decide import solve_blocks
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
 from kinecal.calibration.blocks.simulate import simulate_kind
 from kinecal.calibration.blocks.stack import StackedProblem
-from kinecal.calibration.blocks.weights import initial_sigma
-from kinecal.calibration.identifiability import RANK_TOL
 from kinecal.calibration.serial.pose_selection import d_optimal
 from kinecal.calibration.serial.problem import candidate_names
 from kinecal.data import GaugeMeasurements
@@ -33,31 +32,34 @@ __all__ = ["analyse_kinds", "select_kind_poses"]
 
 
 def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Sequence[str] = "all",
-                  *, sigma: Sequence[float | None] | None = None, tol: float = RANK_TOL
+                  *, sigma: Sequence[float | None] | None = None, tol: float = CAL_RANK_TOL
                   ) -> tuple[StackAnalysis, list[dict[str, Any]]]:
-    """Identifiability of `free` (``all``, ``identifiable`` or names) from data sets of any
-    kinds at the nominal geometry, each set's unknowns fitted to it.
+    """What `calibrate_blocks` frees of `free` (``all``, ``identifiable`` or names) from
+    data sets of any kinds: its own rule (`kinecal.calibration.blocks.decide`), the
+    candidates' rank at nominal at `tol`, each set's unknowns fitted to it, outliers left
+    out, the parameters that became identifiable at the solution freed when they pay.
 
     Returns
     -------
     StackAnalysis
-        ``report`` (the `kinecal identifiability` JSON) and ``unseen`` (motions of the whole
-        arm the mix does not see).
+        ``report`` (the `kinecal identifiability` JSON: the free set identifiable, the
+        other candidates not) and ``unseen`` (motions of the whole arm the mix does not
+        see).
     list of dict
-        Per set: ``file``, ``kind``, ``observations``, ``rows``, ``unknowns`` (its own).
+        Per set: ``file``, ``kind``, ``observations``, ``rows``, ``unknowns`` (its own),
+        ``known`` (its known fixtures: points or planes).
     """
     model = model_for_markers(model, marker_names(list(data)))
     blocks = make_blocks(model, list(data), sigma)
-    p0 = model.nominal
-    nuis, res = start_blocks(model, blocks, p0)
-    sig, _ = initial_sigma(blocks)
     names = candidate_names(model, "all" if free == "identifiable" else free)
-    check_block_data(model, blocks, nuis, [b.observation_errors(r) for b, r in
-                                           zip(blocks, res, strict=True)], names)
-    problem = StackedProblem(model, blocks, names, sig)
-    ana = analyse_stack(problem, problem.pack(p0, nuis), tol, check=True)
+
+    def check(nuis, before, ana0, chosen) -> None:
+        check_block_data(model, blocks, nuis, before, names)
+
+    ana = solve_blocks(model, blocks, names, True, rank_tol=tol, check=check).analysis
     kinds = [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
-              "rows": int(b.n_rows), "unknowns": int(b.n_nuisance)} for b in blocks]
+              "rows": int(b.n_rows), "unknowns": int(b.n_nuisance),
+              "known": int(np.sum(getattr(b, "known_mask", ())))} for b in blocks]
     return ana, kinds
 
 

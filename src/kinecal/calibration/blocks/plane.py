@@ -9,6 +9,12 @@ uniform scaling of the arm moves the planes with it). Mix with a distance for th
 The plane's unknowns are a small tilt ``(a, b)`` of the normal about its start value ``n0``
 (from an SVD fit) and the offset ``d``: ``n = (n0 + a t1 + b t2) / sqrt(1 + a^2 + b^2)``
 with ``t1, t2`` orthonormal to ``n0``; no constraint, no singularity near the start.
+
+A plane whose position in the base frame is known (a fixture's face, FIGAROH's MATE
+planes at known x, y and z; `kinecal.io.fixtures`) is no unknown, and its touches see the
+motions that move it (`blind_constraints`): a translation along its normal, a rotation
+about an axis in it. Three known planes with independent normals see the whole base frame;
+the scale about their common point stays unseen without a distance.
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.calibration.blocks.base import BlockRows, tool_points
+from kinecal.calibration.blocks.base import BlockRows, plane_constraint, tool_points
 from kinecal.calibration.blocks.gauge import GaugeBlock
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
@@ -72,13 +78,14 @@ class PlaneBlock(GaugeBlock):
         self.tangents = np.zeros((len(self.groups), 2, 3))
 
     def nuisance_scale(self, length: float) -> Array:
-        return np.tile([1.0 / length, 1.0 / length, 1.0], len(self.live_groups))
+        return np.tile([1.0 / length, 1.0 / length, 1.0], len(self.solved_groups))
 
     def start(self, model: SerialModel, params: Array) -> Array:
-        """Each plane by an SVD fit; the fitted normal becomes the reference ``n0``."""
+        """Each unknown plane by an SVD fit; the fitted normal becomes the reference
+        ``n0``."""
         P = model.positions(self.q, params, self.marker)
         out = []
-        for g in self.live_groups:
+        for g in self.solved_groups:
             rows = self.groups[g]
             try:
                 n, d, _ = plane_fit(P[rows])
@@ -93,36 +100,53 @@ class PlaneBlock(GaugeBlock):
         return np.concatenate(out) if out else np.zeros(0)
 
     def planes(self, nuisance: Array) -> tuple[Array, Array]:
-        """Unit normals ``(G, 3)`` and offsets ``(G,)`` of the live planes."""
+        """Unit normals ``(G, 3)`` and offsets ``(G,)`` of every plane: the known ones, the
+        solved ones from `nuisance` (zeros for ids without rows)."""
+        N, d = np.zeros((len(self.groups), 3)), np.zeros(len(self.groups))
+        if self.known is not None:
+            k = self.known_mask
+            N[k] = self.known[k, 3:]
+            d[k] = np.einsum("ij,ij->i", self.known[k, 3:], self.known[k, :3])
+        solved = self.solved_groups
         v = np.asarray(nuisance, dtype=float).reshape(-1, 3)
-        live = self.live_groups
-        m = (self.normals[live] + v[:, :1] * self.tangents[live, 0]
-             + v[:, 1:2] * self.tangents[live, 1])
-        return m / np.linalg.norm(m, axis=1)[:, None], v[:, 2]
+        m = (self.normals[solved] + v[:, :1] * self.tangents[solved, 0]
+             + v[:, 1:2] * self.tangents[solved, 1])
+        N[solved] = m / np.linalg.norm(m, axis=1)[:, None]
+        d[solved] = v[:, 2]
+        return N, d
+
+    def blind_constraints(self) -> Array:
+        """A known plane maps onto itself: a rotation about its normal only and
+        ``n . t + s d = 0`` (4 rows per known plane)."""
+        rows = [super().blind_constraints()]
+        for g in self.live_groups:
+            if self.known_mask[g]:
+                rows.append(plane_constraint(self.known[g, :3], self.known[g, 3:]))
+        return np.concatenate(rows)
 
     def evaluate(self, model: SerialModel, params: Array, nuisance: Array,
                  columns: NDArray[np.intp] | None = None, jacobian: bool = False,
                  points: tuple[Array, Array | None] | None = None) -> BlockRows:
         P, Jt = points if points is not None else tool_points(
             model, self.q, params, self.marker, columns if jacobian else None)
-        live = self.live_groups
-        pos = np.full(len(self.groups), -1, dtype=np.intp)
-        pos[live] = np.arange(len(live))
-        k = pos[self.data.group]  # live plane of each row
+        g = np.asarray(self.data.group)
         N, d = self.planes(nuisance)
-        r = np.einsum("ij,ij->i", N[k], P) - d[k]
+        r = np.einsum("ij,ij->i", N[g], P) - d[g]
         if not jacobian:
             return BlockRows(r)
-        arm = np.einsum("kin,ni->nk", Jt, N[k])
+        arm = np.einsum("kin,ni->nk", Jt, N[g])
+        solved = self.solved_groups
+        pos = np.full(len(self.groups), -1, dtype=np.intp)
+        pos[solved] = np.arange(len(solved))
         v = np.asarray(nuisance, dtype=float).reshape(-1, 3)
         s = np.sqrt(1.0 + v[:, 0] ** 2 + v[:, 1] ** 2)
-        m = N * s[:, None]  # unnormalised normals
         nuis = np.zeros((len(r), self.n_nuisance))
-        rows = np.arange(len(r))
-        g = np.asarray(self.data.group)
-        mp = np.einsum("ij,ij->i", m[k], P)
+        rows = np.flatnonzero(pos[g] >= 0)  # touches of the unknown planes
+        k, gr = pos[g[rows]], g[rows]
+        m = N[gr] * s[k][:, None]  # unnormalised normals
+        mp = np.einsum("ij,ij->i", m, P[rows])
         for c in range(2):  # d n / d a = t / s - m a / s^3
-            tp = np.einsum("ij,ij->i", self.tangents[g, c], P)
+            tp = np.einsum("ij,ij->i", self.tangents[gr, c], P[rows])
             nuis[rows, 3 * k + c] = tp / s[k] - mp * v[k, c] / s[k] ** 3
         nuis[rows, 3 * k + 2] = -1.0
         return BlockRows(r, arm, nuis)
@@ -132,8 +156,10 @@ class PlaneBlock(GaugeBlock):
 
     def nuisance_report(self, nuisance: Array, std: Array) -> list[dict]:
         N, d = self.planes(nuisance)
-        S = np.asarray(std, dtype=float).reshape(-1, 3)
+        S = np.zeros((len(self.groups), 3))
+        S[self.solved_groups] = np.asarray(std, dtype=float).reshape(-1, 3)
         return [{"plane": self.data.group_names[g], "touches": int(self.groups[g].size),
-                 "normal": N[i].tolist(), "offset": float(d[i]),
-                 "std_tilt_rad": float(np.hypot(S[i, 0], S[i, 1])),
-                 "std_offset": float(S[i, 2])} for i, g in enumerate(self.live_groups)]
+                 "normal": N[g].tolist(), "offset": float(d[g]),
+                 "std_tilt_rad": float(np.hypot(S[g, 0], S[g, 1])),
+                 "std_offset": float(S[g, 2]), "known": bool(self.known_mask[g])}
+                for g in self.live_groups]

@@ -1,6 +1,8 @@
 """The fit of a stacked problem: Levenberg-Marquardt on the arm and every block's unknowns,
-the noise of each block estimated where not stated, parameters freed where they become
-identifiable at the solution, then an optional robust refit with outliers flagged."""
+the noise of each block estimated where not stated, outlier observations left out of those
+estimates and of the next decision (a robust start), parameters freed where they become
+identifiable at the solution, then an optional robust refit with outliers flagged and left
+out of a last fit."""
 
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ from kinecal.calibration.blocks.analysis import analyse_stack
 from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.blocks.weights import MAX_ROUNDS, SETTLED, variance_factors
-from kinecal.calibration.diagnostics._common import chi_outliers
+from kinecal.calibration.diagnostics.observations import pose_outliers
 from kinecal.diagnostics import warn
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.optimize.lsq import levenberg_marquardt
@@ -39,6 +41,8 @@ STEP = 10.0
 SPAN = 1e3
 #: errors below this fraction of the machine's size are round-off, no outliers
 ROUND_OFF = 1e-9
+#: fits on the inliers of the robust start at most
+INLIER_ROUNDS = 3
 
 
 @dataclass
@@ -153,6 +157,7 @@ def _grow(problem: StackedProblem, res: OptimizeResult, candidates: list[str],
     if not held:
         return problem, res
     cand = StackedProblem(model, blocks, candidates, problem.sigma)
+    cand.exclude(problem.excluded)
     B = analyse_stack(cand, cand.pack(params, nuis), tol).reduced
     free_pos = [candidates.index(n) for n in problem.free]
     held_pos = [candidates.index(n) for n in held]
@@ -166,8 +171,9 @@ def _grow(problem: StackedProblem, res: OptimizeResult, candidates: list[str],
         return problem, res
     names = [n for n in candidates if n in problem.free or n in added]
     bigger = StackedProblem(model, blocks, names, problem.sigma)
+    bigger.exclude(problem.excluded)
     res2 = _lm(bigger, bigger.pack(params, nuis))
-    if not _significant(2 * res.fun, 2 * res2.fun, len(added), bigger.m - bigger.n):
+    if not _significant(2 * res.fun, 2 * res2.fun, len(added), bigger.m_used - bigger.n):
         return problem, res
     return bigger, _merge(res, res2)
 
@@ -183,15 +189,49 @@ def _round_off(problem: StackedProblem) -> float:
 def observation_outliers(problem: StackedProblem, residuals: Sequence[Array]
                          ) -> list[tuple[int, int]]:
     """Observations far outside their block's spread (`chi_outliers` of the errors in
-    units of the noise, per block); none in a block whose errors are all at round-off
-    (below `ROUND_OFF` of the workspace's size)."""
+    units of the noise, per block, the observations of one pose at several markers pooled:
+    `ResidualBlock.observation_poses`); none in a block whose errors are all at round-off
+    (below `ROUND_OFF` of the workspace's size). Every observation of a flagged pose is
+    returned."""
     floor = _round_off(problem)
     out = []
     for i, (b, r, s) in enumerate(zip(problem.blocks, residuals, problem.sigma, strict=True)):
         e = b.observation_errors(r)
         if b.unit == "length" and e.size and e.max() <= floor:
             continue
-        out += [(i, j) for j in chi_outliers(e / s, b.obs_dof)]
+        group, n = b.observation_poses()
+        out += [(i, j) for j in pose_outliers(e / s, group, n, b.obs_dof)]
+    return out
+
+
+def _enough(problem: StackedProblem, left_out: Sequence[tuple[int, int]]) -> bool:
+    """Whether the observations not in `left_out` still hold twice the unknowns' rows."""
+    drop = sum(int(np.count_nonzero(problem.blocks[i].obs_index == j)) for i, j in left_out)
+    return problem.m - drop > 2 * problem.n
+
+
+def _inliers(problem: StackedProblem, res: OptimizeResult, known: list[bool]):
+    """The robust start: observations flagged at the first fit left out, the fit and the
+    noise estimates repeated on the others, every observation judged again there, until
+    the flagged set repeats (at most `INLIER_ROUNDS` fits;
+    `kinecal.calibration.serial.inliers` for a tracker file alone). Returns ``(res, f,
+    red, rounds)`` of the last fit, with `problem` excluding the flagged observations."""
+    flagged = observation_outliers(problem, problem.block_residuals(res.x))
+    out = None
+    for _ in range(INLIER_ROUNDS):
+        if not flagged or not _enough(problem, flagged):
+            break
+        problem.exclude(flagged)
+        res = _merge(res, _lm(problem, res.x))
+        out = _estimate(problem, res, known)
+        res = out[0]
+        again = observation_outliers(problem, problem.block_residuals(res.x))
+        if again == flagged:
+            break
+        flagged = again
+    if out is None or not flagged:
+        problem.exclude([])
+        return None
     return out
 
 
@@ -222,10 +262,20 @@ def fit_stack(model: SerialModel, blocks: Sequence[ResidualBlock], names: list[s
     problem = StackedProblem(model, blocks, names, sigma, params)
     res = _lm(problem, problem.pack(params, nuisance))
     res, f, red, rounds = _estimate(problem, res, known)
+    start = _inliers(problem, res, known)  # free set and noise decided on the inliers
+    if start is not None:
+        res, f, red, more = start
+        rounds += more
     if grow:
         grown, res2 = _grow(problem, res, candidates, tol)
         if grown is not problem:
             problem, (res, f, red, more) = grown, _estimate(grown, res2, known)
+            rounds += more
+    if problem.excluded:  # every observation again, from the inliers' solution
+        problem.exclude([])
+        if loss == "linear":
+            res = _merge(res, _lm(problem, res.x))
+            res, f, red, more = _estimate(problem, res, known)
             rounds += more
     outliers = observation_outliers(problem, problem.block_residuals(res.x))
     if loss != "linear":
@@ -236,4 +286,9 @@ def fit_stack(model: SerialModel, blocks: Sequence[ResidualBlock], names: list[s
                                      f_scale=scale, monitor=problem.monitor)
         res = _merge(res, robust)
         outliers = observation_outliers(problem, problem.block_residuals(res.x))
+        if outliers and _enough(problem, outliers):  # down-weighted they still pull
+            problem.exclude(outliers)
+            res = _merge(res, levenberg_marquardt(
+                problem.residuals, problem.jacobian, res.x, loss=loss, f_scale=scale,
+                monitor=problem.monitor))
     return StackFit(problem, res, list(known), f, red, rounds, outliers)

@@ -58,6 +58,8 @@ class StackedProblem:
         rows = np.cumsum([0, *[b.n_rows for b in self.blocks]])
         self.row_slices = [slice(int(a), int(b)) for a, b in pairwise(rows)]
         self.m = int(rows[-1])
+        #: observations left out of the fit (weight zero): ``(block, observation)``
+        self.excluded: list[tuple[int, int]] = []
         self.set_sigma(sigma)
         # the blocks whose tool points one shared sweep computes
         self._shared = [i for i, b in enumerate(self.blocks) if b.shares_tool_points]
@@ -72,10 +74,31 @@ class StackedProblem:
                                           strict=True))
 
     def set_sigma(self, sigma: Sequence[Array]) -> None:
-        """Set the noise per observation of each block (the row weights ``1 / sigma``)."""
+        """Set the noise per observation of each block (the row weights ``1 / sigma``;
+        zero for the `excluded` observations)."""
         self.sigma = [np.asarray(s, dtype=float) for s in sigma]
         self.row_weight = [1.0 / s[b.obs_index] for s, b in zip(self.sigma, self.blocks,
                                                                 strict=True)]
+        for i, j in self.excluded:
+            self.row_weight[i][self.blocks[i].obs_index == j] = 0.0
+
+    def exclude(self, observations: Sequence[tuple[int, int]]) -> None:
+        """Leave the observations ``(block, observation)`` out of the fit (their rows
+        weigh zero; their residuals are still computed), replacing those left out
+        before."""
+        self.excluded = [(int(i), int(j)) for i, j in observations]
+        self.set_sigma(self.sigma)
+
+    @property
+    def used_rows(self) -> list[int]:
+        """Residual rows of each block that enter the fit (not `excluded`)."""
+        return [int(np.count_nonzero(w)) if self.excluded else b.n_rows
+                for w, b in zip(self.row_weight, self.blocks, strict=True)]
+
+    @property
+    def m_used(self) -> int:
+        """Residual rows that enter the fit."""
+        return int(sum(self.used_rows)) if self.excluded else self.m
 
     # ------------------------------------------------------------------ layout
     @property

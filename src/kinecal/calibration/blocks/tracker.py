@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.blocks.base import BlockRows, ResidualBlock
+from kinecal.calibration.diagnostics.observations import pose_groups
 from kinecal.calibration.serial.problem import characteristic_length, row_norms
 from kinecal.calibration.serial.rows import PoseRows
 from kinecal.data import Measurements
@@ -56,6 +57,12 @@ class TrackerBlock(ResidualBlock):
     @property
     def obs_index(self) -> NDArray[np.intp]:
         return self._obs
+
+    def observation_poses(self) -> tuple[NDArray[np.intp], int]:
+        """Rows of one arm configuration at several markers are one pose."""
+        if self.marker is None:
+            return np.arange(self.n_obs, dtype=np.intp), self.n_obs
+        return pose_groups(self.q, self.marker)
 
     def start(self, model: SerialModel, params: Array) -> Array:
         if self._pose_rows is None:

@@ -54,14 +54,15 @@ def initial_sigma(blocks: Sequence[ResidualBlock]) -> tuple[list[Array], list[bo
 
 def redundancies(problem: StackedProblem, x: Array, grams: list[Array] | None = None
                  ) -> Array:
-    """Redundancy ``r_b`` of each block at `x` (they sum to ``m - rank``)."""
+    """Redundancy ``r_b`` of each block at `x` (they sum to ``m - rank``; rows left out of
+    the fit count in neither)."""
     grams = problem.block_grams(x) if grams is None else grams
     A = np.sum(grams, axis=0)
     d = np.sqrt(np.clip(np.diag(A), 0.0, None))
     d = np.where(d > 0, d, 1.0)
     Ainv = np.linalg.pinv(A / np.outer(d, d), rcond=1e-12) / np.outer(d, d)
-    return np.array([b.n_rows - float(np.sum(Ainv * G)) for b, G in
-                     zip(problem.blocks, grams, strict=True)])
+    return np.array([m - float(np.sum(Ainv * G)) for m, G in
+                     zip(problem.used_rows, grams, strict=True)])
 
 
 def variance_factors(problem: StackedProblem, x: Array, residuals: list[Array]
@@ -72,5 +73,5 @@ def variance_factors(problem: StackedProblem, x: Array, residuals: list[Array]
     rss = np.array([float(np.sum((ri * w) ** 2)) for ri, w in
                     zip(residuals, problem.row_weight, strict=True)])
     with np.errstate(divide="ignore", invalid="ignore"):
-        f = np.where(r > 1e-6 * np.array([b.n_rows for b in problem.blocks]), rss / r, np.nan)
+        f = np.where(r > 1e-6 * np.array(problem.used_rows), rss / r, np.nan)
     return f, r

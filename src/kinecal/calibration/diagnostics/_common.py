@@ -160,11 +160,12 @@ def unit_factor_name(ratio: float) -> str:
     return "another length unit or a wrong scale"
 
 
-def chi_outliers(d: Array, dof: int = 3, alpha: float = ALPHA) -> list[int]:
+def chi_outliers(d: Array, dof: int | Array = 3, alpha: float = ALPHA) -> list[int]:
     """Poses whose error norm is an outlier (median/MAD rule, size-aware threshold).
 
     `d` holds the norms of residual vectors of `dof` components per pose (3 for a measured
-    position). The noise of each component is estimated robustly from the median norm (for
+    position; an array ``(N,)`` when poses differ, e.g. a pose measured at three markers
+    has 9). The noise of each component is estimated robustly from the median norm (for
     isotropic Gaussian noise of std sigma, ``median(d) = sigma sqrt(chi2_dof median)``,
     1.5382 sigma for 3 components), or from the RMS of the poses below the limit when that
     is larger (the median of few poses is a noisy scale); a pose is an outlier when
@@ -173,25 +174,30 @@ def chi_outliers(d: Array, dof: int = 3, alpha: float = ALPHA) -> list[int]:
     `alpha` (Bonferroni: ``1 - alpha / N``), the median + 5 * 1.4826 MAD rule of the robust
     losses, and `MEDIAN_MULTIPLE` times the median (a residual that is a model's misfit
     rather than noise has heavier tails than Gaussian noise; a gross measurement error
-    stands far beyond all three).
+    stands far beyond all three). With unequal `dof` the median and MAD rules apply to the
+    norms divided by ``sqrt(chi2_dof median)`` (the same rules for equal `dof`).
     """
     d = np.asarray(d, dtype=float)
     n = d.size
     if n < 5:
         return []
-    med = float(np.median(d))
-    mad = 1.4826 * float(np.median(np.abs(d - med)))
+    k = np.broadcast_to(np.asarray(dof, dtype=float), d.shape)
+    dofs, which = np.unique(k, return_inverse=True)  # the quantiles once per dof
+    m = np.sqrt(chdtri(dofs, 0.5))[which]  # the median norm of unit noise, per pose
+    z = d / m
+    med = float(np.median(z))
+    mad = 1.4826 * float(np.median(np.abs(z - med)))
     if med <= 0 or mad <= 0:
         return []
-    q = np.sqrt(float(chdtri(dof, alpha / n)))
-    floor = max(med + 5.0 * mad, MEDIAN_MULTIPLE * med)
-    sigma = med / np.sqrt(float(chdtri(dof, 0.5)))
+    q = np.sqrt(chdtri(dofs, alpha / n))[which]
+    floor = max(med + 5.0 * mad, MEDIAN_MULTIPLE * med) * m
+    sigma = med
     # the median is a noisy scale for few poses: also the RMS of the poses that pass, and
     # the larger of the two
-    inner = d <= max(sigma * q, floor)
+    inner = d <= np.maximum(sigma * q, floor)
     if inner.any():
-        sigma = max(sigma, float(np.sqrt(np.mean(d[inner] ** 2) / dof)))
-    limit = max(sigma * q, floor)
+        sigma = max(sigma, float(np.sqrt(np.sum(d[inner] ** 2) / np.sum(k[inner]))))
+    limit = np.maximum(sigma * q, floor)
     return [int(i) for i in np.flatnonzero(d > limit)]
 
 

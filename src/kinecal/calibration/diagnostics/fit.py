@@ -15,9 +15,9 @@ from kinecal._special import fdtri
 from kinecal.calibration.diagnostics._common import (
     ALPHA,
     FitTest,
-    chi3_outliers,
     plural,
 )
+from kinecal.calibration.diagnostics.observations import describe_poses, pose_outliers
 from kinecal.calibration.diagnostics.sizes import serial_size
 from kinecal.diagnostics import warn
 from kinecal.kinematics.serial.chain import BASE_NAMES
@@ -196,23 +196,25 @@ ROUND_OFF = 1e-9
 
 
 def check_outliers(distances: Array, unit: str, leverage: Array | None = None,
-                   size: float | None = None) -> list[int]:
+                   size: float | None = None, group: Array | None = None) -> list[int]:
     """``outliers``: poses whose distance error after a least-squares fit is an outlier
-    (`chi3_outliers` on the errors studentized by the poses' `leverage`, when given);
-    none when every error is below `ROUND_OFF` times the machine's `size`.
-    Returns their 0-based indices."""
+    (`chi3_outliers` on the errors studentized by the rows' `leverage`, when given);
+    none when every error is below `ROUND_OFF` times the machine's `size`. `group`: the
+    pose of each row (`kinecal.calibration.diagnostics.observations.pose_groups`; rows of
+    one pose at several markers are tested, and named, as one pose). Returns the 0-based
+    indices of the rows of the outlier poses."""
     d = np.asarray(distances, dtype=float)
     if size is not None and d.size and d.max() <= ROUND_OFF * size:
         return []
     if leverage is not None:
         d = d / np.sqrt(np.maximum(1.0 - np.asarray(leverage, dtype=float), 1e-3))
-    out = chi3_outliers(d)
+    out = pose_outliers(d, None if group is None else np.asarray(group))
     if out:
         d = np.asarray(distances, dtype=float)
-        shown = ", ".join(str(i) for i in out[:10]) + (", ..." if len(out) > 10 else "")
-        verb = "has an error" if len(out) == 1 else "have errors"
+        n, shown = describe_poses(out, None if group is None else np.asarray(group))
+        verb = "has an error" if n == 1 else "have errors"
         warn("outliers",
-             f"{plural(len(out), 'pose')} ({shown}; 0-based) {verb} of up to "
+             f"{plural(n, 'pose')} ({shown}; 0-based) {verb} of up to "
              f"{d[out].max():.3g} {unit} against a median of {np.median(d):.3g} {unit}: outliers "
              "pull a least-squares fit; check those measurements or calibrate with a "
              "robust loss (--loss soft_l1)")
@@ -264,8 +266,8 @@ def check_lack_of_fit(errors: Array, groups: Array, n_params: int, unit: str) ->
 def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_choice: object,
                      least_squares: bool, robust: bool, groups: Array | None,
                      rank: int, confounded_with: dict | None = None,
-                     normal: Array | None = None, residual: Array | None = None
-                     ) -> list[int]:
+                     normal: Array | None = None, residual: Array | None = None,
+                     poses: Array | None = None) -> list[int]:
     """Every after-fit check of a serial calibration (the module docstring's codes).
 
     Parameters
@@ -292,11 +294,14 @@ def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_ch
     normal, residual : ndarray, optional
         The weighted ``J^T J`` ``(k, k)`` and the residual vector at `x` when the solver has
         them (each saves a pass over the poses).
+    poses : ndarray of int, shape (N,), optional
+        Pose of each row (rows of one pose at several markers: one observation of the
+        outlier test); None: a pose per row.
 
     Returns
     -------
     list of int
-        Outlier poses found by the median/MAD rule after a least-squares fit.
+        Rows of the outlier poses found after a least-squares fit.
     """
     model = problem.model
     names = list(problem.free)
@@ -309,7 +314,7 @@ def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_ch
         return []
     e = problem.errors(x) if residual is None else problem.errors_from_residuals(residual)
     out = check_outliers(np.linalg.norm(e, axis=1), model.length_unit,
-                         pose_leverage(problem, x, normal), serial_size(model))
+                         pose_leverage(problem, x, normal), serial_size(model), poses)
     if groups is not None:
         check_lack_of_fit(e, groups, rank, model.length_unit)
     return out

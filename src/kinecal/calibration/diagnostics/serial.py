@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.diagnostics._common import JOINT_RESOLUTION, plural, repeat_groups
+from kinecal.calibration.diagnostics.observations import pose_groups
 from kinecal.calibration.diagnostics.units import (
     check_frame_and_units,
     check_joint_limits,
@@ -90,6 +91,9 @@ class SerialDataInfo:
     lost : list of str
         Parameters identifiable on well-spread poses but not on these.
     reference : Reference
+    poses : ndarray of int, shape (N,) or None
+        Pose of each row when poses were measured at several markers
+        (`kinecal.calibration.diagnostics.observations.pose_groups`); None: a pose per row.
     """
 
     groups: Array
@@ -97,6 +101,7 @@ class SerialDataInfo:
     unique_rows: Array | None
     lost: list[str] = field(default_factory=list)
     reference: Reference | None = None
+    poses: Array | None = None
 
 
 # ---------------------------------------------------------------------- reference
@@ -153,12 +158,14 @@ def reference(model: SerialModel, names: Sequence[str], rotations: bool = False,
 # ------------------------------------------------------------------- pose counts
 def check_pose_count(n_rows: int, n_distinct: int, rows_per_pose: int, n_free: int,
                      what: str = "poses", repeats: str = "joint readings",
-                     well_spread: int = 0) -> None:
+                     well_spread: int = 0, n_poses: int | None = None) -> None:
     """Refuse too few distinct poses; warn on few or repeated ones.
 
     `well_spread` is the number of parameters well-spread poses identify (0: unknown):
     when the few poses given identify fewer (one pose identifies 3), the advice on how
     many poses to measure counts those, not the few the poses at hand determine.
+    `n_poses`: the arm configurations the `n_distinct` rows were measured in, when a pose
+    is measured at several markers (one row each): the counts and the advice are in poses.
 
     Raises
     ------
@@ -167,29 +174,35 @@ def check_pose_count(n_rows: int, n_distinct: int, rows_per_pose: int, n_free: i
         (nothing left to estimate the noise or check the fit).
     """
     eq = rows_per_pose * n_distinct
-    gives = "gives" if n_distinct == 1 else "give"
     if n_distinct < n_rows:
         warn("duplicate-poses",
              f"{n_rows - n_distinct} of {n_rows} {what} repeat the {repeats} of another "
              f"row ({n_distinct} distinct): repeated rows add no geometry, and standard errors "
              f"assume independent measurements; measure distinct {what}")
+    poses = n_distinct if n_poses is None or n_poses >= n_distinct else n_poses
+    per = rows_per_pose * n_distinct / max(poses, 1)  # equations per distinct pose
+    counted = plural(poses, "distinct " + what.rstrip("s"))
+    if poses < n_distinct:
+        each = n_distinct / poses
+        counted += (f" ({n_distinct} rows, {each:.0f} markers each)" if each == round(each)
+                    else f" ({n_distinct} rows, {each:.3g} markers on average)")
+    gives = "gives" if poses == 1 else "give"
     if eq <= n_free:
         need = max(n_free, well_spread)
-        least = need // rows_per_pose + 1
-        good = -(-MIN_EQUATION_RATIO * need // rows_per_pose)
+        least = int(need // per) + 1
+        good = int(np.ceil(MIN_EQUATION_RATIO * need / per))
         spread = (f"well-spread {what} identify {need} parameters: measure " if need > n_free
                   else "")
         raise InputError(
-            f"{plural(n_distinct, 'distinct ' + what.rstrip('s'))} {gives} {eq} equations for "
+            f"{counted} {gives} {eq} equations for "
             f"{n_free} free parameters: expected more than {n_free} ({spread}at least {least} "
             f"distinct {what}, {good} or more recommended) [too-few-poses]")
     if eq < MIN_EQUATION_RATIO * n_free:
         warn("few-poses",
-             f"{plural(n_distinct, 'distinct ' + what.rstrip('s'))} {gives} {eq} equations for "
-             f"{n_free} free "
+             f"{counted} {gives} {eq} equations for {n_free} free "
              f"parameters (fewer than {MIN_EQUATION_RATIO} per parameter): the fit can absorb "
              "noise and its uncertainty is unreliable; measure at least "
-             f"{-(-MIN_EQUATION_RATIO * n_free // rows_per_pose)} distinct {what}")
+             f"{int(np.ceil(MIN_EQUATION_RATIO * n_free / per))} distinct {what}")
 
 
 def _marker_column(data: Measurements) -> Array:
@@ -283,11 +296,14 @@ def check_serial_data(model: SerialModel, data: Measurements, names: Sequence[st
     q = np.asarray(data.q, dtype=float)
     rows = 3 if data.rotations is None else 6
     groups, n_distinct = repeat_groups(q, _marker_column(data))
+    poses = None if data.marker is None else pose_groups(q, data.marker)[0]
     well_spread = 0
     if rows * n_distinct <= len(names):  # refused below: say how many poses would do
         well_spread = reference(model, report.names, data.rotations is not None,
                                 rank_tol).report.rank
-    check_pose_count(len(q), n_distinct, rows, len(names), well_spread=well_spread)
+    distinct_poses = None if poses is None else repeat_groups(q)[1]
+    check_pose_count(len(q), n_distinct, rows, len(names), well_spread=well_spread,
+                     n_poses=distinct_poses)
     unique_rows = None
     if n_distinct < len(q):
         parts = [q, _marker_column(data), data.xyz] + [x for x in (data.rotations, data.weights)
@@ -307,7 +323,7 @@ def check_serial_data(model: SerialModel, data: Measurements, names: Sequence[st
             warned = check_joint_units(model, validate.q, "validation poses")
             check_frame_and_units(model, validate, ref, base_free, "validation poses", warned)
     lost = check_rank(model, data, report.names, report, ref, rank_tol)
-    return SerialDataInfo(groups, n_distinct, unique_rows, lost, ref)
+    return SerialDataInfo(groups, n_distinct, unique_rows, lost, ref, poses)
 
 
 def check_pose_set(model: SerialModel, data: Measurements, report: IdentifiabilityReport,

@@ -42,27 +42,17 @@ from kinecal.metrology.stats import axis_stats
 from kinecal.optimize import METHODS, minimize
 from kinecal.optimize.factor import gram_root
 from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
-from kinecal.optimize.lsq import LOSSES, householder_gauss_newton, levenberg_marquardt
+from kinecal.optimize.lsq import LOSSES, householder_gauss_newton
 
 __all__ = ["CALIBRATION_METHODS", "calibrate"]
 
 CALIBRATION_METHODS: tuple[str, ...] = ("lm", "householder", *METHODS, *hybrid_methods())
 
-#: robust-loss outlier rule: distance error above median + OUTLIER_K * 1.4826 * MAD
-OUTLIER_K = 5.0
 #: default rank threshold of calibrate's free="identifiable": a direction whose pivot is
 #: below 1e-4 of the largest (a condition number beyond ~1e4 on unit-norm columns) is
 #: identifiable in exact arithmetic but not from real data; freeing it only slows the
 #: solver down (UR5 laser-tracker data: 741 vs 9 evaluations for the same validation error)
 CALIBRATION_RANK_TOL = 1e-4
-
-
-def _outliers(d: np.ndarray) -> list[int]:
-    med = np.median(d)
-    mad = 1.4826 * np.median(np.abs(d - med))
-    if mad <= 0:
-        return []
-    return [int(i) for i in np.flatnonzero(d > med + OUTLIER_K * mad)]
 
 
 def _uncertainty(problem: CalibrationProblem, x: np.ndarray, outliers: list[int],
@@ -258,11 +248,12 @@ def _check_arguments(method: str, loss: str, f_scale, maxiter, target, options, 
         raise InputError("no calibration poses")
 
 
-def _setup(model, data, method, free, validate, rank_tol, rotation_weight):
+def _setup(model, data, method, free, validate, rank_tol, rotation_weight, loss, f_scale):
     """The problem, its free names, the identifiability reports and the data checks.
 
-    Returns ``(problem, lm_result or None, names, report, info, first_report)``; for ``lm``
-    the analysis, fit and growth run in few passes (`kinecal.calibration.serial.solve`).
+    Returns ``(problem, lm_solution or None, names, report, info, first_report)``; for
+    ``lm`` the analysis, robust start, fit and growth run in few passes
+    (`kinecal.calibration.serial.solve`), with a robust `loss` the robust fit too.
     """
     found: list[SerialDataInfo] = []
 
@@ -274,8 +265,8 @@ def _setup(model, data, method, free, validate, rank_tol, rotation_weight):
     res = None
     if method == "lm":
         sol = solve_lm(model, data, free, rank_tol=rank_tol, rotation_weight=rotation_weight,
-                       check=check)
-        problem, res, names, report = sol.problem, sol.result, sol.names, sol.report
+                       check=check, loss=loss, f_scale=f_scale)
+        problem, res, names, report = sol.problem, sol, sol.names, sol.report
     else:
         names, report = resolve_free(model, data, free, tol=rank_tol)
         check(names, report)
@@ -284,10 +275,10 @@ def _setup(model, data, method, free, validate, rank_tol, rotation_weight):
     return problem, res, names, report, info, first_report
 
 
-def _run_method(problem: CalibrationProblem, res, method, *, loss, f_scale, rng, maxiter,
-                target, options, progress):
-    """Run `method` on `problem` (``lm``: `res` is the plain fit, refitted with a robust
-    `loss`). Returns ``(OptimizeResult, outlier pose indices)``."""
+def _run_method(problem: CalibrationProblem, res, method, *, rng, maxiter, target, options,
+                progress):
+    """Run `method` on `problem` (``lm``: `res` is `solve_lm`'s solution, already fitted
+    with the loss). Returns ``(OptimizeResult, outlier rows of a robust loss)``."""
     monitor = problem.mean_distance_from_residuals
     outliers: list[int] = []
     options = dict(options or {})
@@ -298,13 +289,8 @@ def _run_method(problem: CalibrationProblem, res, method, *, loss, f_scale, rng,
         return False
 
     if method == "lm":
-        if loss != "linear":
-            d = problem.distances(res.x)
-            scale = f_scale if f_scale is not None else 3.0 * max(float(np.median(d)), 1e-12)
-            res = levenberg_marquardt(problem.residuals, problem.jacobian, res.x, loss=loss,
-                                      f_scale=scale, monitor=monitor)
-            outliers = _outliers(problem.distances(res.x))
-    elif method == "householder":
+        return res.result, list(res.outliers)
+    if method == "householder":
         res = householder_gauss_newton(problem.residuals, problem.jacobian, problem.x0,
                                        maxiter=maxiter or 100, monitor=monitor,
                                        callback=callback)
@@ -331,10 +317,9 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
     seed = int(rng) if isinstance(rng, int | np.integer) else None
     t0 = time.perf_counter()
     problem, res, names, report, info, first_report = _setup(
-        model, data, method, free, validate, rank_tol, rotation_weight)
-    res, outliers = _run_method(problem, res, method, loss=loss, f_scale=f_scale, rng=rng,
-                                maxiter=maxiter, target=target, options=options,
-                                progress=progress)
+        model, data, method, free, validate, rank_tol, rotation_weight, loss, f_scale)
+    res, outliers = _run_method(problem, res, method, rng=rng, maxiter=maxiter, target=target,
+                                options=options, progress=progress)
     x = np.asarray(res.x, dtype=float)
     if method not in ("lm", "householder"):  # did the metaheuristic reach a minimum?
         check_local_polish(problem, x, method, target)
@@ -357,7 +342,7 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         groups=info.groups if info.n_distinct < len(data) else None,
         rank=int(unc.estimable.size - unc.null.shape[1]),
         confounded_with=first_report.confounded_with, normal=normal,
-        residual=res.residual if normal is not None else None)
+        residual=res.residual if normal is not None else None, poses=info.poses)
     outliers = outliers or flagged
     e_before = problem.errors(problem.x0)
     axes = {"calibration": {"before": axis_stats(e_before), "after": axis_stats(e_after)}}

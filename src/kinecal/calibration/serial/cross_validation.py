@@ -18,7 +18,10 @@ candidate and fold is then ``(k, k)`` algebra, plus a second pass for the held-o
 distances. Memory stays linear in the poses.
 
 Folds are deterministic: a fixed permutation (seed 0, independent of the user's seed)
-dealt round-robin into ``K`` folds of equal size (+-1).
+dealt round-robin into ``K`` folds of equal size (+-1). They deal *poses*, not rows: the
+rows of one arm configuration measured at several markers
+(`kinecal.calibration.diagnostics.observations.pose_groups`) are held out together, so
+that no fold is trained on a pose it is then tested on.
 """
 
 from __future__ import annotations
@@ -30,12 +33,14 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from kinecal.calibration.diagnostics.observations import pose_groups
 from kinecal.calibration.serial.rows import PoseRows
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["CVScore", "FoldedRows", "cross_validate", "fold_of", "one_standard_error"]
+__all__ = ["CVScore", "FoldedRows", "cross_validate", "data_poses", "fold_of", "n_poses",
+           "one_standard_error"]
 
 Array = NDArray[np.float64]
 #: seed of the fold permutation (fixed: the folds never depend on the user's seed)
@@ -64,15 +69,32 @@ class CVScore:
     fold_means: Array
 
 
-def fold_of(n: int, k: int) -> NDArray[np.intp]:
-    """Fold index ``(n,)`` of every pose: a fixed permutation dealt round-robin."""
-    if k < 2 or k > n:
-        raise InputError(f"cross-validation: expected 2 <= folds <= {n} poses, got {k}",
+def fold_of(n: int, k: int, poses: tuple[NDArray[np.intp], int] | None = None
+            ) -> NDArray[np.intp]:
+    """Fold index ``(n,)`` of every row: a fixed permutation of the poses dealt
+    round-robin (`poses`: the pose of each row and their number; None: a pose per row)."""
+    group, m = (np.arange(n), n) if poses is None else poses
+    if k < 2 or k > m:
+        raise InputError(f"cross-validation: expected 2 <= folds <= {m} poses, got {k}",
                          option="--folds")
-    perm = np.random.default_rng(FOLD_SEED).permutation(n)
-    folds = np.empty(n, dtype=np.intp)
-    folds[perm] = np.arange(n) % k
-    return folds
+    perm = np.random.default_rng(FOLD_SEED).permutation(m)
+    folds = np.empty(m, dtype=np.intp)
+    folds[perm] = np.arange(m) % k
+    return folds[group]
+
+
+def data_poses(data: Measurements) -> tuple[NDArray[np.intp], int] | None:
+    """The pose of each row of `data` and their number; None when every row is its own
+    pose (one tool point: a repeated row is a repeated measurement)."""
+    if data.marker is None:
+        return None
+    return pose_groups(np.asarray(data.q, dtype=float), np.asarray(data.marker))
+
+
+def n_poses(data: Measurements) -> int:
+    """Number of poses of `data` (rows at several markers of one configuration: one)."""
+    poses = data_poses(data)
+    return len(data) if poses is None else poses[1]
 
 
 def _solve(A: Array, b: Array) -> Array:
@@ -119,7 +141,7 @@ class FoldedRows:
         m = self.cols.size
         n = len(data)
         self.k = k
-        self.folds = fold_of(n, k)
+        self.folds = fold_of(n, k, data_poses(data))
         self.rows = PoseRows(model, data, rotation_weight, weighted=True)
         self.sw = (np.ones(n) if data.weights is None
                    else np.sqrt(np.asarray(data.weights, dtype=float)))

@@ -37,7 +37,12 @@ import numpy as np
 from kinecal.calibration.diagnostics import CODES
 from kinecal.calibration.identifiability import IdentifiabilityReport
 from kinecal.calibration.serial.api import CALIBRATION_RANK_TOL, calibrate
-from kinecal.calibration.serial.cross_validation import CVScore, FoldedRows, one_standard_error
+from kinecal.calibration.serial.cross_validation import (
+    CVScore,
+    FoldedRows,
+    n_poses,
+    one_standard_error,
+)
 from kinecal.calibration.serial.error_model_result import ErrorModelResult, error_model_text
 from kinecal.calibration.serial.error_model_spec import (
     AUTO_HARMONICS,
@@ -170,7 +175,7 @@ def calibrate_error_model(
     if not auto:
         analysis = CoefficientAnalysis(union, data, geo.free, coef_names, params, rw)
     else:
-        k = min(DEFAULT_FOLDS, len(data)) if folds is None else int(folds)
+        k = min(DEFAULT_FOLDS, n_poses(data)) if folds is None else int(folds)
         analysis, table, chosen, chosen_order = _auto_choice(
             union, data, geo, coef_names, params, rw, k, order, rank_tol)
         if not chosen:  # the geometric calibration is the result: its findings too

@@ -71,8 +71,10 @@ class CalibrationResult:
     marker_calibration, marker_validation : ndarray of int, shape (N,), optional
         Marker index of each of those poses (models with several markers).
     outliers : list of int
-        0-based calibration poses flagged as outliers (median/MAD rule): down-weighted and
-        left out of the standard errors with a robust loss, only reported with ``linear``.
+        0-based calibration rows flagged as outliers (every row of a pose measured at
+        several markers: `kinecal.calibration.diagnostics.observations`): left out of the
+        last fit and of the standard errors with a robust loss, only reported with
+        ``linear``.
     warnings : list of Diagnostic
         Plausibility diagnostics of this calibration (`kinecal.diagnostics`); also in the
         JSON (``warnings: [{code, message}]``), the summary and the report.
@@ -355,9 +357,9 @@ class CalibrationResult:
         lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations, "
                      f"{self.seconds:.3g} s")
         if self.outliers:
-            how = ("down-weighted by the robust loss" if self.extra.get("loss", "linear") !=
-                   "linear" else "median/MAD rule")
-            lines.append(f"outlier poses (0-based, {how}): {self.outliers}")
+            how = ("left out of the last fit" if self.extra.get("loss", "linear") !=
+                   "linear" else "chi-square rule")
+            lines.append(f"outlier rows (0-based, {how}): {self.outliers}")
         if self.warnings:
             lines += ["", f"warnings ({len(self.warnings)}):"]
             lines += [f"  [{d.code}] {d.message}" for d in self.warnings]

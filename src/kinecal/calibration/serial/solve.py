@@ -34,6 +34,8 @@ from kinecal.calibration.identifiability import (
     conditioning,
     observability_indices,
 )
+from kinecal.calibration.serial.cross_validation import data_poses
+from kinecal.calibration.serial.inliers import merge_runs, robust_fit, robust_start
 from kinecal.calibration.serial.problem import (
     CalibrationProblem,
     analyse_poses,
@@ -50,7 +52,8 @@ from kinecal.optimize.lsq import levenberg_marquardt
 if TYPE_CHECKING:
     from scipy.optimize import OptimizeResult
 
-__all__ = ["GRAM_TOL", "GROWTH_FTOL", "LMSolution", "grow_identifiable", "solve_lm"]
+__all__ = ["GRAM_TOL", "GROWTH_FTOL", "LMSolution", "data_identifiability", "grow_identifiable",
+           "solve_lm"]
 
 Array = NDArray[np.float64]
 
@@ -64,28 +67,37 @@ GROWTH_FTOL = 1e-4
 
 @dataclasses.dataclass
 class LMSolution:
-    """What `solve_lm` found: the final problem, the solver's result, the free parameters
-    and the identifiability report."""
+    """What `solve_lm` found: the final problem (every row), the solver's result (with a
+    robust loss and outliers: the fit without them), the free parameters, the
+    identifiability report and the outlier rows."""
 
     problem: CalibrationProblem
     result: OptimizeResult
     names: list[str]
     report: IdentifiabilityReport
+    #: rows the robust loss flagged and left out of the last fit (robust losses only)
+    outliers: list[int] = dataclasses.field(default_factory=list)
+    #: rows left out of the decisions on the free set (`robust_start`)
+    start_outliers: list[int] = dataclasses.field(default_factory=list)
 
 
 def solve_lm(model: SerialModel, data: Measurements, free: str | Sequence[str], *,
              rank_tol: float, rotation_weight: float | None = None,
              check: Callable[[list[str], IdentifiabilityReport], None] | None = None,
+             loss: str = "linear", f_scale: float | None = None, choose: bool | None = None,
              ) -> LMSolution:
     """Identifiability analysis and Levenberg-Marquardt fit (module docstring).
 
     Parameters
     ----------
-    model, data, free, rank_tol, rotation_weight
+    model, data, free, rank_tol, rotation_weight, loss, f_scale
         As in `kinecal.calibration.serial.api.calibrate`.
     check : callable, optional
         ``check(names, report)`` after the analysis, before the fit (the data checks of
         `kinecal.calibration.diagnostics`; it may raise `InputError`).
+    choose : bool, optional
+        Free the identifiable subset of the candidates `free` names (and grow it at the
+        identified geometry); default: when ``free="identifiable"``.
 
     Returns
     -------
@@ -106,7 +118,9 @@ def solve_lm(model: SerialModel, data: Measurements, free: str | Sequence[str], 
         report = analyse_factor(B, cand, rows.rows * rows.n_poses, tol=rank_tol, scale=scale)
     else:
         report = analyse_poses(model, data, cand, tol=rank_tol, rotation_weight=rotation_weight)
-    names = report.identifiable if free == "identifiable" else cand
+    growing = free == "identifiable" if choose is None else bool(choose)
+    names = report.identifiable if growing else cand
+    poses = data_poses(data)
     if check is not None:
         check(list(names), report)
     problem = CalibrationProblem(model, data, names, rotation_weight)
@@ -115,15 +129,27 @@ def solve_lm(model: SerialModel, data: Measurements, free: str | Sequence[str], 
         pos = [cand.index(n) for n in names] + [len(cand)]
         Gs = G[np.ix_(pos, pos)]
         start = (r0, Gs[:-1, :-1], Gs[:-1, -1])
-    growing = free == "identifiable"
     res = levenberg_marquardt(problem.residuals, problem.jacobian, problem.x0,
                               monitor=problem.mean_distance_from_residuals,
                               normal_equations=problem.normal_equations, start=start,
                               ftol=GROWTH_FTOL if growing else None)
+    # rank and free set decided on the inliers (`kinecal.calibration.serial.inliers`)
+    found = robust_start(problem, res, poses, GROWTH_FTOL if growing else None)
+    fit, res = found.problem, found.result
     if growing:
-        problem, res, names, report = grow_identifiable(
-            model, data, problem, res, report, rank_tol)
-    return LMSolution(problem, res, list(names), report)
+        fit, res, names, report = grow_identifiable(model, fit.data, fit, res, report,
+                                                    rank_tol)
+    problem = fit if not found.outliers else CalibrationProblem(model, data, names,
+                                                                rotation_weight)
+    outliers: list[int] = []
+    if loss != "linear":  # from the inliers' solution, outliers left out of the last fit
+        res, outliers = robust_fit(problem, res.x, poses, loss, f_scale, res)
+    elif found.outliers:  # least squares of every pose, from the inliers' solution
+        res = merge_runs(res, levenberg_marquardt(
+            problem.residuals, problem.jacobian, res.x,
+            monitor=problem.mean_distance_from_residuals,
+            normal_equations=problem.normal_equations))
+    return LMSolution(problem, res, list(names), report, outliers, found.outliers)
 
 
 def _converge(problem: CalibrationProblem, res: OptimizeResult) -> OptimizeResult:
@@ -234,3 +260,16 @@ def _significant(rss0: float, rss1: float, k: int, dof: int) -> bool:
     if rss1 <= 0.0:
         return True
     return dof > 0 and (rss0 - rss1) / k > float(fdtri(k, dof, 0.99)) * rss1 / dof
+
+
+def data_identifiability(model: SerialModel, data: Measurements,
+                         free: str | Sequence[str] = "all", *, rank_tol: float,
+                         rotation_weight: float | None = None) -> IdentifiabilityReport:
+    """What `calibrate` frees from `data`, as a report of the candidates `free` (``all``,
+    ``identifiable`` or names): the rule of ``free="identifiable"`` (rank at nominal at
+    `rank_tol`, outlier poses left out, parameters that became identifiable at the
+    identified geometry freed when the fit improves significantly), here applied to any
+    candidate set (``kinecal identifiability --data``)."""
+    cand = candidate_names(model, "all" if free == "identifiable" else free)
+    return solve_lm(model, data, cand, rank_tol=rank_tol, rotation_weight=rotation_weight,
+                    choose=True).report
