@@ -12,7 +12,9 @@ from kinecal.cli._app import app
 from kinecal.cli._common import check_paths, echo_json, warnings_scope, with_warnings
 from kinecal.cli._options import (
     MODEL_HELP,
+    angle_unit_option,
     base_link_option,
+    check_angle_unit,
     load_model_arg,
     seed_option,
     strict_option,
@@ -57,6 +59,7 @@ def check(
     db: str | None = db_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the check as JSON."),
     strict: bool = strict_option(),
+    angle_unit: str | None = angle_unit_option("the files' joint columns"),
 ) -> None:
     """Check a robot's current calibration against a few poses measured today; stored in
     the registry. Exit 0 valid, 3 drifted (within the limit), 4 recalibrate."""
@@ -67,6 +70,7 @@ def check(
     from kinecal.registry.store import open_registry
 
     serial = check_serial(serial)
+    check_angle_unit(angle_unit)
     if register not in (None, "base"):
         raise InputError(f"expected base, got {register!r}", option="--register")
     check_paths({f"DATA {d}": d for d in data}, {"--out": out})
@@ -78,7 +82,7 @@ def check(
             reg, serial, paths, sigma=stated, limit=limit, alpha=alpha,
             register_base=register == "base", date=when, operator=operator,
             instrument=instrument, note=note, command=command_text(),
-            warnings=lambda: list(found))
+            warnings=lambda: list(found), angle_unit=angle_unit)
     result = with_warnings({"serial": serial, "id": stored["id"], "date": stored["date"],
                             **doc}, found)
     if out is not None:
@@ -137,8 +141,10 @@ def plan_check_cmd(
                                        "unit): say how large each change is at the limit."),
     wait: float = wait_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the plan as JSON."),
+    angle_unit: str | None = angle_unit_option("the plan's joint columns"),
 ) -> None:
     """Choose the few poses that best reveal joint offsets, a moved base and a bent link."""
+    check_angle_unit(angle_unit)
     from kinecal._limits import check_count, check_finite
     from kinecal.io.csvtable import write_table
     from kinecal.registry.plan import plan_check
@@ -154,7 +160,7 @@ def plan_check_cmd(
     check_count(candidates, "--candidates", bytes_per_item=256 * m.n_params,
                 what="candidates")
     plan = plan_check(m, poses, candidates=candidates, seed=seed, sigma=sigma, limit=limit)
-    scale = 1.0 / m.joint_scale()
+    scale = 1.0 / m.joint_scale(angle_unit)
     write_table(out, {f"q{i + 1}": plan.q[:, i] * scale[i] for i in range(m.n_joints)})
     if program is not None:
         write_program_for(program, m, plan.q, wait, f"kinecal plan-check {m.name}: check poses")

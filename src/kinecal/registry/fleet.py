@@ -54,6 +54,7 @@ class FleetCheck:
     operator: str | None = None
     instrument: str | None = None
     note: str | None = None
+    angle_unit: str | None = None
 
 
 @dataclass
@@ -107,10 +108,12 @@ def check_robot(reg: Any, serial: str, data: Sequence[Any], *,
                 date: datetime | None = None, operator: str | None = None,
                 instrument: str | None = None, note: str | None = None,
                 command: str | None = None, warnings: Callable[[], list] | None = None,
-                attempts: int = 3) -> tuple[dict[str, Any], dict[str, Any], bool]:
+                attempts: int = 3, angle_unit: str | None = None
+                ) -> tuple[dict[str, Any], dict[str, Any], bool]:
     """Check `serial`'s current calibration against `data` and record it (module
     docstring); returns ``(check document, stored event, new)``. `warnings`: the
-    diagnostics collected so far, put into the document."""
+    diagnostics collected so far, put into the document; `angle_unit`: of the files'
+    joint columns (default the model's)."""
     from kinecal.io.kinds import read_kind
     from kinecal.registry.check import run_check
     from kinecal.registry.records import check_row
@@ -120,7 +123,8 @@ def check_robot(reg: Any, serial: str, data: Sequence[Any], *,
     for _ in range(attempts):
         ev = reg.current(serial)
         cal = _calibrated(ev, serial)
-        sets = [read_kind(d, cal.model) if isinstance(d, str | Path) else d for d in data]
+        sets = [read_kind(d, cal.model, angle_unit=angle_unit) if isinstance(d, str | Path)
+                else d for d in data]
         res = run_check(cal, sets, sigma=list(sigma) if sigma is not None else None,
                         limit=limit, alpha=alpha, register_base=register_base)
         if warnings is not None:
@@ -159,7 +163,8 @@ def _run_chunk(db: str, checks: list[FleetCheck]) -> list[FleetOutcome]:
                 doc, stored, new = check_robot(
                     reg, c.serial, c.data, sigma=c.sigma, limit=c.limit, alpha=c.alpha,
                     register_base=c.register_base, date=c.date, operator=c.operator,
-                    instrument=c.instrument, note=c.note, warnings=lambda f=found: list(f))
+                    instrument=c.instrument, note=c.note, warnings=lambda f=found: list(f),
+                    angle_unit=c.angle_unit)
             out.append(FleetOutcome(c.serial, stored["id"], stored["verdict"], new,
                                     extra={"deviation": doc["deviation"]}))
         except (InputError, OSError) as exc:
