@@ -102,7 +102,7 @@ def _crash(model, p):
     return p
 
 
-def run_fleet(n: int, months: int, seed: int = 0) -> dict:
+def run_fleet(n: int, months: int, seed: int = 0, alpha: float | None = None) -> dict:
     """The fleet's two years (module docstring); the counts and delays."""
     import kinecal
     from kinecal.data import Measurements
@@ -145,7 +145,8 @@ def run_fleet(n: int, months: int, seed: int = 0) -> dict:
                     stats["crossings"] += 1
                 y = model.positions(q, p_true) + rng.normal(0, NOISE, (len(q), 3))
                 _, stored, _ = check_robot(reg, serial, [Measurements(q, y)], limit=LIMIT,
-                                           date=_month(m))
+                                           date=_month(m), **({} if alpha is None else
+                                                              {"alpha": alpha}))
                 verdict = stored["verdict"]
                 stats["checks"] += 1
                 if i == crash and m == 9:
@@ -386,11 +387,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--part", choices=["fleet", "dask", "process", "all"], default="all")
+    ap.add_argument("--alpha", type=float, default=None, help="the checks' --alpha (default "
+                    "kinecal check's)")
     args = ap.parse_args()
     if args.part in ("process", "all"):
         _report_process(run_process(3 if args.quick else 7))
     if args.part in ("fleet", "all"):
-        _report_fleet(run_fleet(30 if args.quick else 200, 24))
+        _report_fleet(run_fleet(30 if args.quick else 200, 24, alpha=args.alpha))
     if args.part in ("dask", "all"):
         _report_dask(run_dask(100 if args.quick else 1000, 2 if args.quick else 10))
 

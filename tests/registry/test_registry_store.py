@@ -171,3 +171,25 @@ def test_sqlite_and_postgresql_give_identical_histories(postgres, tmp_path, arm,
     assert out["sqlite"] == out["pg"]
     verdicts = [e.get("verdict") for e in out["pg"][0]["events"]]
     assert verdicts == [None, "valid", "recalibrate", None, "valid"]
+
+
+def test_a_hand_eye_calibration_has_its_own_current_and_exports_as_ros_tf(db, arm, cli,
+                                                                           tmp_path):
+    """A robot's camera mount (kinecal handeye --out) beside its arm calibration: current
+    per subject; registry export --format ros-tf equals kinecal export's transform."""
+    he = tmp_path / "he.json"
+    assert cli("handeye", "handeye-tabb1", "--out", he)[0] == 0
+    assert cli("registry", "add", "H-1", arm.result, "--db", db)[0] == 0
+    code, _, err = cli("registry", "add", "H-1", he, "--db", db)
+    assert code == 0 and "handeye calibration 2" in err
+    hist = _json(cli, "registry", "history", "H-1", "--db", db, "--json")
+    assert hist["current"] == {"arm": 1, "handeye": 2}
+    mine, theirs = tmp_path / "mine.launch.py", tmp_path / "theirs.launch.py"
+    code, out_mine, err = cli("registry", "export", "H-1", "--format", "ros-tf", "--out",
+                              mine, "--db", db)
+    assert code == 0, err
+    code, out_theirs, _ = cli("export", he, "--format", "ros-tf", "--out", theirs)
+    assert code == 0 and out_mine == out_theirs  # the same frames and transform
+    body = [ln for ln in mine.read_text().splitlines() if not ln.startswith("# written")]
+    assert body == [ln for ln in theirs.read_text().splitlines()
+                    if not ln.startswith("# written")]
