@@ -145,7 +145,11 @@ def test_the_base_registered_again_ignores_a_moved_instrument(arm):
     p[arm.model.index(["base.rz"])[0]] += np.radians(0.5)
     path = arm.measure("moved-tracker.csv", p, seed=12)
     data = [read_kind(path, arm.model)]
-    assert run_check(cal, data, limit=0.5).verdict == "recalibrate"
+    from kinecal import diagnostics
+
+    with diagnostics.collect() as found:
+        assert run_check(cal, data, limit=0.5).verdict == "recalibrate"
+    assert [d.code for d in found] == ["check-base-moved"]
     res = run_check(cal, data, limit=0.5, register_base=True)
     assert res.verdict == "valid" and res.dof == 30 - 6 and res.directions == {}
 
@@ -158,3 +162,23 @@ def test_the_default_limit_is_twice_the_calibration_s_error(arm):
     cal = calibrated_from_result(arm.model, data, arm.result)
     res = run_check(cal, [read_kind(arm.measure("lim.csv", seed=3), arm.model)])
     assert res.limit == pytest.approx(LIMIT_FACTOR * data["calibration"]["after"]["rms"])
+
+
+def test_a_moved_instrument_is_named(arm):
+    """A change that is a rigid move of the base: check-base-moved says so, and says what
+    to do; a joint's slip does not raise it."""
+    from kinecal import diagnostics
+    from kinecal.io.kinds import read_kind
+    from kinecal.registry.check import calibrated_from_result, run_check
+
+    cal = calibrated_from_result(arm.model, json.loads(arm.result.read_text()), arm.result)
+    moved = arm.shifted("base.y", 1.5)
+    slip = arm.shifted("theta2", np.radians(0.2))
+    for params, raised in ((moved, True), (slip, False)):
+        path = arm.measure("frame.csv", params, seed=21)
+        with diagnostics.collect() as found:
+            run_check(cal, [read_kind(path, arm.model)], limit=0.5)
+        codes = [d.code for d in found]
+        assert ("check-base-moved" in codes) == raised, codes
+        if raised:
+            assert "--register base" in found[0].message and "1.5" in found[0].message

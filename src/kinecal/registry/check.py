@@ -45,6 +45,8 @@ ALPHA = 1e-3
 MIN_POSES, MAX_POSES = 5, 200
 #: the default limit, in RMS errors of the calibration
 LIMIT_FACTOR = 2.0
+#: ``check-base-moved`` when a base move alone explains this share of today's change
+BASE_SHARE = 0.8
 
 
 @dataclass
@@ -261,8 +263,11 @@ def run_check(cal: Calibrated, data: list, *, sigma: list[float | None] | None =
     limit = _limit(limit, cal)
     directions = [] if register_base else drift_directions(model)
     rows = fit_rows(model, cal, blocks, noise, directions, register_base)
+    base = np.array([k for k, n in enumerate(directions) if n.startswith("base.")], np.intp)
     j = judge(rows.r, rows.s, rows.A, cal.covariance, rows.N, rows.D, rows.obs, n_obs, alpha,
-              noise_dof)
+              noise_dof, {"base": base})
+    if j.changed and j.explained.get("base", 0.0) > BASE_SHARE:
+        _warn_base_moved(model, directions, -j.change, j.change_std, j.explained["base"])
     verdict = "valid" if not j.changed else ("recalibrate" if j.deviation > limit
                                              else "drifted")
     poses = _poses(blocks, rows, j.expected, cal)
@@ -275,6 +280,23 @@ def run_check(cal: Calibrated, data: list, *, sigma: list[float | None] | None =
         {(Path(b.source).name or b.kind): float(np.median(n))
          for b, n in zip(blocks, noise, strict=True)},
         register_base, model.length_unit)
+
+
+def _warn_base_moved(model: SerialModel, names: list[str], change: Array, std: Array,
+                     share: float) -> None:
+    """``check-base-moved``: today's change is mostly a move of the base frame."""
+    from kinecal.diagnostics import warn
+
+    idx = [k for k, n in enumerate(names) if n.startswith("base.") and np.isfinite(change[k])]
+    move = np.linalg.norm([change[k] for k in idx if names[k][-1] in "xyz" and
+                           not names[k].endswith(("rx", "ry", "rz"))]) if idx else 0.0
+    turn = np.degrees(np.linalg.norm([change[k] for k in idx if names[k].endswith(
+        ("rx", "ry", "rz"))])) if idx else 0.0
+    warn("check-base-moved",
+         f"{100 * min(share, 1.0):.0f} % of today's change is a move of the base frame "
+         f"({move:.3g} {model.length_unit}, {turn:.3g} deg): if the instrument was set up "
+         "elsewhere since the calibration, check again with --register base; if the robot "
+         "moved on its mount, recalibrate (its base at least)")
 
 
 def _block_noise(block: Any, cal: Calibrated) -> Array:

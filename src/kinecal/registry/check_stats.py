@@ -177,6 +177,7 @@ class Judgement:
     expected: Array
     change: Array = field(default_factory=lambda: np.zeros(0))
     change_std: Array = field(default_factory=lambda: np.zeros(0))
+    explained: dict[str, float] = field(default_factory=dict)
 
 
 def _basis(M: Array, tol: float = 1e-10) -> Array:
@@ -216,7 +217,8 @@ def _directions(Dt: Array, t: Array) -> tuple[float, int, Array, Array]:
 
 def judge(r: Array, s: Array, A: Array, C: Array, N: Array, D: Array,
           obs_index: NDArray[np.intp], n_obs: int, alpha: float,
-          noise_dof: float | None = None) -> Judgement:
+          noise_dof: float | None = None,
+          groups: dict[str, NDArray[np.intp]] | None = None) -> Judgement:
     """Judge today's residuals (module docstring).
 
     Parameters
@@ -243,6 +245,10 @@ def judge(r: Array, s: Array, A: Array, C: Array, N: Array, D: Array,
     noise_dof : float, optional
         When the noise `s` and `C` both scale with one estimated variance (the
         calibration's residual), its degrees of freedom: F tests instead of chi-square.
+    groups : dict of str to ndarray of int, optional
+        Named groups of the columns of `D`: ``explained[name]`` is the share of the overall
+        statistic's excess over its degrees of freedom that a change of that group alone
+        explains.
     """
     m = r.size
     cov = np.diag(s**2) + A @ C @ A.T
@@ -269,5 +275,9 @@ def judge(r: Array, s: Array, A: Array, C: Array, N: Array, D: Array,
     expected = np.bincount(obs_index, weights=expected_rows, minlength=n_obs)
     excess = (float(r @ r) - float(expected.sum())) / max(n_obs, 1)
     changed = (p < alpha / 2) or (ddof > 0 and dp < alpha / 2)
+    explained = {}
+    for name, cols in (groups or {}).items():
+        B = _basis(Dt[:, cols]) if len(cols) else np.zeros((m, 0))
+        explained[name] = float(np.sum((B.T @ t) ** 2) / max(stat - dof, 1e-300))
     return Judgement(stat, int(dof), float(p), dstat, ddof, float(dp), bool(changed),
-                     math.sqrt(max(excess, 0.0)), expected, change, change_std)
+                     math.sqrt(max(excess, 0.0)), expected, change, change_std, explained)
