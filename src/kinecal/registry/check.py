@@ -45,7 +45,8 @@ ALPHA = 1e-3
 MIN_POSES, MAX_POSES = 5, 200
 #: the default limit, in RMS errors of the calibration
 LIMIT_FACTOR = 2.0
-#: ``check-base-moved`` when a base move alone explains this share of today's change
+#: ``check-base-moved`` when a base move, significant on its own, explains this share of
+#: today's change
 BASE_SHARE = 0.8
 
 
@@ -266,7 +267,8 @@ def run_check(cal: Calibrated, data: list, *, sigma: list[float | None] | None =
     base = np.array([k for k, n in enumerate(directions) if n.startswith("base.")], np.intp)
     j = judge(rows.r, rows.s, rows.A, cal.covariance, rows.N, rows.D, rows.obs, n_obs, alpha,
               noise_dof, {"base": base})
-    if j.changed and j.explained.get("base", 0.0) > BASE_SHARE:
+    if j.changed and j.explained.get("base", 0.0) > BASE_SHARE and \
+            j.explained_p["base"] < alpha / 2:
         _warn_base_moved(model, directions, -j.change, j.change_std, j.explained["base"])
     verdict = "valid" if not j.changed else ("recalibrate" if j.deviation > limit
                                              else "drifted")

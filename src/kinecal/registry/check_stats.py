@@ -178,6 +178,7 @@ class Judgement:
     change: Array = field(default_factory=lambda: np.zeros(0))
     change_std: Array = field(default_factory=lambda: np.zeros(0))
     explained: dict[str, float] = field(default_factory=dict)
+    explained_p: dict[str, float] = field(default_factory=dict)
 
 
 def _basis(M: Array, tol: float = 1e-10) -> Array:
@@ -248,7 +249,7 @@ def judge(r: Array, s: Array, A: Array, C: Array, N: Array, D: Array,
     groups : dict of str to ndarray of int, optional
         Named groups of the columns of `D`: ``explained[name]`` is the share of the overall
         statistic's excess over its degrees of freedom that a change of that group alone
-        explains.
+        explains, ``explained_p[name]`` the p-value of that group's own test.
     """
     m = r.size
     cov = np.diag(s**2) + A @ C @ A.T
@@ -275,9 +276,12 @@ def judge(r: Array, s: Array, A: Array, C: Array, N: Array, D: Array,
     expected = np.bincount(obs_index, weights=expected_rows, minlength=n_obs)
     excess = (float(r @ r) - float(expected.sum())) / max(n_obs, 1)
     changed = (p < alpha / 2) or (ddof > 0 and dp < alpha / 2)
-    explained = {}
+    explained, explained_p = {}, {}
     for name, cols in (groups or {}).items():
         B = _basis(Dt[:, cols]) if len(cols) else np.zeros((m, 0))
-        explained[name] = float(np.sum((B.T @ t) ** 2) / max(stat - dof, 1e-300))
+        g = float(np.sum((B.T @ t) ** 2))
+        explained[name] = g / max(stat - dof, 1e-300)
+        explained_p[name] = p_value(g, B.shape[1], noise_dof)
     return Judgement(stat, int(dof), float(p), dstat, ddof, float(dp), bool(changed),
-                     math.sqrt(max(excess, 0.0)), expected, change, change_std, explained)
+                     math.sqrt(max(excess, 0.0)), expected, change, change_std, explained,
+                     explained_p)
