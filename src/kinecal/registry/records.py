@@ -36,11 +36,13 @@ def sha256_bytes(data: bytes) -> str:
 
 
 def file_entry(name: str, path: str | Path) -> dict[str, Any]:
-    """``{name, path, sha256, size}`` of an input file."""
-    from kinecal.report.provenance import file_sha256
-
+    """``{name, path, sha256, size}`` of an input file (read in 1 MiB blocks)."""
     path = Path(path)
-    return {"name": name, "path": str(path), "sha256": file_sha256(path),
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while block := fh.read(1 << 20):
+            h.update(block)
+    return {"name": name, "path": str(path), "sha256": h.hexdigest(),
             "size": path.stat().st_size}
 
 
