@@ -98,6 +98,14 @@ def registering(args: dict[str, Any], command: Any) -> None:
     from kinecal.registry.store import open_registry
 
     serial = check_serial(args["register"])
+    tips = args.get("tip_link")
+    if not isinstance(tips, str | None):  # the repeatable --tip-link of robot systems
+        from kinecal.cli.systems import is_system_arg
+
+        if is_system_arg(args["model"], args.get("base_link"), list(tips)):
+            raise InputError("the registry keeps one arm's calibrations: a robot system "
+                             "(docs/systems.md) is not registered yet", option="--register")
+        tips = tips[0] if tips else None
     open_registry(args.get("db")).close()
     line = command_text()
     with tempfile.TemporaryDirectory(prefix="kinecal-register-") as tmp:
@@ -112,7 +120,7 @@ def registering(args: dict[str, Any], command: Any) -> None:
         ev, _ = register_result(
             serial, args.get("db"), data, out if args.get("out") else "calibrate",
             model=args.get("model"), base_link=args.get("base_link"),
-            tip_link=args.get("tip_link"), report=args.get("report"), inputs=inputs,
+            tip_link=tips, report=args.get("report"), inputs=inputs,
             record=(args.get("instrument"), args.get("operator"), args.get("note")),
             command=line)
     import typer

@@ -35,8 +35,10 @@ from kinecal.cli._options import (
     quiet_option,
     report_option,
     seed_option,
+    single_tip,
     strict_option,
-    tip_link_option,
+    tip_links_option,
+    tip_option,
     unit_option,
 )
 from kinecal.cli._programs import program_option, wait_option, write_program_for
@@ -60,7 +62,8 @@ ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto")
 def identifiability(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: str | None = tip_option(),
     data: list[str] | None = typer.Option(
         None, "--data", help="CSV of the poses to analyse: measurements of any kind, or "
         "joint values q1..qn alone (e.g. from select-poses); repeat it for a mix of kinds "
@@ -86,6 +89,15 @@ def identifiability(
 ) -> None:
     """Rank, identifiable and unidentifiable parameters, condition number, O1-O5; with
     --data, what calibrate would free from those poses."""
+    from kinecal.cli.systems import is_system_arg
+
+    if is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_identifiability
+
+        return system_identifiability({**locals(), "free": free_option(free)})
+    if tip is not None:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
+    tip_link = single_tip(tip_link)
     from kinecal.calibration.diagnostics.serial import check_pose_set
     from kinecal.calibration.serial.api import CALIBRATION_RANK_TOL
     from kinecal.calibration.serial.problem import resolve_free
@@ -162,7 +174,8 @@ def _poses_to_analyse(model, path, angle_unit: str | None = None):
 def calibrate(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: str | None = tip_option(),
     data: list[str] = typer.Argument(..., help="Measurement CSV(s) or NAME:PART; several "
                                      "files of any kinds make one problem "
                                      "(docs/measurement-kinds.md)."),
@@ -230,7 +243,7 @@ def calibrate(
                                   "$KINECAL_DB, else kinecal.db)."),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
-    or from board images with --images."""
+    or from board images with --images; a robot system from rows of its chains."""
     if register is not None:  # the calibration, then its record: kinecal.cli.registry
         args = dict(locals())
         from kinecal.cli._registry_common import registering
@@ -239,6 +252,16 @@ def calibrate(
     if db is not None:
         raise InputError("applies to --register only", option="--db")
     check_angle_unit(angle_unit)
+    from kinecal.cli.systems import is_system_arg
+
+    if images is None and is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_calibrate
+
+        return system_calibrate({**locals(), "free": free_option(free),
+                                 "unit": check_unit(unit)})
+    if tip is not None:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
+    tip_link = single_tip(tip_link)
     if images is not None:  # the arm from camera images: its own module
         from kinecal.cli.calibrate_images import calibrate_images
 
@@ -335,7 +358,9 @@ def calibrate(
 def select_poses_cmd(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: list[str] | None = typer.Option(None, "--tip", help="Robot system: the chains to "
+                                         "plan rows of (repeatable; default every tip)."),
     count: int = typer.Option(..., "--count", help="Number of poses to select."),
     candidates: int | None = typer.Option(
         None, "--candidates", help="Random candidate poses (default 2000; gauge kinds: per "
@@ -354,12 +379,18 @@ def select_poses_cmd(
     wait: float = wait_option(),
 ) -> None:
     """Choose calibration poses maximising observability (O1, D-optimal); for a gauge kind
-    the rows of its file (docs/measurement-kinds.md)."""
+    the rows of its file (docs/measurement-kinds.md); for a robot system, which chain in
+    which configuration (docs/systems.md)."""
     check_angle_unit(angle_unit)
-    if program is not None:
-        from kinecal.io.programs import program_format
+    from kinecal.cli.systems import is_system_arg
 
-        program_format(program)
+    if is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_select
+
+        return system_select(dict(locals()))
+    if tip:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
+    tip_link = single_tip(tip_link)
     if kind != "tracker":
         from kinecal.cli.calibrate_kinds import select_kind_file
 
