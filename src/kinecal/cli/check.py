@@ -41,7 +41,7 @@ def check(
     limit: float | None = typer.Option(None, "--limit", help="Largest acceptable systematic "
                                        "error, RMS per pose (length unit; default twice the "
                                        "calibration's RMS error)."),
-    alpha: float = typer.Option(1e-3, "--alpha", help="Probability that an unchanged robot "
+    alpha: float = typer.Option(1e-4, "--alpha", help="Probability that an unchanged robot "
                                 "is found changed (false alarm)."),
     sigma: list[str] | None = typer.Option(None, "--sigma", help="Today's instrument noise, "
                                            "1 sigma per coordinate (length unit; default: "

@@ -341,7 +341,7 @@ def check_fleet_cmd(
     workers: int | None = typer.Option(None, "--workers", help="Worker processes (a local "
                                        "pool or a local Dask cluster)."),
     limit: float | None = typer.Option(None, "--limit", help="As kinecal check --limit."),
-    alpha: float = typer.Option(1e-3, "--alpha", help="As kinecal check --alpha."),
+    alpha: float = typer.Option(1e-4, "--alpha", help="As kinecal check --alpha."),
     db: str | None = db_option(),
     json_out: bool = typer.Option(False, "--json", help="Print every robot's outcome."),
 ) -> None:

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from kinecal.errors import InputError
+from kinecal.registry.check import ALPHA
 
 __all__ = ["FleetCheck", "FleetOutcome", "check_fleet", "check_robot"]
 
@@ -49,7 +50,7 @@ class FleetCheck:
     date: datetime | None = None
     sigma: tuple | None = None
     limit: float | None = None
-    alpha: float = 1e-3
+    alpha: float = ALPHA
     register_base: bool = False
     operator: str | None = None
     instrument: str | None = None
@@ -104,7 +105,7 @@ def _calibrated(ev: dict[str, Any], serial: str) -> Any:
 
 def check_robot(reg: Any, serial: str, data: Sequence[Any], *,
                 sigma: Sequence[float | None] | None = None, limit: float | None = None,
-                alpha: float = 1e-3, register_base: bool = False,
+                alpha: float = ALPHA, register_base: bool = False,
                 date: datetime | None = None, operator: str | None = None,
                 instrument: str | None = None, note: str | None = None,
                 command: str | None = None, warnings: Callable[[], list] | None = None,
