@@ -1,11 +1,13 @@
 """Checks of one robot, or of a fleet on a process pool or a Dask cluster, into the registry.
 
 `check_robot` is the one path every check takes (``kinecal check``, the fleet): the
-current calibration is read, today's data judged (`kinecal.registry.check`), and the check
-written in one transaction that first makes sure the calibration it judged is still
-current (else the check is made again on the new one). The record's key is the serial, the
-calibration, the date and the data's SHA-256: a check recorded twice (a task run again
-after its worker died, a retried transaction whose commit was in fact done) is stored once.
+current calibration is read, today's data judged (`kinecal.registry.check`) and the check
+written (`kinecal.registry.store.Registry.record_check`: on PostgreSQL all in one
+transaction with the robot's row locked; on SQLite the write makes sure the calibration
+judged is still current, else the check is made again on the new one). The record's key
+is the serial, the calibration, the date and the data's SHA-256: a check recorded twice
+(a task run again after its worker died, a retried transaction whose commit was in fact
+done) is stored once.
 
 `check_fleet` runs many robots' checks on any `concurrent.futures.Executor` (the Dask
 executor of `kinecal.batch.dask_executor`, a process pool): robots go in chunks, each
@@ -118,11 +120,10 @@ def check_robot(reg: Any, serial: str, data: Sequence[Any], *,
     from kinecal.io.kinds import read_kind
     from kinecal.registry.check import run_check
     from kinecal.registry.records import check_row
-    from kinecal.registry.store import StaleCalibration
 
     inputs = [_data_entry(k, d) for k, d in enumerate(data)]
-    for _ in range(attempts):
-        ev = reg.current(serial)
+
+    def make(ev: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
         cal = _calibrated(ev, serial)
         sets = [read_kind(d, cal.model, angle_unit=angle_unit) if isinstance(d, str | Path)
                 else d for d in data]
@@ -131,15 +132,11 @@ def check_robot(reg: Any, serial: str, data: Sequence[Any], *,
         if warnings is not None:
             res.warnings = [w.to_dict() for w in warnings()]
         doc = {**res.to_dict(), "calibration": ev["id"]}
-        row = check_row(serial, ev["id"], doc, inputs=inputs, date=date, operator=operator,
-                        instrument=instrument, note=note, command=command)
-        try:
-            stored, new = reg.add_event(serial, row, check_current=ev["id"],
-                                        on_duplicate="return")
-            return doc, stored, new
-        except StaleCalibration:
-            continue
-    raise InputError(f"{serial}: the current calibration kept changing while the check ran")
+        return doc, check_row(serial, ev["id"], doc, inputs=inputs, date=date,
+                              operator=operator, instrument=instrument, note=note,
+                              command=command)
+
+    return reg.record_check(serial, make, attempts)
 
 
 def _registry(db: str) -> Any:

@@ -172,31 +172,80 @@ class Registry:
         refused (`StaleCalibration`) when another one has become current meanwhile.
         """
         from kinecal.registry import history as hist
-        from kinecal.registry.schema import current_changes, events
 
         def txn(conn: Any) -> tuple[dict[str, Any], bool]:
             rid = self._robot_id(conn, serial, create=True, lock=True)
-            old = hist.event_by_uid(conn, row["uid"])
-            if old is not None:
-                if on_duplicate == "return":
-                    return old, False
-                raise InputError(
-                    f"this {old['kind']} is already in the registry as {old['kind']} "
-                    f"{old['id']} of {serial} ({old['date']}): nothing was added; to record "
-                    "it once more give --force and a --reason", option="RESULT")
             if check_current is not None:
                 now_current = hist.current_id(conn, rid, row["subject"])
                 if now_current != check_current:
                     raise StaleCalibration(check_current, now_current)
-            eid = conn.execute(events.insert().values(robot_id=rid, **row)
-                               ).inserted_primary_key[0]
-            if current is not None:
-                conn.execute(current_changes.insert().values(
-                    robot_id=rid, event_id=eid, subject=current, date=row["date"],
-                    recorded=row["recorded"], reason=reason, operator=row.get("operator")))
-            return hist.event_by_id(conn, eid), True
+            return self._insert(conn, rid, serial, row, current, reason, on_duplicate)
 
         return self.write(txn)
+
+    def _insert(self, conn: Any, rid: int, serial: str, row: dict[str, Any],
+                current: str | None, reason: str | None, on_duplicate: str
+                ) -> tuple[dict[str, Any], bool]:
+        """Insert `row` for robot `rid` in the open transaction (`add_event`)."""
+        from kinecal.registry import history as hist
+        from kinecal.registry.schema import current_changes, events
+
+        old = hist.event_by_uid(conn, row["uid"])
+        if old is not None:
+            if on_duplicate == "return":
+                return old, False
+            raise InputError(
+                f"this {old['kind']} is already in the registry as {old['kind']} "
+                f"{old['id']} of {serial} ({old['date']}): nothing was added; to record "
+                "it once more give --force and a --reason", option="RESULT")
+        eid = conn.execute(events.insert().values(robot_id=rid, **row)).inserted_primary_key[0]
+        if current is not None:
+            conn.execute(current_changes.insert().values(
+                robot_id=rid, event_id=eid, subject=current, date=row["date"],
+                recorded=row["recorded"], reason=reason, operator=row.get("operator")))
+        return hist.event_by_id(conn, eid), True
+
+    def record_check(self, serial: str, make: Callable[[dict[str, Any]], tuple[Any, dict]],
+                     attempts: int = 3) -> tuple[Any, dict[str, Any], bool]:
+        """Judge and record a check of `serial`'s current arm calibration: ``make(event)``
+        (the current calibration with its document and model) returns ``(document,
+        row)``; returns ``(document, stored event, new)``; a row whose key is stored
+        already is not stored again (``new`` False).
+
+        PostgreSQL: one transaction, the robot's row locked from reading its current
+        calibration to writing the check (other robots go on; a second check of this robot
+        waits). SQLite, whose write lock is the whole file's: the current calibration is
+        read, the check made outside any lock, and written in a transaction that makes
+        sure the calibration is still current (else made again, up to `attempts` times).
+        """
+        from kinecal.registry import history as hist
+
+        if self.location.backend == "postgresql":
+            def txn(conn: Any) -> tuple[Any, dict[str, Any], bool]:
+                rid = self._robot_id(conn, serial, create=False, lock=True)
+                if rid is None:  # (no second connection: one per process on PostgreSQL)
+                    raise InputError(f"no robot {serial!r} in the registry "
+                                     f"{self.location.shown}", option="SERIAL")
+                eid = hist.current_id(conn, rid, "arm")
+                if eid is None:
+                    raise InputError(f"{serial} has no current arm calibration (registry add "
+                                     f"{serial} RESULT.json records one)", option="SERIAL")
+                doc, row = make(hist.event_by_id(conn, eid, full=True))
+                stored, new = self._insert(conn, rid, serial, row, None, None, "return")
+                return doc, stored, new
+
+            return self.write(txn)
+        for _ in range(attempts):
+            ev = self.current(serial)
+            doc, row = make(ev)
+            try:
+                stored, new = self.add_event(serial, row, check_current=ev["id"],
+                                             on_duplicate="return")
+                return doc, stored, new
+            except StaleCalibration:
+                continue
+        raise InputError(f"{serial}: the current calibration kept changing while the check "
+                         "ran", option="SERIAL")
 
     def set_current(self, serial: str, event_id: int, *, reason: str | None = None,
                     operator: str | None = None, date: datetime | None = None
