@@ -280,7 +280,7 @@ def run_dask(robots: int, per_robot: int, workers: int = 4) -> dict:
         reader = subprocess.Popen([sys.executable, "-c", READER, url, str(robots), str(stop)],
                                   env=env, stdout=subprocess.PIPE, text=True)
         with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                          host="127.0.0.1", dashboard_address=None) as cluster, \
+                          host="127.0.0.1", dashboard_address="127.0.0.1:0") as cluster, \
                 Client(cluster) as client:
             ex = client.get_executor(pure=False)
             done = []
