@@ -9,7 +9,8 @@ from typing import Any
 
 from kinecal.errors import InputError
 
-__all__ = ["date_option", "db_option", "register_result", "registering", "serial_argument"]
+__all__ = ["date_option", "db_option", "register_option", "register_result", "registering",
+           "serial_argument"]
 
 
 def db_option() -> Any:
@@ -18,6 +19,14 @@ def db_option() -> Any:
 
     return typer.Option(None, "--db", help="The registry: an SQLite file, or a postgresql:// "
                         "URL (default: $KINECAL_DB, else kinecal.db in the working folder).")
+
+
+def register_option() -> Any:
+    """``calibrate --register SERIAL``: the result recorded in the registry too."""
+    import typer
+
+    return typer.Option(None, "--register", metavar="SERIAL", help="Also record the result "
+                        "for this robot in the registry (--db; docs/robot-life.md).")
 
 
 def date_option(what: str) -> Any:

@@ -87,23 +87,12 @@ def locate(db: str | os.PathLike | None = None) -> Location:
     return Location("sqlite", text, text, option)
 
 
-def _epoch() -> int | None:
-    """``SOURCE_DATE_EPOCH`` as whole seconds, None when unset or blank."""
-    text = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
-    if not text:
-        return None
-    try:
-        value = int(text)
-        datetime.fromtimestamp(value, UTC)
-    except (ValueError, OverflowError, OSError):
-        raise InputError(f"SOURCE_DATE_EPOCH={text!r}: expected whole seconds since "
-                         "1970-01-01 UTC", option="SOURCE_DATE_EPOCH") from None
-    return value
-
-
 def now() -> datetime:
-    """Now (UTC, to the second), or ``SOURCE_DATE_EPOCH`` when set."""
-    epoch = _epoch()
+    """Now (UTC, to the second), or ``SOURCE_DATE_EPOCH`` when set (`kinecal._reproducible`:
+    checked once for every layer)."""
+    from kinecal._reproducible import source_date_epoch
+
+    epoch = source_date_epoch()
     if epoch is not None:
         return datetime.fromtimestamp(epoch, UTC)
     return datetime.now(UTC).replace(microsecond=0)
