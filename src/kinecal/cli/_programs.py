@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-__all__ = ["program_option", "wait_option", "write_program_for"]
+__all__ = ["check_program_for", "program_option", "wait_option", "write_program_for"]
 
 
 def program_option() -> Any:
@@ -25,6 +25,19 @@ def wait_option() -> Any:
 
     return typer.Option(2.0, "--wait", help="With --program: seconds at each pose for the "
                         "measurement.")
+
+
+def check_program_for(path: Path | None, model: Any, wait: float) -> None:
+    """Refuse, before any work, a program the language cannot write for `model` (a URScript
+    of seven joints, an unknown suffix, a wait out of range)."""
+    if path is None:
+        return
+    import numpy as np
+
+    from kinecal.io.programs import program_text
+
+    program_text(path, np.zeros((1, model.n_joints)), prismatic=model.is_prismatic(),
+                 length_unit=model.length_unit, wait=wait)
 
 
 def write_program_for(path: Path, model: Any, q: Any, wait: float, comment: str) -> None:

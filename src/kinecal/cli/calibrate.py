@@ -43,7 +43,12 @@ from kinecal.cli._options import (
     unit_option,
 )
 from kinecal.cli._outputs import write_outputs
-from kinecal.cli._programs import program_option, wait_option, write_program_for
+from kinecal.cli._programs import (
+    check_program_for,
+    program_option,
+    wait_option,
+    write_program_for,
+)
 from kinecal.cli._registry_common import db_option, register_option
 from kinecal.cli._serial_common import POSE_BYTES, free_option
 from kinecal.cli.calibrate_kinds import (
@@ -376,6 +381,9 @@ def select_poses_cmd(
     from kinecal.cli.systems import is_system_arg
 
     if is_system_arg(model, base_link, tip_link):
+        if program is not None:
+            raise InputError("writes one arm's program; a robot system's plan has rows of "
+                             "several chains", option="--program")
         from kinecal.cli.systems import system_select
 
         return system_select(dict(locals()))
@@ -401,15 +409,19 @@ def select_poses_cmd(
 
     check_paths({"MODEL": model}, {"--out": out, "--program": program})
     m = load_model_arg(model, base_link, tip_link)
+    check_program_for(program, m, wait)
     check_count(candidates, "--candidates", bytes_per_item=128 * m.n_params, what="candidates")
     q = random_configurations(m, candidates, np.random.default_rng(seed))
     ident, _ = resolve_free(m, candidate_measurements(m, q), "identifiable", tol=1e-4)
     idx, obs = select_poses(m, q, count, free=ident)
     scale = 1.0 / m.joint_scale(angle_unit)  # to the file's units per joint column
-    write_table(out, {f"q{i + 1}": q[idx, i] * scale[i] for i in range(m.n_joints)})
-    if program is not None:
-        write_program_for(program, m, q[idx], wait, f"kinecal select-poses {m.name}: "
-                          "calibration poses")
+    from kinecal._files import all_or_nothing
+
+    with all_or_nothing():  # the plan and its program both, or neither
+        write_table(out, {f"q{i + 1}": q[idx, i] * scale[i] for i in range(m.n_joints)})
+        if program is not None:
+            write_program_for(program, m, q[idx], wait, f"kinecal select-poses {m.name}: "
+                              "calibration poses")
     also = f" and {program}" if program else ""
     typer.echo(f"wrote {count} poses to {out}{also}; O1 = {obs['O1']:.4g}, O2 = {obs['O2']:.4g} "
                f"({len(ident)} identifiable parameters)", err=True)

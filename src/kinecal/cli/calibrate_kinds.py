@@ -332,13 +332,18 @@ def select_kind_file(model: str, kind: str, *, count: int, candidates: int | Non
     if length is not None and kind not in ("ballbar", "pair"):
         raise InputError(f"applies to --kind ballbar or pair, not {kind}", option="--length")
     m = load_model_arg(model, base_link, tip_link)
-    plan, info = select_kind_poses(m, kind, count, candidates=candidates, rng=seed, **geometry)
-    write_gauge(out, plan, m, angle_unit=angle_unit)
-    if program[0] is not None:  # a robot program visiting the rows in order
-        from kinecal.cli._programs import write_program_for
+    from kinecal.cli._programs import check_program_for
 
-        write_program_for(program[0], m, plan.q, program[1], f"kinecal select-poses "
-                          f"{m.name} --kind {kind}: calibration poses")
+    check_program_for(program[0], m, program[1])
+    plan, info = select_kind_poses(m, kind, count, candidates=candidates, rng=seed, **geometry)
+    from kinecal._files import all_or_nothing
+    from kinecal.cli._programs import write_program_for
+
+    with all_or_nothing():  # the rows and their program both, or neither
+        write_gauge(out, plan, m, angle_unit=angle_unit)
+        if program[0] is not None:  # a robot program visiting the rows in order
+            write_program_for(program[0], m, plan.q, program[1], f"kinecal select-poses "
+                              f"{m.name} --kind {kind}: calibration poses")
     typer.echo(f"wrote {len(plan)} {kind} rows to {out}; O1 = {info['O1']:.4g}, O2 = "
                f"{info['O2']:.4g} ({info['rank']} identifiable parameters"
                + (f"; not seen: {', '.join(info['not_seen'])}" if info["not_seen"] else "")

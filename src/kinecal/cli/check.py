@@ -20,7 +20,12 @@ from kinecal.cli._options import (
     strict_option,
     tip_link_option,
 )
-from kinecal.cli._programs import program_option, wait_option, write_program_for
+from kinecal.cli._programs import (
+    check_program_for,
+    program_option,
+    wait_option,
+    write_program_for,
+)
 from kinecal.cli._registry_common import (
     check_serial,
     command_text,
@@ -150,20 +155,21 @@ def plan_check_cmd(
     from kinecal.registry.plan import plan_check
 
     check_paths({"MODEL": model}, {"--out": out, "--program": program})
-    if program is not None:
-        from kinecal.io.programs import program_format
-
-        program_format(program)
     check_finite(sigma, "--sigma", positive=True)
     check_finite(limit, "--limit", positive=True)
     m = load_model_arg(model, base_link, tip_link)
+    check_program_for(program, m, wait)
     check_count(candidates, "--candidates", bytes_per_item=256 * m.n_params,
                 what="candidates")
     plan = plan_check(m, poses, candidates=candidates, seed=seed, sigma=sigma, limit=limit)
     scale = 1.0 / m.joint_scale(angle_unit)
-    write_table(out, {f"q{i + 1}": plan.q[:, i] * scale[i] for i in range(m.n_joints)})
-    if program is not None:
-        write_program_for(program, m, plan.q, wait, f"kinecal plan-check {m.name}: check poses")
+    from kinecal._files import all_or_nothing
+
+    with all_or_nothing():  # the plan and its program both, or neither
+        write_table(out, {f"q{i + 1}": plan.q[:, i] * scale[i] for i in range(m.n_joints)})
+        if program is not None:
+            write_program_for(program, m, plan.q, wait,
+                              f"kinecal plan-check {m.name}: check poses")
     if json_out:
         echo_json(plan.to_dict())
         return

@@ -162,14 +162,17 @@ def history(
     with _open(db) as reg:
         hist = reg.history(serial, retracted=retracted)
     drift = drift_summary(hist)
-    if plot is not None:
-        from kinecal.registry.figures import history_figure
+    from kinecal._files import all_or_nothing
 
-        history_figure(hist, drift, plot)
-    if report is not None:
-        from kinecal.registry.reports import history_report
+    with all_or_nothing():  # the figure and the report both, or neither
+        if plot is not None:
+            from kinecal.registry.figures import history_figure
 
-        history_report(hist, drift, report)
+            history_figure(hist, drift, plot)
+        if report is not None:
+            from kinecal.registry.reports import history_report
+
+            history_report(hist, drift, report)
     if json_out:
         echo_json({**hist, "drift": drift})
         return
