@@ -182,3 +182,26 @@ def test_a_moved_instrument_is_named(arm):
         assert ("check-base-moved" in codes) == raised, codes
         if raised:
             assert "--register base" in found[0].message and "1.5" in found[0].message
+
+
+def test_a_calibration_without_its_base_registers_today_s_frame(tmp_path, cli, monkeypatch):
+    """Two tracker stations (each its own frame: the calibration does not determine the
+    arm's base): a check of tracker points fits today's frame itself and says so; without
+    that, the unknown frame would read as a robot that moved."""
+    monkeypatch.chdir(tmp_path)
+    for seed, name in ((21, "s1.csv"), (22, "s2.csv")):
+        extra = ["--truth-out", "truth.json"] if seed == 21 else ["--errors", "truth.json"]
+        assert cli("simulate", "ur5", "--poses", "30", "--noise", "0.02", "--seed", seed,
+                   "--out", name, *extra)[0] == 0
+    code, _, err = cli("calibrate", "ur5", "s1.csv", "s2.csv", "--station-per-file",
+                       "--register", "ST-1", "--quiet")
+    assert code == 0, err
+    assert cli("plan-check", "ur5", "--out", "poses.csv")[0] == 0
+    assert cli("simulate", "ur5", "--joints", "poses.csv", "--errors", "truth.json",
+               "--noise", "0.02", "--seed", "23", "--out", "today.csv")[0] == 0
+    code, out, err = cli("check", "ST-1", "today.csv", "--limit", "0.3", "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["verdict"] == "valid" and doc["register_base"]
+    assert doc["base_registered"] == "the calibration did not determine the base frame"
+    assert doc["dof"] == 30 - 6

@@ -116,6 +116,9 @@ def _text(serial: str, stored: dict, res: dict) -> str:
         f"  systematic error {res['deviation']:.4g} {unit} RMS per pose (limit "
         f"{res['limit']:.4g} {unit})",
     ]
+    if res.get("base_registered") and res["base_registered"] != "asked for":
+        lines.append(f"  the base frame was fitted to today's data: "
+                     f"{res['base_registered']}")
     big = sorted(res["directions"].items(), key=lambda kv: -abs(kv[1]["change"]) /
                  max(kv[1]["std"], 1e-300))[:3]
     for name, d in big:

@@ -204,6 +204,7 @@ class CheckResult:
     noise: dict[str, float]
     register: bool
     length_unit: str
+    base_registered: str | None = None
     warnings: list[dict[str, str]] = field(default_factory=list)
 
     @property
@@ -221,7 +222,8 @@ class CheckResult:
             "whitened by the calibration's prediction covariance and the instrument's noise",
             "noise_dof": self.noise_dof,
             "directed": self.directed, "directions": self.directions, "noise": self.noise,
-            "register_base": self.register, "length_unit": self.length_unit,
+            "register_base": self.register, "base_registered": self.base_registered,
+            "length_unit": self.length_unit,
             "poses": self.poses, "warnings": self.warnings,
         }
 
@@ -246,7 +248,9 @@ def run_check(cal: Calibrated, data: list, *, sigma: list[float | None] | None =
         False-alarm probability of the tests.
     register_base : bool
         Fit the base frame to today's data (the instrument moved): base changes are then
-        not judged.
+        not judged. Done anyway, and said (``base_registered``), when the calibration did
+        not determine the base frame of a model that has one (stations, gauges) and today's
+        data are tracker points: their frame is unknown to it.
     """
     from kinecal.calibration.blocks.make import make_blocks, marker_names
     from kinecal.kinematics.serial.markers import model_for_markers
@@ -266,6 +270,10 @@ def run_check(cal: Calibrated, data: list, *, sigma: list[float | None] | None =
     estimated = any(b.stated_sigma() is None for b in blocks)
     noise_dof = cal.noise_dof if estimated else None
     limit = _limit(limit, cal)
+    undetermined = (model.base is not None and not register_base
+                    and not any(n.startswith("base.") for n in cal.free)
+                    and any(b.kind == "tracker" for b in blocks))
+    register_base = register_base or undetermined
     directions = [] if register_base else drift_directions(model)
     rows = fit_rows(model, cal, blocks, noise, directions, register_base)
     base = np.array([k for k, n in enumerate(directions) if n.startswith("base.")], np.intp)
@@ -285,7 +293,9 @@ def run_check(cal: Calibrated, data: list, *, sigma: list[float | None] | None =
         poses, _direction_table(model, directions, -j.change, j.change_std),
         {(Path(b.source).name or b.kind): float(np.median(n))
          for b, n in zip(blocks, noise, strict=True)},
-        register_base, model.length_unit)
+        register_base, model.length_unit,
+        base_registered="the calibration did not determine the base frame" if undetermined
+        else ("asked for" if register_base else None))
 
 
 def _warn_base_moved(model: SerialModel, names: list[str], change: Array, std: Array,
