@@ -269,3 +269,13 @@ def test_unwritable_folder_and_missing_registry_are_named(tmp_path, arm, cli):
     code, _, err = cli("registry", "list", "--db", "mysql://h/db")
     assert code == 2 and "postgresql://" in err
     shutil.rmtree(tmp_path / "no", ignore_errors=True)
+
+
+def test_without_the_registry_extra_the_command_says_what_to_install(tmp_path):
+    code = ("import sys; sys.modules['sqlalchemy'] = None\n"
+            "from kinecal.cli import main\n"
+            "sys.exit(main(['registry', 'list', '--db', sys.argv[1]]))")
+    done = subprocess.run([sys.executable, "-c", code, str(tmp_path / "k.db")], env=ENV,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2
+    assert "pip install 'kinecal[registry]'" in done.stderr and "Traceback" not in done.stderr

@@ -36,6 +36,11 @@ def make_engine(loc: Location, read_only: bool = False) -> Any:
     from sqlalchemy.pool import NullPool
 
     if loc.backend == "postgresql":
+        import importlib.util
+
+        if importlib.util.find_spec("psycopg") is None:
+            raise InputError("a PostgreSQL registry needs psycopg 3: pip install "
+                             "'kinecal[registry]'", option="--db")
         engine = sa.create_engine(loc.target, pool_size=1, max_overflow=0,
                                   pool_pre_ping=True, connect_args={"connect_timeout": 20})
         return engine

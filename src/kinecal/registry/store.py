@@ -43,6 +43,7 @@ def open_registry(db: str | None = None, *, write: bool = True) -> Registry:
     """
     from kinecal.registry.opening import prepare
 
+    _require_extra()
     loc = locate(db)
     read_only = prepare(loc, write)
     engine = make_engine(loc, read_only=read_only)
@@ -53,6 +54,17 @@ def open_registry(db: str | None = None, *, write: bool = True) -> Registry:
         reg.close()
         raise
     return reg
+
+
+def _require_extra() -> None:
+    """`InputError` naming the optional extra when SQLAlchemy or Alembic is missing."""
+    import importlib.util
+
+    missing = [m for m in ("sqlalchemy", "alembic") if importlib.util.find_spec(m) is None]
+    if missing:
+        raise InputError(f"the registry needs {' and '.join(missing)}: pip install "
+                         "'kinecal[registry]' (PostgreSQL: psycopg, in the same extra)",
+                         option="--db")
 
 
 class Registry:
