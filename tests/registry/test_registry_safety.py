@@ -279,3 +279,15 @@ def test_without_the_registry_extra_the_command_says_what_to_install(tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert "pip install 'kinecal[registry]'" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_an_output_on_the_registry_file_is_refused(sqlite_db, arm, cli):
+    assert cli("registry", "add", "O-1", arm.result, "--db", sqlite_db)[0] == 0
+    before = digest(sqlite_db)
+    for args in (("registry", "report", "--fleet", sqlite_db),
+                 ("registry", "history", "O-1", "--report", sqlite_db),
+                 ("registry", "export", "O-1", "--format", "yaml", "--out", sqlite_db),
+                 ("check", "O-1", arm.measure("o.csv"), "--out", sqlite_db)):
+        code, _, err = cli(*args, "--db", sqlite_db)
+        assert code == 2 and "is also the input --db" in err, (args, err)
+    assert digest(sqlite_db) == before

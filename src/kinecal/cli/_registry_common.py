@@ -9,8 +9,8 @@ from typing import Any
 
 from kinecal.errors import InputError
 
-__all__ = ["date_option", "db_option", "register_option", "register_result", "registering",
-           "serial_argument"]
+__all__ = ["date_option", "db_input", "db_option", "register_option", "register_result",
+           "registering", "serial_argument"]
 
 
 def db_option() -> Any:
@@ -19,6 +19,15 @@ def db_option() -> Any:
 
     return typer.Option(None, "--db", help="The registry: an SQLite file, or a postgresql:// "
                         "URL (default: $KINECAL_DB, else kinecal.db in the working folder).")
+
+
+def db_input(db: str | None) -> dict[str, str]:
+    """``{"--db": path}`` of an SQLite registry, for `check_paths`'s inputs: an output on
+    the registry file is refused (``{}`` for PostgreSQL)."""
+    from kinecal.registry.location import locate
+
+    loc = locate(db)
+    return {loc.option: loc.target} if loc.backend == "sqlite" else {}
 
 
 def register_option() -> Any:

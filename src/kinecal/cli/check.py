@@ -30,6 +30,7 @@ from kinecal.cli._registry_common import (
     check_serial,
     command_text,
     date_option,
+    db_input,
     db_option,
     parse_date_option,
     serial_argument,
@@ -78,7 +79,7 @@ def check(
     check_angle_unit(angle_unit)
     if register not in (None, "base"):
         raise InputError(f"expected base, got {register!r}", option="--register")
-    check_paths({f"DATA {d}": d for d in data}, {"--out": out})
+    check_paths({**db_input(db), **{f"DATA {d}": d for d in data}}, {"--out": out})
     paths = [resolve_data_path(d) for d in data]
     stated = parse_sigma(sigma, data)
     when = parse_date_option(date)

@@ -18,6 +18,7 @@ from kinecal.cli._registry_common import (
     check_serial,
     command_text,
     date_option,
+    db_input,
     db_option,
     parse_date_option,
     register_result,
@@ -158,7 +159,7 @@ def history(
     from kinecal.registry.drift import drift_summary
 
     serial = check_serial(serial)
-    check_paths({}, {"--plot": plot, "--report": report})
+    check_paths(db_input(db), {"--plot": plot, "--report": report})
     with _open(db) as reg:
         hist = reg.history(serial, retracted=retracted)
     drift = drift_summary(hist)
@@ -235,7 +236,7 @@ def export(
     if fmt not in EXPORT_FORMATS:
         raise InputError(f"unknown format {fmt!r}; expected one of "
                          f"{', '.join(EXPORT_FORMATS)}", option="--format")
-    check_paths({}, {"--out": out})
+    check_paths(db_input(db), {"--out": out})
     with _open(db) as reg:
         subject = "handeye" if fmt == "ros-tf" else "arm"
         ev = reg.current(serial, subject) if calibration is None else reg.event(
@@ -259,7 +260,7 @@ def report_cmd(
     from kinecal.registry.fleet_view import fleet_rows
     from kinecal.registry.reports import fleet_report
 
-    check_paths({}, {"--fleet": fleet})
+    check_paths(db_input(db), {"--fleet": fleet})
     with _open(db) as reg:
         rows = fleet_rows(reg.robots())
     fleet_report(rows, fleet, where=reg.location.shown)
