@@ -205,3 +205,29 @@ def test_a_calibration_without_its_base_registers_today_s_frame(tmp_path, cli, m
     assert doc["verdict"] == "valid" and doc["register_base"]
     assert doc["base_registered"] == "the calibration did not determine the base frame"
     assert doc["dof"] == 30 - 6
+
+
+def test_one_process_checking_in_two_registries_judges_each_robot_by_its_own(tmp_path, arm):
+    """Record ids repeat from one registry to another: a process (a Dask worker, a script)
+    that checks robots of two registries must judge each by its own calibration (the
+    kept calibrations were once keyed by id: the second robot was judged by the first's)."""
+    import kinecal
+    from kinecal.calibration.serial.simulate import simulate
+    from kinecal.data import Measurements
+    from kinecal.registry.fleet import check_robot
+    from kinecal.registry.records import calibration_row, model_source
+    from kinecal.registry.store import open_registry
+
+    other = simulate(arm.model, 40, errors="random", noise=0.03, rng=99)
+    doc_b = json.loads(json.dumps(kinecal.calibrate(arm.model, other.data).to_dict()))
+    verdicts = []
+    for name, doc, truth in (("a.db", json.loads(arm.result.read_text()), arm.truth),
+                             ("b.db", doc_b, other.true_params)):
+        with open_registry(str(tmp_path / name)) as reg:
+            reg.add_event("X", calibration_row("X", doc, name, source=model_source(None, doc)),
+                          current="arm")
+            y = arm.model.positions(arm.q, truth) + np.random.default_rng(1).normal(
+                0, 0.03, (len(arm.q), 3))
+            _, stored, _ = check_robot(reg, "X", [Measurements(arm.q, y)], limit=0.3)
+            verdicts.append((stored["calibration_id"], stored["verdict"]))
+    assert verdicts == [(1, "valid"), (1, "valid")]

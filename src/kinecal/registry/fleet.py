@@ -38,7 +38,9 @@ CHUNK = 25
 #: calibrations kept ready per worker process
 _CACHE = 256
 _REGISTRIES: dict[str, Any] = {}
-_CALIBRATED: OrderedDict[int, Any] = OrderedDict()
+#: keyed by the stored result's and model's SHA-256 (never by a record's id: ids repeat
+#: from one registry to another)
+_CALIBRATED: OrderedDict[tuple, Any] = OrderedDict()
 
 
 @dataclass(frozen=True)
@@ -95,11 +97,13 @@ def _calibrated(ev: dict[str, Any], serial: str) -> Any:
     from kinecal.registry.check import calibrated_from_result
     from kinecal.registry.records import load_stored_model, source_of
 
-    cal = _CALIBRATED.get(ev["id"])
+    key = (ev["document_sha256"], ev.get("model_sha256"), ev.get("base_link"),
+           ev.get("tip_link"))
+    cal = _CALIBRATED.get(key)
     if cal is None:
         cal = calibrated_from_result(load_stored_model(source_of(ev)), ev["document"],
                                      f"calibration {ev['id']} of {serial}")
-        _CALIBRATED[ev["id"]] = cal
+        _CALIBRATED[key] = cal
         while len(_CALIBRATED) > _CACHE:
             _CALIBRATED.popitem(last=False)
     return cal
