@@ -89,4 +89,5 @@ CODES: dict[str, str] = {
                            "names, not finite, time not increasing)",
     "ros-bad-values": "bag measurement messages whose values are no measurement (NaN, unset "
                       "quaternion) left out",
+    "check-base-moved": "kinecal check: today's change is mostly a move of the base frame",
 }

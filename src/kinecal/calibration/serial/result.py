@@ -255,6 +255,14 @@ class CalibrationResult:
             for k, n in enumerate(self.nominal_model.parameter_names)
         }
 
+    def covariance_table(self) -> dict[str, Any]:
+        """``{parameters, matrix}``: the covariance of the free parameters (in `free`'s
+        order) in the model file's units, angles in its angle unit; what ``kinecal check``
+        propagates to the poses it judges (docs/robot-life.md)."""
+        conv = self._unit_scale()[self.nominal_model.index(self.free)]
+        return {"parameters": list(self.free),
+                "matrix": (np.asarray(self.covariance) * np.outer(conv, conv)).tolist()}
+
     def to_dict(self) -> dict[str, Any]:
         """The calibration JSON of DESIGN section 4 (lengths in the model unit).
 
@@ -276,6 +284,7 @@ class CalibrationResult:
             "parameters": self.parameter_table(),
             "frames": frames_entry(self.nominal_model, self.params, self.extra),
             "free": list(self.free),
+            "covariance": self.covariance_table(),
             "unidentifiable": self.unidentifiable(),
             "confounded_with": rep.confounded_with,
             "rank": rep.rank,
