@@ -7,7 +7,8 @@ import sys
 
 import numpy as np
 
-HEAVY = ("scipy", "matplotlib", "pydantic", "rich", "yaml", "pandas")
+HEAVY = ("scipy", "matplotlib", "pydantic", "rich", "yaml", "pandas", "sqlalchemy", "alembic",
+         "psycopg")
 
 
 def _modules_after(code: str) -> set[str]:

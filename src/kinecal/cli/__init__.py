@@ -76,6 +76,8 @@ _COMMAND_MODULES = [
     "kinecal.cli.import_cmd",
     "kinecal.cli.iso9283",
     "kinecal.cli.datasets",
+    "kinecal.cli.registry",
+    "kinecal.cli.check",
     "kinecal.cli.ui",
 ]
 
@@ -104,6 +106,9 @@ _COMMANDS = {
     "import": "kinecal.cli.import_cmd",
     "iso9283": "kinecal.cli.iso9283",
     "datasets": "kinecal.cli.datasets",
+    "registry": "kinecal.cli.registry",
+    "check": "kinecal.cli.check",
+    "plan-check": "kinecal.cli.check",
     "ui": "kinecal.cli.ui",
 }
 

@@ -38,10 +38,11 @@ ROTATION_WEIGHT = typer.Option(
     "rotation error (default: the workspace's characteristic length).")
 ERROR_MODEL = typer.Option(
     None, "--error-model", metavar=choices(*ERROR_MODELS), help="auto: chosen by "
-    "cross-validation on the calibration poses; or families joined by '+' (default: the "
-    "model file's joint_errors, else geometric). See docs/error-models.md.")
+    "cross-validation on the calibration poses, within and beyond their joint ranges; or "
+    "families joined by '+' (default: the model file's joint_errors, else geometric). See "
+    "docs/error-models.md.")
 HARMONICS = typer.Option(None, "--harmonics", help="Harmonic order (default 2; auto tries "
-                         "1..3).")
+                         "1..4).")
 FOLDS = typer.Option(None, "--folds", help="Cross-validation folds (--error-model auto; "
                      "default 10).")
 SIGMA = typer.Option(

@@ -104,10 +104,11 @@ def fk(
     if tip is not None:
         raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
     tip_link = single_tip(tip_link)
+    from kinecal.calibration.diagnostics.envelope import check_calibrated_range
     from kinecal.calibration.diagnostics.serial import check_joint_limits, check_joint_units
     from kinecal.cli._serial_common import parameters_from_result
     from kinecal.io.measurements import read_joints, read_markers
-    from kinecal.io.result_values import model_for_result
+    from kinecal.io.result_values import model_for_result, read_result_envelope
     from kinecal.spatial import quaternion_from_matrix
 
     with warnings_scope(strict):
@@ -120,6 +121,11 @@ def fk(
         check_joint_limits(m, q, "joint readings")
         check_joint_units(m, q, "joint readings")
         p = None if params is None else parameters_from_result(m, params)
+        # the joint readings the calibration saw: the result's, or those of the terms of a
+        # calibrated model file
+        envelope = (read_result_envelope(m, params) if params is not None else
+                    None if m.joint_errors is None else m.joint_errors.envelope)
+        check_calibrated_range(q, envelope, m, "joint readings")
     T = m.fk(q, p, marker)
     header = ["x", "y", "z"] + (["qw", "qx", "qy", "qz"] if pose else [])
     out = T[:, :3, 3]

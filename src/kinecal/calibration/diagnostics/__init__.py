@@ -23,6 +23,7 @@ CODES: dict[str, str] = {
     "mirrored-frame": "measured positions fit the model mirrored (an axis negated)",
     "initial-error": "the data are far from the nominal model: wrong model or frame",
     "validation-overlap": "validation poses repeat calibration poses",
+    "outside-calibrated-range": "joint readings beyond the joint range the calibration saw",
     "validation-frame": "validation data in another frame (a moved tracker): re-register them",
     "tool-orientation": "measured orientations far from the model's tool frame (stations)",
     "rank-deficient": "the poses identify fewer parameters than well-spread poses do",
@@ -88,4 +89,5 @@ CODES: dict[str, str] = {
                            "names, not finite, time not increasing)",
     "ros-bad-values": "bag measurement messages whose values are no measurement (NaN, unset "
                       "quaternion) left out",
+    "check-base-moved": "kinecal check: today's change is mostly a move of the base frame",
 }

@@ -23,6 +23,7 @@ import numpy as np
 
 from kinecal import diagnostics
 from kinecal.calibration.diagnostics.change import check_change
+from kinecal.calibration.diagnostics.envelope import check_calibrated_range
 from kinecal.calibration.diagnostics.fit import check_serial_fit
 from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stated_sigma
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
@@ -36,7 +37,11 @@ from kinecal.calibration.serial.prior_fit import prior_entry
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
 from kinecal.calibration.serial.solve import solve_lm
-from kinecal.calibration.serial.summaries import result_extra, validation_errors
+from kinecal.calibration.serial.summaries import (
+    conditions_of,
+    result_extra,
+    validation_errors,
+)
 from kinecal.calibration.uncertainty import Uncertainty, subspace_uncertainty
 from kinecal.data import Measurements
 from kinecal.errors import InputError
@@ -48,7 +53,7 @@ from kinecal.optimize.factor import gram_root
 from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
 from kinecal.optimize.lsq import LOSSES, householder_gauss_newton
 
-__all__ = ["CALIBRATION_METHODS", "calibrate"]
+__all__ = ["CALIBRATION_METHODS", "calibrate", "with_model_markers"]
 
 CALIBRATION_METHODS: tuple[str, ...] = ("lm", "householder", *METHODS, *hybrid_methods())
 
@@ -106,7 +111,7 @@ def _solution_report(problem: CalibrationProblem, x: np.ndarray, report, normal,
         singular_values=sub.singular_values, observability=sub.observability)
 
 
-def _with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
+def with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
     """`data` with its marker indices into `model`'s markers (matched by name)."""
     if data.marker is None or data.marker_names == model.marker_names:
         return data
@@ -237,6 +242,11 @@ def calibrate(
         from kinecal.calibration.serial.validation_frame import judge_validation
 
         judge_validation(res, validate, validate_register, rng)
+    if isinstance(validate, Measurements):  # validation poses beyond the calibrated range
+        with diagnostics.collect(python_warnings=True) as found:
+            check_calibrated_range(validate.q, res.envelope, res.nominal_model,
+                                   "validation poses")
+        res.warnings = list(dict.fromkeys([*res.warnings, *found]))
     return res
 
 
@@ -340,8 +350,8 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
     _check_arguments(method, loss, f_scale, maxiter, target, options, model, sigma, data)
     model = model_for_markers(model, data.marker_names)  # one tool point per marker seen
     spec = prior_spec(model, prior, prior_from, method, loss)
-    data = _with_model_markers(data, model)
-    validate = None if validate is None else _with_model_markers(validate, model)
+    data = with_model_markers(data, model)
+    validate = None if validate is None else with_model_markers(validate, model)
     seed = int(rng) if isinstance(rng, int | np.integer) else None
     t0 = time.perf_counter()
     problem, res, names, report, info, first_report = _setup(
@@ -418,4 +428,5 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         marker_validation=None if validate is None else validate.marker,
         uncertainty=unc,
         lost=list(info.lost),
+        conditions=conditions_of(data, validate),
     )

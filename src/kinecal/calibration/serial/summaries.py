@@ -67,3 +67,15 @@ def result_extra(res, names, model, data, validate, params, axes, noise, info, l
         extra["least_squares_history"] = [float(h) for h in res.ls_history]
         extra["least_squares_iterations"] = int(res.ls_iterations)
     return extra
+
+
+def conditions_of(data: Measurements, validate: Measurements | None) -> dict:
+    """The ``conditions`` of a result: the temperature and time columns of the calibration
+    poses, and of the validation poses (keys prefixed ``validation_``)."""
+    out = {}
+    for prefix, d in (("", data), ("validation_", validate)):
+        for name in ("temperature", "time"):
+            v = None if d is None else getattr(d, name, None)
+            if v is not None:
+                out[prefix + name] = np.asarray(v, dtype=float)
+    return out
