@@ -119,30 +119,21 @@ def test_plan_by_hand_is_saved_as_select_poses_writes(page, bench, workdir):
 
 
 def test_robot_programs_saved_from_the_plan(page, bench, workdir):
-    """The plan of the test above as each robot language: its joint values read back by
-    each language's parser; without the program writers, one line says so."""
-    import importlib.util
-
+    """The plan of the test above as each robot language (the writers of select-poses
+    --program): its joint values read back by each language's parser, in plan order."""
     from tests.ui.conftest import ROBOT_LANGUAGES
 
     page.tab("Plan")
     plan = bench.session.plan
     assert plan is not None and len(plan) == 4
-    writers = importlib.util.find_spec("kinecal.io.programs") is not None
     for label, suffix in ROBOT_LANGUAGES.items():
         page.choose(bench.plan.language, label)
         page.page.wait_for_function("([id, v]) => document.querySelector(`[id='${id}']`)"
                                     ".value === v", arg=[bench.plan.language._impl.uuid,
                                                          label], timeout=5000)
         page.el(bench.plan.save_program).click()
-        path = workdir / "kinecal-ui" / "plans" / f"plan{suffix}"
-        if not writers:
-            text = page.wait_text("kc-status", "robot programs")
-            assert text == ("kinecal: error: robot programs (kinecal select-poses --program) "
-                            "are not in this build of kinecal")
-            assert not path.exists()
-            continue
         page.wait_text("kc-saved", f"plan{suffix}")
+        path = workdir / "kinecal-ui" / "plans" / f"plan{suffix}"
         joints = _program_joints(path.read_text(), suffix)
         assert np.allclose(joints, plan, atol=1e-8), (suffix, joints)
 
@@ -165,6 +156,8 @@ def _program_joints(text: str, suffix: str) -> np.ndarray:
         doc = yaml.safe_load(text)
         moves = np.array([p["positions"] for p in doc["points"]])
         waits = [2.0] * len(moves)
-        assert len(doc["joint_names"]) == 6
+        from kinecal.io.ros.joints import UR_JOINTS
+
+        assert doc["joint_names"] == list(UR_JOINTS)  # the UR driver's, as select-poses
     assert len(waits) == len(moves)
     return np.asarray(moves)

@@ -41,17 +41,8 @@ def check_program_for(path: Path | None, model: Any, wait: float) -> None:
 
 
 def write_program_for(path: Path, model: Any, q: Any, wait: float, comment: str) -> None:
-    """The robot program of joint values `q` (API units) for `model`; ROS joint names are
-    the model's (a URDF's), a UR arm's driver names for a bundled UR model, else
-    ``joint1..``."""
-    from kinecal.io.measurements import joint_names
-    from kinecal.io.programs import write_robot_program
+    """The robot program of joint values `q` (API units) for `model`
+    (`kinecal.io.programs.write_model_program`)."""
+    from kinecal.io.programs import write_model_program
 
-    names = list(joint_names(model)) or None
-    if names is None and model.n_joints == 6 and model.name.startswith("ur"):
-        from kinecal.io.ros.joints import UR_JOINTS
-
-        names = list(UR_JOINTS)
-    write_robot_program(path, q, prismatic=model.is_prismatic(),
-                        length_unit=model.length_unit, joint_names=names, wait=wait,
-                        comment=comment)
+    write_model_program(path, model, q, wait=wait, comment=comment)

@@ -35,7 +35,8 @@ from numpy.typing import ArrayLike
 
 from kinecal.errors import InputError
 
-__all__ = ["PROGRAM_FORMATS", "program_format", "program_text", "write_robot_program"]
+__all__ = ["PROGRAM_FORMATS", "model_joint_names", "program_format", "program_text",
+           "write_model_program", "write_robot_program"]
 
 #: file suffix -> language
 PROGRAM_FORMATS = {".script": "urscript", ".mod": "rapid", ".src": "krl", ".yaml": "ros2",
@@ -215,3 +216,28 @@ def write_robot_program(path: str | Path, q: ArrayLike, **kw) -> Path:
     text = program_text(path, q, **kw)
     write_text_atomic(path, text)
     return Path(path)
+
+
+def model_joint_names(model) -> list[str] | None:
+    """The ROS joint names of `model`'s program: the model's own (a URDF's), a UR arm's
+    driver names for a bundled six-joint UR model, else None (``joint1..``)."""
+    from kinecal.io.measurements import joint_names
+
+    names = list(joint_names(model)) or None
+    if names is None and model.n_joints == 6 and model.name.startswith("ur"):
+        from kinecal.io.ros.joints import UR_JOINTS
+
+        names = list(UR_JOINTS)
+    return names
+
+
+def write_model_program(path: str | Path, model, q: ArrayLike, *, wait: float = WAIT,
+                        comment: str = "") -> Path:
+    """`write_robot_program` for `model`'s joints (`q` in rad, prismatic joints in its
+    length unit): its linear axes, length unit and ROS joint names (`model_joint_names`).
+    What ``select-poses --program``, ``plan-check --program`` and the workbench's Plan view
+    write."""
+    return write_robot_program(path, q, prismatic=model.is_prismatic(),
+                               length_unit=model.length_unit,
+                               joint_names=model_joint_names(model), wait=wait,
+                               comment=comment)

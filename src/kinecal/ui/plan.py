@@ -3,7 +3,7 @@ add, remove) or by ``kinecal select-poses`` (in a worker process), see at once w
 identify and how well (`kinecal.ui.planning`), whether a pose collides with itself (the
 URDF's collision meshes, `kinecal.ui.collision`), and save the plan as CSV (the columns
 ``select-poses`` writes) and as a robot program (the writers of ``select-poses
---program``, `kinecal.io.programs`).
+--program``, `kinecal.io.programs.write_model_program`).
 """
 
 from __future__ import annotations
@@ -296,16 +296,12 @@ class PlanView:
         return self._saved(path)
 
     def write_program(self) -> str:
-        """The plan as a robot program by the writers of ``select-poses --program``
-        (`kinecal.io.programs.write_robot_program`, the one call made here)."""
-        try:
-            from kinecal.io.programs import write_robot_program
-        except ImportError:
-            raise InputError("robot programs (kinecal select-poses --program) are not in "
-                             "this build of kinecal") from None
+        """The plan as the robot program ``select-poses --program`` writes
+        (`kinecal.io.programs.write_model_program`)."""
+        from kinecal.io.programs import write_model_program
+
         s, path = self._target(PROGRAMS[self.language.value])
-        write_robot_program(path, self.plan, prismatic=s.model.is_prismatic(),
-                            length_unit=s.model.length_unit, joint_names=_joint_labels(s.model),
+        write_model_program(path, s.model, self.plan,
                             comment=f"kinecal workbench plan for {s.model.name}")
         return self._saved(path)
 
