@@ -12,7 +12,6 @@ import io
 import json
 
 import pytest
-
 from tests.ui.conftest import DOCS_IMG, open_page
 
 pytestmark = pytest.mark.slow
