@@ -46,6 +46,7 @@ class SeeView:
         self.after: Array | None = None
         self._handles: dict[str, object] = {}
         self._shown: str | None = None
+        self._marker: tuple | None = None  # (handle, radius) of the current pose's marker
         self._lock = threading.RLock()
         with tab:
             self.data = server.gui.add_dropdown("Data", ("(none)",), initial_value="(none)",
@@ -153,6 +154,9 @@ class SeeView:
             for h in self._handles.pop(key, ()):
                 h.remove()
         self.server.scene.remove_by_name("/poses")
+        if self._marker is not None:
+            self._marker[0].remove()
+            self._marker = None
         self.before = self.after = None
         self.legend.content = ""
 
@@ -215,8 +219,14 @@ class SeeView:
         k = model_scale(s.model)
         p = ds.meas.xyz[index] * k
         size = self.robot.skeleton.size
-        self.server.scene.add_icosphere("/poses/current", radius=0.012 * size,
-                                        color=(30, 90, 200), position=tuple(p))
+        radius = 0.012 * size
+        if self._marker is None or self._marker[1] != radius:  # made once per data set
+            if self._marker is not None:
+                self._marker[0].remove()
+            self._marker = (self.server.scene.add_icosphere(
+                "/marker", radius=radius, color=(30, 90, 200), position=tuple(p)), radius)
+        else:  # a move sends the new position only
+            self._marker[0].position = tuple(float(v) for v in p)
         unit = s.model.length_unit
         q = ds.meas.q[index] / s.model.joint_scale()
         after = "" if self.after is None else f", after {self.after[index]:.4g} {unit}"
