@@ -1,7 +1,7 @@
 """The workbench in a real browser: Debian's Chromium (installed by ``make test`` through
 .ci/install-chromium), driven by playwright's Python package (no browser download).
 
-One workbench and one browser per test module. The page is checked for leaving the
+One browser for the session, one workbench per test module. The page is checked for leaving the
 machine: every request it makes that is not to 127.0.0.1 is refused and recorded (the
 page must work offline), and console errors are recorded.
 """
@@ -28,7 +28,7 @@ ROBOT_LANGUAGES = {"URScript (.script)": ".script", "ABB RAPID (.mod)": ".mod",
                    "KUKA KRL (.src)": ".src", "ROS 2 JointTrajectory (.yaml)": ".yaml"}
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def browser():
     if not Path(CHROMIUM).exists():
         pytest.fail("chromium is not installed: run `bash .ci/install-chromium` as root "

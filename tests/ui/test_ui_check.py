@@ -3,7 +3,7 @@ registered, checked once; the page lists it, shows its history as ``kinecal regi
 history`` words it and its drift figure, and runs a check of poses measured after its
 second joint slipped (by ``kinecal check`` in a worker process): the registry then holds
 that check, with the verdict the page shows. Without ``--db`` the view says what it needs
-in one line."""
+in one line (docs/workbench.md's Check view; its screenshot is made here)."""
 
 from __future__ import annotations
 
@@ -29,14 +29,15 @@ def cli(*args) -> tuple[int, str]:
 @pytest.fixture(scope="module")
 def registry(workdir):
     """reg.db: SN-1 calibrated on 30 poses (2026-01-05), checked on 2026-02-01 (valid);
-    slipped.csv: its check poses after theta2 lost 0.05 deg."""
+    slipped.csv: its 10 check poses after theta2 lost 0.05 deg."""
     steps = [
         ("simulate", "ur5", "--poses", 30, "--noise", 0.02, "--seed", 7, "--out",
          "factory.csv", "--truth-out", "truth.json"),
         ("calibrate", "ur5", "factory.csv", "--sigma", 0.02, "--out", "factory.json",
          "--quiet"),
         ("registry", "add", "SN-1", "factory.json", "--date", "2026-01-05", "--db", "reg.db"),
-        ("plan-check", "ur5", "--poses", 8, "--out", "check-poses.csv"),
+        ("simulate", "ur5", "--poses", 10, "--noise", 0, "--seed", 3, "--out",
+         "check-poses.csv"),
         ("simulate", "ur5", "--joints", "check-poses.csv", "--errors", "truth.json",
          "--noise", 0.02, "--seed", 1, "--out", "check-1.csv"),
         ("check", "SN-1", "check-1.csv", "--date", "2026-02-01", "--db", "reg.db"),

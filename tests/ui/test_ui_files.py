@@ -1,12 +1,13 @@
 """Files dropped on the page and files the page writes: a bad file gets the command line's
 error text, word for word; a plan made by hand is saved as the CSV select-poses writes,
-and its figures are those of the identifiability analysis."""
+and its figures are those of the identifiability analysis (docs/workbench.md's Plan view
+and drops; its Plan screenshot is made here)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests.ui.conftest import open_page
+from tests.ui.conftest import DOCS_IMG, open_page
 
 pytestmark = pytest.mark.slow
 
@@ -100,6 +101,7 @@ def test_plan_by_hand_is_saved_as_select_poses_writes(page, bench, workdir):
         page.el(bench.plan.add).click()
         page.wait_text("kc-plan", f"plan: {k + 1} poses")
     text = page.text("kc-plan")
+    page.shot(DOCS_IMG / "workbench-plan.png")
     assert np.allclose(bench.session.plan / bench.session.model.joint_scale(), wanted,
                        atol=1e-9)
     page.el(bench.plan.save_csv).click()
