@@ -46,3 +46,79 @@ def test_without_the_ui_extra_one_line(tmp_path, args):
     assert proc.stderr == ("kinecal: error: the workbench needs the ui extra: pip install "
                            "'kinecal[ui]'\n")
     assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+def test_what_a_calibration_placed_is_drawn(tmp_path, monkeypatch):
+    """A ballbar at two pivots and four sockets calibrated together: the See view draws
+    every pivot and socket at the place the result JSON gives (scene units: metres), and
+    those places are the simulated ones within a millimetre."""
+    import contextlib
+    import io
+    import json
+
+    import numpy as np
+
+    from kinecal.cli import main
+    from kinecal.ui.app import Workbench
+
+    monkeypatch.chdir(tmp_path)
+    for args in (["simulate", "irb120", "--kind", "ballbar", "--pivot", "350,0,450",
+                  "--pivot", "0,-350,400", "--length", "150", "--poses", "25", "--noise",
+                  "0.002", "--seed", "1", "--out", "ballbar.csv", "--truth-out",
+                  "truth.json"],
+                 ["simulate", "irb120", "--kind", "point", "--poses", "8", "--noise", "0.01",
+                  "--errors", "truth.json", "--seed", "2", "--out", "sockets.csv"],
+                 ["calibrate", "irb120", "ballbar.csv", "sockets.csv", "--sigma",
+                  "ballbar.csv=0.002", "--sigma", "sockets.csv=0.01", "--out", "result.json",
+                  "--quiet"]):
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(
+                io.StringIO()):
+            assert main(args) == 0, args
+    result = json.loads((tmp_path / "result.json").read_text())
+    wanted = {f"{k} {u[k]}": u["xyz"] for e in result["kinds"] for u in e["unknowns"]
+              for k in ("pivot", "point") if k in u}
+    assert sum(n.startswith("pivot") for n in wanted) == 2
+    assert sum(n.startswith("point") for n in wanted) >= 2
+    wb = Workbench("irb120", ["ballbar.csv", "sockets.csv"], port=0, workdir="kinecal-ui")
+    try:
+        wb.load("result.json")
+        shown = {p.name: p for p in wb.see.placed}
+        assert set(shown) == set(wanted)
+        handles = wb.see.instruments.handles
+        assert len(handles) == len(wanted)
+        for (sphere, label), (name, xyz) in zip(handles.values(), wanted.items(),
+                                                strict=True):
+            assert np.allclose(sphere.position, np.asarray(xyz) * 1e-3, atol=1e-9), name
+            assert label.text == name
+        pivots = sorted(tuple(np.round(shown[n].pose[:3, 3])) for n in shown
+                        if n.startswith("pivot"))
+        truth = sorted([(350.0, 0.0, 450.0), (0.0, -350.0, 400.0)])
+        assert np.allclose(pivots, truth, atol=1.0)
+    finally:
+        wb.close()
+
+
+def test_planes_cameras_and_boards_placed():
+    """A plane n.p = d is drawn at its point nearest the base origin with z along n; a
+    camera in the base frame (cam2base) is drawn, a board on the flange (target2flange) is
+    listed as carried."""
+    import numpy as np
+
+    from kinecal.ui.instruments import placed_of
+
+    n = np.array([0.0, 0.6, 0.8])
+    X = np.eye(4)
+    X[:3, 3] = [900.0, 100.0, 500.0]
+    data = {"kinds": [{"unknowns": [{"plane": "table", "normal": n.tolist(),
+                                     "offset": 250.0}]}],
+            "X": X.tolist(), "X_frame": "cam2base", "board_pose": np.eye(4).tolist(),
+            "board_frame": "target2flange"}
+    plane, camera, board = placed_of(data)
+    assert plane.name == "plane table" and plane.kind == "plane"
+    assert np.allclose(plane.pose[:3, 3], 250.0 * n)
+    assert np.allclose(plane.pose[:3, 2], n)
+    R = plane.pose[:3, :3]
+    assert np.allclose(R.T @ R, np.eye(3)) and np.isclose(np.linalg.det(R), 1.0)
+    assert (camera.name, camera.attached) == ("camera", "world")
+    assert np.allclose(camera.pose, X)
+    assert (board.name, board.attached) == ("board", "flange")

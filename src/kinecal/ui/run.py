@@ -192,7 +192,7 @@ class RunView:
         if out.report is not None:
             self.app.front.publish(f"{label.replace(' ', '-')}/report.html", out.report)
         self.words.content = _box("kc-words", identifiability_words(data)) + self._links(out)
-        self.app.see.set_result(params, label)
+        self.app.see.set_result(params, label, data)
         self._lists()
         return out
 

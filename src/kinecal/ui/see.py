@@ -1,7 +1,8 @@
 """The See view: the robot at each measured pose (a slider steps through them), every
 pose's residual as an arrow before and after calibration (drawn `gain` times its length,
 coloured green to red by size on one scale for both), and what the calibration placed:
-the tracker (the measurement frame), the robot's base, cameras and boards of the result.
+the tracker (the measurement frame), the robot's base, and the pivots, fixed points, planes,
+cameras and boards of the result (`kinecal.ui.instruments`).
 
 The arrows of all poses are sent once per data set or result; a slider move sends the
 robot's cylinders and one marker, nothing more (``benchmarks/bench_ui.py`` times it).
@@ -40,6 +41,10 @@ class SeeView:
         self.app = app
         server = self.server = app.server
         self.robot = RobotFigure(server, "/robot", color=(150, 165, 185))
+        from kinecal.ui.instruments import InstrumentsFigure
+
+        self.instruments = InstrumentsFigure(server)
+        self.placed: list = []
         self.params: Array | None = None  # calibrated parameters (None: nominal only)
         self.result_label = ""
         self.before: Array | None = None
@@ -70,11 +75,21 @@ class SeeView:
 
     # ------------------------------------------------------------------ state
     @_locked
-    def set_result(self, params: Array | None, label: str = "") -> None:
-        """Show the arm with calibrated `params` (None: nominal) and the errors after."""
+    def set_result(self, params: Array | None, label: str = "",
+                   data: dict | None = None) -> None:
+        """Show the arm with calibrated `params` (None: nominal) and the errors after;
+        what the result `data` (its JSON) placed besides the arm (`kinecal.ui.instruments`)."""
+        from kinecal.ui.instruments import placed_of
+
         self.params = None if params is None else np.asarray(params, dtype=float)
         self.result_label = label
+        self.placed = [] if data is None else placed_of(data)
         self.refresh()
+        model = self.app.session.model
+        if model is not None and self.robot.skeleton is not None:
+            self.instruments.show(self.placed, model_scale(model), self.robot.skeleton.size)
+        else:
+            self.instruments.clear()
 
     def data_names(self) -> list[str]:
         s = self.app.session

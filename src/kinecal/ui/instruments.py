@@ -1,0 +1,115 @@
+"""What a calibration placed besides the arm, read from its result JSON and drawn in the
+See view: the pivots of ballbars, the fixed points (sockets) and planes touched
+(``kinds[].unknowns``, docs/measurement-kinds.md), and the camera and board of a
+calibration from images (``X`` / ``board_pose`` with their frames, docs/arm-from-images.md)
+when they are fixed in the robot's base frame (``cam2base``, ``target2base``).
+
+A camera or board carried by the flange moves with the arm; they are listed
+(`Placed.attached` ``flange``) but not drawn.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["InstrumentsFigure", "Placed", "placed_of"]
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Placed:
+    """One thing a calibration placed (model length unit, base frame).
+
+    Attributes
+    ----------
+    name : str
+        ``pivot P1``, ``point S2``, ``plane table``, ``camera``, ``board``.
+    kind : str
+        ``point``, ``plane`` or ``frame``.
+    attached : str
+        ``world`` (the base frame) or ``flange``.
+    pose : ndarray, shape (4, 4)
+        Its frame: a point's at the point, a plane's on it (z its normal), a camera's or a
+        board's as the result gives it.
+    """
+
+    name: str
+    kind: str
+    attached: str
+    pose: Array
+
+
+def _frame(origin, z=None) -> Array:
+    T = np.eye(4)
+    T[:3, 3] = np.asarray(origin, dtype=float)
+    if z is not None:
+        z = np.asarray(z, dtype=float) / np.linalg.norm(z)
+        x = np.cross([0.0, 1.0, 0.0] if abs(z[1]) < 0.9 else [1.0, 0.0, 0.0], z)
+        x /= np.linalg.norm(x)
+        T[:3, :3] = np.stack([x, np.cross(z, x), z], axis=1)
+    return T
+
+
+def placed_of(data: dict) -> list[Placed]:
+    """Everything `data` (a result JSON) places (module docstring)."""
+    out: list[Placed] = []
+    for entry in data.get("kinds") or []:
+        for u in entry.get("unknowns") or []:
+            for key in ("pivot", "point"):
+                if key in u and "xyz" in u:
+                    out.append(Placed(f"{key} {u[key]}", "point", "world", _frame(u["xyz"])))
+            if "plane" in u and "normal" in u:
+                n = np.asarray(u["normal"], dtype=float)
+                # the plane n . p = offset: its point nearest the base origin
+                out.append(Placed(f"plane {u['plane']}", "plane", "world",
+                                  _frame(n * float(u["offset"]) / (n @ n), n)))
+    for key, frame_key, name in (("X", "X_frame", "camera"),
+                                 ("board_pose", "board_frame", "board")):
+        if data.get(key) is not None:
+            where = "world" if str(data.get(frame_key, "")).endswith("2base") else "flange"
+            out.append(Placed(name, "frame", where, np.asarray(data[key], dtype=float)))
+    return out
+
+
+class InstrumentsFigure:
+    """The placed things of one result in viser's scene under ``/placed``."""
+
+    def __init__(self, server) -> None:
+        self.server = server
+        self.handles: dict[str, object] = {}
+
+    def show(self, placed: list[Placed], scale: float, size: float) -> None:
+        """Draw `placed` (model units times `scale`: scene units); `size` is the arm's
+        extent (scene units), which sizes the markers."""
+        from kinecal.ui.geometry import quaternions_z_to
+
+        self.clear()
+        for k, p in enumerate(p for p in placed if p.attached == "world"):
+            at = tuple(float(v) for v in p.pose[:3, 3] * scale)
+            node = f"/placed/{k}"
+            if p.kind == "point":
+                h = self.server.scene.add_icosphere(node, radius=0.015 * size,
+                                                    color=(140, 60, 200), position=at)
+            elif p.kind == "plane":
+                wxyz = quaternions_z_to(p.pose[None, :3, 2])[0]
+                h = self.server.scene.add_box(node, color=(120, 170, 220),
+                                              dimensions=(0.4 * size, 0.4 * size,
+                                                          0.002 * size),
+                                              wxyz=tuple(wxyz), position=at, opacity=0.5)
+            else:
+                from scipy.spatial.transform import Rotation
+
+                xyzw = Rotation.from_matrix(p.pose[:3, :3]).as_quat()
+                h = self.server.scene.add_frame(node, axes_length=0.08 * size,
+                                                axes_radius=0.004 * size, position=at,
+                                                wxyz=(xyzw[3], xyzw[0], xyzw[1], xyzw[2]))
+            label = self.server.scene.add_label(f"{node}/label", p.name)
+            self.handles[node] = (h, label)
+
+    def clear(self) -> None:
+        self.server.scene.remove_by_name("/placed")
+        self.handles.clear()
