@@ -163,3 +163,28 @@ def _program_joints(text: str, suffix: str) -> np.ndarray:
         assert doc["joint_names"] == list(UR_JOINTS)  # the UR driver's, as select-poses
     assert len(waits) == len(moves)
     return np.asarray(moves)
+
+
+def test_select_poses_and_a_plan_file(page, bench, workdir):
+    """Select poses runs kinecal select-poses in a worker process and loads what it wrote;
+    a joints-only CSV dropped on the page becomes the plan."""
+    from kinecal.io.csvtable import read_table
+
+    page.tab("Plan")
+    bench.plan.count.value = 12  # the number boxes, set as the page's own state
+    bench.plan.candidates.value = 300
+    page.el(bench.plan.select).click()
+    status = page.wait_text("kc-status", "select-poses chose", timeout=120_000)
+    assert status == ("select-poses chose 12 poses: kinecal select-poses ur5 --count 12 "
+                      "--candidates 300 --out kinecal-ui/plans/selected.csv")
+    cols = read_table(workdir / "kinecal-ui" / "plans" / "selected.csv",
+                      [f"q{i}" for i in range(1, 7)])
+    selected = np.stack([cols[f"q{i}"] for i in range(1, 7)], axis=1)
+    assert np.allclose(bench.session.plan / bench.session.model.joint_scale(), selected)
+    page.wait_text("kc-plan", "plan: 12 poses")
+    text = "q1,q2,q3,q4,q5,q6\n" + "".join(
+        ",".join(f"{v:g}" for v in row) + "\n" for row in selected[:3])
+    page.page.evaluate(CLEAR)
+    page.page.evaluate(DROP, ["three.csv", text])
+    page.wait_text("kc-drop-message", "plan three.csv: 3 poses")
+    page.wait_text("kc-plan", "plan: 3 poses")
