@@ -12,7 +12,7 @@ from pathlib import Path
 SRC = Path(__file__).resolve().parents[1] / "src" / "kinecal"
 
 #: modules of the ground floor: everything may import them
-GROUND = {"spatial", "errors", "diagnostics", "_files", "_limits", "data", "_lazy",
+GROUND = {"spatial", "errors", "diagnostics", "_files", "_limits", "data", "_lazy", "_blas",
           "_special"}
 #: shared helpers of every calibration kind (``kinecal.calibration.<module>``)
 CALIBRATION_SHARED = {"identifiability", "uncertainty", "covariance", "method_options"}

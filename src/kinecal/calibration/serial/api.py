@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from kinecal import diagnostics
+from kinecal._blas import small_products
 from kinecal.calibration.diagnostics.fit import check_serial_fit
 from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stated_sigma
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
@@ -110,6 +111,7 @@ def _with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
     return dataclasses.replace(data, marker=marker, marker_names=model.marker_names)
 
 
+@small_products
 def calibrate(
     model: SerialModel,
     data: Measurements | Sequence[Any],
