@@ -182,6 +182,11 @@ def calibrate(
     maxiter: int | None = typer.Option(None, "--maxiter", help="Iteration budget."),
     target: float | None = typer.Option(None, "--target", help="Stop at this mean distance "
                                         "error (model length unit; metaheuristics)."),
+    box: str | None = typer.Option(None, "--box", metavar=choices("data", "tolerances"),
+                                   help="Search box of a metaheuristic: around a "
+                                   "Levenberg-Marquardt fit (data, the default) or the model "
+                                   "file's tolerances around nominal (the papers'). See "
+                                   "docs/optimizers.md."),
     out: Path | None = typer.Option(None, "--out", help="Result JSON to write."),
     model_out: Path | None = typer.Option(None, "--model-out", help="Calibrated model YAML."),
     report: Path | None = report_option(),
@@ -254,7 +259,7 @@ def calibrate(
             target=target, out=out, model_out=model_out, report=report, json_out=json_out,
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
-                           "--folds": folds}, record=(instrument, operator, note),
+                           "--folds": folds, "--box": box}, record=(instrument, operator, note),
             unit=shown, fixture=fixture, angle_unit=angle_unit)
     data, validate = data[0], (validate[0] if validate else None)
     sigma = parse_sigma(sigma, [data])[0]
@@ -272,6 +277,10 @@ def calibrate(
     check_finite(target, "--target")
     check_finite(rotation_weight, "--rotation-weight", positive=True)
     check_finite(sigma, "--sigma", positive=True)
+    options = None if box is None else {"box": box}
+    if options and method in ("lm", "householder"):
+        raise InputError(f"a search box applies to the metaheuristics only, not to method "
+                         f"{method}", option="--box")
     check_method_options(method, loss=loss, maxiter=maxiter, target=target)
     check_error_model_options(error_model, harmonics=harmonics, folds=folds)
     with warnings_scope(strict) as found:
@@ -290,7 +299,7 @@ def calibrate(
                       quiet or json_out) as update:
             kw = dict(free=free_option(free), validate=val, rng=seed, loss=loss,
                       maxiter=maxiter, target=target, rotation_weight=rotation_weight,
-                      sigma=sigma,
+                      sigma=sigma, **({} if options is None else {"options": options}),
                       progress=(lambda it, best: update(1, best)) if iterative else None)
             if error_model is None and m.joint_errors is None and harmonics is None:
                 res = run(m, meas, method, **kw)

@@ -82,7 +82,8 @@ def hybrid_minimize(
     -------
     OptimizeResult
         The metaheuristic's result with ``history`` = least-squares stage followed by the
-        metaheuristic's, ``nit``/``nfev`` summed, plus ``ls_result`` and ``ls_iterations``.
+        metaheuristic's, ``nit``/``nfev`` summed, plus ``ls_result``, ``ls_iterations`` and
+        ``bounds`` (the second stage's box, ``(n, 2)``).
     """
     if method not in METHODS:
         raise InputError(
@@ -132,5 +133,6 @@ def hybrid_minimize(
         ls_result=ls,
         ls_iterations=int(ls.nit),
         ls_history=list(ls.history),
+        bounds=bounds,
         **extra,
     )

@@ -32,6 +32,7 @@ CODES: dict[str, str] = {
     "residual-below-noise": "the residual is far below the instrument's stated noise (--sigma)",
     "outliers": "poses whose error is far outside the others' spread",
     "optimizer-stalled": "a metaheuristic stopped far above what a least-squares polish reaches",
+    "at-bounds": "a metaheuristic's answer sits on a face of the box it searched",
     # measurement kinds: ballbar and pair distances, fixed points, planes
     "pivot-moved": "a ballbar's distances fit no single pivot to the noise",
     "point-spread": "a fixed point's touches disagree by more than the noise",

@@ -28,6 +28,7 @@ from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stat
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
+from kinecal.calibration.serial.box import box_choice, check_at_bounds, search_box
 from kinecal.calibration.serial.inputs import as_measurements, as_model
 from kinecal.calibration.serial.polish import check_local_polish
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
@@ -293,20 +294,26 @@ def _run_method(problem: CalibrationProblem, res, method, *, rng, maxiter, targe
     if method == "lm":
         return res.result, list(res.outliers)
     if method == "householder":
-        res = householder_gauss_newton(problem.residuals, problem.jacobian, problem.x0,
-                                       maxiter=maxiter or 100, monitor=monitor,
-                                       callback=callback)
-    elif method.startswith(HYBRID_PREFIX):
+        return householder_gauss_newton(problem.residuals, problem.jacobian, problem.x0,
+                                        maxiter=maxiter or 100, monitor=monitor,
+                                        callback=callback), outliers
+    box = box_choice(options, method)
+    if method.startswith(HYBRID_PREFIX):
         hopts = {k: options.pop(k) for k in ("shrink", "least_squares", "ls_maxiter", "seed_ls")
                  if k in options}
         res = hybrid_minimize(problem.population_cost, problem.residuals, problem.jacobian,
                               problem.x0, problem.half_width, method[len(HYBRID_PREFIX):],
                               rng=rng, maxiter=maxiter, target=target, callback=callback,
                               options=options or None, monitor=monitor, **hopts)
-    else:
-        res = minimize(problem.population_cost, problem.bounds(), method, rng=rng,
+        bounds = res.bounds
+    else:  # the box searched: the data's or the model file's (calibration.serial.box)
+        bounds, info = search_box(problem, box)
+        res = minimize(problem.population_cost, bounds, method, rng=rng,
                        maxiter=maxiter, target=target, callback=callback,
                        options=options or None)
+        res.nfev += info.get("lm_nfev", 0)
+    res.search_box = {"box": box, "lower": bounds[:, 0].tolist(),
+                      "upper": bounds[:, 1].tolist()}
     return res, outliers
 
 
@@ -324,6 +331,9 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
                                 options=options, progress=progress)
     x = np.asarray(res.x, dtype=float)
     if method not in ("lm", "householder"):  # did the metaheuristic reach a minimum?
+        check_at_bounds(problem, x, np.column_stack([res.search_box["lower"],
+                                                     res.search_box["upper"]]),
+                        method, res.search_box["box"])
         check_local_polish(problem, x, method, target)
     explicit = list(first_report.names) == list(names)
     normal = res.get("normal_matrix") if loss == "linear" else None
