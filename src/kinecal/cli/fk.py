@@ -76,16 +76,16 @@ def fk(
     angle_unit: str | None = angle_unit_option("JOINTS"),
 ) -> None:
     """Forward kinematics: tool-point positions (CSV on stdout)."""
-    from kinecal.calibration.diagnostics.serial import check_joint_limits, check_joint_units
-    from kinecal.cli._serial_common import parameters_from_result
+    from kinecal.calibration.diagnostics.units import check_joint_limits, check_joint_units
     from kinecal.io.measurements import read_joints, read_markers
-    from kinecal.io.result_values import model_for_result
-    from kinecal.spatial import quaternion_from_matrix
 
     check_angle_unit(angle_unit)
     with warnings_scope(strict):
         m = load_model_arg(model, base_link, tip_link)
-        if params is not None:
+        if params is not None:  # imported here: a plain fk reads no result
+            from kinecal.cli._serial_common import parameters_from_result
+            from kinecal.io.result_values import model_for_result
+
             m = model_for_result(m, params)
         path = resolve_data_path(joints, "JOINTS")
         q = read_joints(path, m, angle_unit=angle_unit)
@@ -97,6 +97,8 @@ def fk(
     header = ["x", "y", "z"] + (["qw", "qx", "qy", "qz"] if pose else [])
     out = T[:, :3, 3]
     if pose:
+        from kinecal.spatial import quaternion_from_matrix
+
         out = np.column_stack([out, quaternion_from_matrix(T[:, :3, :3])])
     # shortest round-trip digits (repr): what the API computes, bit for bit, in any unit
     lines = [",".join(header)] + [",".join(map(repr, row)) for row in out.tolist()]
