@@ -139,7 +139,8 @@ class GaugeMeasurements:
     source : str
         Where the data came from (file path or description).
     marker : ndarray of int, shape (N,) or None
-        Which marker (tool point) each row used, as in `Measurements`.
+        Which marker (tool point) each row used, as in `Measurements`; with a robot
+        system, the row's tip (`kinecal.kinematics.tree.SystemModel`).
     marker_names : tuple of str
     known : ndarray, shape (G, 3) or (G, 6), or None
         ``point`` and ``plane`` only: per group, its known position in the base frame (a
@@ -147,6 +148,11 @@ class GaugeMeasurements:
         point ``px, py, pz`` of a plane and its unit normal ``nx, ny, nz`` (length unit);
         a row of NaN for a group that is unknown (solved with the arm). None: every group
         unknown.
+    carrier : ndarray of int, shape (N,) or None
+        ``point`` rows of a robot system: the link that carries the touched point (an
+        index into `carrier_names`; -1: the point is fixed in the measurement frame). A
+        probe on an arm touching a workpiece on a positioner: the positioner's table.
+    carrier_names : tuple of str
     """
 
     kind: str
@@ -159,6 +165,8 @@ class GaugeMeasurements:
     marker: NDArray[np.intp] | None = None
     marker_names: tuple[str, ...] = ()
     known: NDArray[np.float64] | None = None
+    carrier: NDArray[np.intp] | None = None
+    carrier_names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.kind not in GAUGE_KINDS:
@@ -190,6 +198,12 @@ class GaugeMeasurements:
                 raise InputError(f"marker: expected {n} indices into {list(self.marker_names)}")
         elif self.marker_names:
             raise InputError("marker_names without marker indices")
+        if self.carrier is not None:
+            c = np.asarray(self.carrier)
+            if self.kind != "point" or c.shape != (n,) or (
+                    c.size and (c.min() < -1 or c.max() >= len(self.carrier_names))):
+                raise InputError(f"carrier: expected {n} indices into "
+                                 f"{list(self.carrier_names)} (or -1) of point rows")
         if self.known is not None:
             self._check_known()
 

@@ -238,8 +238,9 @@ def test_noise_free_fit_reports_no_outliers(tmp_path, capsys):
     result = json.loads(out.read_text())
     assert result["calibration"]["after"]["max"] < 1e-12
     assert not [w for w in result["warnings"] if w["code"] == "outliers"]
-    assert "mimics joint fa" in _fail(["fk", str(urdf), str(meas), "--tip-link", "f2"],
-                                      capsys)
+    # the mimic finger's chain is a robot system (docs/systems.md): its joints by name
+    assert "a system's joint columns are its joint names" in _fail(
+        ["fk", str(urdf), str(meas), "--tip-link", "f2"], capsys)
 
 
 def test_calibrate_model_out_under_a_urdf_name_is_refused_before_work(tmp_path, capsys):

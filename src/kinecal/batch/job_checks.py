@@ -45,7 +45,8 @@ def check_job(job: Job, source: str | Path | None) -> None:
                              target=job.target, options=job.options,
                              names={k: k for k in ("loss", "maxiter", "target", "options")})
         _check_error_model(job)
-        if (job.base_link is not None or job.tip_link is not None) and not _is_urdf(job.model):
+        if (job.base_link is not None or job.tip_link is not None) and not _is_urdf(job.model) \
+                and not _is_system(job.model):
             raise InputError("base_link and tip_link apply to URDF models only, not "
                              f"to {job.model!r}", option="base_link")
         if job.poses is not None:
@@ -62,6 +63,12 @@ def _key(option: str | None) -> str:
     if option is None:
         return "job"
     return option[2:].replace("-", "_") if option.startswith("--") else option
+
+
+def _is_system(model: str) -> bool:
+    from kinecal.io.systems import is_system_file
+
+    return is_system_file(model)
 
 
 def _is_urdf(model: str) -> bool:
@@ -103,19 +110,20 @@ def check_models(jobs: list[Job], source: str | Path | None) -> None:
     A model that cannot be loaded otherwise is left to its jobs, which record the error.
     """
     from kinecal.calibration.diagnostics.sizes import check_length_noise, serial_size
-    from kinecal.io.models import load_model
+    from kinecal.io.systems import load_machine
 
     loaded: dict[tuple, Any] = {}
     for job in jobs:
         links = job.base_link is not None or job.tip_link is not None
         if not (links or job.noise > 0 or job.sigma is not None):
             continue
-        key = (job.model, job.base_link, job.tip_link)
+        tips = [] if job.tip_link is None else [job.tip_link] if isinstance(
+            job.tip_link, str) else list(job.tip_link)
+        key = (job.model, job.base_link, tuple(tips))
         try:
             if key not in loaded:
                 try:
-                    loaded[key] = load_model(job.model, base_link=job.base_link,
-                                             tip_link=job.tip_link)
+                    loaded[key] = load_machine(job.model, base_link=job.base_link, tips=tips)
                 except InputError:
                     if links:
                         raise

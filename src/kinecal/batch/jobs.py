@@ -82,7 +82,7 @@ class _Common(BaseModel):
 
     _sigma = field_validator("sigma")(_positive_sigma)
     base_link: str | None = Field(None, min_length=1)
-    tip_link: str | None = Field(None, min_length=1)
+    tip_link: str | list[str] | None = Field(None, min_length=1)
 
 
 
@@ -126,6 +126,8 @@ class Job(_Common):
         against it (`kinecal.calibration.diagnostics.noise`); with several data files one
         value per file (null: estimated).
     base_link, tip_link : str, optional
+        (``tip_link`` may list several tips: a robot system of a URDF tree,
+        docs/systems.md)
         URDF models: the chain's first and last link (``--base-link``, ``--tip-link``).
     """
 

@@ -114,6 +114,33 @@ def _listed(spec: Any) -> list:
     return [] if spec is None else spec if isinstance(spec, list) else [spec]
 
 
+def _tips(job: Job) -> list[str]:
+    return [] if job.tip_link is None else [job.tip_link] if isinstance(job.tip_link, str) \
+        else list(job.tip_link)
+
+
+def _load(job: Job) -> Any:
+    """The job's model: a serial chain, or a robot system (a system file, or a URDF with
+    several tips; `kinecal.io.systems.load_machine`)."""
+    from kinecal.io.systems import load_machine
+
+    return load_machine(job.model, base_link=job.base_link, tips=_tips(job))
+
+
+def _system_data(job: Job, system: Any) -> tuple[list, list | None]:
+    """A robot system's data and validation files (their rows name their tips)."""
+    from kinecal.io.system_data import read_system_data
+
+    if job.simulated:
+        raise InputError("a robot system's job takes data files (simulated jobs take one "
+                         "chain)", option="model")
+    if job.error_model is not None or job.harmonics is not None:
+        raise InputError("error_model does not apply to a robot system", option="model")
+    data = [read_system_data(f, system) for f in _listed(job.data)]
+    val = [read_system_data(f, system) for f in _listed(job.validation)] or None
+    return data, val
+
+
 def run_job(job: Job) -> dict[str, Any]:
     """Run one job; return its outcome (never raises for the job's own errors).
 
@@ -133,7 +160,6 @@ def run_job(job: Job) -> dict[str, Any]:
     """
     from kinecal import diagnostics
     from kinecal.io.measurements import read_measurements
-    from kinecal.io.models import load_model
 
     t0 = time.perf_counter()
     found: list = []
@@ -146,9 +172,11 @@ def run_job(job: Job) -> dict[str, Any]:
     try:
         # np.errstate, unlike warnings.catch_warnings, is safe in a thread pool's threads
         with diagnostics.collect() as found, np.errstate(all="ignore"):
-            model = load_model(job.model, base_link=job.base_link, tip_link=job.tip_link)
+            model = _load(job)
             truth, free = None, job.free
-            if job.simulated:
+            if getattr(model, "convention", None) == "system":  # a robot system
+                data, val = _system_data(job, model)
+            elif job.simulated:
                 data, val, truth, names = simulate_job(job, model)
                 free = free if names is None else names
             elif isinstance(job.data, list) or isinstance(job.validation, list):

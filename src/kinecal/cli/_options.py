@@ -13,7 +13,8 @@ from kinecal.errors import InputError
 __all__ = ["CALIBRATION_METHOD_CHOICES", "MODEL_HELP", "UNITS", "angle_unit_option",
            "base_link_option", "check_angle_unit", "check_unit", "choices",
            "instrument_option", "load_model_arg", "note_option", "operator_option",
-           "quiet_option", "report_option", "seed_option", "strict_option", "tip_link_option",
+           "quiet_option", "report_option", "seed_option", "single_tip", "strict_option",
+           "tip_link_option", "tip_links_option", "tip_option",
            "unit_option"]
 
 
@@ -99,6 +100,35 @@ def tip_link_option() -> Any:
 
     return typer.Option(None, "--tip-link", help="URDF model: last link of the chain "
                         "(default: the end of the one branch with moving joints).")
+
+
+def tip_links_option() -> Any:
+    """The ``--tip-link`` option of the commands that take robot systems: repeatable."""
+    import typer
+
+    return typer.Option(None, "--tip-link", help="URDF model: last link of the chain "
+                        "(default: the end of the one branch with moving joints); repeat it "
+                        "for a system of several chains (docs/systems.md).")
+
+
+def tip_option() -> Any:
+    """The ``--tip`` option: the chain of a robot system that rows without a ``tip``
+    column belong to."""
+    import typer
+
+    return typer.Option(None, "--tip", help="Robot system: the chain (tip link or part) of "
+                        "every row of files without a tip column (docs/systems.md).")
+
+
+def single_tip(tip_link: list[str] | str | None) -> str | None:
+    """The one ``--tip-link`` of a serial chain (None when not given); several are a
+    system's, which the command's system path took before."""
+    if tip_link is None or isinstance(tip_link, str):
+        return tip_link
+    if len(tip_link) > 1:
+        raise InputError(f"--tip-link given {len(tip_link)} times: several tips make a robot "
+                         "system of a URDF tree (docs/systems.md)", option="--tip-link")
+    return tip_link[0] if tip_link else None
 
 
 def load_model_arg(model: str, base_link: str | None = None, tip_link: str | None = None):

@@ -35,8 +35,10 @@ from kinecal.cli._options import (
     quiet_option,
     report_option,
     seed_option,
+    single_tip,
     strict_option,
-    tip_link_option,
+    tip_links_option,
+    tip_option,
     unit_option,
 )
 from kinecal.cli._serial_common import POSE_BYTES, free_option
@@ -59,7 +61,8 @@ ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto")
 def identifiability(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: str | None = tip_option(),
     data: list[str] | None = typer.Option(
         None, "--data", help="CSV of the poses to analyse: measurements of any kind, or "
         "joint values q1..qn alone (e.g. from select-poses); repeat it for a mix of kinds "
@@ -85,6 +88,15 @@ def identifiability(
 ) -> None:
     """Rank, identifiable and unidentifiable parameters, condition number, O1-O5; with
     --data, what calibrate would free from those poses."""
+    from kinecal.cli.systems import is_system_arg
+
+    if is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_identifiability
+
+        return system_identifiability({**locals(), "free": free_option(free)})
+    if tip is not None:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
+    tip_link = single_tip(tip_link)
     from kinecal.calibration.diagnostics.serial import check_pose_set
     from kinecal.calibration.serial.api import CALIBRATION_RANK_TOL
     from kinecal.calibration.serial.problem import resolve_free
@@ -161,7 +173,8 @@ def _poses_to_analyse(model, path, angle_unit: str | None = None):
 def calibrate(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: str | None = tip_option(),
     data: list[str] = typer.Argument(..., help="Measurement CSV(s) or NAME:PART; several "
                                      "files of any kinds make one problem "
                                      "(docs/measurement-kinds.md)."),
@@ -229,8 +242,18 @@ def calibrate(
     angle_unit: str | None = angle_unit_option("the data files' joint columns"),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
-    or from board images with --images."""
+    or from board images with --images; a robot system from rows of its chains."""
     check_angle_unit(angle_unit)
+    from kinecal.cli.systems import is_system_arg
+
+    if images is None and is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_calibrate
+
+        return system_calibrate({**locals(), "free": free_option(free),
+                                 "unit": check_unit(unit)})
+    if tip is not None:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
+    tip_link = single_tip(tip_link)
     if images is not None:  # the arm from camera images: its own module
         from kinecal.cli.calibrate_images import calibrate_images
 
@@ -331,7 +354,9 @@ def calibrate(
 def select_poses_cmd(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: list[str] | None = typer.Option(None, "--tip", help="Robot system: the chains to "
+                                         "plan rows of (repeatable; default every tip)."),
     count: int = typer.Option(..., "--count", help="Number of poses to select."),
     candidates: int | None = typer.Option(
         None, "--candidates", help="Random candidate poses (default 2000; gauge kinds: per "
@@ -348,8 +373,18 @@ def select_poses_cmd(
     angle_unit: str | None = angle_unit_option("the plan's joint columns"),
 ) -> None:
     """Choose calibration poses maximising observability (O1, D-optimal); for a gauge kind
-    the rows of its file (docs/measurement-kinds.md)."""
+    the rows of its file (docs/measurement-kinds.md); for a robot system, which chain in
+    which configuration (docs/systems.md)."""
     check_angle_unit(angle_unit)
+    from kinecal.cli.systems import is_system_arg
+
+    if is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_select
+
+        return system_select(dict(locals()))
+    if tip:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
+    tip_link = single_tip(tip_link)
     if kind != "tracker":
         from kinecal.cli.calibrate_kinds import select_kind_file
 

@@ -30,8 +30,10 @@ from kinecal.cli._options import (
     check_unit,
     choices,
     quiet_option,
+    single_tip,
     strict_option,
-    tip_link_option,
+    tip_links_option,
+    tip_option,
     unit_option,
 )
 from kinecal.errors import InputError
@@ -157,7 +159,8 @@ def compensate_cmd(
                              "e.g. a tracker reflector: the nominal tool on the calibrated "
                              "arm)."),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: str | None = tip_option(),
     json_out: bool = typer.Option(False, "--json", help="Print the statistics as JSON."),
     unit: str = unit_option(),
     strict: bool = strict_option(),
@@ -177,8 +180,19 @@ def compensate_cmd(
         raise InputError(f"expected calibrated or nominal, got {base!r}", option="--base")
     if tool not in ("calibrated", "nominal"):
         raise InputError(f"expected calibrated or nominal, got {tool!r}", option="--tool")
+    from kinecal.cli.systems import is_system_arg
+
+    system = nominal is not None and is_system_arg(nominal, base_link, tip_link)
+    if tip is not None and not system:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
     with warnings_scope(strict) as found:
-        nom, cal = load_calibrated(calibrated, nominal, base_link, tip_link, tool)
+        if system:  # one chain of a robot system (--tip)
+            from kinecal.cli.systems import system_arms
+
+            nom, cal = system_arms(calibrated, nominal, base_link, tip_link, tip, tool)
+        else:
+            nom, cal = load_calibrated(calibrated, nominal, base_link, single_tip(tip_link),
+                                       tool)
         path = resolve_data_path(program, "PROGRAM")
         header, required, optional = program_columns(path, nom)
         joints = joint_columns(header, nom, path, required=False)

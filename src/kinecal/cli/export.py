@@ -15,8 +15,9 @@ from kinecal.cli._options import (
     base_link_option,
     choices,
     load_model_arg,
+    single_tip,
     strict_option,
-    tip_link_option,
+    tip_links_option,
 )
 from kinecal.errors import InputError
 
@@ -129,7 +130,7 @@ def export(
                                        "it was calibrated from (default: the bundled model "
                                        "the result names)."),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
     chain_only: bool = typer.Option(False, "--chain-only", help="For a model read from a "
                                     "URDF: write only the chain, not a copy of that URDF "
                                     "(meshes, other branches) with the chain's values."),
@@ -158,6 +159,16 @@ def export(
     """
     fmt = _format(fmt, out)
     check_paths({"SOURCE": source, "--nominal": nominal, "--camera": camera}, {"--out": out})
+    from kinecal.cli.systems import is_system_arg, system_export
+
+    if is_system_arg(nominal or source, base_link, tip_link):  # the whole tree of a system
+        if camera is not None or robot is not None:
+            raise InputError("does not apply to a robot system",
+                             option="--camera" if camera is not None else "--robot")
+        with warnings_scope(strict):
+            system_export(source, nominal, base_link, tip_link, out, fmt, chain_only)
+        return
+    tip_link = single_tip(tip_link)
     if fmt == "ros-tf":
         _export_ros_tf(source, out, unit, parent_frame, child_frame, strict)
         return

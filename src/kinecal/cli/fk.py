@@ -17,9 +17,12 @@ from kinecal.cli._options import (
     check_angle_unit,
     load_model_arg,
     quiet_option,
+    single_tip,
     strict_option,
-    tip_link_option,
+    tip_links_option,
+    tip_option,
 )
+from kinecal.errors import InputError
 
 
 @app.command()
@@ -42,8 +45,18 @@ def models(json_out: bool = typer.Option(False, "--json", help="Print JSON.")) -
     datasets = [{"name": n, "parts": [f"{n}:{p}" for p in d["parts"]], "license": d["license"],
                  "model": d["model"], "description": d["description"]}
                 for n, d in DATASETS.items()]
+    from kinecal.io.bundled import bundled_names
+    from kinecal.io.systems import load_system
+
+    systems = []
+    for name in bundled_names("system"):
+        s = load_system(name)
+        systems.append({"name": name, "tips": list(s.tips), "joints": s.n_joints,
+                        "parameters": s.n_params, "length_unit": s.length_unit,
+                        "description": s.description})
     if json_out:
-        echo_json({"models": arms, "geometries": geometries, "datasets": datasets})
+        echo_json({"models": arms, "systems": systems, "geometries": geometries,
+                   "datasets": datasets})
         return
     from rich.console import Console
     from rich.table import Table
@@ -56,6 +69,9 @@ def models(json_out: bool = typer.Option(False, "--json", help="Print JSON.")) -
         t.add_row(a["name"], a["convention"], str(a["joints"]), str(a["parameters"]),
                   str(a["calibratable"]), a["length_unit"])
     console.print(t)
+    for s in systems:
+        console.print(f"system {s['name']}: tips {', '.join(s['tips'])} ({s['joints']} "
+                      f"joints, {s['parameters']} parameters, {s['length_unit']})")
     if geometries:
         console.print("Stewart geometries: " + ", ".join(
             g if isinstance(g, str) else g.get("name", "") for g in geometries))
@@ -67,19 +83,30 @@ def models(json_out: bool = typer.Option(False, "--json", help="Print JSON.")) -
 def fk(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
-    joints: str = typer.Argument(..., help="CSV with q1..qn (model angle unit) or NAME:PART."),
+    tip_link: list[str] | None = tip_links_option(),
+    joints: str = typer.Argument(..., help="CSV with q1..qn (model angle unit) or NAME:PART; "
+                                 "a robot system's: its joint names and a tip column."),
     pose: bool = typer.Option(False, "--pose", help="Also print qw,qx,qy,qz of the tool frame."),
     params: Path | None = typer.Option(None, "--params", help="Calibration result JSON."),
+    tip: str | None = tip_option(),
     strict: bool = strict_option(),
     quiet: bool = quiet_option(),
     angle_unit: str | None = angle_unit_option("JOINTS"),
 ) -> None:
     """Forward kinematics: tool-point positions (CSV on stdout)."""
+    check_angle_unit(angle_unit)
+    from kinecal.cli.systems import is_system_arg
+
+    if is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_fk
+
+        return system_fk(dict(locals()))
+    if tip is not None:
+        raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
+    tip_link = single_tip(tip_link)
     from kinecal.calibration.diagnostics.units import check_joint_limits, check_joint_units
     from kinecal.io.measurements import read_joints, read_markers
 
-    check_angle_unit(angle_unit)
     with warnings_scope(strict):
         m = load_model_arg(model, base_link, tip_link)
         if params is not None:  # imported here: a plain fk reads no result

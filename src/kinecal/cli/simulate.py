@@ -19,8 +19,9 @@ from kinecal.cli._options import (
     load_model_arg,
     quiet_option,
     seed_option,
+    single_tip,
     strict_option,
-    tip_link_option,
+    tip_links_option,
 )
 from kinecal.cli._serial_common import POSE_BYTES
 from kinecal.errors import InputError
@@ -30,7 +31,13 @@ from kinecal.errors import InputError
 def simulate(
     model: str = typer.Argument(..., help=MODEL_HELP),
     base_link: str | None = base_link_option(),
-    tip_link: str | None = tip_link_option(),
+    tip_link: list[str] | None = tip_links_option(),
+    tip: list[str] | None = typer.Option(None, "--tip", help="Robot system: the chains "
+                                         "measured (repeatable; default every tip; --kind "
+                                         "pair: the two hands the bar joins)."),
+    carrier: str | None = typer.Option(None, "--carrier", help="Robot system, --kind point: "
+                                       "the link carrying the points (e.g. a positioner's "
+                                       "table); --point then in its frame."),
     poses: int | None = typer.Option(None, "--poses", help="Number of random poses (a model "
                                      "with markers measures every marker at each: poses x "
                                      "markers rows); gauge kinds: rows per pivot, pairs, "
@@ -90,6 +97,21 @@ def simulate(
 ) -> None:
     """Simulate measurements of a model with true errors and noise (any measurement kind;
     with --images, rendered board images of its stations)."""
+    from kinecal.cli.systems import is_system_arg
+
+    if is_system_arg(model, base_link, tip_link):
+        from kinecal.cli.systems import system_simulate
+
+        if (poses is None) == (joints is None):
+            raise InputError("expected --poses N (rows per chain, bars, touches per point "
+                             "and tip) or --joints PLAN.csv, one of them", option="--poses")
+        if check_angle_unit(angle_unit) and joints is None:
+            raise InputError("applies to a --joints file", option="--angle-unit")
+        return system_simulate(dict(locals()))
+    for option, value in (("--tip", tip), ("--carrier", carrier)):
+        if value:
+            raise InputError("applies to a robot system (docs/systems.md)", option=option)
+    tip_link = single_tip(tip_link)
     if (poses is None) == (joints is None):
         raise InputError("expected --poses N (random poses) or --joints FILE (given poses), "
                          "one of them", option="--joints" if joints is not None else "--poses")

@@ -60,6 +60,21 @@ DATASETS: dict[str, dict] = {
         "model": None,
         "parts": {"urdf": "kr16_2.urdf"},
     },
+    "rail-cell": {
+        "description": (
+            "Synthetic measurements of the bundled rail-cell system (a UR10 on a linear rail "
+            "beside a two-axis positioner), made by kinecal simulate from one true cell: "
+            "tracker: 40 rows of the rail's carriage and 40 of the arm's probe (0.02 mm "
+            "noise); touches: 4 workpiece points on the positioner's table, each touched 8 "
+            "times by the probe (0.01 mm); validation: 20 + 20 held-out tracker rows; truth: "
+            "the true deviations (docs/systems.md)."
+        ),
+        "source": "kinecal (synthetic, kinecal simulate; commands in docs/systems.md)",
+        "license": "MIT",
+        "model": "rail-cell",
+        "parts": {"tracker": "tracker.csv", "touches": "touches.csv",
+                  "validation": "validation.csv", "truth": "truth.json"},
+    },
     "handeye-formats": {
         "description": (
             "One synthetic, noise-free eye-in-hand recording of 9 stations in the formats "

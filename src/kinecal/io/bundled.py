@@ -1,7 +1,8 @@
 """Bundled machine files (``kinecal/robots/*.yaml``): listing them and resolving names.
 
-Serial-arm models and Stewart geometries share the folder; a file is a serial model when
-it has a top-level ``convention`` key and a Stewart geometry when it says ``kind: stewart``.
+Serial-arm models, robot systems and Stewart geometries share the folder; a file is a
+serial model when it has a top-level ``convention`` key, a Stewart geometry when it says
+``kind: stewart`` and a system when it says ``kind: system``.
 
 The index of the folder (name -> kind) reads only those top-level keys of each file, as
 text, once per process: listing the bundled machines or resolving a name parses no YAML
@@ -21,10 +22,11 @@ __all__ = ["bundled_index", "bundled_names", "input_file", "resolve_machine_file
            "robots_dir"]
 
 #: kind -> what to call it in messages
-KINDS = {"model": "model", "geometry": "geometry"}
+KINDS = {"model": "model", "geometry": "geometry", "system": "system"}
 
 _CONVENTION = re.compile(r"^convention[ \t]*:[ \t]*(?!null\b|~|#|$)\S", re.MULTILINE)
 _STEWART = re.compile(r"""^kind[ \t]*:[ \t]*["']?stewart["']?[ \t]*(#.*)?$""", re.MULTILINE)
+_SYSTEM = re.compile(r"""^kind[ \t]*:[ \t]*["']?system["']?[ \t]*(#.*)?$""", re.MULTILINE)
 
 
 def robots_dir() -> Path:
@@ -33,9 +35,11 @@ def robots_dir() -> Path:
 
 
 def _kind(text: str) -> str | None:
-    """``model``, ``geometry`` or None, from a machine file's top-level keys."""
+    """``model``, ``geometry``, ``system`` or None, from a machine file's top-level keys."""
     if _STEWART.search(text):
         return "geometry"
+    if _SYSTEM.search(text):
+        return "system"
     if _CONVENTION.search(text):
         return "model"
     return None
@@ -56,7 +60,7 @@ def bundled_index() -> dict[str, str]:
 
 
 def bundled_names(kind: str) -> list[str]:
-    """Sorted names of the bundled files of `kind` (``model`` or ``geometry``)."""
+    """Sorted names of the bundled files of `kind` (``model``, ``geometry``, ``system``)."""
     if kind not in KINDS:
         raise ValueError(f"kind: expected one of {', '.join(KINDS)}, got {kind!r}")
     return [name for name, k in bundled_index().items() if k == kind]

@@ -45,7 +45,8 @@ from kinecal.io.measurements import (
 )
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["KINDS", "kind_of_columns", "read_gauge", "read_kind", "write_gauge"]
+__all__ = ["KINDS", "gauge_columns", "gauge_values", "kind_of_columns", "read_gauge",
+           "read_kind", "write_gauge"]
 
 #: every kind -> the columns that name it
 KINDS: dict[str, tuple[str, ...]] = {
@@ -139,20 +140,34 @@ def read_gauge(path: str | Path, model: SerialModel, kind: str | None = None, *,
         raise InputError(f"{len(qcols)} joint columns ({', '.join(qcols)}), model "
                          f"{model.name!r} has {n} joints: expected q1..q{n}"
                          + (f" or {', '.join(names)}" if names else ""), file=path)
-    numeric = joints + (["distance"] if kind in DISTANCE_KINDS else [])
-    cols = read_table(path, numeric, optional=["sigma"])
+    cols = read_table(path, joints + gauge_columns(kind), optional=["sigma"])
     q = np.column_stack([cols[c] for c in joints]) * model.joint_scale(angle_unit)
+    group, names, distance, sigma = gauge_values(path, kind, cols, len(q),
+                                                  model.length_unit)
+    known = read_known(path, kind, group, names)
+    marker, markers = read_markers(path, model)
+    return GaugeMeasurements(kind, q, group, names, distance, sigma, str(path), marker,
+                             markers, known)
+
+
+def gauge_columns(kind: str) -> list[str]:
+    """The numeric columns a gauge kind's file must have besides the joints."""
+    return ["distance"] if kind in DISTANCE_KINDS else []
+
+
+def gauge_values(path: Path, kind: str, cols: dict, n: int, length_unit: str
+                 ) -> tuple[np.ndarray, tuple[str, ...], np.ndarray | None, np.ndarray | None]:
+    """Group index per row and group names, distances and sigmas of a gauge file, from the
+    columns `read_table` read (``distance``, ``sigma``) and its id column; `InputError`
+    for a non-positive distance or sigma or a bad id."""
     for name in ("distance", "sigma"):
         v = cols.get(name)
         if v is not None and not (v > 0).all():
             row = int(np.argmax(~(v > 0))) + 1
             raise InputError(f"column {name}: {v[row - 1]:g}, expected a positive length "
-                             f"({model.length_unit})", file=path, row=row)
-    group, names = _ids(path, GAUGE_KINDS[kind], len(q))
-    known = read_known(path, kind, group, names)
-    marker, markers = read_markers(path, model)
-    return GaugeMeasurements(kind, q, group, names, cols.get("distance"), cols.get("sigma"),
-                             str(path), marker, markers, known)
+                             f"({length_unit})", file=path, row=row)
+    group, names = _ids(path, GAUGE_KINDS[kind], n)
+    return group, names, cols.get("distance"), cols.get("sigma")
 
 
 def write_gauge(path: str | Path, data: GaugeMeasurements, model: SerialModel, *,

@@ -38,8 +38,9 @@ from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
 
 # Measurements (kinecal.data) is re-exported here
-__all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "read_joints",
-           "read_markers", "read_measurements", "resolve_csv", "write_measurements"]
+__all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "measured_poses",
+           "orientation_columns", "read_joints", "read_markers", "read_measurements",
+           "resolve_csv", "write_measurements"]
 
 #: columns with a meaning of their own in measurement and program files: a joint of that
 #: name can only be given as q1..qn
@@ -250,6 +251,22 @@ def _orientation_columns(header: list[str], path: Path) -> list[str]:
             file=path,
         )
     return present
+
+
+def orientation_columns(header: list[str], path: Path) -> list[str]:
+    """``qw, qx, qy, qz`` when the header has them, none when it has none; `InputError`
+    for some of them only (the readers of a robot system's files, `kinecal.io.system_data`)."""
+    return _orientation_columns(header, path)
+
+
+def measured_poses(path: Path, cols: dict) -> tuple[NDArray[np.float64], NDArray | None,
+                                                    NDArray | None]:
+    """Measured points ``(N, 3)``, weights ``(N,)`` and rotations ``(N, 3, 3)`` (None when
+    absent) from the columns `read_table` read (``x, y, z`` and the optional ``weight``,
+    ``qw .. qz``); `InputError` for a non-positive weight or a quaternion off unit norm."""
+    xyz = np.column_stack([cols[c] for c in "xyz"])
+    quat = [c for c in QUATERNION if c in cols]
+    return xyz, _weights(cols, path), _rotations(cols, quat, path)
 
 
 def _weights(cols: dict[str, NDArray[np.float64]], path: Path) -> NDArray[np.float64] | None:

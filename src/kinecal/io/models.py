@@ -47,7 +47,7 @@ from kinecal.io.model_schema import ModelFile, entry_spec
 from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = ["bundled_models", "check_model_file_name", "is_urdf_path", "load_model",
-           "model_path", "read_yaml", "save_model"]
+           "model_from_mapping", "model_path", "read_yaml", "save_model"]
 
 
 #: angle-valued keys of chain entries (a urdf joint's offset only when it rotates)
@@ -132,6 +132,16 @@ def load_model(name_or_path: str | Path, *, base_link: str | None = None,
             raise InputError(f"{option} applies to URDF models only", option=option)
     path = model_path(name_or_path)
     data = read_yaml(path)
+    if data.get("kind") == "system":
+        raise InputError("a system file (kind: system): load it with kinecal.io.systems."
+                         "load_system (the commands that take systems read it as MODEL)",
+                         file=path)
+    return model_from_mapping(data, path)
+
+
+def model_from_mapping(data: dict, path: str | Path) -> SerialModel:
+    """The model of a model file's mapping `data` (`path`: where it came from, for
+    messages); `InputError` on a schema violation."""
     if isinstance(data.get("markers"), dict):  # YAML reads marker names 1, 2, 3 as numbers
         data["markers"] = {str(k): v for k, v in data["markers"].items()}
     try:

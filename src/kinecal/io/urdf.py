@@ -22,7 +22,8 @@ target never at the tip link's origin; the identifiability analysis decides whic
 many origin parameters are free.
 
 Mimic joints, floating and planar joints on the chain, several roots, and branching
-without `tip_link` raise `InputError` naming the joints or links involved.
+without `tip_link` raise `InputError` naming the joints or links involved. Several tips,
+and chains with mimic (coupled) joints, are a system: `kinecal.io.urdf_tree`.
 """
 
 from __future__ import annotations
@@ -41,7 +42,8 @@ from kinecal.kinematics.serial.chain import check_chain_size
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import xyz_rpy_from_transform
 
-__all__ = ["MAX_URDF_JOINTS", "MOVING", "chain_path", "load_urdf", "read_urdf", "urdf_entries"]
+__all__ = ["MAX_URDF_JOINTS", "MOVING", "chain_path", "joint_entry", "load_urdf", "read_urdf",
+           "urdf_entries"]
 
 MOVING = ("revolute", "continuous", "prismatic")
 _UNSUPPORTED = ("floating", "planar")
@@ -309,46 +311,56 @@ def urdf_entries(chain: list, path: str | Path = "") -> tuple[list[dict], np.nda
     (rad; prismatic: metres)."""
     path = Path(path)
     entries, limits = [], []
-    for j in chain:
+    for k, j in enumerate(chain):
         if j.mimic is not None:
             raise InputError(f"joint {j.name} mimics joint {j.mimic.joint}: coupled joints are "
-                             "not supported; end the chain before it with --tip-link", file=path)
-        if j.type in _UNSUPPORTED:
-            hint = (f"; start the chain below it with --base-link {j.child}"
-                    if not any(c.type in MOVING for c in chain[:chain.index(j)]) else "")
-            raise InputError(f"joint {j.name} is {j.type}: kinecal models revolute, continuous, "
-                             f"prismatic and fixed joints{hint}", file=path)
-        x, y, z, roll, pitch, yaw = _origin(j)
-        pose = {"x": x, "y": y, "z": z, "roll": roll, "pitch": pitch, "yaw": yaw,
-                "parent": j.parent, "child": j.child}
-        if j.type == "fixed":
-            name = f"{j.name}_frame" if j.name in _RESERVED else j.name
-            entries.append({"frame": name, **pose})
-            continue
-        axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=float)
-        entry = {"name": j.name, "type": j.type, **pose, "offset": 0.0,
-                 "axis": [float(v) for v in axis]}
-        lim = j.limit
-        for key in ("effort", "velocity"):
-            value = None if lim is None else getattr(lim, key)
-            if value is not None:
-                entry[key] = float(value)
+                             "a system's (give the chain's tips with --tip-link, or end the "
+                             "chain before it with --tip-link)", file=path)
+        moving_before = any(c.type in MOVING for c in chain[:k])
+        entry, lim = joint_entry(j, path, moving_before)
         entries.append(entry)
-        lo = None if lim is None else lim.lower
-        hi = None if lim is None else lim.upper
-        if j.type == "continuous":
-            limits.append([-np.pi, np.pi])
-        elif lo is None or hi is None or not lo < hi:
-            if j.type == "prismatic":
-                raise InputError(f"prismatic joint {j.name}: expected <limit lower=... "
-                                 "upper=...> with lower < upper (metres)", file=path)
-            diagnostics.warn("urdf-joint-limits",
-                             f"{path.name}: revolute joint {j.name} has no usable limits "
-                             f"(lower={lo}, upper={hi}); using [-180, 180] deg")
-            limits.append([-np.pi, np.pi])
-        else:
-            limits.append([float(lo), float(hi)])
+        if lim is not None:
+            limits.append(lim)
     return entries, np.asarray(limits, dtype=float).reshape(-1, 2)
+
+
+def joint_entry(j, path: Path, moving_before: bool = True
+                ) -> tuple[dict, list[float] | None]:
+    """The chain entry of one URDF joint (a moving joint or a fixed frame, module docstring)
+    and, for a moving joint, its limits ``[lower, upper]`` (rad; prismatic: metres).
+
+    `moving_before`: whether a moving joint precedes it (the hint of a floating joint)."""
+    if j.type in _UNSUPPORTED:
+        hint = "" if moving_before else f"; start the chain below it with --base-link {j.child}"
+        raise InputError(f"joint {j.name} is {j.type}: kinecal models revolute, continuous, "
+                         f"prismatic and fixed joints{hint}", file=path)
+    x, y, z, roll, pitch, yaw = _origin(j)
+    pose = {"x": x, "y": y, "z": z, "roll": roll, "pitch": pitch, "yaw": yaw,
+            "parent": j.parent, "child": j.child}
+    if j.type == "fixed":
+        name = f"{j.name}_frame" if j.name in _RESERVED else j.name
+        return {"frame": name, **pose}, None
+    axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=float)
+    entry = {"name": j.name, "type": j.type, **pose, "offset": 0.0,
+             "axis": [float(v) for v in axis]}
+    lim = j.limit
+    for key in ("effort", "velocity"):
+        value = None if lim is None else getattr(lim, key)
+        if value is not None:
+            entry[key] = float(value)
+    lo = None if lim is None else lim.lower
+    hi = None if lim is None else lim.upper
+    if j.type == "continuous":
+        return entry, [-np.pi, np.pi]
+    if lo is None or hi is None or not lo < hi:
+        if j.type == "prismatic":
+            raise InputError(f"prismatic joint {j.name}: expected <limit lower=... "
+                             "upper=...> with lower < upper (metres)", file=path)
+        diagnostics.warn("urdf-joint-limits",
+                         f"{path.name}: revolute joint {j.name} has no usable limits "
+                         f"(lower={lo}, upper={hi}); using [-180, 180] deg")
+        return entry, [-np.pi, np.pi]
+    return entry, [float(lo), float(hi)]
 
 
 def load_urdf(path: str | Path, *, base_link: str | None = None,

@@ -40,7 +40,8 @@ from kinecal.kinematics.serial.model import SerialModel
 from kinecal.kinematics.serial.motions import PRISMATIC, ROTATION, Motion
 from kinecal.spatial import matrix_from_axis_angle, rot_x, rot_y, rot_z, xyz_rpy_from_transform
 
-__all__ = ["URDFJoint", "save_urdf", "urdf_joints", "urdf_origin", "urdf_string"]
+__all__ = ["URDFJoint", "joints_string", "save_urdf", "urdf_joints", "urdf_origin",
+           "urdf_string"]
 
 Array = NDArray[np.float64]
 _ROT = (rot_x, rot_y, rot_z)
@@ -232,14 +233,22 @@ def urdf_string(model: SerialModel, params: ArrayLike | None = None, *,
     comment : str, optional
         Text of an XML comment at the top (what the file was made from).
     """
-    per_m = _PER_M.get(model.length_unit)
+    return joints_string(urdf_joints(model, params), model.length_unit, name or model.name,
+                         comment)
+
+
+def joints_string(joints: list[URDFJoint], length_unit: str, name: str,
+                  comment: str | None = None) -> str:
+    """The URDF text of the tree `joints` (root first; lengths in `length_unit`, written
+    in metres). A joint whose ``extra`` has ``mimic: (leader, multiplier)`` gets a
+    ``<mimic>`` tag (its offset is in its origin)."""
+    per_m = _PER_M.get(length_unit)
     if per_m is None:
-        raise InputError(f"length unit {model.length_unit!r}: expected mm or m")
-    joints = urdf_joints(model, params)
-    robot = ET.Element("robot", {"name": name or model.name})
+        raise InputError(f"length unit {length_unit!r}: expected mm or m")
+    robot = ET.Element("robot", {"name": name})
     if comment:
         robot.append(ET.Comment(" " + " ".join(comment.replace("--", "- -").split()) + " "))
-    links = [joints[0].parent] + [jt.child for jt in joints]
+    links = list(dict.fromkeys([joints[0].parent] + [jt.child for jt in joints]))
     for link in links:
         ET.SubElement(robot, "link", {"name": link})
     for jt in joints:
@@ -256,6 +265,10 @@ def urdf_string(model: SerialModel, params: ArrayLike | None = None, *,
                 limit = {"lower": _num(jt.limits[0] / f), "upper": _num(jt.limits[1] / f),
                          **limit}
             ET.SubElement(el, "limit", limit)
+            if "mimic" in jt.extra:
+                leader, mult = jt.extra["mimic"]
+                ET.SubElement(el, "mimic", {"joint": leader, "multiplier": _num(mult),
+                                            "offset": "0.0"})
     ET.indent(robot, "  ")
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
 

@@ -162,6 +162,7 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes],
     from kinecal.report.iso9283 import validation_iso9283_section
     from kinecal.report.kinds import kinds_section
     from kinecal.report.residual_maps import error_model_section
+    from kinecal.report.systems import system_sections
 
     figs = "".join(image_tag(png, f"{kind} figure", CAPTIONS[kind], f"fig-{kind}")
                    for kind, png in pngs.items())
@@ -172,6 +173,7 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes],
         section("summary", "Model and data", _model_and_data(result)),
         section("errors", "Position error before and after", _errors(result)),
         kinds_section(result),
+        *system_sections(result),
         validation_iso9283_section(result, validation),
         section("identifiability", "Identifiability", _identifiability(result)),
         section("parameters", "Parameters", _parameters(result)),

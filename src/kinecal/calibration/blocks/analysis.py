@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from kinecal.calibration.blocks.base import MOTION_WORDS
 from kinecal.calibration.blocks.stack import StackedProblem
+from kinecal.calibration.blocks.tips import fold_groups
 from kinecal.calibration.identifiability import IdentifiabilityReport, analyse_factor
 from kinecal.calibration.serial.problem import column_scale
 from kinecal.data import Measurements
@@ -119,13 +120,19 @@ def stack_scale(problem: StackedProblem, params: Array, names=None) -> tuple[Arr
     return D, L, q, P
 
 
-def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool) -> Array:
+def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool,
+            keep: list[Array] | None = None, rows: list | None = None) -> Array:
     """``R`` of the scaled, weighted ``[J_n | J_a]`` ``(n, n)``; with `check`, refuses a
-    block whose rows do not determine its own unknowns."""
+    block whose rows do not determine its own unknowns; `keep`: per block, the residual
+    rows to use (the others left out); `rows`: the blocks' weighted rows at `x` when
+    already evaluated (`StackedProblem._weighted_rows`)."""
     k, n = problem.k, problem.n
     nn = n - k
     R = None
-    for b, (_, Ja, Jn, s) in zip(problem.blocks, problem._weighted_rows(x), strict=True):
+    rows = problem._weighted_rows(x) if rows is None else rows
+    for i, (b, (_, Ja, Jn, s)) in enumerate(zip(problem.blocks, rows, strict=True)):
+        if keep is not None:
+            Ja, Jn = Ja[keep[i]], Jn[keep[i]]
         if b.n_nuisance and check:
             Js = Jn * b.nuisance_scale(L)
             sv = np.linalg.svd(Js, compute_uv=False)
@@ -133,10 +140,15 @@ def _factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool) 
                 raise InputError(f"{b.name}: its rows do not determine its own unknowns "
                                  f"({', '.join(b.nuisance_names[:6])}...): too few or too "
                                  "similar rows per group")
-        block = np.zeros((Ja.shape[0], n), order="F")
-        block[:, s.start - k:s.stop - k] = Jn * b.nuisance_scale(L)
-        block[:, nn:] = Ja * D
-        R = qr_update(R, block)
+        groups = problem.groups[i]
+        if groups is None or keep is not None:  # (a chain's rows alone: the rows kept)
+            block = np.zeros((Ja.shape[0], n), order="F")
+            block[:, s.start - k:s.stop - k] = Jn * b.nuisance_scale(L)
+            block[:, nn:] = Ja * D
+            R = qr_update(R, block)
+            continue
+        R = fold_groups(R, Jn * b.nuisance_scale(L), Ja, D, groups,
+                        np.arange(s.start - k, s.stop - k), nn, n)
     return np.zeros((n, n)) if R is None else R
 
 
@@ -168,13 +180,20 @@ def _fields(P: Array) -> Array:
 
 
 def _producible(problem: StackedProblem, params: Array, q: Array, P: Array, D: Array,
-                known: bool) -> tuple[Array, Array]:
+                known: bool, used: list[bool] | None = None, configs: Array | None = None
+                ) -> tuple[Array, Array]:
     """The blind motions the candidate parameters can make on the tool points: the arm
-    directions ``(k, p)`` (unscaled least-squares solutions) and the motions ``(7, p)``."""
-    M = blind_motions(problem.blocks, known)
+    directions ``(k, p)`` (unscaled least-squares solutions) and the motions ``(7, p)``;
+    `used`: the blocks that count (default all), `configs`: the configurations that count
+    (a mask, default all)."""
+    blocks = [b for i, b in enumerate(problem.blocks) if used is None or used[i]]
+    M = blind_motions(blocks, known)
     if M.shape[1] == 0 or problem.k == 0:
         return np.zeros((problem.k, 0)), np.zeros((7, 0))
     _, marker = _configurations(problem)
+    if configs is not None:
+        q, P = q[configs], P[configs]
+        marker = None if marker is None else marker[configs]
     J = problem.model.identification_jacobian(q, params, marker=marker)[:, :, problem.index]
     J = J.reshape(-1, problem.k)
     W = _fields(P) @ M  # the blind motions' fields
@@ -189,17 +208,19 @@ def _producible(problem: StackedProblem, params: Array, q: Array, P: Array, D: A
 
 
 def blind_basis(problem: StackedProblem, params: Array, q: Array, P: Array, D: Array,
-                known: bool = True) -> tuple[Array, list[str]]:
+                known: bool = True, used: list[bool] | None = None,
+                configs: Array | None = None) -> tuple[Array, list[str]]:
     """Orthonormal arm directions ``(k, b)`` (columns scaled by `D`) producing the mix's
     blind motions on the tool points `P` ``(N, 3)`` of the configurations `q`, and the
-    motions' names (`stack_scale` gives `D`, `q` and `P`; `known`: as `blind_motions`).
+    motions' names (`stack_scale` gives `D`, `q` and `P`; `known`: as `blind_motions`;
+    `used`, `configs`: the blocks and configurations that count, as `_producible`).
 
     The blind motions are those every block is blind to (`blind_motions`); of them, the
     ones the candidate parameters can make on the tool points (least squares on the
     tool-point Jacobian leaves less than `PRODUCIBLE` of the motion's field) are named
     (`motion_names`) and returned.
     """
-    v, motions = _producible(problem, params, q, P, D, known)
+    v, motions = _producible(problem, params, q, P, D, known, used, configs)
     if v.shape[1] == 0:
         return np.zeros((problem.k, 0)), []
     U, s, _ = np.linalg.svd(v / D[:, None], full_matrices=False)
@@ -304,8 +325,9 @@ def _motion_words(m: Array) -> str:
     return f"the motion t = {_vector(t)}, w = {_vector(w)}, s = {s:.4g}"
 
 
-def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = False
-                  ) -> StackAnalysis:
+def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = False,
+                  keep: list[Array] | None = None, configs: Array | None = None,
+                  rows: list | None = None) -> StackAnalysis:
     """Identifiability of `problem`'s arm parameters at `x` (module docstring).
 
     Parameters
@@ -318,15 +340,25 @@ def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = F
     check : bool
         Refuse (`InputError`) a block whose rows do not determine its own unknowns (the
         data's fault at the start values; at a solution, the fit's).
+    keep : list of ndarray of bool, optional
+        Per block, the residual rows to analyse (e.g. one chain's of a robot system); the
+        blocks without any count neither for the blind motions.
+    configs : ndarray of bool, optional
+        With `keep`: the configurations (of the blocks in order) those rows measure.
+    rows : list, optional
+        The blocks' weighted rows at `x` (`StackedProblem._weighted_rows`), when several
+        analyses of one point share them.
     """
     params = problem.params(x)
     D, L, q, P = stack_scale(problem, params)
-    R = _factor(problem, x, D, L, check)
+    R = _factor(problem, x, D, L, check, keep, rows)
     nn = problem.n - problem.k
     Raa = R[nn:, nn:]
-    Q, unseen = blind_basis(problem, params, q, P, D)
+    used = None if keep is None else [bool(k.any()) for k in keep]
+    Q, unseen = blind_basis(problem, params, q, P, D, used=used, configs=configs)
     B = Raa - (Raa @ Q) @ Q.T if Q.size else Raa
-    n_rows = max(problem.m_used - nn, 1)
+    m = problem.m_used if keep is None else int(sum(int(k.sum()) for k in keep))
+    n_rows = max(m - nn, 1)
     report = analyse_factor(B / D, problem.free, n_rows, tol=tol, scale=D)
     return StackAnalysis(report, unseen, Raa / D, B, D, L, n_rows,
                          fixture_visibility(problem, params, q, P, D))

@@ -23,6 +23,8 @@ from kinecal.calibration.blocks.checks import check_block_data, check_blocks, ch
 from kinecal.calibration.blocks.decide import solve_blocks, start_blocks
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
 from kinecal.calibration.blocks.result import KindsCalibrationResult, kind_entry
+from kinecal.calibration.blocks.system_ident import system_identifiability
+from kinecal.calibration.blocks.tips import by_tip
 from kinecal.calibration.blocks.uncertainty import stack_uncertainty
 from kinecal.calibration.diagnostics.fit import (
     check_parameter_tolerance,
@@ -32,9 +34,11 @@ from kinecal.calibration.serial.problem import candidate_names
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers
 from kinecal.kinematics.serial.model import SerialModel
+from kinecal.kinematics.tree.system import SystemModel, is_system
 from kinecal.optimize.lsq import LOSSES
 
-__all__ = ["BLOCK_METHODS", "RANK_TOL", "calibrate_blocks", "validation_errors"]
+__all__ = ["BLOCK_METHODS", "RANK_TOL", "calibrate_blocks", "calibrate_system",
+           "validation_errors"]
 
 #: solvers of the stacked problem
 BLOCK_METHODS = ("lm",)
@@ -96,6 +100,21 @@ def calibrate_blocks(
                          loss, f_scale, rank_tol, rotation_weight)
     res.warnings = list(found)
     return res
+
+
+def calibrate_system(model: SystemModel, data, method: str = "lm", *, validate=None,
+                     sigma=None, **kw) -> KindsCalibrationResult:
+    """Identify a robot system (`kinecal.kinematics.tree.SystemModel`) from measurement
+    sets of any kinds whose rows name their tips: `calibrate_blocks` with one set or a
+    list (`sigma`: one value for every set, or one per set); what `kinecal.calibrate`
+    does with a system. The result has, beside the overall figures, the errors per tip
+    (``extra["by_tip"]``, the JSON's ``calibration.by_tip``) and what each chain's data
+    identify alone (``extra["system"]``, `system_ident`)."""
+    from kinecal.calibration.serial.merge import data_sets
+
+    sets, sig = data_sets(data, sigma, "data")
+    vsets = None if validate is None else data_sets(validate, None, "validation")[0]
+    return calibrate_blocks(model, sets, sigma=sig, validate=vsets, method=method, **kw)
 
 
 def _check_arguments(method: str, loss: str, data: list, f_scale, rank_tol) -> None:
@@ -177,12 +196,19 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
                                   else "not used", e0, e1)
                        for b, e0, e1 in zip(val_blocks, vb, va, strict=True)]
         val_before, val_after = _length_errors(val_blocks, vb), _length_errors(val_blocks, va)
+    more = {}
+    if is_system(model):  # a robot system: errors per tip, what each chain identifies
+        more["by_tip"] = {"calibration": by_tip(model.tips, blocks, before, after)}
+        if val_blocks:
+            more["by_tip"]["validation"] = by_tip(model.tips, val_blocks, vb, va)
+        more["system"] = system_identifiability(sol.final, sol.final.pack(params, nuis),
+                                                rank_tol, ana)
     return _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,
-                   val_before, val_after, blocks, val_blocks, t0, loss)
+                   val_before, val_after, blocks, val_blocks, t0, loss, more)
 
 
 def _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,
-            val_before, val_after, blocks, val_blocks, t0, loss):
+            val_before, val_after, blocks, val_blocks, t0, loss, more):
     res = fit.result
     names = prob.free
     report = ana.report
@@ -203,6 +229,7 @@ def _result(model, prob, fit, ana, unc, params, before, after, entries, val_entr
     if val_entries:
         extra["validation_kinds"] = val_entries
         extra["validation_data"] = [b.source for b in val_blocks]
+    extra.update(more)
     if labels:
         extra["outlier_observations"] = labels
     if loss != "linear":

@@ -56,12 +56,16 @@ class StackSolution:
         Identifiability of the candidates at the nominal geometry.
     before : list of ndarray
         Each block's error per observation at nominal (its unknowns fitted).
+    final : StackedProblem
+        The problem with every candidate free at the solution (what `analysis` analysed;
+        the identifiability per chain of a robot system analyses it again).
     """
 
     fit: StackFit
     analysis: StackAnalysis
     start: StackAnalysis
     before: list[Array]
+    final: StackedProblem | None = None
 
 
 def solve_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], candidates: list[str],
@@ -104,4 +108,4 @@ def solve_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], candidates
     final.exclude(prob.excluded)
     ana = analyse_stack(final, final.pack(params, nuis), rank_tol)
     ana.report = report_for(ana, prob.free, rank_tol)
-    return StackSolution(fit, ana, ana0, before)
+    return StackSolution(fit, ana, ana0, before, final)

@@ -9,6 +9,7 @@ import numpy as np
 
 from kinecal.calibration.blocks.ballbar import BallbarBlock
 from kinecal.calibration.blocks.base import ResidualBlock
+from kinecal.calibration.blocks.carried import CarriedPointBlock
 from kinecal.calibration.blocks.pair import PairBlock
 from kinecal.calibration.blocks.plane import PlaneBlock
 from kinecal.calibration.blocks.point import PointBlock
@@ -83,6 +84,9 @@ def make_blocks(model: SerialModel, data: Sequence[DataSet],
             blocks.append(d)
         elif isinstance(d, Measurements):
             blocks.append(TrackerBlock(_remapped(d, model), s, rotation_weight))
+        elif isinstance(d, GaugeMeasurements) and d.carrier is not None and (
+                np.asarray(d.carrier) >= 0).any():  # points on a moving link of a system
+            blocks.append(CarriedPointBlock(_remapped(d, model), s))
         elif isinstance(d, GaugeMeasurements):
             blocks.append(BLOCK_TYPES[d.kind](_remapped(d, model), s))
         else:

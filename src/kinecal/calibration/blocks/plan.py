@@ -21,6 +21,7 @@ from kinecal.calibration.blocks.decide import solve_blocks
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
 from kinecal.calibration.blocks.simulate import simulate_kind
 from kinecal.calibration.blocks.stack import StackedProblem
+from kinecal.calibration.blocks.system_ident import system_identifiability
 from kinecal.calibration.serial.pose_selection import d_optimal
 from kinecal.calibration.serial.problem import candidate_names
 from kinecal.data import GaugeMeasurements
@@ -28,7 +29,7 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["analyse_kinds", "select_kind_poses"]
+__all__ = ["analyse_kinds", "analyse_system", "select_kind_poses", "select_system_poses"]
 
 
 def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Sequence[str] = "all",
@@ -49,6 +50,12 @@ def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Seque
         Per set: ``file``, ``kind``, ``observations``, ``rows``, ``unknowns`` (its own),
         ``known`` (its known fixtures: points or planes).
     """
+    sol, blocks = _solve(model, data, free, sigma, tol)
+    return sol.analysis, _kinds(blocks)
+
+
+def _solve(model, data: Sequence[DataSet], free, sigma, tol: float):
+    """`solve_blocks` of the data sets with the data checks; and their blocks."""
     model = model_for_markers(model, marker_names(list(data)))
     blocks = make_blocks(model, list(data), sigma)
     names = candidate_names(model, "all" if free == "identifiable" else free)
@@ -56,11 +63,29 @@ def analyse_kinds(model: SerialModel, data: Sequence[DataSet], free: str | Seque
     def check(nuis, before, ana0, chosen) -> None:
         check_block_data(model, blocks, nuis, before, names)
 
-    ana = solve_blocks(model, blocks, names, True, rank_tol=tol, check=check).analysis
-    kinds = [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
-              "rows": int(b.n_rows), "unknowns": int(b.n_nuisance),
-              "known": int(np.sum(getattr(b, "known_mask", ())))} for b in blocks]
-    return ana, kinds
+    return solve_blocks(model, blocks, names, True, rank_tol=tol, check=check), blocks
+
+
+def _kinds(blocks) -> list[dict[str, Any]]:
+    return [{"file": b.source, "kind": b.kind, "observations": int(b.n_obs),
+             "rows": int(b.n_rows), "unknowns": int(b.n_nuisance),
+             "known": int(np.sum(getattr(b, "known_mask", ())))} for b in blocks]
+
+
+def analyse_system(model, data: Sequence[DataSet], free: str | Sequence[str] = "all", *,
+                   sigma: Sequence[float | None] | None = None, tol: float = CAL_RANK_TOL
+                   ) -> tuple[StackAnalysis, list[dict[str, Any]], dict[str, Any]]:
+    """What `calibrate_blocks` frees from a robot system's data sets (`analyse_kinds`), and
+    the system section (`kinecal.calibration.blocks.system_ident.system_identifiability`:
+    what each chain's rows identify alone, what only the combination does); ``kinecal
+    identifiability SYSTEM --data ...``."""
+    sol, blocks = _solve(model, data, free, sigma, tol)
+    prob = sol.fit.problem
+    x = np.asarray(sol.fit.result.x, dtype=float)
+    final = sol.final
+    section = system_identifiability(final, final.pack(prob.params(x), prob.nuisance(x)), tol,
+                                     sol.analysis)
+    return sol.analysis, _kinds(blocks), section
 
 
 def select_kind_poses(model: SerialModel, kind: str, count: int, *, candidates: int = 100,
@@ -123,3 +148,42 @@ def select_kind_poses(model: SerialModel, kind: str, count: int, *, candidates: 
     sv = np.linalg.svd(sel, compute_uv=False)
     return plan, {"identifiable": list(names), "rank": ana.report.rank,
                   "not_seen": list(ana.unseen), **observability_indices(sv, sel.shape[0])}
+
+
+def select_system_poses(model, count: int, *, candidates: int = 500,
+                        tips: Sequence[str] | None = None,
+                        rng: int | np.random.Generator | None = None
+                        ) -> tuple[Any, dict[str, Any]]:
+    """Tracker rows of a robot system that identify the most: which chain, in which
+    configuration (``kinecal select-poses SYSTEM``).
+
+    `candidates` random configurations per tip (`tips`, default all) of the nominal
+    system; `count` rows in all chosen to maximise ``log det`` of the information of the
+    parameters the candidates identify (unit-RMS columns; greedy build-up and exchanges,
+    `kinecal.calibration.serial.pose_selection.d_optimal`).
+
+    Returns
+    -------
+    Measurements
+        The chosen rows (their tips in ``marker``), nominal tool points as ``xyz``.
+    dict
+        ``identifiable``, ``rank``, ``per_tip`` (rows chosen per tip), ``O1``..``O5``.
+    """
+    from kinecal.calibration.blocks.system_simulate import simulate_system
+    from kinecal.calibration.identifiability import observability_indices
+
+    data = simulate_system(model, candidates, tips=tips, rng=rng).data
+    names = analyse_system(model, [data], "all")[0].report.identifiable
+    if count < 1 or count > len(data) or 3 * count < len(names):
+        raise InputError(f"count: {count} rows give {3 * count} equations for {len(names)} "
+                         f"identifiable parameters (and at most {len(data)} candidates): "
+                         f"expected {-(-len(names) // 3)} to {len(data)}", option="--count")
+    idx = model.index(names)
+    J = model.identification_jacobian(data.q, marker=data.marker)[:, :, idx]
+    J = J / np.maximum(np.sqrt((J ** 2).mean(axis=(0, 1))), 1e-300)
+    chosen = np.sort(np.asarray(d_optimal(J, count), dtype=np.intp))
+    plan = data.subset(chosen)
+    s = np.linalg.svd(J[chosen].reshape(-1, idx.size), compute_uv=False)
+    per_tip = {t: int((plan.marker == k).sum()) for k, t in enumerate(model.tips)}
+    return plan, {"identifiable": list(names), "rank": len(names), "per_tip": per_tip,
+                  **observability_indices(s, 3 * count)}

@@ -16,7 +16,7 @@ import numpy as np
 from kinecal.calibration.serial.result import CalibrationResult
 from kinecal.metrology.stats import error_stats
 
-__all__ = ["KindsCalibrationResult", "kind_entry", "kind_lines"]
+__all__ = ["KindsCalibrationResult", "kind_entry", "kind_lines", "tip_lines"]
 
 
 def kind_entry(block, sigma: np.ndarray | None, how: str, before: np.ndarray,
@@ -63,6 +63,23 @@ def kind_lines(entries: list[dict], length_unit: str, title: str,
     return lines
 
 
+def tip_lines(tips: dict | None, length_unit: str, factor: float = 1.0) -> list[str]:
+    """Text table of a robot system's errors per tip (rms and max before / after)."""
+    if not tips:
+        return []
+    lines = ["", f"per tip (error per observation, {length_unit})",
+             f"{'tip':24s} {'set':5s} {'n':>5s} {'rms before':>11s} {'rms after':>10s} "
+             f"{'max after':>10s}"]
+    for which, table in tips.items():
+        for tip, e in table.items():
+            if not e["n"]:
+                continue
+            lines.append(f"{tip[:24]:24s} {which[:5]:5s} {e['n']:5d} "
+                         f"{e['before']['rms'] * factor:11.4g} {e['after']['rms'] * factor:10.4g} "
+                         f"{e['after']['max'] * factor:10.4g}")
+    return lines
+
+
 @dataclass(repr=False)
 class KindsCalibrationResult(CalibrationResult):
     """Outcome of a calibration from several measurement kinds (module docstring).
@@ -72,6 +89,17 @@ class KindsCalibrationResult(CalibrationResult):
     length unit), file after file; ``q_calibration`` every configuration the files
     measured (for the predicted uncertainty).
     """
+
+    def to_dict(self) -> dict[str, Any]:
+        """The calibration JSON; a robot system's errors per tip go into the calibration
+        and validation sections as ``by_tip[TIP].before|after.{mean, rms, max, ...}``."""
+        out = super().to_dict()
+        tips = out.pop("by_tip", None)
+        if tips:
+            out["calibration"]["by_tip"] = tips["calibration"]
+            if out.get("validation") is not None and "validation" in tips:
+                out["validation"]["by_tip"] = tips["validation"]
+        return out
 
     def summary(self, unit: str | None = None) -> str:
         """The tracker summary with the per-kind table and the motions not seen; `unit`
@@ -83,6 +111,11 @@ class KindsCalibrationResult(CalibrationResult):
                            f"per measurement set (rms, max: error per observation, {unit})", f)
         extra += kind_lines(self.extra.get("validation_kinds", []), unit,
                             "validation sets (their own unknowns fitted)", f)
+        extra += tip_lines(self.extra.get("by_tip"), unit, f)
+        if self.extra.get("system"):
+            from kinecal.calibration.blocks.system_ident import system_lines
+
+            extra += system_lines(self.extra["system"])
         unseen = self.extra.get("not_seen_words")
         if unseen:
             extra += ["", f"not seen by this mix of measurements: {unseen}; the parameters "

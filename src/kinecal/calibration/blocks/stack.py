@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.blocks.base import ResidualBlock, tool_points
+from kinecal.calibration.blocks.tips import column_groups
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.optimize.lsq import levenberg_marquardt
@@ -61,6 +62,8 @@ class StackedProblem:
         #: observations left out of the fit (weight zero): ``(block, observation)``
         self.excluded: list[tuple[int, int]] = []
         self.set_sigma(sigma)
+        # a robot system's rows reach their chains' columns only (`tips.column_groups`)
+        self.groups = [column_groups(model, b, self.index) for b in self.blocks]
         # the blocks whose tool points one shared sweep computes
         self._shared = [i for i, b in enumerate(self.blocks) if b.shares_tool_points]
         if self._shared:
@@ -164,15 +167,27 @@ class StackedProblem:
             J[rs, s] = Jn
         return J
 
+    def arm_gram(self, i: int, Ja: Array) -> Array:
+        """``Ja^T Ja`` ``(k, k)`` of block `i`'s weighted arm rows, group by group where the
+        rows of a robot system's chains reach some columns only (`groups`)."""
+        groups = self.groups[i]
+        if groups is None:
+            return Ja.T @ Ja
+        G = np.zeros((self.k, self.k))
+        for rows, cols in groups:
+            Jg = Ja[np.ix_(rows, cols)]
+            G[np.ix_(cols, cols)] += Jg.T @ Jg
+        return G
+
     def normal_equations(self, x: Array) -> tuple[Array, Array, Array]:
         """``(residuals, J^T J, J^T r)`` at `x`, assembled block by block."""
         A = np.zeros((self.n, self.n))
         g = np.zeros(self.n)
         parts = []
         k = self.k
-        for r, Ja, Jn, s in self._weighted_rows(x):
+        for i, (r, Ja, Jn, s) in enumerate(self._weighted_rows(x)):
             parts.append(r)
-            A[:k, :k] += Ja.T @ Ja
+            A[:k, :k] += self.arm_gram(i, Ja)
             A[:k, s] = Ja.T @ Jn
             A[s, :k] = A[:k, s].T
             A[s, s] = Jn.T @ Jn
@@ -183,11 +198,14 @@ class StackedProblem:
     def block_grams(self, x: Array) -> list[Array]:
         """Each block's share ``J_b^T J_b`` ``(n, n)`` of the normal matrix (weighted)."""
         out = []
-        for _, Ja, Jn, s in self._weighted_rows(x):
-            Jb = np.zeros((Ja.shape[0], self.n))
-            Jb[:, :self.k] = Ja
-            Jb[:, s] = Jn
-            out.append(Jb.T @ Jb)
+        k = self.k
+        for i, (_, Ja, Jn, s) in enumerate(self._weighted_rows(x)):
+            G = np.zeros((self.n, self.n))
+            G[:k, :k] = self.arm_gram(i, Ja)
+            G[:k, s] = Ja.T @ Jn
+            G[s, :k] = G[:k, s].T
+            G[s, s] = Jn.T @ Jn
+            out.append(G)
         return out
 
     def monitor(self, r: Array) -> float:

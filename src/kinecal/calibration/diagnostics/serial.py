@@ -127,7 +127,9 @@ def _reference(model: SerialModel, names: tuple[str, ...], rotations: bool,
                        marker=marker, marker_names=model.marker_names if marker is not None
                        else ())
     rep = analyse_poses(model, ref, list(names), tol=tol)
-    origin = model.nominal[model.index(list(BASE_NAMES[:3]))]
+    # a robot system's tips stand on several bases: the measurement frame's origin
+    origin = (model.nominal[model.index(list(BASE_NAMES[:3]))]
+              if set(BASE_NAMES[:3]) <= set(model.parameter_names) else np.zeros(3))
     reach = float(np.linalg.norm(T[:, :3, 3] - origin, axis=1).max())
     cal = [p for p in model.calibratable if p not in BASE_NAMES]
     err = 0.0

@@ -29,7 +29,7 @@ from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
 from kinecal.calibration.serial.box import box_choice, check_at_bounds, search_box
-from kinecal.calibration.serial.inputs import as_measurements, as_model
+from kinecal.calibration.serial.inputs import as_measurements, as_model, is_system
 from kinecal.calibration.serial.polish import check_local_polish
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
@@ -198,6 +198,12 @@ def calibrate(
     """
     model = as_model(model)
     data, validate = as_measurements(data, model), as_measurements(validate, model, "validate")
+    if is_system(model):  # several chains: the stacked problem, whatever the data
+        from kinecal.calibration.blocks.api import calibrate_system
+
+        return calibrate_system(model, data, method, validate=validate, free=free, loss=loss,
+                                f_scale=f_scale, rank_tol=rank_tol, sigma=sigma,
+                                rotation_weight=rotation_weight)
     if not isinstance(data, Measurements) or not (validate is None or isinstance(
             validate, Measurements)):
         return _several(model, data, method, free=free, validate=validate, loss=loss,

@@ -13,7 +13,13 @@ from typing import Any
 from kinecal.data import Measurements
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["as_calibrated", "as_measurements", "as_model", "is_path"]
+__all__ = ["as_calibrated", "as_measurements", "as_model", "is_path", "is_system"]
+
+
+def is_system(model: Any) -> bool:
+    """True for a robot system (`kinecal.kinematics.tree.SystemModel`: several chains),
+    which every calibration takes down the stacked problem of `kinecal.calibration.blocks`."""
+    return getattr(model, "convention", None) == "system"
 
 
 def is_path(obj: Any) -> bool:
@@ -26,13 +32,14 @@ def _path(obj: Any) -> str:
 
 
 def as_model(model: Any, what: str = "model") -> SerialModel:
-    """`model` itself, or the model a bundled name or a model file / URDF path names."""
-    if isinstance(model, SerialModel):
+    """`model` itself, or the model a bundled name or a model file / URDF path names (a
+    system file gives a system)."""
+    if isinstance(model, SerialModel) or is_system(model):
         return model
     if is_path(model):
-        from kinecal.io.models import load_model
+        from kinecal.io.systems import load_machine
 
-        return load_model(_path(model))
+        return load_machine(_path(model))
     raise TypeError(f"{what}: expected a SerialModel, a bundled model name or a model file "
                     f"path (kinecal.load_model), got {type(model).__name__}")
 
@@ -52,6 +59,10 @@ def as_measurements(data: Any, model: SerialModel, what: str = "data") -> Any:
 
 
 def _read(spec: Any, model: SerialModel) -> Any:
+    if is_system(model):
+        from kinecal.io.system_data import read_system_data
+
+        return read_system_data(_path(spec), model)
     from kinecal.io.kinds import read_kind
 
     return read_kind(_path(spec), model)
