@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.errors import InputError
-from kinecal.optimize import METHODS, minimize
+from kinecal.optimize import METHODS
 from kinecal.optimize._common import make_result
 from kinecal.optimize.lsq import householder_gauss_newton, levenberg_marquardt
 
@@ -99,6 +99,8 @@ def hybrid_minimize(
         ls = levenberg_marquardt(residual, jacobian, x0, monitor=monitor)
     else:
         raise InputError(f"least_squares: expected householder or lm, got {least_squares!r}")
+    from kinecal.optimize import minimize  # the metaheuristics: imported when one runs
+
     center = ls.x
     bounds = np.column_stack([center - shrink * half_width, center + shrink * half_width])
     res = minimize(

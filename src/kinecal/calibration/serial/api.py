@@ -41,7 +41,7 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers, remap_markers
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.metrology.stats import axis_stats
-from kinecal.optimize import METHODS, minimize
+from kinecal.optimize import METHODS
 from kinecal.optimize.factor import gram_root
 from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
 from kinecal.optimize.lsq import LOSSES, householder_gauss_newton
@@ -313,13 +313,13 @@ def _run_method(problem: CalibrationProblem, res, method, *, rng, maxiter, targe
                               options=options or None, monitor=monitor, **hopts)
         bounds = res.bounds
     else:  # the box searched: the data's or the model file's (calibration.serial.box)
+        from kinecal.optimize import minimize  # the metaheuristics, only when one runs
         bounds, info = search_box(problem, box)
         res = minimize(problem.population_cost, bounds, method, rng=rng,
                        maxiter=maxiter, target=target, callback=callback,
                        options=options or None)
         res.nfev += info.get("lm_nfev", 0)
-    res.search_box = {"box": box, "lower": bounds[:, 0].tolist(),
-                      "upper": bounds[:, 1].tolist()}
+    res.search_box = {"box": box, "lower": bounds[:, 0].tolist(), "upper": bounds[:, 1].tolist()}
     return res, outliers
 
 
