@@ -100,9 +100,10 @@ def test_at_bounds_names_the_parameters_on_a_face(beyond):
     bounds = np.array([[0.0, 1.0], [-1.0, 1.0], [2.0, 4.0]])
     inside = np.array([0.5, 0.0, 3.0])
     with diagnostics.collect() as found:
-        assert check_at_bounds(pr, inside, bounds, "pso", "data") == []
+        box = {"box": "data", "lower": bounds[:, 0], "upper": bounds[:, 1]}
+        assert check_at_bounds(pr, inside, box, "pso") == []
         on = inside + [0.5 - 0.5 * AT_BOUNDS, 0.0, -1.0]  # a2 within 0.1 %, d4 exactly
-        assert check_at_bounds(pr, on, bounds, "pso", "data") == ["a2", "d4"]
+        assert check_at_bounds(pr, on, box, "pso") == ["a2", "d4"]
     assert [d.code for d in found] == ["at-bounds"]
     assert "a2 (upper face), d4 (lower face)" in found[0].message
     assert "stalled on its face" in found[0].message

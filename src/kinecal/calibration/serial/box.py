@@ -32,10 +32,11 @@ from kinecal.calibration.serial.problem import CalibrationProblem, column_scale
 from kinecal.calibration.uncertainty import subspace_uncertainty
 from kinecal.diagnostics import warn
 from kinecal.errors import InputError
+from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_minimize
 from kinecal.optimize.lsq import levenberg_marquardt
 
 __all__ = ["AT_BOUNDS", "BOXES", "FLOOR", "SE_WIDTH", "box_choice", "check_at_bounds",
-           "search_box"]
+           "run_metaheuristic", "search_box"]
 
 Array = NDArray[np.float64]
 
@@ -97,13 +98,45 @@ def search_box(problem: CalibrationProblem, box: str) -> tuple[Array, dict[str, 
     return bounds, {"box": box, "center": x, "half_width": half, "lm_nfev": int(res.nfev)}
 
 
-def check_at_bounds(problem: CalibrationProblem, x: Array, bounds: Array, method: str,
-                    box: str) -> list[str]:
+def run_metaheuristic(problem: CalibrationProblem, method: str, options: dict[str, Any], *,
+                      rng, maxiter: int | None, target: float | None, callback,
+                      monitor) -> Any:
+    """Run the metaheuristic (or ``hybrid-*``) `method` on `problem` in its box.
+
+    `options` are the method's (the ``box`` and a hybrid's ``shrink``, ``least_squares``,
+    ``ls_maxiter``, ``seed_ls`` taken out of them). Returns the solver's
+    ``OptimizeResult`` with ``search_box = {"box", "lower", "upper"}`` (lists per free
+    parameter) and, for the data box, the LM fit's evaluations counted in ``nfev``.
+    """
+    box = box_choice(options, method)
+    if method.startswith(HYBRID_PREFIX):
+        hopts = {k: options.pop(k) for k in ("shrink", "least_squares", "ls_maxiter", "seed_ls")
+                 if k in options}
+        res = hybrid_minimize(problem.population_cost, problem.residuals, problem.jacobian,
+                              problem.x0, problem.half_width, method[len(HYBRID_PREFIX):],
+                              rng=rng, maxiter=maxiter, target=target, callback=callback,
+                              options=options or None, monitor=monitor, **hopts)
+        bounds = res.bounds
+    else:
+        from kinecal.optimize import minimize  # the metaheuristics, only when one runs
+
+        bounds, info = search_box(problem, box)
+        res = minimize(problem.population_cost, bounds, method, rng=rng, maxiter=maxiter,
+                       target=target, callback=callback, options=options or None)
+        res.nfev += info.get("lm_nfev", 0)
+    res.search_box = {"box": box, "lower": bounds[:, 0].tolist(),
+                      "upper": bounds[:, 1].tolist()}
+    return res
+
+
+def check_at_bounds(problem: CalibrationProblem, x: Array, search: dict[str, Any],
+                    method: str) -> list[str]:
     """``at-bounds``: the free parameters of the answer `x` that sit on a face of the box
-    `bounds` ``(n_free, 2)`` searched (within `AT_BOUNDS` of its width). Returns their
-    names (warned once, all of them)."""
+    searched (`run_metaheuristic`'s ``search_box``: ``box``, ``lower``, ``upper``), within
+    `AT_BOUNDS` of its width. Returns their names (warned once, all of them)."""
     x = np.asarray(x, dtype=float)
-    lo, hi = bounds[:, 0], bounds[:, 1]
+    lo, hi = np.asarray(search["lower"], float), np.asarray(search["upper"], float)
+    box = search["box"]
     near = AT_BOUNDS * (hi - lo)
     low, high = x <= lo + near, x >= hi - near
     names = [n for n, on in zip(problem.free, low | high, strict=True) if on]
