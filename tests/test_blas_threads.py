@@ -84,3 +84,46 @@ def test_command_line_pins_one_thread_before_numpy_loads():
     # an explicit user setting wins, and then the solvers limit the threads themselves
     seen = probe({"OPENBLAS_NUM_THREADS": "2"}, code)
     assert seen == {"pinned": False, "threads": [2]}
+
+
+def test_two_threads_share_the_limit_and_restore_the_setting():
+    """Two solver calls overlapping in two threads (the first ends while the second is
+    still inside): both run on one BLAS thread throughout, and the session's two threads
+    are back once both have returned."""
+    code = r"""
+import json, threading
+import numpy as np
+from threadpoolctl import threadpool_info
+from kinecal.optimize.lm import solve_normal_equations
+
+def blas():
+    return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+
+a_in, b_in, a_done = threading.Event(), threading.Event(), threading.Event()
+seen = {}
+
+def solve(name, on_first):
+    first = []
+    def normal_equations(x):
+        if not first:
+            first.append(1)
+            on_first()
+        seen.setdefault(name, blas())
+        r = x - 1.0
+        return r, np.eye(2), r
+    solve_normal_equations(normal_equations, np.zeros(2))
+
+def a():
+    solve("a", lambda: (a_in.set(), b_in.wait(10)))
+    a_done.set()
+
+def b():
+    a_in.wait(10)
+    solve("b", lambda: (b_in.set(), a_done.wait(10)))  # a has returned: b still inside
+
+ta, tb = threading.Thread(target=a), threading.Thread(target=b)
+ta.start(); tb.start(); ta.join(); tb.join()
+print(json.dumps({"a": seen["a"], "b": seen["b"], "after": blas()}))
+"""
+    seen = probe({"OPENBLAS_NUM_THREADS": "2"}, code)
+    assert seen == {"a": [1], "b": [1], "after": [2]}

@@ -77,31 +77,49 @@ def pin_environment() -> None:
 
 
 def _limiter(n: int) -> Any:
-    """threadpoolctl's limit of the loaded BLAS libraries to `n` threads (the controller
-    kept and rescanned only when a module was imported since: new modules may have loaded
-    another BLAS, scipy's own OpenBLAS beside numpy's)."""
+    """threadpoolctl's limit of the loaded BLAS libraries to `n` threads, applied (the
+    controller kept and rescanned only when a module was imported since: new modules may
+    have loaded another BLAS, scipy's own OpenBLAS beside numpy's). Call with `_lock`."""
     global _controller, _modules_at_scan
-    with _lock:
-        if _controller is None or len(sys.modules) != _modules_at_scan:
-            from threadpoolctl import ThreadpoolController
+    if _controller is None or len(sys.modules) != _modules_at_scan:
+        # scipy's own OpenBLAS (the solvers' Cholesky and QR) loaded before the scan, not
+        # inside the limit where it would keep its threads for the call
+        import scipy.linalg  # noqa: F401
+        from threadpoolctl import ThreadpoolController
 
-            _modules_at_scan = len(sys.modules)
-            _controller = ThreadpoolController()
-        return _controller.limit(limits=n, user_api="blas")
+        _modules_at_scan = len(sys.modules)
+        _controller = ThreadpoolController()
+    return _controller.limit(limits=n, user_api="blas")
+
+
+#: solver calls inside the limit now (all threads) and the limit they share: the first
+#: applies it, the last restores the libraries' setting (the limit is process-wide)
+_active = 0
+_limit: Any = None
 
 
 @contextlib.contextmanager
 def blas_threads() -> Iterator[None]:
-    """Run the block with `threads()` BLAS threads (nested blocks: the outer one decides)."""
+    """Run the block with `threads()` BLAS threads (nested blocks: the outer one decides;
+    concurrent blocks in several threads share one limit)."""
+    global _active, _limit
     n = threads()
     if getattr(_state, "depth", 0) or n == 0 or (n == 1 and _started_single):
         yield
         return
     _state.depth = 1
+    with _lock:
+        if _active == 0:
+            _limit = _limiter(n)
+        _active += 1
     try:
-        with _limiter(n):
-            yield
+        yield
     finally:
+        with _lock:
+            _active -= 1
+            if _active == 0:
+                _limit.restore_original_limits()
+                _limit = None
         _state.depth = 0
 
 
