@@ -199,9 +199,10 @@ class SerialKinematics:
     def _single(self, q: ArrayLike, params: ArrayLike | None, marker: ArrayLike | None
                 ) -> tuple[SingleChain, list[float]] | None:
         """The folded chain (`kinecal.kinematics.serial.single`) and the checked joint
-        values as floats when `q` is one configuration ``(n_joints,)`` (a 1-D vector: a batch of one,
-        ``(1, n_joints)``, stays on the batch path and gives the batch's bits) of a model
-        without markers or joint errors, and the parameter vector is the nominal one or one
+        values as floats when `q` is one configuration ``(n_joints,)`` (a 1-D vector: a
+        batch of one, ``(1, n_joints)``, stays on the batch path and gives the batch's
+        bits) of a model without markers or joint errors, and the parameter vector is the
+        nominal one or one
         seen before (its chain is then cached; a vector seen once takes the batch path, so a
         loop over changing vectors builds nothing); None otherwise."""
         if marker is not None or self._joint_terms is not None or self._marker_set is not None:
