@@ -134,7 +134,7 @@ def _station_poses(P: Array, uv: Array, sid: Array, starts: Array, counts: Array
     for _ in range(iterations):
         R, t = T[:, :3, :3], T[:, :3, 3]
         pc = np.einsum("mij,mj->mi", R[sid], P) + t[sid]
-        pred, Jp, _ = project_jacobian(K, d8, pc)
+        pred, Jp, _ = project_jacobian(K, d8, pc, intrinsics=False)
         r = pred - uv
         Jpose = np.empty((len(P), 2, 6))
         Jpose[:, :, :3] = -(Jp @ R[sid]) @ skew(P)
@@ -150,7 +150,7 @@ def _station_poses(P: Array, uv: Array, sid: Array, starts: Array, counts: Array
             break
     R, t = T[:, :3, :3], T[:, :3, 3]
     pc = np.einsum("mij,mj->mi", R[sid], P) + t[sid]
-    pred, Jp, _ = project_jacobian(K, d8, pc)
+    pred, Jp, _ = project_jacobian(K, d8, pc, intrinsics=False)
     Jpose = np.empty((len(P), 2, 6))
     Jpose[:, :, :3] = -(Jp @ R[sid]) @ skew(P)
     Jpose[:, :, 3:] = Jp @ R[sid]
