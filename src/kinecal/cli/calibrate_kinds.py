@@ -127,12 +127,13 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                     sigma: list[str] | None, extra_options: dict[str, Any],
                     record: tuple = (None, None, None), unit: str | None = None,
                     fixture: list[Path] | None = None, angle_unit: str | None = None,
-                    tracker: dict | None = None) -> None:
+                    tracker: dict | None = None, priors: dict | None = None) -> None:
     """``kinecal calibrate MODEL A.csv B.csv ...`` (several files or another kind);
     `record`: ``--instrument``, ``--operator``, ``--note`` of the report; `unit`: the
     summary's length unit (None: the model's); `fixture`: ``--fixture`` files; `tracker`:
     ``--orientation-format``, ``--station-per-file``, ``--validate-register``
-    (`kinecal.cli.tracker_options`)."""
+    (`kinecal.cli.tracker_options`); `priors`: ``prior`` and ``prior_from`` of
+    `kinecal.calibrate`."""
     tracker = tracker or {}
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.method_options import check_method_options
@@ -145,7 +146,12 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
     inputs = {"MODEL": model, **{f"DATA {f}": f for f in files},
               **{f"--validate {v}": v for v in validate},
               **{f"--fixture {f}": str(f) for f in fixture or []}}
-    check_paths(inputs, {"--out": out, "--model-out": model_out, "--report": report})
+    from kinecal.calibration.serial.prior import prior_file
+
+    priors = priors or {}
+    check_paths({**inputs, "--prior-from": priors.get("prior_from"),
+                 "--prior": prior_file(priors.get("prior"))},
+                {"--out": out, "--model-out": model_out, "--report": report})
     provenance = report_record(report, inputs, *record)
     if model_out is not None:
         from kinecal.io.models import check_model_file_name
@@ -168,7 +174,7 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                              option="--rotation-weight")
         res = calibrate(m, sets, method, free=free, validate=vsets, rng=seed, loss=loss,
                         maxiter=maxiter, target=target, rotation_weight=rotation_weight,
-                        sigma=stated, validate_register=tracker.get("register"))
+                        sigma=stated, validate_register=tracker.get("register"), **priors)
         res.warnings = list(found)
         result = with_warnings(res.to_dict(), found)
         write_outputs(out=out, result=result, model_out=model_out, save_model=res.save_model,
@@ -306,7 +312,8 @@ def simulate_kind_file(m, kind: str, *, poses: int, noise: float, true_params, s
 
 def select_kind_file(model: str, kind: str, *, count: int, candidates: int | None, seed: int,
                      out: Path, gauge: list[str] | None, length: float | None, base_link,
-                     tip_link, angle_unit: str | None = None) -> None:
+                     tip_link, angle_unit: str | None = None,
+                     program: tuple = (None, 2.0)) -> None:
     """``kinecal select-poses MODEL --kind K --count N --out PLAN.csv``: D-optimal rows of a
     gauge kind (`kinecal.calibration.blocks.plan.select_kind_poses`)."""
     from kinecal.calibration.blocks.plan import select_kind_poses
@@ -316,7 +323,7 @@ def select_kind_file(model: str, kind: str, *, count: int, candidates: int | Non
     if kind not in GAUGE_KINDS:
         raise InputError(f"unknown kind {kind!r}; expected one of tracker, "
                          f"{', '.join(GAUGE_KINDS)}", option="--kind")
-    check_paths({"MODEL": model}, {"--out": out})
+    check_paths({"MODEL": model}, {"--out": out, "--program": program[0]})
     check_finite(length, "--length", positive=True)
     from kinecal._limits import check_count
 
@@ -331,8 +338,18 @@ def select_kind_file(model: str, kind: str, *, count: int, candidates: int | Non
     if length is not None and kind not in ("ballbar", "pair"):
         raise InputError(f"applies to --kind ballbar or pair, not {kind}", option="--length")
     m = load_model_arg(model, base_link, tip_link)
+    from kinecal.cli._programs import check_program_for
+
+    check_program_for(program[0], m, program[1])
     plan, info = select_kind_poses(m, kind, count, candidates=candidates, rng=seed, **geometry)
-    write_gauge(out, plan, m, angle_unit=angle_unit)
+    from kinecal._files import all_or_nothing
+    from kinecal.cli._programs import write_program_for
+
+    with all_or_nothing():  # the rows and their program both, or neither
+        write_gauge(out, plan, m, angle_unit=angle_unit)
+        if program[0] is not None:  # a robot program visiting the rows in order
+            write_program_for(program[0], m, plan.q, program[1], f"kinecal select-poses "
+                              f"{m.name} --kind {kind}: calibration poses")
     typer.echo(f"wrote {len(plan)} {kind} rows to {out}; O1 = {info['O1']:.4g}, O2 = "
                f"{info['O2']:.4g} ({info['rank']} identifiable parameters"
                + (f"; not seen: {', '.join(info['not_seen'])}" if info["not_seen"] else "")

@@ -23,8 +23,10 @@ from kinecal.io.result_values import (
     STEWART_KEYS,
     model_for_data,
     parameters_from_data,
+    result_envelope,
     serial_result_parameters,
 )
+from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.kinematics.stewart.platform import StewartPlatform
 
@@ -96,6 +98,12 @@ class SerialResultFile:
     @property
     def warnings(self) -> list[dict]:
         return list(self.data.get("warnings") or [])
+
+    @property
+    def envelope(self) -> JointEnvelope | None:
+        """The joint readings the calibration saw (the file's ``envelope``; None in a
+        result written before results stored it)."""
+        return result_envelope(self.nominal_model, self.data, self.path)
 
     def save_model(self, path: str | Path) -> None:
         """Write the calibrated model file (read back by `kinecal.load_model`)."""
@@ -174,7 +182,7 @@ class StewartResultFile:
 
 
 def load_result(path: str | Path, model: Any = None, *, base_link: str | None = None,
-                tip_link: str | None = None
+                tip_link: str | None = None, check: bool = True
                 ) -> SerialResultFile | HandEyeResultFile | StewartResultFile:
     """Read a calibration result JSON written by kinecal.
 
@@ -190,6 +198,11 @@ def load_result(path: str | Path, model: Any = None, *, base_link: str | None = 
         of your own or a URDF (whose robot name is not a file). Not used for hand-eye.
     base_link, tip_link : str, optional
         The chain of a URDF `model` given as a path, as calibrated.
+    check : bool
+        Serial arm: refuse identified values that make another arm than the nominal one
+        (the same-arm rule of ``fk --params``, ``export`` and ``compensate``,
+        `kinecal.kinematics.serial.same_arm`; the calibration warned about such a result
+        as ``implausible-change``). False reads it anyway, to inspect it.
 
     Returns
     -------
@@ -199,7 +212,8 @@ def load_result(path: str | Path, model: Any = None, *, base_link: str | None = 
     Raises
     ------
     InputError
-        Not a result file, a result of another model than `model`, or no `model` where
+        Not a result file, a result of another model than `model` (other parameters or
+        nominal values, or identified values that make another arm), or no `model` where
         the result names none that is bundled.
     TypeError
         `model` of another type than those above.
@@ -216,7 +230,25 @@ def load_result(path: str | Path, model: Any = None, *, base_link: str | None = 
     serial_result_parameters(data, path)
     nominal = _serial_model(model, data, path, base_link, tip_link)
     full = model_for_data(nominal, data, path)
-    return SerialResultFile(path, data, full, parameters_from_data(full, data, path))
+    params = parameters_from_data(full, data, path)
+    if check:
+        _check_same_arm(full, params, path)
+    out = SerialResultFile(path, data, full, params)
+    _ = out.envelope  # a malformed envelope is refused at once
+    return out
+
+
+def _check_same_arm(model: SerialModel, params: Array, path: Path) -> None:
+    """Refuse a result whose identified values make another arm than `model`: the rule of
+    ``fk --params``, ``export`` and ``compensate`` (and of the calibration's
+    ``implausible-change`` warning), `kinecal.kinematics.serial.same_arm.compare_arms`."""
+    from kinecal.kinematics.serial.same_arm import check_same_arm
+
+    try:
+        check_same_arm(model, model.with_params(params, name=f"{model.name}-calibrated"))
+    except InputError as exc:
+        raise InputError(exc.message + " (load_result(..., check=False) reads it anyway, "
+                         "to inspect it)", file=path) from None
 
 
 def _serial_model(model: Any, data: dict, path: Path, base_link: str | None,

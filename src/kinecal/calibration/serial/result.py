@@ -15,6 +15,7 @@ from kinecal._reproducible import seconds_text
 from kinecal.calibration.identifiability import IdentifiabilityReport
 from kinecal.calibration.uncertainty import Uncertainty
 from kinecal.diagnostics import Diagnostic
+from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope, envelope_entry
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.metrology.stats import error_stats, stat_rows
 from kinecal.metrology.units import DisplayUnit, display_unit
@@ -87,6 +88,10 @@ class CalibrationResult:
     lost : list of str
         Parameters that well-spread poses identify but these poses do not
         (``rank-deficient``): the model's uncertainty away from the poses is unbounded.
+    conditions : dict of str to ndarray
+        The measurement conditions the files gave (``temperature`` deg C, ``time`` s) per
+        calibration pose, and ``validation_temperature``, ``validation_time`` per
+        validation pose: the report plots the residual against them.
     """
 
     model: SerialModel
@@ -118,8 +123,18 @@ class CalibrationResult:
     warnings: list[Diagnostic] = field(default_factory=list)
     uncertainty: Uncertainty | None = None
     lost: list[str] = field(default_factory=list)
+    conditions: dict[str, Array] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ numbers
+    @property
+    def envelope(self) -> JointEnvelope | None:
+        """The joint readings the calibration saw, per joint the lowest and highest
+        (`kinecal.kinematics.serial.joint_errors_envelope`); None without them."""
+        if self.q_calibration is None or len(self.q_calibration) == 0:
+            return None
+        return JointEnvelope.of(self.q_calibration, [k != "prismatic" for k in
+                                                     self.nominal_model.joint_kinds])
+
     @property
     def calibration_stats(self) -> dict[str, dict[str, float]]:
         """Before/after statistics on the calibration poses."""
@@ -240,6 +255,14 @@ class CalibrationResult:
             for k, n in enumerate(self.nominal_model.parameter_names)
         }
 
+    def covariance_table(self) -> dict[str, Any]:
+        """``{parameters, matrix}``: the covariance of the free parameters (in `free`'s
+        order) in the model file's units, angles in its angle unit; what ``kinecal check``
+        propagates to the poses it judges (docs/robot-life.md)."""
+        conv = self._unit_scale()[self.nominal_model.index(self.free)]
+        return {"parameters": list(self.free),
+                "matrix": (np.asarray(self.covariance) * np.outer(conv, conv)).tolist()}
+
     def to_dict(self) -> dict[str, Any]:
         """The calibration JSON of DESIGN section 4 (lengths in the model unit).
 
@@ -261,6 +284,7 @@ class CalibrationResult:
             "parameters": self.parameter_table(),
             "frames": frames_entry(self.nominal_model, self.params, self.extra),
             "free": list(self.free),
+            "covariance": self.covariance_table(),
             "unidentifiable": self.unidentifiable(),
             "confounded_with": rep.confounded_with,
             "rank": rep.rank,
@@ -283,6 +307,8 @@ class CalibrationResult:
         out["predicted_error"] = {**self.predicted_error_summary(), "bounded": self.bounded}
         if self.lost:
             out["not_determined"] = list(self.lost)
+        if self.envelope is not None:
+            out["envelope"] = envelope_entry(self.nominal_model, self.envelope)
         out.update(self.extra)
         if "noise" in self.extra:  # the stated noise: its test and known-noise uncertainty
             from kinecal.calibration.diagnostics.noise import noise_entry
@@ -326,7 +352,7 @@ class CalibrationResult:
         ]
         free = set(self.free)
         held = [n for n in self.unidentifiable() if n not in free]
-        loose = [n for n in self.unidentifiable() if n in free]
+        loose = self.unidentifiable_free()  # a prior bounds the rest (its own lines)
         if held:
             lines.append("not identifiable (held at nominal): " + ", ".join(held))
         if loose:
@@ -359,6 +385,11 @@ class CalibrationResult:
             from kinecal.calibration.diagnostics.noise import noise_lines
 
             lines += noise_lines(self, shown)
+        if self.extra.get("prior"):
+            from kinecal.calibration.serial.prior_fit import prior_lines
+
+            lines += prior_lines(self.extra["prior"], [n for n in self.unidentifiable()
+                                                       if n in free and n not in loose])
         lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations"
                      + seconds_text(self.seconds))
         if self.outliers:
