@@ -30,7 +30,8 @@ distortion in numpy, no loop over stations) with ``trf``; the per-station residu
 (``cv2.projectPoints`` per image, `peer_problem`) is printed beside it (``trf``, ``lm``).
 Rounds interleave kinecal and the peer; the best of each is kept.
 
-    python benchmarks/bench_arm_camera.py [--seed S] [--stations N] [--quick]
+    python benchmarks/bench_arm_camera.py [--seed S] [--stations N] [--quick] [--timing-only]
+                                          [--repeats R]
 """
 
 from __future__ import annotations
@@ -252,16 +253,26 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=None)
     ap.add_argument("--stations", type=int, default=40)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--timing-only", action="store_true",
+                    help="the bundle-adjustment timings only (eye-in-hand scene, no file)")
+    ap.add_argument("--repeats", type=int, default=7, help="interleaved timing rounds")
     args = ap.parse_args()
     seed = args.seed if args.seed is not None else int(time.time_ns() % 1_000_000)
     n = 12 if args.quick else args.stations
+    if args.timing_only:
+        model, board = load_model("kr6-craig"), parse_board(BOARD)
+        sc = render_arm_stations(model, board, K, DIST, SIZE, n, setup="eye-in-hand",
+                                 q_home=HOME, seed=seed, conditions=NOISY, supersample=2)
+        t = timings(model, board, sc, CameraIntrinsics(K, DIST, SIZE), args.repeats)
+        print(json.dumps({"seed": seed, **t}), flush=True)
+        return
     report = {"seed": seed, "accuracy": [], "noise_free": [], "timings": None}
     for setup in ("eye-in-hand", "eye-to-hand"):
         acc, scene = accuracy(setup, seed, n)
         report["accuracy"].append(acc)
         print(json.dumps(acc), flush=True)
         if setup == "eye-in-hand":
-            report["timings"] = timings(*scene, repeats=2 if args.quick else 7)
+            report["timings"] = timings(*scene, repeats=2 if args.quick else args.repeats)
             print(json.dumps(report["timings"]), flush=True)
         nf = noise_free(setup, seed + 7, n)
         report["noise_free"].append(nf)
