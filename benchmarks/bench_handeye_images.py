@@ -308,7 +308,7 @@ def processes(n_stations, repeat):
     user + system, all threads). Both run from compiled bytecode, as installed code does
     (pip compiles at install): the bytecode goes to a temporary cache
     (``PYTHONPYCACHEPREFIX``) filled by one untimed run of each, whatever
-    ``PYTHONDONTWRITEBYTECODE`` says (else kinecal's ~200 modules would be compiled at every
+    ``PYTHONDONTWRITEBYTECODE`` says (else kinecal's 70-odd modules would be compiled at every
     start and the peer's one script not)."""
     board = parse_board(BOARDS["chessboard"])
     sc = render_handeye_scene(board, K, DIST, SIZE, n_stations, conditions=NOISY,
