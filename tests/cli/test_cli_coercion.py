@@ -56,6 +56,24 @@ def test_plain_values_equal_typers_conversion(annotation, values):
     assert taken >= len(values) // 3  # the plain path does take the common literals
 
 
+def test_random_decimal_literals_round_as_pydantic():
+    """Long mantissas and extreme exponents: Python's float() and pydantic's parser both
+    round correctly, so the plain path gives the same double on every literal."""
+    import numpy as np
+
+    rng = np.random.default_rng(11)
+    ref = _typer(float)
+    for _ in range(3000):
+        digits = "".join(rng.choice(list("0123456789"), int(rng.integers(1, 30))))
+        cut = int(rng.integers(0, len(digits) + 1))
+        text = f"{rng.choice(['', '-', '+'])}{digits[:cut]}.{digits[cut:]}"
+        if rng.random() < 0.6:
+            text += f"e{int(rng.integers(-330, 330))}"
+        ours = plain_value(float, text)
+        assert ours is not _UNSET, text
+        assert _same(ours, ref._coerce_value(text, param=None, ctx=None)), text
+
+
 def test_installed_converter_on_every_kind(tmp_path):
     """Through typer's parameter machinery (the patched builder): plain values, the values
     it declines and their refusals, paths with typer's existence checks."""
