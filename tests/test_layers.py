@@ -13,7 +13,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "kinecal"
 
 #: modules of the ground floor: everything may import them
 GROUND = {"spatial", "errors", "diagnostics", "_files", "_temps", "_yaml", "_limits", "data",
-          "_lazy", "_special", "_reproducible"}
+          "_lazy", "_special", "_reproducible", "_blas"}
 #: shared helpers of every calibration kind (``kinecal.calibration.<module>``)
 CALIBRATION_SHARED = {"identifiability", "uncertainty", "covariance", "method_options"}
 

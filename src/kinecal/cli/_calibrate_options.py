@@ -30,6 +30,10 @@ LOSS = typer.Option("linear", "--loss", metavar=choices(
 MAXITER = typer.Option(None, "--maxiter", help="Iteration budget.")
 TARGET = typer.Option(None, "--target", help="Stop at this mean distance error (model length "
                       "unit; metaheuristics).")
+BOX = typer.Option(None, "--box", metavar=choices("data", "tolerances"),
+                   help="Search box of a metaheuristic: around a Levenberg-Marquardt fit "
+                   "(data, the default) or the model file's tolerances around nominal (the "
+                   "papers'). See docs/optimizers.md.")
 OUT = typer.Option(None, "--out", help="Result JSON to write.")
 MODEL_OUT = typer.Option(None, "--model-out", help="Calibrated model YAML.")
 JSON = typer.Option(False, "--json", help="Print the result JSON.")

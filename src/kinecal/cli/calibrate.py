@@ -194,6 +194,7 @@ def calibrate(
     loss: str = opt.LOSS,
     maxiter: int | None = opt.MAXITER,
     target: float | None = opt.TARGET,
+    box: str | None = opt.BOX,
     out: Path | None = opt.OUT,
     model_out: Path | None = opt.MODEL_OUT,
     report: Path | None = report_option(),
@@ -279,7 +280,7 @@ def calibrate(
             target=target, out=out, model_out=model_out, report=report, json_out=json_out,
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
-                           "--folds": folds}, record=(instrument, operator, note),
+                           "--folds": folds, "--box": box}, record=(instrument, operator, note),
             unit=shown, fixture=fixture, angle_unit=angle_unit, tracker=tracker,
             priors=priors)
     return _calibrate_tracker(SimpleNamespace(**locals()), shown)
@@ -289,6 +290,7 @@ def _calibrate_tracker(a: SimpleNamespace, shown: str | None) -> None:
     """``kinecal calibrate MODEL DATA.csv``: one tracker file (`a`: the command's
     arguments; `shown`: the summary's unit)."""
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
+    from kinecal.calibration.method_options import box_option
     from kinecal.calibration.serial.prior import prior_file
     from kinecal.cli._common import progress
     from kinecal.io.measurements import read_measurements
@@ -310,6 +312,7 @@ def _calibrate_tracker(a: SimpleNamespace, shown: str | None) -> None:
     check_finite(a.target, "--target")
     check_finite(a.rotation_weight, "--rotation-weight", positive=True)
     check_finite(sigma, "--sigma", positive=True)
+    options = box_option(a.method, a.box)
     check_method_options(a.method, loss=a.loss, maxiter=a.maxiter, target=a.target)
     check_error_model_options(a.error_model, harmonics=a.harmonics, folds=a.folds)
     with warnings_scope(a.strict) as found:
@@ -329,7 +332,7 @@ def _calibrate_tracker(a: SimpleNamespace, shown: str | None) -> None:
                       a.quiet or a.json_out) as update:
             kw = dict(free=free_option(a.free), validate=val, rng=a.seed, loss=a.loss,
                       maxiter=a.maxiter, target=a.target, rotation_weight=a.rotation_weight,
-                      sigma=sigma, validate_register=a.validate_register,
+                      sigma=sigma, validate_register=a.validate_register, options=options,
                       progress=(lambda it, best: update(1, best)) if iterative else None)
             if a.error_model is None and m.joint_errors is None and a.harmonics is None:
                 from kinecal.calibration.serial.api import calibrate as run

@@ -37,6 +37,7 @@ CODES: dict[str, str] = {
     "optimizer-stalled": "a metaheuristic stopped far above what a least-squares polish reaches",
     "implausible-change": "the calibrated arm is not a calibration of the same arm (fk, export "
                           "and compensate refuse it)",
+    "at-bounds": "a metaheuristic's answer sits on a face of the box it searched",
     # measurement kinds: ballbar and pair distances, fixed points, planes
     "pivot-moved": "a ballbar's distances fit no single pivot to the noise",
     "point-spread": "a fixed point's touches disagree by more than the noise",

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from kinecal import diagnostics
+from kinecal._blas import small_products
 from kinecal.calibration.diagnostics.change import check_change
 from kinecal.calibration.diagnostics.envelope import check_calibrated_range
 from kinecal.calibration.diagnostics.fit import check_serial_fit
@@ -29,6 +30,7 @@ from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stat
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
+from kinecal.calibration.serial.box import check_at_bounds, run_metaheuristic
 from kinecal.calibration.serial.inputs import as_measurements, as_model, is_system
 from kinecal.calibration.serial.polish import check_local_polish
 from kinecal.calibration.serial.prior import prior_spec, prior_state
@@ -48,9 +50,9 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers, remap_markers
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.metrology.stats import axis_stats
-from kinecal.optimize import METHODS, minimize
+from kinecal.optimize import METHODS
 from kinecal.optimize.factor import gram_root
-from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
+from kinecal.optimize.hybrid import hybrid_methods
 from kinecal.optimize.lsq import LOSSES, householder_gauss_newton
 
 __all__ = ["CALIBRATION_METHODS", "calibrate", "with_model_markers"]
@@ -119,6 +121,7 @@ def with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
     return dataclasses.replace(data, marker=marker, marker_names=model.marker_names)
 
 
+@small_products
 def calibrate(
     model: SerialModel,
     data: Measurements | Sequence[Any],
@@ -327,21 +330,11 @@ def _run_method(problem: CalibrationProblem, res, method, *, rng, maxiter, targe
     if method == "lm":
         return res.result, list(res.outliers)
     if method == "householder":
-        res = householder_gauss_newton(problem.residuals, problem.jacobian, problem.x0,
-                                       maxiter=maxiter or 100, monitor=monitor,
-                                       callback=callback)
-    elif method.startswith(HYBRID_PREFIX):
-        hopts = {k: options.pop(k) for k in ("shrink", "least_squares", "ls_maxiter", "seed_ls")
-                 if k in options}
-        res = hybrid_minimize(problem.population_cost, problem.residuals, problem.jacobian,
-                              problem.x0, problem.half_width, method[len(HYBRID_PREFIX):],
-                              rng=rng, maxiter=maxiter, target=target, callback=callback,
-                              options=options or None, monitor=monitor, **hopts)
-    else:
-        res = minimize(problem.population_cost, problem.bounds(), method, rng=rng,
-                       maxiter=maxiter, target=target, callback=callback,
-                       options=options or None)
-    return res, outliers
+        return householder_gauss_newton(problem.residuals, problem.jacobian, problem.x0,
+                                        maxiter=maxiter or 100, monitor=monitor,
+                                        callback=callback), outliers
+    return run_metaheuristic(problem, method, options, rng=rng, maxiter=maxiter,
+                             target=target, callback=callback, monitor=monitor), outliers
 
 
 def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxiter, target,
@@ -365,6 +358,7 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         res = res if pfit is None else pfit.result
     x = np.asarray(res.x, dtype=float)
     if method not in ("lm", "householder"):  # did the metaheuristic reach a minimum?
+        check_at_bounds(problem, x, res.search_box, method)
         check_local_polish(problem, x, method, target)
     explicit = list(first_report.names) == list(names)
     normal = res.get("normal_matrix") if loss == "linear" else None

@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from kinecal._blas import small_products
 from kinecal.calibration.diagnostics import CODES
 from kinecal.calibration.serial.api import (
     CALIBRATION_RANK_TOL,
@@ -107,6 +108,7 @@ def _with_terms(model: SerialModel, spec: JointErrors | None) -> SerialModel:
     return dataclasses.replace(plain, joint_errors=dataclasses.replace(spec, values=values))
 
 
+@small_products
 def calibrate_error_model(
     model: SerialModel,
     data: Measurements,

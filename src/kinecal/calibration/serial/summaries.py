@@ -63,6 +63,10 @@ def result_extra(res, names, model, data, validate, params, axes, noise, info, l
         extra["independent_poses"] = len(info.unique_rows)
     if loss != "linear":
         extra["loss"] = loss
+    if "search_box" in res:  # metaheuristics: the box searched (calibration.serial.box)
+        extra["search_box"] = {"box": res.search_box["box"]} | {
+            side: dict(zip(names, res.search_box[side], strict=True))
+            for side in ("lower", "upper")}
     if "ls_history" in res:  # hybrid: the least-squares stage before the metaheuristic
         extra["least_squares_history"] = [float(h) for h in res.ls_history]
         extra["least_squares_iterations"] = int(res.ls_iterations)
