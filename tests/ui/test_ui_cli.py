@@ -100,8 +100,8 @@ def test_what_a_calibration_placed_is_drawn(tmp_path, monkeypatch):
 
 def test_planes_cameras_and_boards_placed():
     """A plane n.p = d is drawn at its point nearest the base origin with z along n; a
-    camera in the base frame (cam2base) is drawn, a board on the flange (target2flange) is
-    listed as carried."""
+    camera in the base frame (cam2base, or a rig's camera on world) is drawn, a board on
+    the flange (target2flange) or a rig's mount on a link is listed as carried."""
     import numpy as np
 
     from kinecal.ui.instruments import placed_of
@@ -112,8 +112,16 @@ def test_planes_cameras_and_boards_placed():
     data = {"kinds": [{"unknowns": [{"plane": "table", "normal": n.tolist(),
                                      "offset": 250.0}]}],
             "X": X.tolist(), "X_frame": "cam2base", "board_pose": np.eye(4).tolist(),
-            "board_frame": "target2flange"}
-    plane, camera, board = placed_of(data)
+            "board_frame": "target2flange",
+            "cameras": {"left": {"link": "world", "pose": X.tolist()},
+                        "wrist": {"link": "flange", "pose": np.eye(4).tolist()}},
+            "boards": {"b1": {"link": "link_3", "pose": np.eye(4).tolist()}}}
+    placed = {p.name: p for p in placed_of(data)}
+    assert {n: p.attached for n, p in placed.items()} == {
+        "plane table": "world", "camera": "world", "board": "flange",
+        "camera left": "world", "camera wrist": "flange", "board b1": "link_3"}
+    assert np.allclose(placed["camera left"].pose, X)
+    plane, camera, board = placed["plane table"], placed["camera"], placed["board"]
     assert plane.name == "plane table" and plane.kind == "plane"
     assert np.allclose(plane.pose[:3, 3], 250.0 * n)
     assert np.allclose(plane.pose[:3, 2], n)

@@ -1,11 +1,12 @@
 """What a calibration placed besides the arm, read from its result JSON and drawn in the
 See view: the pivots of ballbars, the fixed points (sockets) and planes touched
-(``kinds[].unknowns``, docs/measurement-kinds.md), and the camera and board of a
-calibration from images (``X`` / ``board_pose`` with their frames, docs/arm-from-images.md)
-when they are fixed in the robot's base frame (``cam2base``, ``target2base``).
+(``kinds[].unknowns``, docs/measurement-kinds.md), and the cameras and boards of a
+calibration from images when they are fixed in the robot's base frame: ``X`` /
+``board_pose`` of one camera (``cam2base``, ``target2base``, docs/arm-from-images.md), a
+rig's ``cameras`` / ``boards`` mounted on ``world``.
 
-A camera or board carried by the flange moves with the arm; they are listed
-(`Placed.attached` ``flange``) but not drawn.
+A camera or board carried by a link moves with the arm; it is listed (`Placed.attached`
+names the link: ``flange`` or another) but not drawn.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ class Placed:
     kind : str
         ``point``, ``plane`` or ``frame``.
     attached : str
-        ``world`` (the base frame) or ``flange``.
+        ``world`` (the base frame), ``flange`` or the link that carries it.
     pose : ndarray, shape (4, 4)
         Its frame: a point's at the point, a plane's on it (z its normal), a camera's or a
         board's as the result gives it.
@@ -67,6 +68,11 @@ def placed_of(data: dict) -> list[Placed]:
                 # the plane n . p = offset: its point nearest the base origin
                 out.append(Placed(f"plane {u['plane']}", "plane", "world",
                                   _frame(n * float(u["offset"]) / (n @ n), n)))
+    for part, word in (("cameras", "camera"), ("boards", "board")):  # a rig's mounts
+        for name, m in (data.get(part) or {}).items():
+            link = m.get("link", "world")
+            out.append(Placed(f"{word} {name}", "frame", "world" if link == "world" else link,
+                              np.asarray(m["pose"], dtype=float)))
     for key, frame_key, name in (("X", "X_frame", "camera"),
                                  ("board_pose", "board_frame", "board")):
         if data.get(key) is not None:
