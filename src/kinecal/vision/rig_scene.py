@@ -158,7 +158,7 @@ def render_rig_stations(model, cameras: Sequence[Mount], boards: Sequence[tuple[
                         mounts: Mapping[str, Array] | None = None,
                         conditions: ImageConditions | None = None, seed: int = 0,
                         supersample: int = 2, spread_deg: float = 20.0,
-                        max_angle_deg: float = 60.0, view_options: dict | None = None,
+                        max_angle_deg: float = 45.0, view_options: dict | None = None,
                         render: bool = True) -> RigScene:
     """Render `n` stations of a rig (module docstring).
 

@@ -1,0 +1,196 @@
+"""From a rig's images and joint readings to a calibrated model and rig: what ``kinecal
+calibrate MODEL STATIONS.csv --images DIR --camera NAME:LINK ... --board NAME:LINK:SPEC
+...`` runs.
+
+1. every image is searched for the boards it may show (the one its ``board`` column names,
+   else every board of the rig: ChArUco boards with disjoint marker ids are told apart);
+   an image where none is found or trusted is skipped with its reason (warning
+   ``station-skipped``);
+2. each camera's intrinsics from its file, or estimated from its own images (then refined
+   with the rest);
+3. the pose of every board found (PnP), for the start;
+4. one bundle adjustment of the model, every mount and the free intrinsics on the corner
+   pixels (`kinecal.calibration.camera.rig_solve.calibrate_rig`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinecal import diagnostics
+from kinecal.calibration.camera.rig_pixels import RigViews
+from kinecal.calibration.camera.rig_result import RigResult
+from kinecal.calibration.camera.rig_solve import calibrate_rig
+from kinecal.errors import InputError
+from kinecal.vision.detect import QualityLimits
+from kinecal.vision.intrinsics import CameraIntrinsics
+from kinecal.vision.rig import Rig
+from kinecal.vision.stages import board_poses, camera_intrinsics, detect_all
+
+Array = NDArray[np.float64]
+
+__all__ = ["calibrate_rig_images", "detect_rig"]
+
+
+def _searched(rig: Rig, camera: NDArray[np.intp], boards: Sequence[str | None]
+              ) -> list[list[int]]:
+    """The boards each image is searched for: its named board, else every board not on its
+    camera's link (several only when they can be told apart)."""
+    names = rig.board_names
+    out = []
+    for i, b in enumerate(boards):
+        if b:
+            out.append([names.index(b)])
+            continue
+        link = rig.cameras[camera[i]].link
+        cand = [k for k, rb in enumerate(rig.boards) if rb.link != link] or \
+            list(range(len(names)))
+        if len(cand) > 1 and not rig.told_apart():
+            raise InputError(f"image {i + 1}: several boards ({', '.join(names[k] for k in cand)})"
+                             " could show in it and not all are ChArUco boards with their own "
+                             "marker ids: name its board in the STATIONS.csv board column",
+                             option="--board")
+        out.append(cand)
+    return out
+
+
+def detect_rig(rig: Rig, images: Sequence[Any], names: Sequence[str],
+               camera: NDArray[np.intp], q: Array, boards: Sequence[str | None],
+               limits: QualityLimits | None = None,
+               intrinsics: Sequence[CameraIntrinsics | None] | None = None,
+               progress: Callable[..., None] | None = None, poses: bool = True
+               ) -> tuple[RigViews, list[CameraIntrinsics], list[dict[str, str]]]:
+    """Detected images of a rig, each camera's intrinsics and the skipped images.
+
+    Parameters
+    ----------
+    rig : Rig
+    images : sequence of path or ndarray
+    names : sequence of str
+    camera : ndarray of int, shape (n,)
+        Camera of every image (index into ``rig.cameras``).
+    q : ndarray, shape (n, n_joints)
+        Joint readings (rad).
+    boards : sequence of str or None
+        The board each image shows (None: search every board).
+    limits : QualityLimits, optional
+    intrinsics : sequence, optional
+        Per camera: the intrinsics to use (default: its file, else estimated).
+    poses : bool
+        Compute each found board's pose (PnP; rejects too oblique views).
+
+    Returns
+    -------
+    views : RigViews
+        The images with at least one board found.
+    intrinsics : list of CameraIntrinsics
+    skipped : list of dict
+        ``{"image", "reason"}``.
+    """
+    limits = limits or QualityLimits()
+    camera = np.asarray(camera, dtype=np.intp)
+    search = _searched(rig, camera, boards)
+    n, nb = len(names), len(rig.boards)
+    found: list[dict[int, Any]] = [{} for _ in range(n)]
+    reasons: list[list[str]] = [[] for _ in range(n)]
+    given = list(intrinsics) if intrinsics is not None else \
+        [c.intrinsics for c in rig.cameras]
+    intr_out: list[CameraIntrinsics | None] = [None] * len(rig.cameras)
+    per_cam = {}
+    for c in range(len(rig.cameras)):
+        for b in range(nb):
+            rows = [i for i in range(n) if camera[i] == c and b in search[i]]
+            if not rows:
+                continue
+            g = given[c]
+            expected = None if g is None or not g.size else tuple(g.size)
+            recs, size = detect_all([images[i] for i in rows], [names[i] for i in rows],
+                                    rig.boards[b].board, limits, progress, expected)
+            per_cam.setdefault(c, []).append((b, rows, recs, size))
+    for c, items in per_cam.items():
+        b, _, recs, size = max(items, key=lambda it: sum(r.status == "used" for r in it[2]))
+        intr_out[c] = camera_intrinsics(recs, rig.boards[b].board, size, given[c])
+        for b, rows, recs, _ in items:
+            if poses:
+                board_poses(recs, rig.boards[b].board, intr_out[c], limits)
+            for i, r in zip(rows, recs, strict=True):
+                if r.status == "used":
+                    found[i][b] = r
+                else:
+                    reasons[i].append(f"{rig.boards[b].name}: {r.reason}")
+    used = [i for i in range(n) if found[i]]
+    skipped = [{"image": names[i], "reason": "; ".join(reasons[i]) or "no board searched"}
+               for i in range(n) if not found[i]]
+    pts, pix, brd, pp = [], [], [], []
+    for i in used:
+        keys = sorted(found[i])
+        pts.append(np.vstack([found[i][b].detection.object_points(rig.boards[b].board)
+                              for b in keys]))
+        pix.append(np.vstack([found[i][b].detection.corners for b in keys]))
+        brd.append(np.concatenate([np.full(len(found[i][b].detection.corners), b, np.intp)
+                                   for b in keys]))
+        pp.append({b: found[i][b].pose.target2cam for b in keys} if poses else {})
+    views = RigViews([names[i] for i in used], camera[used], np.asarray(q, float)[used], pts,
+                     pix, brd, pp if poses else None)
+    return views, intr_out, skipped
+
+
+def calibrate_rig_images(model, rig: Rig, images: Sequence[Any], names: Sequence[str],
+                         camera: NDArray[np.intp], q: Array, boards: Sequence[str | None], *,
+                         free: str | Sequence[str] = "identifiable", loss: str = "linear",
+                         rational: bool = False,
+                         validate: tuple | None = None, limits: QualityLimits | None = None,
+                         progress: Callable[..., None] | None = None) -> RigResult:
+    """Calibrate a model and its rig from images (module docstring).
+
+    Parameters
+    ----------
+    model : SerialModel or SystemModel
+    rig : Rig
+    images, names, camera, q, boards
+        One entry per image (see `detect_rig`).
+    free, loss
+        As `kinecal.calibrate`.
+    rational : bool
+        12 intrinsics where estimated.
+    validate : (images, names, camera, q, boards), optional
+        Held-out images of any camera.
+    limits, progress
+        Detection limits and a progress callback.
+    """
+    cams, brds = rig.mounts(model)
+    with diagnostics.collect() as found:
+        views, intr, skipped = detect_rig(rig, images, names, camera, q, boards, limits,
+                                          progress=progress)
+        if len(views.q) < 3:
+            eg = f"; e.g. {skipped[0]['image']}: {skipped[0]['reason']}" if skipped else ""
+            raise InputError(f"{len(views.q)} usable image(s) of {len(names)}: the boards were "
+                             f"not found or not trusted in the others{eg}")
+        if skipped:
+            diagnostics.warn("station-skipped",
+                             f"{len(skipped)} of {len(names)} images skipped (e.g. "
+                             f"{skipped[0]['image']}: {skipped[0]['reason']})")
+        missing = [c.name for c, i in zip(rig.cameras, intr, strict=True) if i is None]
+        if missing:
+            raise InputError(f"camera(s) {', '.join(missing)}: no image of theirs in STATIONS.csv "
+                             "(every --camera needs images)", option="--camera")
+        val = None
+        if validate is not None:
+            vimg, vnames, vcam, vq, vboards = validate
+            val, _, vskip = detect_rig(rig, vimg, vnames, vcam, vq, vboards, limits, intr,
+                                       poses=False)
+            skipped += [{**s, "validation": True} for s in vskip]
+        res = calibrate_rig(
+            model, views, cams, brds, [i.K for i in intr], [i.dist for i in intr],
+            refine_intrinsics=[c.intrinsics is None for c in rig.cameras],
+            rational=rational or any(i.rational for i in intr), free=free, loss=loss,
+            validate=val, board_specs=[b.board.spec for b in rig.boards],
+            extra={"skipped": skipped, "n_images": len(names), "n_used": len(views.q),
+                   "intrinsics_given": {c.name: c.intrinsics is not None
+                                        for c in rig.cameras}})
+    res.warnings = list(found)
+    return res
