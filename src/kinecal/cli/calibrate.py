@@ -224,8 +224,12 @@ def calibrate(
     images: Path | None = typer.Option(None, "--images", help="Folder of board images: "
                                        "DATA is then STATIONS.csv (image,q1..qn). See "
                                        "docs/arm-from-images.md."),
-    board: str | None = typer.Option(None, "--board", help="With --images: the board, "
-                                     "e.g. chessboard:9x6:25."),
+    board: list[str] | None = typer.Option(None, "--board", help="With --images: the board, "
+                                           "e.g. chessboard:9x6:25; a rig's NAME:LINK:SPEC "
+                                           "(repeatable; docs/rigs.md)."),
+    camera: list[str] | None = typer.Option(None, "--camera", help="With --images: a rig's "
+                                            "camera NAME:LINK[:intrinsics.yaml] (repeatable; "
+                                            "LINK world, flange or a system's link)."),
     intrinsics: Path | None = typer.Option(None, "--intrinsics", help="With --images: "
                                            "camera YAML (default: from the images)."),
     setup: str = typer.Option("eye-in-hand", "--setup", help="With --images: eye-in-hand "
@@ -241,6 +245,16 @@ def calibrate(
     check_angle_unit(angle_unit)
     from kinecal.cli.systems import is_system_arg
 
+    if images is not None:  # several cameras and boards, or images mixed: docs/rigs.md
+        from kinecal.cli.calibrate_rig import calibrate_rig_cli, is_rig_call
+
+        if is_rig_call(camera, board, data, is_system_arg(model, base_link, tip_link)):
+            return calibrate_rig_cli({**locals(), "free": free_option(free)})
+    elif camera:
+        raise InputError("applies to --images only", option="--camera")
+    from kinecal.cli.calibrate_rig import one_board
+
+    board = one_board(board)
     if images is None and is_system_arg(model, base_link, tip_link):
         from kinecal.cli.systems import system_calibrate
 
@@ -369,6 +383,16 @@ def select_poses_cmd(
     check_angle_unit(angle_unit)
     from kinecal.cli.systems import is_system_arg
 
+    if images is not None:  # several cameras and boards, or images mixed: docs/rigs.md
+        from kinecal.cli.calibrate_rig import calibrate_rig_cli, is_rig_call
+
+        if is_rig_call(camera, board, data, is_system_arg(model, base_link, tip_link)):
+            return calibrate_rig_cli({**locals(), "free": free_option(free)})
+    elif camera:
+        raise InputError("applies to --images only", option="--camera")
+    from kinecal.cli.calibrate_rig import one_board
+
+    board = one_board(board)
     if is_system_arg(model, base_link, tip_link):
         from kinecal.cli.systems import system_select
 

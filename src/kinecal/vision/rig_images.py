@@ -33,7 +33,7 @@ from kinecal.vision.stages import board_poses, camera_intrinsics, detect_all
 
 Array = NDArray[np.float64]
 
-__all__ = ["calibrate_rig_images", "detect_rig"]
+__all__ = ["calibrate_rig_images", "complete_joints", "detect_rig"]
 
 
 def _searched(rig: Rig, camera: NDArray[np.intp], boards: Sequence[str | None]
@@ -56,6 +56,32 @@ def _searched(rig: Rig, camera: NDArray[np.intp], boards: Sequence[str | None]
                              option="--board")
         out.append(cand)
     return out
+
+
+def complete_joints(model, rig: Rig, camera: NDArray[np.intp], boards: Sequence[str | None],
+                    q: Array, names: Sequence[str]) -> Array:
+    """`q` with a system's blank readings (NaN) of the joints an image needs neither for
+    its camera nor for its boards set inside their limits; `InputError` naming the image
+    and joint when one it needs is blank."""
+    q = np.array(q, dtype=float)
+    if not np.isnan(q).any():
+        return q
+    from kinecal.calibration.camera.rig_frames import WORLD
+
+    cams, brds = rig.mounts(model)
+    search = _searched(rig, np.asarray(camera, np.intp), boards)
+    lim = np.asarray(model.joint_limits, float)
+    mid = np.clip(0.0, lim[:, 0], lim[:, 1])
+    for i in range(len(q)):
+        links = [cams[camera[i]].link] + [brds[b].link for b in search[i]]
+        need = np.unique(np.concatenate([model.link_joints(ln) for ln in links
+                                         if ln != WORLD] or [np.zeros(0, np.intp)]))
+        blank = [int(j) for j in need if np.isnan(q[i, j])]
+        if blank:
+            raise InputError(f"image {names[i]}: joint {model.joint_names[blank[0]]} is blank "
+                             "but moves its camera or board")
+        q[i] = np.where(np.isnan(q[i]), mid, q[i])
+    return q
 
 
 def detect_rig(rig: Rig, images: Sequence[Any], names: Sequence[str],
@@ -144,7 +170,8 @@ def calibrate_rig_images(model, rig: Rig, images: Sequence[Any], names: Sequence
                          free: str | Sequence[str] = "identifiable", loss: str = "linear",
                          rational: bool = False,
                          validate: tuple | None = None, limits: QualityLimits | None = None,
-                         progress: Callable[..., None] | None = None) -> RigResult:
+                         progress: Callable[..., None] | None = None, others: Sequence = (),
+                         sigma: Sequence[float | None] | None = None) -> RigResult:
     """Calibrate a model and its rig from images (module docstring).
 
     Parameters
@@ -161,6 +188,9 @@ def calibrate_rig_images(model, rig: Rig, images: Sequence[Any], names: Sequence
         Held-out images of any camera.
     limits, progress
         Detection limits and a progress callback.
+    others, sigma
+        Further measurement sets (tracker, gauges) and their stated noise: one problem
+        (`kinecal.calibration.camera.rig_solve.calibrate_rig`).
     """
     cams, brds = rig.mounts(model)
     with diagnostics.collect() as found:
@@ -188,7 +218,8 @@ def calibrate_rig_images(model, rig: Rig, images: Sequence[Any], names: Sequence
             model, views, cams, brds, [i.K for i in intr], [i.dist for i in intr],
             refine_intrinsics=[c.intrinsics is None for c in rig.cameras],
             rational=rational or any(i.rational for i in intr), free=free, loss=loss,
-            validate=val, board_specs=[b.board.spec for b in rig.boards],
+            validate=val, board_specs=[b.board.spec for b in rig.boards], others=others,
+            sigma=sigma,
             extra={"skipped": skipped, "n_images": len(names), "n_used": len(views.q),
                    "intrinsics_given": {c.name: c.intrinsics is not None
                                         for c in rig.cameras}})

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.camera.rig_frames import WORLD, LinkFrames
-from kinecal.calibration.camera.rig_pixels import Mount
+from kinecal.calibration.camera.rig_pixels import Mount, RigViews
 from kinecal.calibration.handeye.camera import check_camera, project
 from kinecal.calibration.serial.simulate import random_errors
 from kinecal.errors import InputError
@@ -38,7 +38,7 @@ from kinecal.vision.rig_mounts import default_mounts
 
 Array = NDArray[np.float64]
 
-__all__ = ["RigScene", "render_rig_stations"]
+__all__ = ["RigScene", "render_rig_stations", "scene_views"]
 
 
 @dataclass
@@ -158,7 +158,7 @@ def render_rig_stations(model, cameras: Sequence[Mount], boards: Sequence[tuple[
                         mounts: Mapping[str, Array] | None = None,
                         conditions: ImageConditions | None = None, seed: int = 0,
                         supersample: int = 2, spread_deg: float = 20.0,
-                        max_angle_deg: float = 45.0, view_options: dict | None = None,
+                        max_angle_deg: float = 40.0, view_options: dict | None = None,
                         render: bool = True) -> RigScene:
     """Render `n` stations of a rig (module docstring).
 
@@ -324,3 +324,47 @@ class _Planner:
             k += 1
         return (np.array(q_out), np.array(cam_out, np.intp), np.array(st_out, np.intp),
                 seen_out, pose_out)
+
+
+def scene_views(scene: RigScene, noise: float = 0.0, seed: int = 0,
+                rows: Sequence[int] | None = None) -> RigViews:
+    """The images of `scene` as detections without rendering: every corner of every board
+    an image sees whole, projected through its camera, plus Gaussian noise of `noise` px
+    per coordinate, with each board's PnP pose from those corners (what to expect of a
+    rig before building it, and the tests' exact data).
+
+    Parameters
+    ----------
+    scene : RigScene
+        Rendered or not (``render=False``).
+    noise : float
+        Corner noise per coordinate (px).
+    seed : int
+    rows : sequence of int, optional
+        The images to take (default all).
+    """
+    from kinecal.vision.pnp import board_pose
+
+    rng = np.random.default_rng(seed)
+    rows = range(len(scene.names)) if rows is None else list(rows)
+    pts, pix, brd, poses = [], [], [], []
+    for i in rows:
+        c = scene.camera[i]
+        K, d = scene.K[c], scene.dist[c]
+        P_all, uv_all, b_all, pp = [], [], [], {}
+        for b in scene.seen[i]:
+            board = scene.boards[b][1]
+            C = scene.target2cam[i][b]
+            P = board.object_points
+            uv = project(K, d, P @ C[:3, :3].T + C[:3, 3])
+            uv = uv + rng.normal(size=uv.shape) * noise
+            P_all.append(P)
+            uv_all.append(uv)
+            b_all.append(np.full(len(P), b, np.intp))
+            pp[b] = board_pose(P, uv, K, d).target2cam
+        pts.append(np.vstack(P_all))
+        pix.append(np.vstack(uv_all))
+        brd.append(np.concatenate(b_all))
+        poses.append(pp)
+    return RigViews([scene.names[i] for i in rows], scene.camera[list(rows)],
+                    scene.q[list(rows)], pts, pix, brd, poses)

@@ -191,13 +191,14 @@ def observation_outliers(problem: StackedProblem, residuals: Sequence[Array]
     """Observations far outside their block's spread (`chi_outliers` of the errors in
     units of the noise, per block, the observations of one pose at several markers pooled:
     `ResidualBlock.observation_poses`); none in a block whose errors are all at round-off
-    (below `ROUND_OFF` of the workspace's size). Every observation of a flagged pose is
-    returned."""
+    (below `ROUND_OFF` of the workspace's size, or the block's ``round_off`` in its own
+    unit). Every observation of a flagged pose is returned."""
     floor = _round_off(problem)
     out = []
     for i, (b, r, s) in enumerate(zip(problem.blocks, residuals, problem.sigma, strict=True)):
         e = b.observation_errors(r)
-        if b.unit == "length" and e.size and e.max() <= floor:
+        # (other units: the block's own round-off, e.g. a camera's pixels)
+        if e.size and e.max() <= (floor if b.unit == "length" else getattr(b, "round_off", 0.0)):
             continue
         group, n = b.observation_poses()
         out += [(i, j) for j in pose_outliers(e / s, group, n, b.obs_dof)]

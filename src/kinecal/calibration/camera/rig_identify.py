@@ -64,7 +64,8 @@ class RigIdentifiability:
 
 def rig_identifiability(pixels: RigPixels, model, params: Array, nu: Array,
                         identified: Sequence[str], held: Sequence[str],
-                        tol: float = 1e-4) -> RigIdentifiability:
+                        tol: float = 1e-4, confounded: dict | None = None
+                        ) -> RigIdentifiability:
     """Which mount takes up each `held` parameter (module docstring).
 
     Parameters
@@ -77,6 +78,9 @@ def rig_identifiability(pixels: RigPixels, model, params: Array, nu: Array,
         The free and the held parameters of the calibration.
     tol : float
         Relative rank threshold of the scale test.
+    confounded : dict, optional
+        The calibration's ``confounded_with`` (held parameter -> the free parameters whose
+        combination has its effect), for the words of the held parameters no mount takes.
     """
     names = list(identified) + list(held)
     cols = model.index(names) if names else np.zeros(0, np.intp)
@@ -92,10 +96,13 @@ def rig_identifiability(pixels: RigPixels, model, params: Array, nu: Array,
     basis = np.hstack([An, Aa[:, :k]])
     groups = pixels.nuisance_groups()
     out = RigIdentifiability()
+    scale = np.abs(Ja).max(initial=0.0)
+    none = []
     for j, name in enumerate(held):
         col = Aa[:, k + j]
-        if np.linalg.norm(col) == 0:
+        if np.abs(Ja[:, k + j]).max(initial=0.0) <= 1e-12 * max(scale, 1e-300):
             out.taken_up_by[name] = []
+            none.append(name)
             continue
         coef = np.linalg.lstsq(basis, col, rcond=None)[0]
         by = [g for g, sl in groups.items() if np.linalg.norm(An[:, sl] @ coef[sl]) > SHARE]
@@ -103,7 +110,7 @@ def rig_identifiability(pixels: RigPixels, model, params: Array, nu: Array,
         for g in by:
             out.mounts.setdefault(g, []).append(name)
     out.scale_free = _scale_free(pixels, params, nu, basis, rows, tol)
-    out.sentences = _sentences(out, pixels)
+    out.sentences = _sentences(out, pixels, none, confounded or {})
     return out
 
 
@@ -128,7 +135,8 @@ def _scale_free(pixels: RigPixels, params: Array, nu: Array, basis: Array,
     return bool(np.linalg.norm(u - Q @ (Q.T @ u)) < np.sqrt(tol))
 
 
-def _sentences(info: RigIdentifiability, pixels: RigPixels) -> list[str]:
+def _sentences(info: RigIdentifiability, pixels: RigPixels, none: list[str],
+               confounded: dict) -> list[str]:
     links = {f"camera {c.name}": c.link for c in pixels.cameras}
     links.update({f"board {b.name}": b.link for b in pixels.boards})
     out = []
@@ -143,10 +151,13 @@ def _sentences(info: RigIdentifiability, pixels: RigPixels) -> list[str]:
             what = "they change this camera's image as its intrinsics do"
         out.append(f"{g} ({link or 'intrinsics'}) takes up {', '.join(params)}: {what}; held "
                    "at nominal, the mount is given in the frame they make")
-    rest = [n for n, by in info.taken_up_by.items() if not by]
-    if rest:
-        out.append(f"{', '.join(rest)}: confounded with other parameters of the model (these "
-                   "images cannot tell them apart); held at nominal")
+    if none:
+        out.append(f"{', '.join(none)}: no effect on any image (a tool point after the link a "
+                   "camera or board hangs from); held at nominal")
+    for n in [n for n, by in info.taken_up_by.items() if not by and n not in none]:
+        parts = ", ".join(confounded.get(n, {})) or "other parameters"
+        out.append(f"{n}: a combination of {parts} (these images cannot tell them apart); "
+                   "held at nominal")
     if info.scale_free:
         out.append("scale: set by the boards' printed sizes alone: every identified length "
                    "scales with them (the images cannot check it)")

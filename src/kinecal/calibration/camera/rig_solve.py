@@ -47,7 +47,8 @@ def calibrate_rig(model, views: RigViews, cameras: Sequence[Mount], boards: Sequ
                   free: str | Sequence[str] = "identifiable", loss: str = "linear",
                   f_scale: float | None = None, validate: RigViews | None = None,
                   method: str = "park", rank_tol: float = RANK_TOL,
-                  board_specs: Sequence[str] | None = None,
+                  board_specs: Sequence[str] | None = None, others: Sequence = (),
+                  sigma: Sequence[float | None] | None = None,
                   extra: dict[str, Any] | None = None) -> RigResult:
     """Calibrate a model and its camera rig on the corner pixels (module docstring).
 
@@ -73,6 +74,12 @@ def calibrate_rig(model, views: RigViews, cameras: Sequence[Mount], boards: Sequ
         Hand-eye closed form of the start.
     board_specs : sequence of str, optional
         The boards' specs (reported).
+    others : sequence, optional
+        Further measurement sets of the same model (tracker points, ballbar, sockets,
+        planes: `kinecal.io.kinds.read_kind`): one problem with the pixels (the tracker
+        then sees the base and tool the cameras cannot).
+    sigma : sequence of float or None, optional
+        Their stated noise (length unit), one per set of `others`.
     extra : dict, optional
         Entries added to the JSON.
 
@@ -83,14 +90,14 @@ def calibrate_rig(model, views: RigViews, cameras: Sequence[Mount], boards: Sequ
     with diagnostics.collect(python_warnings=True) as found:
         res = _calibrate(model, views, list(cameras), list(boards), list(K), list(dist),
                          refine_intrinsics, rational, free, loss, f_scale, validate, method,
-                         rank_tol, board_specs)
+                         rank_tol, board_specs, list(others), sigma)
     res.warnings = list(found)
     res.extra.update(extra or {})
     return res
 
 
 def _calibrate(model, views, cameras, boards, K, dist, refine, rational, free, loss, f_scale,
-               validate, method, rank_tol, board_specs) -> RigResult:
+               validate, method, rank_tol, board_specs, others, sigma) -> RigResult:
     t0 = time.perf_counter()
     if loss not in LOSSES:
         raise InputError(f"loss: expected one of {', '.join(LOSSES)}, got {loss!r}",
@@ -106,8 +113,9 @@ def _calibrate(model, views, cameras, boards, K, dist, refine, rational, free, l
     nu0 = block.start(model, p0)
     nu_he, _ = fit_nuisance(block, model, p0, nu0)
     before = block.pixels.image_rms(block.pixels.residuals(p0, nu_he, strict=False))
-    fit = calibrate_blocks(model, [block], free=free, loss=loss, f_scale=f_scale,
-                           rank_tol=rank_tol)
+    sig = [None, *(sigma if sigma is not None else [None] * len(others))]
+    fit = calibrate_blocks(model, [block, *others], sigma=sig, free=free, loss=loss,
+                           f_scale=f_scale, rank_tol=rank_tol)
     final = _fitted_pixels(block, fit)
     zero = np.zeros(final.n_nuisance)
     after = final.image_rms(final.residuals(fit.params, zero, strict=False))
@@ -121,11 +129,12 @@ def _calibrate(model, views, cameras, boards, K, dist, refine, rational, free, l
                 pairs[(a, b)] = _relative(final.X0[a], final.X0[b], cov, sl["camera"][a],
                                           sl["camera"][b])
     held = [n for n in model.calibratable if n not in set(fit.free)]
-    ident = rig_identifiability(final, model, fit.params, zero, fit.free, held, rank_tol)
+    ident = rig_identifiability(final, model, fit.params, zero, fit.free, held, rank_tol,
+                                fit.identifiability.confounded_with)
     he = block.pixels.unpack(nu_he)
     val = _validation(model, validate, cameras, boards, he, final, fit.params, n_int)
     sigma_px = float(fit.extra["kinds"][0]["sigma"] or np.nan)
-    outliers = sorted({int(i) for i in fit.outliers})
+    outliers = sorted({int(i) for i in fit.outliers if i < block.n_obs})
     return RigResult(
         fit=fit, cameras=cameras, boards=boards,
         board_specs=list(board_specs or [""] * len(boards)),
