@@ -383,16 +383,6 @@ def select_poses_cmd(
     check_angle_unit(angle_unit)
     from kinecal.cli.systems import is_system_arg
 
-    if images is not None:  # several cameras and boards, or images mixed: docs/rigs.md
-        from kinecal.cli.calibrate_rig import calibrate_rig_cli, is_rig_call
-
-        if is_rig_call(camera, board, data, is_system_arg(model, base_link, tip_link)):
-            return calibrate_rig_cli({**locals(), "free": free_option(free)})
-    elif camera:
-        raise InputError("applies to --images only", option="--camera")
-    from kinecal.cli.calibrate_rig import one_board
-
-    board = one_board(board)
     if is_system_arg(model, base_link, tip_link):
         from kinecal.cli.systems import system_select
 

@@ -197,7 +197,7 @@ def test_cameras_tied_through_the_robot(kr6):
     seen = {(int(v.camera[i]), int(b)) for i in range(len(v.names)) for b in v.poses[i]}
     assert (0, 1) not in seen and (1, 0) not in seen  # a and w share no board
     frames = LinkFrames(kr6, v.q, [m.link for m in cams3 + boards])
-    X, Y = rig_start(frames, v, cams3, boards, kr6.nominal)
+    X, _ = rig_start(frames, v, cams3, boards, kr6.nominal)
     assert _pose_error(X[2], s_pose)[0] < 5.0  # placed through the table's board
     res = calibrate_rig(kr6, v, cams3, boards, [K] * 3, [DIST] * 3)
     # exact pixels: round-off everywhere, no image singled out as an outlier
@@ -240,3 +240,29 @@ def test_unknown_link_is_refused(kr6, head_arm):
     assert check_link(head_arm, "world") == "world"
     with pytest.raises(InputError, match="expected one of world"):
         check_link(head_arm, "flange")  # two tips: which flange?
+
+
+def test_block_sparse_normal_equations_equal_the_dense(kr6):
+    """The rig block's normal equations, summed block by block, equal J^T J and J^T r of
+    the dense stacked Jacobian (two cameras with free intrinsics, two boards)."""
+    from kinecal.calibration.blocks.stack import StackedProblem
+    from kinecal.calibration.camera.rig_block import RigBlock
+
+    board2 = parse_board("charuco:5x4:30:22:DICT_5X5_100")
+    cams = [Mount("a", "world"), Mount("w", "flange")]
+    scene = render_rig_stations(kr6, cams, [(Mount("held", "flange"), BOARD),
+                                            (Mount("table", "world"), board2)],
+                                [(K, DIST, SIZE)] * 2, 8, seed=2, render=False)
+    v = scene_views(scene, 0.2, 1)
+    block = RigBlock(v, cams, [Mount("held", "flange"), Mount("table", "world")],
+                     [K] * 2, [DIST] * 2, [9, 12])
+    block.start(kr6, kr6.nominal)
+    rng = np.random.default_rng(0)
+    free = ["a2", "d4", "theta3", "alpha5"]
+    prob = StackedProblem(kr6, [block], free, [rng.uniform(0.1, 0.4, block.n_obs)])
+    x = prob.pack(kr6.nominal, [rng.normal(size=block.n_nuisance) * 1e-3])
+    r, A, g = prob.normal_equations(x)
+    J = prob.jacobian(x)
+    assert np.allclose(r, prob.residuals(x), rtol=1e-12, atol=1e-12)
+    assert np.allclose(A, J.T @ J, rtol=1e-10, atol=1e-8 * np.abs(A).max())
+    assert np.allclose(g, J.T @ r, rtol=1e-10, atol=1e-8 * np.abs(g).max())

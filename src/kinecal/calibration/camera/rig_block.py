@@ -147,6 +147,17 @@ class RigBlock(ResidualBlock):
         return BlockRows(r, J.arm.reshape(m, -1),
                          J.dense_nuisance(self.pixels.n_nuisance))
 
+    def normal_parts(self, model, params: Array, nuisance: Array,
+                     columns: NDArray[np.intp], weights: Array) -> tuple:
+        """The block-sparse normal equations of the pixels
+        (`kinecal.calibration.camera.rig_jacobian.RigJacobian.normal`)."""
+        if self.pixels is None:
+            self.start(model, params)
+        self._frames(model)
+        uv, J = self.pixels.predict(params, nuisance, np.asarray(columns, np.intp), True)
+        r = (uv - self.pixels.uv).ravel() * weights
+        return (r, *J.normal(weights, r, self.pixels.n_nuisance))
+
     def observation_errors(self, r: Array) -> Array:
         """RMS corner error per image (px)."""
         return self.pixels.image_rms(np.asarray(r).reshape(-1, 2))

@@ -98,13 +98,13 @@ def rig_identifiability(pixels: RigPixels, model, params: Array, nu: Array,
     out = RigIdentifiability()
     scale = np.abs(Ja).max(initial=0.0)
     none = []
+    coefs = np.linalg.lstsq(basis, Aa[:, k:], rcond=None)[0] if held else None
     for j, name in enumerate(held):
-        col = Aa[:, k + j]
         if np.abs(Ja[:, k + j]).max(initial=0.0) <= 1e-12 * max(scale, 1e-300):
             out.taken_up_by[name] = []
             none.append(name)
             continue
-        coef = np.linalg.lstsq(basis, col, rcond=None)[0]
+        coef = coefs[:, j]
         by = [g for g, sl in groups.items() if np.linalg.norm(An[:, sl] @ coef[sl]) > SHARE]
         out.taken_up_by[name] = by
         for g in by:

@@ -25,18 +25,20 @@ k3[, k4, k5, k6])`` per camera, as in `PixelBlock`. Every column is checked agai
 differences in the tests.
 
 The Jacobian of a corner reaches the arm's columns, its camera's mount and intrinsics and
-its board's mount only: `RigJacobian` keeps these local blocks, from which the block-sparse
-normal equations are assembled without the dense nuisance Jacobian.
+its board's mount only: `kinecal.calibration.camera.rig_jacobian.RigJacobian` keeps these
+local blocks, from which the block-sparse normal equations are assembled without the dense
+nuisance Jacobian.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal.calibration.camera.rig_jacobian import RigJacobian, rig_jacobian
 from kinecal.calibration.handeye.camera import (
     INTRINSIC_NAMES,
     check_camera,
@@ -44,9 +46,8 @@ from kinecal.calibration.handeye.camera import (
     project_jacobian,
     with_intrinsics,
 )
-from kinecal.calibration.handeye.refine import _jr
 from kinecal.errors import InputError
-from kinecal.spatial import matrix_from_axis_angle, skew, transform_from
+from kinecal.spatial import matrix_from_axis_angle, transform_from
 
 Array = NDArray[np.float64]
 Index = NDArray[np.intp]
@@ -121,48 +122,6 @@ def mount_names(cameras: Sequence[Mount], boards: Sequence[Mount], n_int: Sequen
     for c, k in zip(cameras, n_int, strict=True):
         out += [f"{c.name}.{n}" for n in INTRINSIC_NAMES[:k]]
     return out
-
-
-@dataclass
-class RigJacobian:
-    """The Jacobian of every corner's two pixel coordinates, by parameter block.
-
-    Attributes
-    ----------
-    arm : ndarray, shape (M, 2, k)
-    camera : ndarray, shape (M, 2, 6)
-        Its camera's mount (rotation increment, translation).
-    board : ndarray, shape (M, 2, 6)
-        Its board's mount.
-    intrinsics : list of ndarray, shape (M_c, 2, n_int_c)
-        Per camera, for the corners of its images (in corner order), when free.
-    cam_of : ndarray of int, shape (M,)
-    board_of : ndarray of int, shape (M,)
-    columns : dict of str to slice
-        Where each block sits in the nuisance vector (`RigPixels.slices`).
-    """
-
-    arm: Array
-    camera: Array
-    board: Array
-    intrinsics: list[Array]
-    cam_of: Index
-    board_of: Index
-    slices: dict = field(default_factory=dict)
-
-    def dense_nuisance(self, n_nu: int) -> Array:
-        """``(2M, n_nu)``: the nuisance Jacobian with its zeros."""
-        M = len(self.cam_of)
-        J = np.zeros((M, 2, n_nu))
-        for c in np.unique(self.cam_of):
-            sel = self.cam_of == c
-            J[sel, :, self.slices["camera"][c]] = self.camera[sel]
-            if self.intrinsics[c] is not None and self.intrinsics[c].shape[2]:
-                J[sel, :, self.slices["intrinsics"][c]] = self.intrinsics[c]
-        for b in np.unique(self.board_of):
-            sel = self.board_of == b
-            J[sel, :, self.slices["board"][b]] = self.board[sel]
-        return J.reshape(2 * M, n_nu)
 
 
 class RigPixels:
@@ -349,41 +308,8 @@ class RigPixels:
                 Jint[c] = ji[:, :, :self.n_int[c]] if self.n_int[c] else None
         if not jac:
             return uv, None
-        return uv, self._jacobian(nu, poses, cols, Jp, Jint, pc, B, Mw, RY, Rb, tb, tc, tY)
-
-    def _jacobian(self, nu, poses, cols, Jp, Jint, pc, B, Mw, RY, Rb, tb, tc, tY
-                  ) -> RigJacobian:
-        v, img = self.vid, self.img
-        A = Jp @ B[v]  # pixels per world vector
-        w = np.einsum("mij,mj->mi", RY[v], self.P) + tY[v]  # board point in its link
-        Rw = np.einsum("mij,mj->mi", Rb[v], w)  # u - t_b
-        arm = np.zeros((len(pc), 2, len(cols)))
-        if len(cols):
-            u_tc = Rw + tb[v] - tc[v]
-            Hb = np.concatenate([A, -A @ skew(Rw)], axis=2)
-            Hc = np.concatenate([-A, A @ skew(u_tc)], axis=2)
-            for mounts, H in ((self.boards, Hb), (self.cameras, Hc)):
-                of = self.board_of if mounts is self.boards else self.cam_of
-                for k, m in enumerate(mounts):
-                    lp = poses[m.link]
-                    if not lp.moves:
-                        continue
-                    sel = of == k
-                    arm[sel] += np.einsum("mij,mjk->mik", H[sel], lp.G[img[sel]])
-        nu = np.asarray(nu, float)
-        cam = np.empty((len(pc), 2, 6))
-        ac = np.array([nu[s][:3] for s in self.slices["camera"]])
-        cam[:, :, :3] = Jp @ skew(pc) @ _jr(ac)[self.cam_of]
-        RX = np.array([x0[:3, :3] @ matrix_from_axis_angle(a) for x0, a in
-                       zip(self.X0, ac, strict=True)])
-        cam[:, :, 3:] = -Jp @ np.swapaxes(RX, 1, 2)[self.cam_of]
-        brd = np.empty((len(pc), 2, 6))
-        ab = np.array([nu[s][:3] for s in self.slices["board"]])
-        Ab = Jp @ Mw[v]
-        brd[:, :, :3] = -(Ab @ RY[v]) @ skew(self.P) @ _jr(ab)[self.board_of]
-        brd[:, :, 3:] = Ab
-        intr = [None if Jint[c] is None else Jint[c] for c in range(len(self.cameras))]
-        return RigJacobian(arm, cam, brd, intr, self.cam_of, self.board_of, self.slices)
+        return uv, rig_jacobian(self, nu, poses, cols, Jp, Jint, pc, B, Mw, RY, Rb, tb, tc,
+                                tY)
 
     def residuals(self, params: Array, nu: Array, strict: bool = True) -> Array:
         """Predicted minus detected pixels ``(M, 2)``."""

@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from kinecal._files import write_text_atomic
 from kinecal.calibration.camera.rig_identify import RigIdentifiability
 from kinecal.diagnostics import Diagnostic
+from kinecal.spatial import axis_angle_from_matrix
 
 Array = NDArray[np.float64]
 
@@ -241,11 +242,11 @@ class RigResult:
                              f"{np.degrees(np.linalg.norm(s[:3])):.4f} deg")
         names = [c.name for c in self.cameras]
         for (a, b), (T, s) in self.pairs.items():
+            turn = np.degrees(np.linalg.norm(axis_angle_from_matrix(T[:3, :3])))
             lines.append(f"  camera {names[b]} in camera {names[a]}: baseline "
                          f"{np.linalg.norm(T[:3, 3]):.3f} {unit} +- "
-                         f"{np.linalg.norm(s[3:]):.3f}, rotation "
-                         f"{np.degrees(np.arccos(np.clip((np.trace(T[:3, :3]) - 1) / 2, -1, 1))):.3f}"
-                         f" deg +- {np.degrees(np.linalg.norm(s[:3])):.4f}")
+                         f"{np.linalg.norm(s[3:]):.3f}, rotation {turn:.3f} deg +- "
+                         f"{np.degrees(np.linalg.norm(s[:3])):.4f}")
         lines.append("what the rig cannot see (held at nominal):")
         lines += [f"  {s}" for s in self.identifiability.sentences]
         lines.append(f"{self.fit.iterations} iterations, {self.fit.evaluations} evaluations, "

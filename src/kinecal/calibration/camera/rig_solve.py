@@ -113,6 +113,8 @@ def _calibrate(model, views, cameras, boards, K, dist, refine, rational, free, l
     nu0 = block.start(model, p0)
     nu_he, _ = fit_nuisance(block, model, p0, nu0)
     before = block.pixels.image_rms(block.pixels.residuals(p0, nu_he, strict=False))
+    he = block.pixels.unpack(nu_he)
+    block.set_references(he[0], he[1], he[2], he[3])  # the fit's start: no second search
     sig = [None, *(sigma if sigma is not None else [None] * len(others))]
     fit = calibrate_blocks(model, [block, *others], sigma=sig, free=free, loss=loss,
                            f_scale=f_scale, rank_tol=rank_tol)
@@ -131,7 +133,6 @@ def _calibrate(model, views, cameras, boards, K, dist, refine, rational, free, l
     held = [n for n in model.calibratable if n not in set(fit.free)]
     ident = rig_identifiability(final, model, fit.params, zero, fit.free, held, rank_tol,
                                 fit.identifiability.confounded_with)
-    he = block.pixels.unpack(nu_he)
     val = _validation(model, validate, cameras, boards, he, final, fit.params, n_int)
     sigma_px = float(fit.extra["kinds"][0]["sigma"] or np.nan)
     outliers = sorted({int(i) for i in fit.outliers if i < block.n_obs})
