@@ -34,7 +34,7 @@ from kinecal.spatial import axis_angle_from_matrix
 
 Array = NDArray[np.float64]
 
-__all__ = ["RigResult", "pixel_stats"]
+__all__ = ["RigResult", "mount_entries", "pixel_stats"]
 
 
 def _rms(v: Array) -> float:
@@ -54,6 +54,39 @@ def pixel_stats(rms: Array) -> dict[str, Any]:
 def _by_camera(rms: Array, camera: Array, names: list[str]) -> dict[str, Any]:
     return {n: pixel_stats(np.asarray(rms)[np.asarray(camera) == c])
             for c, n in enumerate(names) if np.any(np.asarray(camera) == c)}
+
+
+def mount_entries(res: Any) -> tuple[dict, dict, dict]:
+    """The ``cameras``, ``boards`` and ``camera_to_camera`` JSON entries of a result with
+    `RigResult`'s mount attributes (a rig calibration's, a rig hand-eye calibration's)."""
+    cam_names = [c.name for c in res.cameras]
+    cams = {}
+    for c, m in enumerate(res.cameras):
+        sel = np.asarray(res.camera_of) == c
+        s = res.camera_sigma[c]
+        intr = {"K": res.K[c].tolist(), "dist": res.dist[c].tolist(),
+                "refined": bool(res.intrinsics_free[c])}
+        if res.intrinsics_sigma[c] is not None:
+            intr["sigma"] = np.asarray(res.intrinsics_sigma[c]).tolist()
+        cams[m.name] = {"link": m.link, "pose": res.camera_poses[c].tolist(),
+                        "sigma": {"rotation_deg": np.degrees(s[:3]).tolist(),
+                                  "translation": s[3:].tolist()},
+                        "intrinsics": intr, "images": int(sel.sum()),
+                        "rms_px": _rms(res.after_px[sel])}
+    boards = {}
+    for b, m in enumerate(res.boards):
+        s = res.board_sigma[b]
+        boards[m.name] = {"link": m.link, "pose": res.board_poses[b].tolist(),
+                          "sigma": {"rotation_deg": np.degrees(s[:3]).tolist(),
+                                    "translation": s[3:].tolist()},
+                          "spec": res.board_specs[b]}
+    pairs: dict[str, dict] = {}
+    for (a, b), (T, s) in res.pairs.items():
+        pairs.setdefault(cam_names[a], {})[cam_names[b]] = {
+            "pose": T.tolist(), "distance": float(np.linalg.norm(T[:3, 3])),
+            "sigma": {"rotation_deg": np.degrees(s[:3]).tolist(),
+                      "translation": s[3:].tolist()}}
+    return cams, boards, pairs
 
 
 @dataclass
@@ -133,36 +166,6 @@ class RigResult:
         return self.board_poses[[b.name for b in self.boards].index(name)]
 
     # ------------------------------------------------------------------ JSON
-    def _mounts(self) -> tuple[dict, dict]:
-        cam_names = [c.name for c in self.cameras]
-        cams = {}
-        for c, m in enumerate(self.cameras):
-            sel = np.asarray(self.camera_of) == c
-            s = self.camera_sigma[c]
-            intr = {"K": self.K[c].tolist(), "dist": self.dist[c].tolist(),
-                    "refined": bool(self.intrinsics_free[c])}
-            if self.intrinsics_sigma[c] is not None:
-                intr["sigma"] = np.asarray(self.intrinsics_sigma[c]).tolist()
-            cams[m.name] = {"link": m.link, "pose": self.camera_poses[c].tolist(),
-                            "sigma": {"rotation_deg": np.degrees(s[:3]).tolist(),
-                                      "translation": s[3:].tolist()},
-                            "intrinsics": intr, "images": int(sel.sum()),
-                            "rms_px": _rms(self.after_px[sel])}
-        boards = {}
-        for b, m in enumerate(self.boards):
-            s = self.board_sigma[b]
-            boards[m.name] = {"link": m.link, "pose": self.board_poses[b].tolist(),
-                              "sigma": {"rotation_deg": np.degrees(s[:3]).tolist(),
-                                        "translation": s[3:].tolist()},
-                              "spec": self.board_specs[b]}
-        pairs: dict[str, dict] = {}
-        for (a, b), (T, s) in self.pairs.items():
-            pairs.setdefault(cam_names[a], {})[cam_names[b]] = {
-                "pose": T.tolist(), "distance": float(np.linalg.norm(T[:3, 3])),
-                "sigma": {"rotation_deg": np.degrees(s[:3]).tolist(),
-                          "translation": s[3:].tolist()}}
-        return cams, boards, pairs
-
     def to_dict(self) -> dict[str, Any]:
         """JSON of ``kinecal calibrate MODEL STATIONS.csv --images DIR --camera ...
         --board ...`` (module docstring)."""
@@ -170,7 +173,7 @@ class RigResult:
 
         out = self.fit.to_dict()
         out.pop("predicted_error", None)
-        cams, boards, pairs = self._mounts()
+        cams, boards, pairs = mount_entries(self)
         names = [c.name for c in self.cameras]
         keep = np.ones(len(self.names), bool)
         keep[self.outliers] = False
