@@ -43,6 +43,21 @@ class Measurements:
         `marker_names`; None when the arm carries one tool point.
     marker_names : tuple of str
         Names of the markers `marker` indexes (the model's markers, in its order).
+    station : ndarray of int, shape (N,) or None
+        Which tracker set-up (station) measured each pose, an index into `station_names`:
+        each station has its own base frame (``base@NAME.x ..``; docs/measurement-kinds.md).
+        None: one set-up, the model's base frame.
+    station_names : tuple of str
+        Names of the stations `station` indexes, in order of first appearance.
+    sigma : ndarray, shape (N, 3) or (N, 6), or None
+        Per-row standard deviations of the measured coordinates: x, y, z (length unit)
+        and, with orientations, of the small rotation about the measurement frame's x, y,
+        z axes (rad). They weight the residual rows (`kinecal.calibration.serial.
+        row_weights`) together with `sigma_floor`.
+    sigma_floor : ndarray, shape (2,), or None
+        The unmodelled error added to `sigma` in the weights (position in the length unit,
+        rotation in rad); None until a calibration estimates it (the rows are then
+        weighted as if `sigma` were absent).
     """
 
     q: NDArray[np.float64]
@@ -52,6 +67,10 @@ class Measurements:
     rotations: NDArray[np.float64] | None = None
     marker: NDArray[np.intp] | None = None
     marker_names: tuple[str, ...] = ()
+    station: NDArray[np.intp] | None = None
+    station_names: tuple[str, ...] = ()
+    sigma: NDArray[np.float64] | None = None
+    sigma_floor: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         q = np.asarray(self.q, dtype=float)
@@ -80,10 +99,33 @@ class Measurements:
                                  f"(marker_names {list(self.marker_names)})")
         elif self.marker_names:
             raise InputError("marker_names without marker indices")
+        self._check_stations_and_sigma(q.shape[0])
+
+    def _check_stations_and_sigma(self, n: int) -> None:
+        if self.station is not None:
+            st = np.asarray(self.station)
+            if st.shape != (n,) or not np.issubdtype(st.dtype, np.integer) or (
+                    st.size and (st.min() < 0 or st.max() >= len(self.station_names))):
+                raise InputError(f"station: expected {n} indices into the station names "
+                                 f"{list(self.station_names)}")
+        elif self.station_names:
+            raise InputError("station_names without station indices")
+        if self.sigma is not None:
+            s = np.asarray(self.sigma, dtype=float)
+            rows = 3 if self.rotations is None else 6
+            if s.shape != (n, rows) or not np.isfinite(s).all() or (s < 0).any():
+                raise InputError(f"sigma: expected ({n}, {rows}) finite standard deviations "
+                                 f">= 0, got shape {s.shape}")
+        if self.sigma_floor is not None:
+            f = np.asarray(self.sigma_floor, dtype=float)
+            if f.shape != (2,) or not np.isfinite(f).all() or (f < 0).any():
+                raise InputError("sigma_floor: expected 2 finite values >= 0")
 
     def __repr__(self) -> str:
         what = "poses" + (" with orientations" if self.rotations is not None else "")
         markers = f", markers {', '.join(self.marker_names)}" if self.marker_names else ""
+        if self.station_names:
+            markers += f", stations {', '.join(self.station_names)}"
         src = f" from {self.source}" if self.source else ""
         return f"<Measurements {len(self)} {what}, {np.shape(self.q)[1]} joints{markers}{src}>"
 
@@ -95,8 +137,12 @@ class Measurements:
         w = None if self.weights is None else np.asarray(self.weights)[index]
         R = None if self.rotations is None else np.asarray(self.rotations)[index]
         m = None if self.marker is None else np.asarray(self.marker)[index]
+        st = None if self.station is None else np.asarray(self.station)[index]
+        sg = None if self.sigma is None else np.asarray(self.sigma)[index]
         return Measurements(np.asarray(self.q)[index], np.asarray(self.xyz)[index], w,
-                            f"{self.source}[subset]", R, m, self.marker_names)
+                            f"{self.source}[subset]", R, m, self.marker_names, st,
+                            self.station_names if st is not None else (), sg,
+                            self.sigma_floor)
 
 
 #: measurement kinds of `GaugeMeasurements` -> the CSV column naming each row's group

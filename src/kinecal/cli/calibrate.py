@@ -48,6 +48,13 @@ from kinecal.cli.calibrate_kinds import (
     identifiability_files,
     parse_sigma,
 )
+from kinecal.cli.tracker_options import (
+    check_tracker_options,
+    has_station_column,
+    orientation_format_option,
+    station_per_file_option,
+    validate_register_option,
+)
 from kinecal.errors import InputError
 
 FIXTURE_HELP = ("Known fixtures: CSV of point,px,py,pz or plane,px,py,pz,nx,ny,nz rows (base "
@@ -110,7 +117,8 @@ def identifiability(
         raise InputError("applies to --data point and plane files", option="--fixture")
     if check_angle_unit(angle_unit) and not data:
         raise InputError("applies to --data files", option="--angle-unit")
-    if data and (len(data) > 1 or fixture or file_kind(data[0], "--data") != "tracker"):
+    if data and (len(data) > 1 or fixture or file_kind(data[0], "--data") != "tracker"
+                 or has_station_column(data[0], "--data")):
         if error_model is not None or harmonics is not None:
             raise InputError("applies to one tracker file only", option="--error-model")
         return identifiability_files(model, data, base_link=base_link, tip_link=tip_link,
@@ -239,6 +247,9 @@ def calibrate(
                                            "seen in part; default 60 % of the board's)."),
     fixture: list[Path] | None = typer.Option(None, "--fixture", help=FIXTURE_HELP),
     angle_unit: str | None = angle_unit_option("the data files' joint columns"),
+    orientation_format: str | None = orientation_format_option(),
+    station_per_file: bool = station_per_file_option(),
+    validate_register: str | None = validate_register_option(),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
     or from board images with --images; a robot system from rows of its chains."""
@@ -282,7 +293,10 @@ def calibrate(
                          f"{', '.join(CALIBRATION_METHODS)}", option="--method")
     shown = check_unit(unit)
     validate = validate or []
-    if len(data) > 1 or len(validate) > 1 or fixture or any(
+    check_tracker_options(orientation_format, validate_register, validate)
+    tracker = {"orientation": orientation_format, "station_per_file": station_per_file,
+               "register": validate_register}
+    if station_per_file or len(data) > 1 or len(validate) > 1 or fixture or any(
             file_kind(f, o) != "tracker" for f, o in [(data[0], "DATA")]
             + [(v, "--validate") for v in validate]):
         return calibrate_files(
@@ -292,7 +306,7 @@ def calibrate(
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
                            "--folds": folds}, record=(instrument, operator, note),
-            unit=shown, fixture=fixture, angle_unit=angle_unit)
+            unit=shown, fixture=fixture, angle_unit=angle_unit, tracker=tracker)
     data, validate = data[0], (validate[0] if validate else None)
     sigma = parse_sigma(sigma, [data])[0]
     check_paths({"MODEL": model, "DATA": data, "--validate": validate},
@@ -314,20 +328,21 @@ def calibrate(
     with warnings_scope(strict) as found:
         m = load_model_arg(model, base_link, tip_link)
         check_stated_sigma(m, sigma)  # not larger than the machine
-        meas = read_measurements(resolve_data_path(data, "DATA"), m, angle_unit=angle_unit)
+        meas = read_measurements(resolve_data_path(data, "DATA"), m, orientation_format,
+                                 angle_unit=angle_unit)
         if rotation_weight is not None and meas.rotations is None:
             raise InputError("applies to measured orientations (qw..qz columns) only",
                              option="--rotation-weight")
         val = None
         if validate is not None:
             val = read_measurements(resolve_data_path(validate, "--validate"), m,
-                                    angle_unit=angle_unit)
+                                    orientation_format, angle_unit=angle_unit)
         iterative = method not in ("lm",)
         with progress(f"calibrate {m.name} ({method})", maxiter if iterative else None,
                       quiet or json_out) as update:
             kw = dict(free=free_option(free), validate=val, rng=seed, loss=loss,
                       maxiter=maxiter, target=target, rotation_weight=rotation_weight,
-                      sigma=sigma,
+                      sigma=sigma, validate_register=validate_register,
                       progress=(lambda it, best: update(1, best)) if iterative else None)
             if error_model is None and m.joint_errors is None and harmonics is None:
                 res = run(m, meas, method, **kw)

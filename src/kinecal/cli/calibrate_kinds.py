@@ -80,16 +80,22 @@ def parse_sigma(values: list[str] | None, files: list[str]) -> list[float | None
 
 
 def _read_all(m, files: list[str], option: str, fixtures: list | None = None,
-              angle_unit: str | None = None) -> list:
+              angle_unit: str | None = None, tracker: dict | None = None) -> list:
     """The data sets of `files` (joint columns in `angle_unit`), point and plane sets with
-    the known geometry of the `fixtures` (`kinecal.io.fixtures.Fixture`) added by id."""
+    the known geometry of the `fixtures` (`kinecal.io.fixtures.Fixture`) added by id;
+    `tracker`: the tracker options of `kinecal.cli.tracker_options`."""
+    from kinecal.cli.tracker_options import per_file_station
     from kinecal.io.fixtures import with_fixture
     from kinecal.io.kinds import read_kind
 
-    sets = [read_kind(resolve_data_path(f, option), m, angle_unit=angle_unit) for f in files]
+    tracker = tracker or {}
+    sets = [read_kind(resolve_data_path(f, option), m, tracker.get("orientation"),
+                      angle_unit=angle_unit) for f in files]
     if fixtures:
         sets = [with_fixture(d, fixtures) if getattr(d, "kind", None) in ("point", "plane")
                 else d for d in sets]
+    if tracker.get("station_per_file"):
+        sets = [per_file_station(d, f) for d, f in zip(sets, files, strict=True)]
     return sets
 
 
@@ -119,10 +125,14 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                     json_out: bool, quiet: bool, strict: bool, rotation_weight,
                     sigma: list[str] | None, extra_options: dict[str, Any],
                     record: tuple = (None, None, None), unit: str | None = None,
-                    fixture: list[Path] | None = None, angle_unit: str | None = None) -> None:
+                    fixture: list[Path] | None = None, angle_unit: str | None = None,
+                    tracker: dict | None = None) -> None:
     """``kinecal calibrate MODEL A.csv B.csv ...`` (several files or another kind);
     `record`: ``--instrument``, ``--operator``, ``--note`` of the report; `unit`: the
-    summary's length unit (None: the model's); `fixture`: ``--fixture`` files."""
+    summary's length unit (None: the model's); `fixture`: ``--fixture`` files; `tracker`:
+    ``--orientation-format``, ``--station-per-file``, ``--validate-register``
+    (`kinecal.cli.tracker_options`)."""
+    tracker = tracker or {}
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.method_options import check_method_options
     from kinecal.calibration.serial.api import calibrate
@@ -148,16 +158,16 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
         for s in stated:
             check_stated_sigma(m, s)
         fixtures = read_fixtures(fixture)
-        sets = _read_all(m, files, "DATA", fixtures, angle_unit)
+        sets = _read_all(m, files, "DATA", fixtures, angle_unit, tracker)
         check_fixtures_used(fixtures, sets)
-        vsets = _read_all(m, validate, "--validate", fixtures, angle_unit) or None
+        vsets = _read_all(m, validate, "--validate", fixtures, angle_unit, tracker) or None
         if rotation_weight is not None and not any(getattr(d, "rotations", None) is not None
                                                    for d in sets):
             raise InputError("applies to measured orientations (qw..qz columns) only",
                              option="--rotation-weight")
         res = calibrate(m, sets, method, free=free, validate=vsets, rng=seed, loss=loss,
                         maxiter=maxiter, target=target, rotation_weight=rotation_weight,
-                        sigma=stated)
+                        sigma=stated, validate_register=tracker.get("register"))
         res.warnings = list(found)
         result = with_warnings(res.to_dict(), found)
         if out is not None:

@@ -19,15 +19,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.errors import InputError
-from kinecal.kinematics.serial.chain import BASE_NAMES
+from kinecal.kinematics.serial.frames import frame_transform, with_frame_transform
 from kinecal.kinematics.serial.ik import characteristic_length
 from kinecal.kinematics.serial.model import SerialModel
-from kinecal.spatial import (
-    rotation_angle,
-    transform_from,
-    transform_from_xyz_rpy,
-    xyz_rpy_from_transform,
-)
+from kinecal.spatial import rotation_angle, transform_from
 
 __all__ = [
     "LENGTH_UNITS",
@@ -196,8 +191,6 @@ def with_registered_base(calibrated: SerialModel, reg: Registration) -> SerialMo
     """`calibrated` with its base frame moved by the registration ``X``: its tool poses
     then fit the nominal model's frame best (base errors and the instrument's placement
     left out)."""
-    idx = calibrated.index(list(BASE_NAMES))
     p = calibrated.nominal
-    B = transform_from_xyz_rpy(p[idx])
-    p[idx] = xyz_rpy_from_transform(reg.transform @ B)
-    return calibrated.with_params(p)
+    B = frame_transform(calibrated, p, "base")
+    return calibrated.with_params(with_frame_transform(calibrated, p, reg.transform @ B))

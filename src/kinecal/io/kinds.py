@@ -90,14 +90,15 @@ def kind_of_columns(header: list[str], path: Path | None = None) -> str:
     return "tracker"
 
 
-def read_kind(path: str | Path, model: SerialModel, *, angle_unit: str | None = None
-              ) -> Measurements | GaugeMeasurements:
+def read_kind(path: str | Path, model: SerialModel, orientation=None, *,
+              angle_unit: str | None = None) -> Measurements | GaugeMeasurements:
     """Read a measurement file of any kind for `model` (the kind from its columns; joint
-    columns in `angle_unit`, default the model's)."""
+    columns in `angle_unit`, default the model's); `orientation`: the orientation format
+    of a tracker file (`read_measurements`)."""
     path = resolve_csv(path)
     kind = kind_of_columns(csv_header(path), path)
     if kind == "tracker":
-        return read_measurements(path, model, angle_unit=angle_unit)
+        return read_measurements(path, model, orientation, angle_unit=angle_unit)
     return read_gauge(path, model, kind, angle_unit=angle_unit)
 
 

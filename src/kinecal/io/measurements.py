@@ -19,6 +19,11 @@ model's (``--angle-unit``).
 
 Wide marker tables (``x1,y1,z1,x2,...``: markers 1..k of one pose in one row, the layout of
 motion-capture exports such as FIGAROH's) are read into the long form (`kinecal.io.wide`).
+
+Optional column sets of tracker rows (`kinecal.io.tracker_columns`): ``station`` (which
+tracker set-up measured the row), the orientation in another format than quaternions
+(``--orientation-format``), and per-axis standard deviations ``sx, sy, sz`` and
+``srx, sry, srz`` that weight each row.
 """
 
 from __future__ import annotations
@@ -33,6 +38,8 @@ from kinecal import diagnostics
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.io.csvtable import check_separator, read_column, read_table, write_table
+from kinecal.io.poses import PoseFormat
+from kinecal.io.tracker_columns import QUATERNION, read_orientation, read_sigma, read_stations
 from kinecal.io.wide import is_wide, read_wide
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import matrix_from_quaternion, quaternion_from_matrix
@@ -46,7 +53,8 @@ __all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "measur
 #: name can only be given as q1..qn
 _RESERVED = frozenset(("x", "y", "z", "qw", "qx", "qy", "qz", "weight", "marker", "pose",
                        "pivot", "pair", "point", "plane", "distance", "sigma",
-                       "px", "py", "pz", "nx", "ny", "nz"))
+                       "px", "py", "pz", "nx", "ny", "nz", "station", "sx", "sy", "sz",
+                       "srx", "sry", "srz"))
 
 
 def _q_column(name: str) -> bool:
@@ -201,10 +209,6 @@ def read_joints(path: str | Path, model: SerialModel, *, angle_unit: str | None 
     return q
 
 
-#: orientation columns of 6-DoF rows (a unit quaternion of the measured tool frame)
-QUATERNION = ("qw", "qx", "qy", "qz")
-
-
 def _tracker_export(header: list[str]) -> bool:
     """The bundled UR5 laser-tracker export's columns (``joint_1..``, ``x_t``, ``x_dif``)."""
     return "x_t" in header and "joint_1" in header
@@ -302,19 +306,24 @@ def _read_wide(path: Path, header: list[str], model: SerialModel, joints: list[s
                         marker, names)
 
 
-def read_measurements(path: str | Path, model: SerialModel, *,
+def read_measurements(path: str | Path, model: SerialModel,
+                      orientation: PoseFormat | str | None = None, *,
                       angle_unit: str | None = None) -> Measurements:
     """Read a measurement CSV for `model` (a path or a bundled ``NAME:PART``).
 
     `model` may also be a bundled name or a model file path (loaded). Joint columns are in
     `angle_unit` (``deg`` or ``rad``; default the model's). The positions are ``x,y,z``
     (one row per measured point, an optional ``marker`` column) or a wide marker table
-    ``x1,y1,z1,x2,...`` (one row per pose, `kinecal.io.wide`).
+    ``x1,y1,z1,x2,...`` (one row per pose, `kinecal.io.wide`). `orientation`: the format
+    of the orientation columns (`kinecal.io.poses.PoseFormat` or its text, e.g.
+    ``intrinsic-xyz:deg``); default quaternions ``qw, qx, qy, qz`` when present.
 
     Raises
     ------
     InputError
-        Missing columns, wrong joint count, NaN or non-numeric cells (with the row).
+        Missing columns, wrong joint count, NaN or non-numeric cells (with the row), bad
+        station names, incomplete or non-unit orientations, standard deviations that are
+        not positive.
     """
     model = _as_model(model)
     path = resolve_csv(path)
@@ -326,20 +335,25 @@ def read_measurements(path: str | Path, model: SerialModel, *,
     joints = _checked_joint_columns(header, model, path)
     if is_wide(header):
         return _read_wide(path, header, model, joints, scale)
-    quat = _orientation_columns(header, path)
-    cols = read_table(path, joints + ["x", "y", "z"], optional=["weight", *quat])
+    fmt = PoseFormat.parse(orientation, option="--orientation-format") if isinstance(
+        orientation, str) else orientation
+    cols = read_table(path, joints + ["x", "y", "z"], optional=["weight"])
     q = np.column_stack([cols[c] for c in joints])
     q *= scale
     xyz = np.column_stack([cols[c] for c in "xyz"])
     weights = _weights(cols, path)
-    rotations = _rotations(cols, quat, path)
+    rotations, rotation, angles = read_orientation(path, header, fmt)
+    sigma = read_sigma(path, header, rotation, angles, rotations is not None)
     marker, names = read_markers(path, model)
-    return Measurements(q, xyz, weights, str(path), rotations, marker, names)
+    station, stations = read_stations(path)
+    return Measurements(q, xyz, weights, str(path), rotations, marker, names, station,
+                        stations, sigma)
 
 
 def write_measurements(path: str | Path, data: Measurements, model: SerialModel) -> None:
     """Write `data` in kinecal's CSV format (revolute joint values in the model's angle
-    unit, prismatic ones in its length unit)."""
+    unit, prismatic ones in its length unit; orientations as quaternions, their standard
+    deviations about the measurement axes in degrees)."""
     q = np.asarray(data.q) / model.joint_scale()
     columns = {f"q{i + 1}": q[:, i] for i in range(q.shape[1])}
     columns.update({c: np.asarray(data.xyz)[:, k] for k, c in enumerate("xyz")})
@@ -350,4 +364,11 @@ def write_measurements(path: str | Path, data: Measurements, model: SerialModel)
         columns["weight"] = np.asarray(data.weights)
     if data.marker is not None:
         columns["marker"] = np.asarray(data.marker_names, dtype=str)[np.asarray(data.marker)]
+    if data.station is not None:
+        columns["station"] = np.asarray(data.station_names, dtype=str)[np.asarray(data.station)]
+    if data.sigma is not None:  # rotations about the measurement axes, as quaternions have
+        s = np.asarray(data.sigma)
+        columns.update({c: s[:, k] for k, c in enumerate(("sx", "sy", "sz"))})
+        columns.update({c: np.degrees(s[:, 3 + k]) for k, c in
+                        enumerate(("srx", "sry", "srz")) if s.shape[1] == 6})
     write_table(path, columns)

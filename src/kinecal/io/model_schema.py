@@ -131,15 +131,17 @@ class ModelFile(BaseModel):
     @field_validator("base")
     @classmethod
     def _base6(cls, v: list[float] | None) -> list[float] | None:
-        if v is not None and len(v) != 6:
-            raise ValueError(f"expected 6 values [x, y, z, rx, ry, rz], got {len(v)}")
+        if v is not None and len(v) not in (6, 9):
+            raise ValueError(f"expected 6 values [x, y, z, rx, ry, rz] (or 9 with the local "
+                             f"rotation error wx, wy, wz), got {len(v)}")
         return v
 
     @field_validator("tool")
     @classmethod
     def _tool36(cls, v: list[float] | None) -> list[float] | None:
-        if v is not None and len(v) not in (3, 6):
-            raise ValueError(f"expected 3 values [x, y, z] or 6 with rx, ry, rz, got {len(v)}")
+        if v is not None and len(v) not in (3, 6, 9):
+            raise ValueError(f"expected 3 values [x, y, z] or 6 with rx, ry, rz (or 9 with "
+                             f"the local rotation error wx, wy, wz), got {len(v)}")
         return v
 
     @field_validator("markers")

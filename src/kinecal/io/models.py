@@ -12,7 +12,7 @@ A model file (see ``docs/file-formats.md``)::
       - {frame: bracket, x: 0, y: 0, z: 50, rx: 0, ry: 0, rz: 90}   # a fixed frame
       - {theta: 0, d: 0, a: 0, alpha: 0, type: prismatic}            # d is the joint
     base: [x, y, z, rx, ry, rz]   # optional: robot base in the measurement frame
-    tool: [x, y, z]               # optional: tool point in the flange frame (or 6 values)
+    tool: [x, y, z]               # optional: tool point in the flange frame (or a frame)
     markers: {A: [x, y, z], B: [x, y, z]}   # or several tool points, one per marker
     joint_limits: [[-165, 165], ...]   # optional; prismatic joints in the length unit
     tolerances: {length: 0.25, angle: 0.05}
@@ -26,6 +26,9 @@ frames ``{frame, x, y, z, roll, pitch, yaw}``. A fixed frame is held at
 nominal unless it says ``calibrate: true``. Origins (urdf joints, fixed frames) may carry
 a calibrated local rotation error ``wx, wy, wz`` composed after their nominal
 roll-pitch-yaw (`kinecal.kinematics.serial.motions.origin_motions`); absent means zero.
+Likewise the base and a tool frame: 6 values (the nominal pose) or 9, the last three the
+local rotation error ``wx, wy, wz`` (what the parameters ``base.rx .. base.rz``,
+``tool.rx .. tool.rz`` hold; `kinecal.kinematics.serial.chain`).
 
 Bundled models live in ``kinecal/robots/NAME.yaml`` and are loaded by name; a ``.urdf``
 path is read by `kinecal.io.urdf.load_urdf`.

@@ -16,10 +16,13 @@ rotation        columns                               rotation matrix
 ``rpy``         ``x, y, z, roll, pitch, yaw``         ``Rz(yaw) Ry(pitch) Rx(roll)`` (ROS)
 ==============  ====================================  ===================================
 
+A named Euler convention ``intrinsic-SEQ`` or ``extrinsic-SEQ`` (`kinecal.io.orientation`,
+e.g. ``intrinsic-xyz`` for ``Rx(a) Ry(b) Rz(c)``) reads the columns ``x, y, z, a, b, c``.
+
 `PoseFormat` says which (``auto`` detects it from the columns; ``rx, ry, rz`` are not
-guessed: UR writes a rotation vector there, others fixed-axis angles), the unit of the
-angles and whether the file stores the inverse transform (a robot recording of
-``base2gripper`` instead of ``gripper2base``).
+guessed: UR writes a rotation vector there, others fixed-axis angles; a named Euler
+convention is never guessed), the unit of the angles and whether the file stores the
+inverse transform (a robot recording of ``base2gripper`` instead of ``gripper2base``).
 
 Every pose is rebuilt from its translation and unit quaternion
 (``transform_from_pq(pq_from_transform(T))``), whatever format it came in: a recording
@@ -40,6 +43,7 @@ from numpy.typing import NDArray
 from kinecal.errors import InputError
 from kinecal.io.csvtable import check_separator, read_table
 from kinecal.io.matrices import check_matrices, read_matrix_lists
+from kinecal.io.orientation import EULER_COLUMNS, EULER_FORMATS, euler_matrix
 from kinecal.spatial import (
     invert_transform,
     matrix_from_axis_angle,
@@ -86,9 +90,11 @@ class PoseFormat:
     invert: bool = False
 
     def __post_init__(self) -> None:
-        if self.rotation != "auto" and self.rotation not in ROTATIONS:
+        if self.rotation != "auto" and self.rotation not in ROTATIONS and \
+                self.rotation not in EULER_FORMATS:
             raise InputError(f"rotation format {self.rotation!r}: expected auto, "
-                             f"{', '.join(ROTATIONS)}")
+                             f"{', '.join(ROTATIONS)} or a named Euler convention "
+                             "intrinsic-SEQ / extrinsic-SEQ (e.g. intrinsic-xyz)")
         if self.angle_unit not in ("rad", "deg"):
             raise InputError(f"angle unit {self.angle_unit!r}: expected rad or deg")
 
@@ -106,7 +112,8 @@ class PoseFormat:
 def pose_columns(rotation: str, prefix: str = "") -> list[str]:
     """Columns of a pose in `rotation` format: ``prefix + x, y, z, ...`` (matrix: only
     the 16 ``m`` entries)."""
-    cols = ROTATIONS[rotation] if rotation == "matrix" else _XYZ + ROTATIONS[rotation]
+    rot = EULER_COLUMNS if rotation in EULER_FORMATS else ROTATIONS[rotation]
+    cols = rot if rotation == "matrix" else _XYZ + rot
     return [prefix + c for c in cols]
 
 
@@ -138,7 +145,7 @@ def poses_from_table(cols: dict[str, Array], rotation: str, angle_unit: str, pre
         check_matrices(M, f"{prefix}m00..m33".lstrip("_"), path)
         return M
     t = np.column_stack([cols[prefix + c] for c in _XYZ])
-    r = np.column_stack([cols[prefix + c] for c in ROTATIONS[rotation]])
+    r = np.column_stack([cols[c] for c in pose_columns(rotation, prefix)[3:]])
     if rotation == "quaternion":
         norm = np.linalg.norm(r, axis=1)
         bad = np.flatnonzero(np.abs(norm - 1.0) > 1e-3)
@@ -150,7 +157,9 @@ def poses_from_table(cols: dict[str, Array], rotation: str, angle_unit: str, pre
         return transform_from_pq(np.column_stack([t, r]))
     _check_angle_unit(r, rotation, angle_unit, prefix, path)
     r = r * (np.pi / 180.0 if angle_unit == "deg" else 1.0)
-    if rotation == "rotvec":
+    if rotation in EULER_FORMATS:
+        R = euler_matrix(r, *EULER_FORMATS[rotation])
+    elif rotation == "rotvec":
         R = matrix_from_axis_angle(r)
     elif rotation == "euler-zyx":  # Rz(a) Ry(b) Rx(c)
         R = matrix_from_rpy(r[:, ::-1])
@@ -167,7 +176,7 @@ def _check_angle_unit(r: Array, rotation: str, angle_unit: str, prefix: str,
     look like radians, a warning (``angle-units``)."""
     from kinecal.diagnostics import warn
 
-    cols = ", ".join(prefix + c for c in ROTATIONS[rotation])
+    cols = ", ".join(pose_columns(rotation, prefix)[3:])
     size = np.linalg.norm(r, axis=1) if rotation == "rotvec" else np.max(np.abs(r), axis=1)
     limit = 2.0 * np.pi * (1.0 + 1e-6)
     if angle_unit == "rad":

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from kinecal._files import read_json
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
+from kinecal.spatial import matrix_from_rpy
 
 __all__ = ["STEWART_KEYS", "model_for_data", "model_for_result", "parameters_from_data",
            "parameters_from_result", "result_markers", "serial_result_parameters"]
@@ -97,6 +98,8 @@ def parameters_from_data(model: SerialModel, data: Any, path: Path) -> Array:
     angle = model.is_angle()
     scale = np.pi / 180.0 if model.angle_unit == "deg" else 1.0
     p = model.nominal
+    if "frames" not in data:  # written before the base and tool were local (docs/conventions)
+        params = _absolute_frames(model, params, scale)
     for name, entry in params.items():
         k = model.index([name])[0] if name in model.parameter_names else None
         if k is None:
@@ -137,6 +140,31 @@ def parameters_from_data(model: SerialModel, data: Any, path: Path) -> Array:
                 ": it calibrated another chain; give the --base-link / --tip-link (or model) "
                 "it was calibrated with", file=path)
     return p
+
+
+def _absolute_frames(model: SerialModel, params: dict, scale: float) -> dict:
+    """`params` of a result written while ``base.rx .. base.rz`` (and ``tool.rx .. tool.rz``)
+    were the frame's absolute roll-pitch-yaw, as this model's local rotation errors about
+    its nominal orientation: the same frame. Unchanged where the nominal orientation is
+    zero (both readings agree) or the entries are not those of such a result."""
+    from kinecal.kinematics.serial.frames import local_rotation
+
+    out = dict(params)
+    for prefix, rpy0 in (("base", model.chain.base_rpy), ("tool", model.chain.tool_rpy)):
+        names = [f"{prefix}.{k}" for k in ("rx", "ry", "rz")]
+        entries = [params.get(n) for n in names]
+        if not any(rpy0) or not all(isinstance(e, dict) for e in entries):
+            continue
+        try:
+            old = np.array([float(e["identified"]) for e in entries]) * scale
+        except (KeyError, TypeError, ValueError):
+            continue  # refused with its name by the caller
+        if not np.isfinite(old).all():
+            continue
+        w = local_rotation(rpy0, matrix_from_rpy(old)) / scale
+        for n, e, v in zip(names, entries, w, strict=True):
+            out[n] = {**e, "identified": float(v), "nominal": None}
+    return out
 
 
 def _with_result_joint_errors(model: SerialModel, data: Any, path: Path) -> SerialModel:

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
 from kinecal.io.urdf_export import urdf_joints, urdf_origin
-from kinecal.kinematics.serial.chain import BASE_NAMES
+from kinecal.kinematics.serial.frames import frame_transform
 from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = ["add_camera_mount", "chain_links"]
@@ -27,7 +27,7 @@ def chain_links(model: SerialModel, params: ArrayLike | None = None) -> tuple[st
     """The names of the chain's base link and flange link in `model`'s URDF export."""
     p = model.nominal if params is None else np.asarray(params, dtype=float)
     joints = urdf_joints(model, p)
-    has_base = bool(np.any(p[model.index(BASE_NAMES)] != 0.0))
+    has_base = not np.array_equal(frame_transform(model, p, "base"), np.eye(4))
     base = joints[0].child if has_base else joints[0].parent
     return base, joints[-1].parent
 

@@ -147,7 +147,7 @@ def urdf_joints(model: SerialModel, params: ArrayLike | None = None, *,
     def product(motions) -> Array:
         T = np.eye(4)
         for m in motions:
-            T = T @ _motion(m, p[idx[m.name]])
+            T = T @ _motion(m, m.const if m.const is not None else p[idx[m.name]])
         return T
 
     first = entries[0] if entries else {}

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.kinematics.serial.chain import BASE_NAMES
+from kinecal.kinematics.serial.frames import frame_transform
 
 __all__ = ["ResidualMaps", "error_model_section", "plot_residual_maps"]
 
@@ -100,9 +100,8 @@ class ResidualMaps:
                 rows.append((f"without {family} (refitted)", errors(p_f), "with " + family,
                              rows[0][3]))
         # reach in the robot base frame, perpendicular to gravity
-        base = p.copy()
-        base[model.index(list(BASE_NAMES))] = 0.0
-        P = model.positions(q, base, marker)
+        B = frame_transform(model, p, "base")
+        P = (model.positions(q, p, marker) - B[:3, 3]) @ B[:3, :3]
         g = np.asarray(model.joint_errors.gravity if model.joint_errors is not None
                        else (0.0, 0.0, -1.0))
         reach = np.linalg.norm(P - np.outer(P @ g, g), axis=1)

@@ -201,7 +201,9 @@ def _producible(problem: StackedProblem, params: Array, q: Array, P: Array, D: A
     keep = sw > 1e-12 * max(float(sw.max(initial=0.0)), 1e-300)
     C = Vwt[keep].T / sw[keep]  # motion combinations with orthonormal fields
     v, *_ = np.linalg.lstsq(J, W @ C, rcond=None)
-    _, sl, Vlt = np.linalg.svd(J @ v - W @ C, full_matrices=True)
+    A = J @ v - W @ C  # (3N, p): only its right singular vectors are needed (a full U of
+    # 3N x 3N rows was 13 GB for 13406 tracker rows)
+    _, sl, Vlt = np.linalg.svd(A, full_matrices=A.shape[0] < A.shape[1])
     sl = np.r_[sl, np.zeros(Vlt.shape[0] - sl.size)]
     made = Vlt[sl <= PRODUCIBLE].T  # combinations the parameters produce
     return v @ made, M @ C @ made

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from kinecal.calibration.blocks.analysis import StackAnalysis, analyse_stack, report_for
 from kinecal.calibration.blocks.base import ResidualBlock
+from kinecal.calibration.blocks.floors import set_sigma_floors
 from kinecal.calibration.blocks.solve import StackFit, fit_stack
 from kinecal.calibration.blocks.stack import StackedProblem, fit_nuisance
 from kinecal.calibration.blocks.weights import initial_sigma
@@ -102,6 +103,11 @@ def solve_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], candidates
         check(nuis0, before, ana0, names)
     fit = fit_stack(model, blocks, names, candidates, p0, nuis0, sig0, known, tol=rank_tol,
                     grow=choose, loss=loss, f_scale=f_scale)
+    if set_sigma_floors(fit.problem, fit.result.x):  # tracker rows weighted by their s
+        x = fit.result.x
+        fit = fit_stack(model, blocks, list(fit.problem.free), candidates,
+                        fit.problem.params(x), fit.problem.nuisance(x), sig0, known,
+                        tol=rank_tol, grow=False, loss=loss, f_scale=f_scale)
     prob, x = fit.problem, np.asarray(fit.result.x, dtype=float)
     params, nuis = prob.params(x), prob.nuisance(x)
     final = StackedProblem(model, blocks, candidates, prob.sigma, params)

@@ -13,6 +13,7 @@ from kinecal.calibration.blocks.carried import CarriedPointBlock
 from kinecal.calibration.blocks.pair import PairBlock
 from kinecal.calibration.blocks.plane import PlaneBlock
 from kinecal.calibration.blocks.point import PointBlock
+from kinecal.calibration.blocks.stations import StationBlock
 from kinecal.calibration.blocks.tracker import TrackerBlock
 from kinecal.calibration.diagnostics.noise import check_stated_sigma
 from kinecal.data import GaugeMeasurements, Measurements
@@ -82,6 +83,8 @@ def make_blocks(model: SerialModel, data: Sequence[DataSet],
             if s is not None:
                 d.sigma, d.obs_sigma = float(s), None
             blocks.append(d)
+        elif isinstance(d, Measurements) and d.station is not None:
+            blocks.append(StationBlock(_remapped(d, model), s, rotation_weight))
         elif isinstance(d, Measurements):
             blocks.append(TrackerBlock(_remapped(d, model), s, rotation_weight))
         elif isinstance(d, GaugeMeasurements) and d.carrier is not None and (
@@ -102,4 +105,18 @@ def make_blocks(model: SerialModel, data: Sequence[DataSet],
         if len(blocks[-1].q) and np.shape(blocks[-1].q)[1] != model.n_joints:
             raise InputError(f"{blocks[-1].name}: {np.shape(blocks[-1].q)[1]} joint values "
                              f"per row, model {model.name!r} has {model.n_joints} joints")
+    _check_station_names(blocks)
     return blocks
+
+
+def _check_station_names(blocks: Sequence[ResidualBlock]) -> None:
+    """Each station in one set only: two sets naming one station would be fitted as two
+    frames under one name."""
+    seen: dict[str, str] = {}
+    for b in blocks:
+        for name in getattr(b, "names", ()) if isinstance(b, StationBlock) else ():
+            if name in seen:
+                raise InputError(f"station {name} appears in {seen[name]} and {b.name}: put "
+                                 "the rows of one set-up in one file, or name the stations "
+                                 "apart")
+            seen[name] = b.name

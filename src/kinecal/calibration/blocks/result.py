@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from kinecal.calibration.serial.frames import station_lines
 from kinecal.calibration.serial.result import CalibrationResult
 from kinecal.metrology.stats import error_stats
 
@@ -111,6 +112,7 @@ class KindsCalibrationResult(CalibrationResult):
                            f"per measurement set (rms, max: error per observation, {unit})", f)
         extra += kind_lines(self.extra.get("validation_kinds", []), unit,
                             "validation sets (their own unknowns fitted)", f)
+        extra += station_lines(self.nominal_model, self.extra, unit, f)
         extra += tip_lines(self.extra.get("by_tip"), unit, f)
         if self.extra.get("system"):
             from kinecal.calibration.blocks.system_ident import system_lines

@@ -1,5 +1,8 @@
 """Tracker points and poses as a residual block: ``p_model - p_measured`` (3 rows per row of
-the file, 6 with measured orientations), no nuisance (the base frame is the arm's).
+the file, 6 with measured orientations), no nuisance (the base frame is the arm's); rows
+whitened by their per-axis standard deviations when the file gives them
+(`kinecal.calibration.serial.row_weights`). Several set-ups: `kinecal.calibration.blocks.
+stations`.
 
 Used in mixes with gauges; a tracker file alone is calibrated on the chunked fast path of
 `kinecal.calibration.serial` (the same residual rows, `PoseRows`).
@@ -13,6 +16,7 @@ from numpy.typing import NDArray
 from kinecal.calibration.blocks.base import BlockRows, ResidualBlock
 from kinecal.calibration.diagnostics.observations import pose_groups
 from kinecal.calibration.serial.problem import characteristic_length, row_norms
+from kinecal.calibration.serial.row_weights import sigma_row_scale
 from kinecal.calibration.serial.rows import PoseRows
 from kinecal.data import Measurements
 from kinecal.kinematics.serial.model import SerialModel
@@ -49,6 +53,7 @@ class TrackerBlock(ResidualBlock):
         self.rotation_weight = rotation_weight
         self._obs = np.repeat(np.arange(len(data), dtype=np.intp), self.rows)
         self._pose_rows: PoseRows | None = None
+        self._scale: Array | None = None  # per-row whitening by the standard deviations
 
     @property
     def n_obs(self) -> int:
@@ -68,8 +73,9 @@ class TrackerBlock(ResidualBlock):
         if self._pose_rows is None:
             w = self.rotation_weight
             if w is None and self.rows == 6:
-                w = characteristic_length(model, self.data, params)
+                w = self.rotation_weight = characteristic_length(model, self.data, params)
             self._pose_rows = PoseRows(model, self.data, w or 0.0, weighted=False)
+            self._scale = sigma_row_scale(self.data, w or 1.0)
         return np.zeros(0)
 
     def evaluate(self, model: SerialModel, params: Array, nuisance: Array,
@@ -79,11 +85,16 @@ class TrackerBlock(ResidualBlock):
             self.start(model, params)
         cols = (np.zeros(0, dtype=np.intp) if columns is None else columns) if jacobian else None
         e, Jt, _ = self._pose_rows.evaluate(params, slice(None), cols)
+        if self._scale is not None:  # rows whitened by their standard deviations
+            e = e * self._scale
+            if Jt is not None:
+                Jt *= self._scale.T
         if not jacobian:
             return BlockRows(e.ravel())
         arm = Jt.transpose(2, 1, 0).reshape(e.size, Jt.shape[0])
         return BlockRows(e.ravel(), arm, np.zeros((arm.shape[0], 0)))
 
     def observation_errors(self, r: Array) -> Array:
-        """Distance error per measured point (length unit; the position rows)."""
-        return row_norms(np.asarray(r).reshape(-1, self.rows)[:, :3])
+        """Distance error per measured point (length unit; the position rows, unweighted)."""
+        e = np.asarray(r).reshape(-1, self.rows)[:, :3]
+        return row_norms(e if self._scale is None else e / self._scale[:, :3])

@@ -23,6 +23,8 @@ CODES: dict[str, str] = {
     "mirrored-frame": "measured positions fit the model mirrored (an axis negated)",
     "initial-error": "the data are far from the nominal model: wrong model or frame",
     "validation-overlap": "validation poses repeat calibration poses",
+    "validation-frame": "validation data in another frame (a moved tracker): re-register them",
+    "tool-orientation": "measured orientations far from the model's tool frame (stations)",
     "rank-deficient": "the poses identify fewer parameters than well-spread poses do",
     "unidentifiable-free": "free parameters that the poses cannot identify",
     "parameter-tolerance": "an identified parameter moved far beyond its tolerance",

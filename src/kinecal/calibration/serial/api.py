@@ -127,6 +127,7 @@ def calibrate(
     rank_tol: float = CALIBRATION_RANK_TOL,
     rotation_weight: float | None = None,
     sigma: float | Sequence[float | None] | None = None,
+    validate_register: str | None = None,
 ) -> CalibrationResult:
     """Identify the geometric parameters of `model` from `data`.
 
@@ -178,6 +179,9 @@ def calibrate(
         errors with the noise known are added as ``extra["noise"]``
         (`kinecal.calibration.diagnostics.noise`). With several data sets: one per set
         (None: estimated), the sets weighted by it.
+    validate_register : {"all", "N%"}, optional
+        Validation data from another tracker set-up: base and tool refitted on all (or N %,
+        drawn with `rng`) of its rows first (`kinecal.calibration.serial.validation_frame`).
 
     Returns
     -------
@@ -198,44 +202,48 @@ def calibrate(
     if is_system(model):  # several chains: the stacked problem, whatever the data
         from kinecal.calibration.blocks.api import calibrate_system
 
+        if validate_register is not None:
+            raise InputError("applies to a serial arm's tracker rows, not to a system",
+                             option="--validate-register")
         return calibrate_system(model, data, method, validate=validate, free=free, loss=loss,
                                 f_scale=f_scale, rank_tol=rank_tol, sigma=sigma,
                                 rotation_weight=rotation_weight)
-    if not isinstance(data, Measurements) or not (validate is None or isinstance(
-            validate, Measurements)):
-        return _several(model, data, method, free=free, validate=validate, loss=loss,
-                        f_scale=f_scale, rank_tol=rank_tol, rotation_weight=rotation_weight,
-                        sigma=sigma, rng=rng, maxiter=maxiter, target=target,
-                        options=options, progress=progress)
-    with diagnostics.collect(python_warnings=True) as found:
-        res = _calibrate(model, data, method, free=free, validate=validate, rng=rng, loss=loss,
-                         f_scale=f_scale, maxiter=maxiter, target=target, options=options,
-                         progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight,
-                         sigma=sigma)
-    res.warnings = list(found)
+    if validate_register is not None:  # checked before any work
+        from kinecal.calibration.serial.validation_frame import parse_register
+
+        parse_register(validate_register)
+        if validate is None:
+            raise InputError("applies with validation data only", option="--validate-register")
+    # re-registered validation data are judged after the fit only (their raw errors are
+    # the tracker's move, not the model's)
+    res = _dispatch(model, data, method, free=free, rng=rng, loss=loss,
+                    validate=validate if validate_register is None else None,
+                    f_scale=f_scale, maxiter=maxiter, target=target, options=options,
+                    progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight,
+                    sigma=sigma)
+    if validate is not None:  # re-registered, or checked for another frame
+        from kinecal.calibration.serial.validation_frame import judge_validation
+
+        judge_validation(res, validate, validate_register, rng)
     return res
 
 
-def _several(model, data, method, *, free, validate, loss, f_scale, rank_tol,
-             rotation_weight, sigma, **kw) -> CalibrationResult:
-    """Several data sets or another kind than tracker points: tracker files alone are
-    merged for the fast path (`kinecal.calibration.serial.merge`), anything else is one
-    stacked problem (`kinecal.calibration.blocks.calibrate_blocks`)."""
-    from kinecal.calibration.serial.merge import data_sets, merge_tracker_sets
+def _dispatch(model, data, method, *, validate, sigma, **kw) -> CalibrationResult:
+    """The calibration behind `calibrate`: tracker rows of one set-up on the fast path,
+    anything else stacked (`kinecal.calibration.serial.merge.tracker_input`,
+    `kinecal.calibration.serial.several`)."""
+    from kinecal.calibration.serial.merge import tracker_input
 
-    sets, sig = data_sets(data, sigma, "data")
-    vsets = None if validate is None else data_sets(validate, None, "validation")[0]
-    one = merge_tracker_sets(sets, sig)
-    vone = None if vsets is None else merge_tracker_sets(vsets, [None] * len(vsets))
-    if one is not None and (vsets is None or vone is not None):
-        return calibrate(model, one[0], method, free=free, validate=None if vone is None
-                         else vone[0], loss=loss, f_scale=f_scale, rank_tol=rank_tol,
-                         rotation_weight=rotation_weight, sigma=one[1], **kw)
-    from kinecal.calibration.blocks.api import calibrate_blocks
+    data = tracker_input(model, data, kw["free"], kw["rank_tol"], kw["rotation_weight"])
+    if not isinstance(data, Measurements) or not (validate is None or isinstance(
+            validate, Measurements)):
+        from kinecal.calibration.serial.several import several
 
-    return calibrate_blocks(model, sets, sigma=sig, validate=vsets, method=method, free=free,
-                            loss=loss, f_scale=f_scale, rank_tol=rank_tol,
-                            rotation_weight=rotation_weight)
+        return several(_dispatch, model, data, method, validate=validate, sigma=sigma, **kw)
+    with diagnostics.collect(python_warnings=True) as found:
+        res = _calibrate(model, data, method, validate=validate, sigma=sigma, **kw)
+    res.warnings = list(found)
+    return res
 
 
 def _check_arguments(method: str, loss: str, f_scale, maxiter, target, options, model,

@@ -143,6 +143,9 @@ def calibrate_error_model(
     """
     model = as_model(model)
     data, validate = as_measurements(data, model), as_measurements(validate, model, "validate")
+    if getattr(data, "station", None) is not None:  # stations: a stacked, geometric problem
+        raise InputError("applies to tracker rows of one set-up; rows from several stations "
+                         "are calibrated geometrically", option="--error-model")
     families = parse_error_model(error_model)
     if error_model == "model" and model.joint_errors is None:
         families = ()  # the model has no joint-error terms: a geometric calibration

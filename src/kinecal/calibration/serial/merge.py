@@ -18,7 +18,7 @@ import numpy as np
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 
-__all__ = ["data_sets", "merge_tracker_sets"]
+__all__ = ["data_sets", "merge_tracker_sets", "tracker_input"]
 
 
 def merge_tracker_sets(sets: Sequence[object], sigma: Sequence[float | None]
@@ -34,8 +34,12 @@ def merge_tracker_sets(sets: Sequence[object], sigma: Sequence[float | None]
     """
     if not sets or not all(type(s) is Measurements for s in sets):
         return None
+    if any(s.station is not None for s in sets):
+        return None  # several set-ups: a stacked problem (calibration.blocks.stations)
     if len(sets) == 1:
         return sets[0], sigma[0]
+    if any(s.sigma is not None for s in sets):
+        return None  # rows weighted per axis, each file its own floor: a stacked problem
     known = [s is not None for s in sigma]
     if any(known) and not all(known):
         return None
@@ -70,3 +74,18 @@ def data_sets(data: object, sigma: object, what: str) -> tuple[list, list]:
         raise InputError(f"sigma: expected one value (or None) per {what} set ({len(sets)}), "
                          f"got {len(sigma)}", option="--sigma")
     return sets, sigma
+
+
+def tracker_input(model, data, free, rank_tol: float, rotation_weight):
+    """`data` as the calibration takes it: rows from several stations as a list (one
+    stacked problem, `kinecal.calibration.blocks.stations`); rows with per-axis standard
+    deviations with their floor estimated (`kinecal.calibration.serial.sigma_floor`)."""
+    if isinstance(data, Measurements) and data.station is not None:
+        return [data]
+    if isinstance(data, Measurements) and data.sigma is not None:
+        from kinecal.calibration.serial.sigma_floor import with_sigma_floor
+
+        return with_sigma_floor(model, data, free, rank_tol=rank_tol,
+                                rotation_weight=rotation_weight)
+    return data
+

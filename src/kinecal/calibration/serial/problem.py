@@ -19,6 +19,7 @@ from kinecal.calibration.identifiability import (
     IdentifiabilityReport,
     analyse_factor,
 )
+from kinecal.calibration.serial.row_weights import row_sqrt_weights
 from kinecal.calibration.serial.rows import PoseRows
 from kinecal.data import Measurements
 from kinecal.errors import InputError
@@ -211,9 +212,10 @@ class CalibrationProblem:
             if not self.rotation_weight > 0:
                 raise InputError(f"rotation weight: expected > 0, got {rotation_weight}",
                                  option="--rotation-weight")
-        w = np.ones(len(data)) if data.weights is None else np.asarray(data.weights, float)
-        self.sqrt_w = np.sqrt(w)
-        self.weighted = data.weights is not None
+        sw = row_sqrt_weights(data, self.rows, self.rotation_weight)
+        #: square roots of the row weights (N, rows): `kinecal.calibration.serial.row_weights`
+        self.sqrt_w = np.ones((len(data), self.rows)) if sw is None else sw
+        self.weighted = sw is not None
         #: chunked rows (weighted like `residuals`) for the memory-linear passes
         self.pose_rows = PoseRows(model, data, self.rotation_weight, weighted=True)
         self._cache: tuple | None = None
@@ -269,7 +271,7 @@ class CalibrationProblem:
         e = self.errors(x)
         if self.R_meas is not None:
             e = np.concatenate([e, self.rotation_weight * self.rotation_errors(x)], axis=1)
-        return (e * self.sqrt_w[:, None]).ravel() if self.weighted else e.ravel()
+        return (e * self.sqrt_w).ravel() if self.weighted else e.ravel()
 
     def jacobian(self, x: Array) -> Array:
         """Analytic Jacobian of `residuals`, shape ``(3N or 6N, n_free)``."""
@@ -281,7 +283,7 @@ class CalibrationProblem:
             Jl = left_jacobian_inverse(self.rotation_errors(x))  # (N, 3, 3)
             Jt[:, 3:] = self.rotation_weight * np.einsum("nij,kjn->kin", Jl, Jt[:, 3:])
         if self.weighted:
-            Jt *= self.sqrt_w
+            Jt *= self.sqrt_w.T
         return Jt.transpose(2, 1, 0).reshape(-1, self.n_free)
 
     def normal_equations(self, x: Array) -> tuple[Array, Array, Array]:
@@ -305,20 +307,20 @@ class CalibrationProblem:
     def errors_from_residuals(self, r: Array) -> Array:
         """Position error vectors ``(N, 3)`` recomputed from a vector of `residuals`."""
         e = np.asarray(r).reshape(-1, self.rows)[:, :3]
-        return e / self.sqrt_w[:, None] if self.weighted else e
+        return e / self.sqrt_w[:, :3] if self.weighted else e
 
     def distances_from_residuals(self, r: Array) -> Array:
         """Euclidean distance errors ``(N,)`` recomputed from a vector of `residuals`."""
         e = np.asarray(r).reshape(-1, self.rows)[:, :3]
         if self.weighted:
-            e = e / self.sqrt_w[:, None]
+            e = e / self.sqrt_w[:, :3]
         return row_norms(e)
 
     def positions_from_residuals(self, r: Array) -> Array:
         """Model tool positions ``(N, 3)`` recomputed from a vector of `residuals`."""
         e = np.asarray(r).reshape(-1, self.rows)[:, :3]
         if self.weighted:
-            e = e / self.sqrt_w[:, None]
+            e = e / self.sqrt_w[:, :3]
         return e + self.xyz
 
     def mean_distance_from_residuals(self, r: Array) -> float:

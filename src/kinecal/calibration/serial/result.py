@@ -236,6 +236,7 @@ class CalibrationResult:
         poses do not identify, free or held; ``warnings`` holds ``[{code, message}]``.
         """
         from kinecal import __version__
+        from kinecal.calibration.serial.frames import frames_entry
 
         rep = self.identifiability
         out: dict[str, Any] = {
@@ -246,6 +247,7 @@ class CalibrationResult:
             "length_unit": self.nominal_model.length_unit,
             "angle_unit": self.nominal_model.angle_unit,
             "parameters": self.parameter_table(),
+            "frames": frames_entry(self.nominal_model, self.params, self.extra),
             "free": list(self.free),
             "unidentifiable": self.unidentifiable(),
             "confounded_with": rep.confounded_with,

@@ -11,7 +11,9 @@ residual vector) plus one chunk.
 
 Row layout (as `CalibrationProblem.residuals`): pose-major, per pose the position error
 ``p_model - p_measured`` and, with measured orientations, ``w * log(R_model R_meas^T)``
-(``w`` = rotation weight, length unit per rad); times ``sqrt(weight)`` when `weighted`.
+(``w`` = rotation weight, length unit per rad); times the square root of the row's weight
+when `weighted` (the pose's ``weight``, and per-axis standard deviations:
+`kinecal.calibration.serial.row_weights`).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from collections.abc import Iterator
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal.calibration.serial.row_weights import row_sqrt_weights
 from kinecal.data import Measurements
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.optimize.factor import qr_update
@@ -58,8 +61,10 @@ class PoseRows:
                          else np.swapaxes(np.asarray(data.rotations, dtype=float), 1, 2))
         self.rows = 3 if self.R_meas_t is None else 6
         self.rotation_weight = float(rotation_weight)
-        self.sqrt_w = (np.sqrt(np.asarray(data.weights, dtype=float))
-                       if weighted and data.weights is not None else None)
+        #: square roots of the row weights (N, rows) (pose weights and per-axis standard
+        #: deviations, `kinecal.calibration.serial.row_weights`) or None
+        self.sqrt_w = (row_sqrt_weights(data, self.rows, self.rotation_weight)
+                       if weighted else None)
         self.n_poses = self.q.shape[0]
 
     # ------------------------------------------------------------------ chunks
@@ -98,7 +103,7 @@ class PoseRows:
             P = self.model.positions(q, p, marker)
             e = P - self.xyz[sel]
             if self.sqrt_w is not None:
-                e = e * self.sqrt_w[sel][:, None]
+                e = e * self.sqrt_w[sel]
             return e, None, P
         sweep = self.model.sweep(q, p, marker)
         P = sweep.positions
@@ -115,9 +120,9 @@ class PoseRows:
             Jt = sweep.jacobian_t(columns=columns)
         if self.sqrt_w is not None:
             sw = self.sqrt_w[sel]
-            e = e * sw[:, None]
+            e = e * sw
             if Jt is not None:
-                Jt *= sw
+                Jt *= sw.T
         return e, Jt, P
 
     # ------------------------------------------------------------------ passes

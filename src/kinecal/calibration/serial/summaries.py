@@ -55,6 +55,10 @@ def result_extra(res, names, model, data, validate, params, axes, noise, info, l
     extra["axis_errors"] = axes  # per-axis position errors (x, y, z), model - measured
     if noise is not None:  # the stated noise: chi-square test, known-noise standard errors
         extra["noise"] = noise
+    if data.sigma is not None and data.sigma_floor is not None:  # rows weighted per axis
+        extra["row_weights"] = {"floor_position": float(data.sigma_floor[0]),
+                                "floor_rotation_rad": float(data.sigma_floor[1]),
+                                "weight": "c / (s^2 + floor^2), mean position weight 1"}
     if info.unique_rows is not None:  # exact copies of rows: counted once in the covariance
         extra["independent_poses"] = len(info.unique_rows)
     if loss != "linear":

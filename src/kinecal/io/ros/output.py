@@ -27,7 +27,7 @@ from kinecal.io.csvtable import write_table
 from kinecal.io.ros.images import ImageWriter
 from kinecal.io.ros.importer import BagImport, ImportOptions, import_bag
 from kinecal.kinematics.serial.model import SerialModel
-from kinecal.spatial import pq_from_transform
+from kinecal.spatial import invert_transform, pq_from_transform
 
 __all__ = ["clean_stale", "flange_poses", "write_folder", "write_rows"]
 
@@ -66,11 +66,17 @@ def flange_poses(res: BagImport, model: SerialModel) -> np.ndarray:
     (base and tool of the model file left out)."""
     if res.poses is not None:
         return res.poses
+    from kinecal.kinematics.serial.frames import frame_transform
+
     p = model.nominal
     for k, name in enumerate(model.parameter_names):
         if name.startswith(("base.", "tool.")):
             p[k] = 0.0
-    return model.fk(res.q, p)
+    T = model.fk(res.q, p)  # the nominal orientations of the base and tool frames remain
+    T = invert_transform(frame_transform(model, p, "base")) @ T
+    if "tool.rx" in model.parameter_names:
+        T = T @ invert_transform(frame_transform(model, p, "tool"))
+    return T
 
 
 _TMP = ".{name}.kinecal-import-"

@@ -17,7 +17,13 @@ nominal angles.
 The base frame (``base.x ... base.rz``) comes first, the tool (``tool.x, tool.y, tool.z``
 and optionally ``tool.rx, tool.ry, tool.rz``) last; a model with several markers has
 instead one tool point per marker, ``tool.NAME.x, tool.NAME.y, tool.NAME.z``
-(`kinecal.kinematics.serial.markers`).
+(`kinecal.kinematics.serial.markers`). The base and a tool frame are parametrised locally
+about their nominal orientation (`kinecal.kinematics.serial.motions.local_pose_motions`):
+``base.x, base.y, base.z`` are the base origin, ``base.rx, base.ry, base.rz`` the small
+rotation after the nominal roll-pitch-yaw (held as constants), likewise for the tool.
+A frame is given as 6 values ``x, y, z, rx, ry, rz`` (the nominal pose; the local error
+zero) or 9, ``x, y, z, rx, ry, rz, wx, wy, wz`` with the local error (a calibrated model);
+a tool point as 3.
 """
 
 from __future__ import annotations
@@ -40,11 +46,12 @@ from kinecal.kinematics.serial.motions import (
     TRANSLATION,
     Motion,
     frame_motions,
+    local_pose_motions,
     pose_motions,
 )
 
 __all__ = ["BASE_NAMES", "MAX_ENTRIES", "MAX_JOINTS", "TOOL_NAMES", "Chain", "build_chain",
-           "chain_entries", "check_chain_size"]
+           "chain_entries", "check_chain_size", "frame_list"]
 
 BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
 TOOL_NAMES = ("tool.x", "tool.y", "tool.z", "tool.rx", "tool.ry", "tool.rz")
@@ -80,6 +87,9 @@ class Chain:
         Parameters of fixed frames that are not calibrated by default.
     markers : tuple of str
         Marker names (several tool points), empty for a single tool point.
+    base_rpy, tool_rpy : tuple of 3 floats
+        The nominal roll-pitch-yaw (rad) of the base and of the tool frame: the constants
+        their local rotation errors follow (zeros for a tool point).
     """
 
     motions: tuple[Motion, ...]
@@ -89,6 +99,8 @@ class Chain:
     kinds: tuple[str, ...]
     frozen: frozenset
     markers: tuple[str, ...] = ()
+    base_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    tool_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 def _check_name(name: object, what: str) -> str:
@@ -129,10 +141,11 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
     entries : sequence of dict
         Joints and fixed frames, base to flange (module docstring); lengths in the model's
         unit, angles in rad.
-    base : array_like, shape (6,), or None
-        Base frame x, y, z, rx, ry, rz (None: zeros).
-    tool : array_like, shape (3,) or (6,), or None
-        Tool point or frame (None: the flange origin).
+    base : array_like, shape (6,) or (9,), or None
+        Base frame x, y, z, rx, ry, rz and optionally its local rotation error wx, wy, wz
+        (None: zeros; module docstring).
+    tool : array_like, shape (3,), (6,) or (9,), or None
+        Tool point, or frame as the base (None: the flange origin).
     markers : mapping of str to (3,), optional
         Several tool points, one per marker (instead of `tool`); the tool translations'
         values are then per pose (`kinecal.kinematics.serial.markers`).
@@ -148,14 +161,12 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
     make = CONVENTIONS[convention]
     check_chain_size(len(entries), sum(isinstance(e, Mapping) and "frame" not in e
                                        for e in entries))
-    motions: list[Motion] = pose_motions("base")
-    owners: list = ["base"] * 6
     values: dict[str, float] = dict.fromkeys(BASE_NAMES, 0.0)
-    if base is not None:
-        b = np.asarray(base, dtype=float)
-        if b.shape != (6,):
-            raise InputError(f"base: expected 6 values (x, y, z, rx, ry, rz), got {b.size}")
-        values.update(zip(BASE_NAMES, b.tolist(), strict=True))
+    b = _frame_values("base", np.zeros(6) if base is None else base, (6, 9))
+    base_rpy = tuple(b[3:6])
+    values.update(zip(BASE_NAMES, [*b[:3], *b[6:9]], strict=False))
+    motions: list[Motion] = local_pose_motions("base", base_rpy)
+    owners: list = ["base"] * len(motions)
     kinds: list[str] = []
     frozen: set[str] = set()
     chain_names: list[str] = []
@@ -193,6 +204,7 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
         owners += [e] * len(em)
     if not kinds:
         raise InputError("a model needs at least one moving joint")
+    tool_rpy = (0.0, 0.0, 0.0)
     if markers is not None:
         if tool is not None:
             raise InputError("give either tool (one tool point) or markers (several), not both")
@@ -202,13 +214,15 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
         values.update(zip(tool_names, np.concatenate(list(points.values())).tolist(),
                           strict=True))
     else:
-        t = np.zeros(3) if tool is None else np.asarray(tool, dtype=float)
-        if t.shape not in ((3,), (6,)):
-            raise InputError(f"tool: expected 3 (point) or 6 (frame) values, got {t.size}")
-        tm = pose_motions("tool", RXYZ)
-        tm = tm[:3] + (tm[3:] if t.size == 6 else [])
-        tool_names = list(TOOL_NAMES[: t.size])
-        values.update(zip(TOOL_NAMES, t.tolist(), strict=False))
+        t = _frame_values("tool", np.zeros(3) if tool is None else tool, (3, 6, 9))
+        tool_rpy = (0.0, 0.0, 0.0) if len(t) == 3 else tuple(t[3:6])
+        tm = pose_motions("tool", RXYZ)[:3]
+        if len(t) > 3:
+            tm += local_pose_motions("tool", tool_rpy, translation=False)
+        tool_names = list(TOOL_NAMES[: 3 if len(t) == 3 else 6])
+        values.update(zip(TOOL_NAMES, [*t[:3], *t[6:9]], strict=False))
+        if len(t) == 6:
+            values.update(dict.fromkeys(TOOL_NAMES[3:], 0.0))
     motions += tm
     owners += ["tool"] * len(tm)
     names = (*chain_names, *BASE_NAMES, *tool_names)
@@ -218,7 +232,34 @@ def build_chain(convention: str, entries: Sequence[Mapping], base: ArrayLike | N
     if duplicate:
         raise InputError(f"parameter {duplicate[0]!r} appears twice in the chain")
     return Chain(tuple(motions), tuple(owners), names, values, tuple(kinds), frozenset(frozen),
-                 tuple(points) if markers is not None else ())
+                 tuple(points) if markers is not None else (), base_rpy, tool_rpy)
+
+
+def _frame_values(what: str, values: ArrayLike, sizes: tuple[int, ...]) -> list[float]:
+    """A base or tool given as 3 (point), 6 (pose) or 9 values (pose and local rotation
+    error), checked finite; as a list of floats."""
+    try:
+        v = np.asarray(values, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise InputError(f"{what}: expected numbers, got {values!r}") from None
+    forms = {3: "3 (x, y, z)", 6: "6 (x, y, z, rx, ry, rz)",
+             9: "9 (x, y, z, rx, ry, rz, wx, wy, wz)"}
+    if v.size not in sizes:
+        raise InputError(f"{what}: expected {' or '.join(forms[n] for n in sizes)} values, "
+                         f"got {v.size}")
+    if not np.isfinite(v).all():
+        raise InputError(f"{what}: expected finite numbers, got {v.tolist()}")
+    return v.tolist()
+
+
+def frame_list(values: Sequence[float], rpy: Sequence[float]) -> list[float]:
+    """A base or tool frame as a model keeps it: ``x, y, z`` and the nominal `rpy`, then
+    the local rotation error where it is not zero (6 or 9 values; module docstring).
+
+    `values` are the frame's six parameter values (origin, local error)."""
+    v = [float(x) for x in values]
+    out = [*v[:3], *(float(a) for a in rpy)]
+    return out + v[3:6] if any(v[3:6]) else out
 
 
 def check_chain_size(entries: int, joints: int, where: str = "") -> None:

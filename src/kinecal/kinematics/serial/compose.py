@@ -59,13 +59,14 @@ def motion_values(motions: Sequence[Motion], motion_index: NDArray[np.intp], p: 
     ----------
     motions : sequence of Motion
     motion_index : ndarray, shape (m,)
-        Parameter index of each motion.
+        Parameter index of each motion (-1: a constant, `Motion.const`).
     p : ndarray, shape (n_params,) or (P, n_params)
 
     Returns
     -------
     values : list
-        Plain floats for one parameter vector, arrays ``(P, 1)`` for a population.
+        Plain floats for one parameter vector, arrays ``(P, 1)`` for a population
+        (constants: plain floats).
     skip : list of bool
         True where the motion is the identity for every parameter vector (value exactly
         zero and no joint reading).
@@ -73,11 +74,15 @@ def motion_values(motions: Sequence[Motion], motion_index: NDArray[np.intp], p: 
     if p.ndim == 1:
         flat = p.tolist()
         values = [flat[k] for k in motion_index]
+        for i in np.flatnonzero(motion_index < 0).tolist():
+            values[i] = motions[i].const
         nonzero = [v != 0.0 for v in values]
     else:
         cols = p[..., motion_index]  # (P, m)
         values = [cols[..., i][..., None] for i in range(len(motions))]
         nonzero = np.any(cols != 0.0, axis=0).tolist()
+        for i in np.flatnonzero(motion_index < 0).tolist():
+            values[i], nonzero[i] = motions[i].const, motions[i].const != 0.0
     skip = [m.joint is None and not nz for m, nz in zip(motions, nonzero, strict=True)]
     return values, skip
 

@@ -113,7 +113,7 @@ def chain_frames(motions: Sequence[Motion], owners: Sequence, motion_index: NDAr
                 ends["flange"] = (list(axes), o)
             previous = owner
         u = axes[m.axis] if m.direction is None else m.vector(axes)
-        value = values[k]
+        value = values[k] if k >= 0 else m.const
         if m.joint is not None:
             joint_axes[m.joint], joint_origins[m.joint] = u, o
             entry_of_joint[m.joint] = owner

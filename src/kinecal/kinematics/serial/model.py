@@ -13,8 +13,10 @@ convention lists a joint's elementary motions in order (see ``docs/conventions.m
 
 Prismatic joints add their reading to a translation (``d`` in the D-H family); fixed
 frames anywhere in the chain are six more motions (`kinecal.kinematics.serial.chain`).
-The base frame is ``Tx(x) Ty(y) Tz(z) Rz(rz) Ry(ry) Rx(rx)`` (a pose in roll-pitch-yaw),
-the tool ``Tx(x) Ty(y) Tz(z)`` followed by ``Rz Ry Rx`` for a tool frame.
+The base frame is ``Tx(x) Ty(y) Tz(z)``, its nominal roll-pitch-yaw held, then the local
+rotation error ``Rz(rz) Ry(ry) Rx(rx)`` (``base.rx .. base.rz``, zero nominally); the tool
+``Tx(x) Ty(y) Tz(z)``, for a tool frame followed likewise by its nominal orientation and
+local error (`kinecal.kinematics.serial.motions.local_pose_motions`).
 
 Forward kinematics and the identification and joint Jacobians are the methods of
 `kinecal.kinematics.serial.kinematics.SerialKinematics`, which `SerialModel` inherits; this
@@ -36,6 +38,7 @@ from kinecal.kinematics.serial.chain import (
     Chain,
     build_chain,
     chain_entries,
+    frame_list,
 )
 from kinecal.kinematics.serial.joint_errors import JointErrors, JointErrorTerms
 from kinecal.kinematics.serial.kinematics import SerialKinematics
@@ -90,13 +93,17 @@ class SerialModel(SerialKinematics):
         prismatic`` for a prismatic joint (urdf also ``continuous``); or a fixed frame
         ``{frame: NAME, x, y, z, rx, ry, rz}`` (urdf: roll, pitch, yaw), held at nominal
         unless it says ``calibrate: True``. Lengths in `length_unit`, angles in radians.
-    base : array_like, shape (6,), optional
+    base : array_like, shape (6,) or (9,), optional
         Base frame in the measurement frame: x, y, z (length unit), rx, ry, rz (rad),
-        ``R = Rz Ry Rx``. Absent: the measurements are in the robot base frame and the six
-        base parameters are fixed at zero.
-    tool : array_like, shape (3,) or (6,), optional
-        Tool point (x, y, z) in the flange frame, or a tool frame (x, y, z, rx, ry, rz).
-        Absent: the flange origin, tool parameters fixed at zero.
+        ``R = Rz Ry Rx``, and optionally the local rotation error wx, wy, wz after it (a
+        calibrated model; ``R = Rz(rz) Ry(ry) Rx(rx) Rz(wz) Ry(wy) Rx(wx)``). The
+        parameters ``base.x .. base.z`` are the origin, ``base.rx .. base.rz`` the local
+        error (`kinecal.kinematics.serial.chain`). Absent: the measurements are in the
+        robot base frame and the six base parameters are fixed at zero.
+    tool : array_like, shape (3,), (6,) or (9,), optional
+        Tool point (x, y, z) in the flange frame, or a tool frame (x, y, z, rx, ry, rz
+        [, wx, wy, wz]) parametrised as the base. Absent: the flange origin, tool
+        parameters fixed at zero.
     length_unit : str
         ``"mm"`` or ``"m"``; informative, every length uses it.
     angle_unit : {"rad", "deg"}
@@ -151,7 +158,9 @@ class SerialModel(SerialKinematics):
         self._names = chain.names
         self._index = {n: k for k, n in enumerate(self._names)}
         self._nominal = np.array([chain.values[n] for n in self._names])
-        self._motion_index = np.array([self._index[m.name] for m in self.motions])
+        # parameter of each motion; -1 for a constant (a frame's nominal orientation)
+        self._motion_index = np.array([-1 if m.const is not None else self._index[m.name]
+                                       for m in self.motions], dtype=np.intp)
         # parameter carrying each joint's reading (the motion whose value adds q_j)
         joint_param = {m.joint: self._index[m.name] for m in self.motions
                        if m.joint is not None}
@@ -159,7 +168,8 @@ class SerialModel(SerialKinematics):
                                        dtype=np.intp)
         self._rotation_mask = np.array([m.kind == ROTATION for m in self.motions])
         self._angle_mask = np.zeros(len(self._names), dtype=bool)
-        self._angle_mask[self._motion_index[self._rotation_mask]] = True
+        rotated = self._motion_index[self._rotation_mask]
+        self._angle_mask[rotated[rotated >= 0]] = True
         self._n_geometric = len(self._names)
         self._joint_terms: JointErrorTerms | None = None
         if self.joint_errors is not None:  # coefficients appended after base and tool
@@ -289,12 +299,14 @@ class SerialModel(SerialKinematics):
             raise InputError("with_params expects one parameter vector")
         values = dict(zip(self._names, p.tolist(), strict=True))
         joints = chain_entries(self._chain, self.joints, values)
-        base = [values[n] for n in BASE_NAMES]
+        base = frame_list([values[n] for n in BASE_NAMES], self._chain.base_rpy)
         if self.base is None and not any(base):
             base = None
         n_tool = 3 if self.tool is None else np.asarray(self.tool).size
         markers = marker_points(self.marker_names, values) if self.marker_names else None
-        tool = None if markers else [values[n] for n in TOOL_NAMES[:n_tool]]
+        tool = None if markers else (
+            [values[n] for n in TOOL_NAMES[:3]] if n_tool == 3 else
+            frame_list([values[n] for n in TOOL_NAMES], self._chain.tool_rpy))
         if self.tool is None and not any(tool or ()):
             tool = None
         # Keep what was fixed by the model's design, including frames that were absent

@@ -48,6 +48,7 @@ __all__ = [
     "frame_motions",
     "hayati_motions",
     "joint_type",
+    "local_pose_motions",
     "origin_motions",
     "pose_motions",
     "rotate_axes",
@@ -87,6 +88,10 @@ class Motion:
     held : bool
         The value is an origin's nominal roll, pitch or yaw: held at nominal unless freed
         by name, its error being the origin's local rotation (`origin_motions`).
+    const : float or None
+        A constant value: the motion reads no parameter (the nominal roll, pitch or yaw
+        of the base or tool frame, whose parameters are the local error after it:
+        `local_pose_motions`).
     """
 
     kind: str
@@ -96,6 +101,7 @@ class Motion:
     direction: tuple[float, float, float] | None = None
     key: str = ""
     held: bool = False
+    const: float | None = None
 
     def vector(self, axes: Sequence[np.ndarray]) -> np.ndarray:
         """The motion's axis as a stack ``(3, ...)`` in the fixed frame, given the moving
@@ -201,6 +207,30 @@ def pose_motions(prefix: str, keys: Sequence[str] = RXYZ) -> list[Motion]:
         Motion(ROTATION, Y, f"{prefix}.{ry}", key=ry),
         Motion(ROTATION, X, f"{prefix}.{rx}", key=rx),
     ]
+
+
+def local_pose_motions(prefix: str, rpy: Sequence[float] = (0.0, 0.0, 0.0),
+                       translation: bool = True) -> list[Motion]:
+    """A frame parametrised locally about its nominal orientation (the base and the tool):
+    ``Tx(x) Ty(y) Tz(z)`` named ``prefix.x .. prefix.z``, the nominal roll-pitch-yaw
+    ``Rz(rz0) Ry(ry0) Rx(rx0)`` as constants (`Motion.const`; left out where zero), then
+    the local rotation error ``Rz(rz) Ry(ry) Rx(rx)`` named ``prefix.rz .. prefix.rx``
+    (zero nominally; about the nominal frame's own axes, independent whatever the
+    nominal angles, as an origin's ``wx, wy, wz`` in `origin_motions`).
+
+    `translation` False: the rotations only (a frame whose translation is elsewhere).
+    """
+    x, y, z, rx, ry, rz = RXYZ
+    out = [Motion(TRANSLATION, X, f"{prefix}.{x}", key=x),
+           Motion(TRANSLATION, Y, f"{prefix}.{y}", key=y),
+           Motion(TRANSLATION, Z, f"{prefix}.{z}", key=z)] if translation else []
+    for axis, key, value in ((Z, rz, rpy[2]), (Y, ry, rpy[1]), (X, rx, rpy[0])):
+        if float(value) != 0.0:
+            out.append(Motion(ROTATION, axis, f"{prefix}.nominal_{key}", key=key,
+                              const=float(value)))
+    return [*out, Motion(ROTATION, Z, f"{prefix}.{rz}", key=rz),
+            Motion(ROTATION, Y, f"{prefix}.{ry}", key=ry),
+            Motion(ROTATION, X, f"{prefix}.{rx}", key=rx)]
 
 
 def origin_motions(prefix: str, keys: Sequence[str] = RPY) -> list[Motion]:

@@ -144,7 +144,7 @@ class Sweep:
         last_o = d = None
         for (u, o), k, is_rot in zip(self.frames, model._motion_index, model._rotation_mask,
                                      strict=True):
-            r_ = row_of[k]
+            r_ = row_of[k] if k >= 0 else -1  # k < 0: a constant motion, no parameter
             if r_ < 0:
                 continue
             J = Jt[r_]
