@@ -113,10 +113,11 @@ def calibrate_rig_cli(a: dict[str, Any]) -> None:
     from kinecal.cli.handeye_images import IMAGE_SUFFIXES
 
     inputs = {"MODEL": a["model"], "STATIONS": stations, "--images": a["images"],
+              "--validate-images": a.get("validate_images"),
               **{f"DATA {f}": f for f in others},
               **{f"--validate {v}": v for v in validate},
               **{f"--camera {c}": c.split(":", 2)[2] for c in cams if c.count(":") >= 2}}
-    folders = {"--images": IMAGE_SUFFIXES}
+    folders = {"--images": IMAGE_SUFFIXES, "--validate-images": IMAGE_SUFFIXES}
     check_paths(inputs, {"--out": a["out"], "--model-out": a["model_out"],
                          "--report": a["report"]}, reads=folders)
     prov = report_record(a["report"], inputs, a["instrument"], a["operator"], a["note"],
@@ -169,24 +170,29 @@ def _run(a: dict[str, Any], cams: list[str], boards: list[str], stations: str,
     by_name = {p.name: p for p in list_images(folder)}
     _match(folder, Path(stations), st.names, by_name)
     val, listed = None, set(st.names)
+    vfolder = a.get("validate_images")
+    if vfolder is not None and validate is None:
+        raise InputError("applies to --validate only (the folder of its images)",
+                         option="--validate-images")
     if validate is not None:
         vs = read_rig_stations(Path(validate), m, rig.camera_names, rig.board_names,
                                angle_unit=unit)
-        _match(folder, Path(validate), vs.names, by_name)
-        both = sorted(set(vs.names) & set(st.names))
+        vby = by_name if vfolder is None else {p.name: p for p in list_images(Path(vfolder))}
+        _match(Path(vfolder or folder), Path(validate), vs.names, vby)
+        both = sorted({vby[n].resolve() for n in vs.names} & {by_name[n].resolve()
+                                                              for n in st.names})
         if both:
             raise InputError(f"{len(both)} image(s) also in the calibration stations, e.g. "
-                             f"{both[0]!r}: validation images must be held out",
-                             file=Path(validate))
-        val = ([by_name[n] for n in vs.names], vs.names, vs.camera,
+                             f"{both[0].name!r}: validation images must be held out (images "
+                             "of another folder: --validate-images)", file=Path(validate))
+        val = ([vby[n] for n in vs.names], vs.names, vs.camera,
                complete_joints(m, rig, vs.camera, vs.board, vs.q, vs.names), vs.board)
-        listed |= set(vs.names)
-    unlisted = sorted(set(by_name) - listed)
-    if unlisted:
-        raise InputError(f"{len(unlisted)} image(s) in {folder} without joints (no row in "
-                         f"{Path(stations).name}{' or --validate' if validate else ''}): "
-                         f"{', '.join(unlisted[:5])}{', ...' if len(unlisted) > 5 else ''}",
-                         file=Path(stations))
+        if vfolder is None:
+            listed |= set(vs.names)
+        else:
+            _all_listed(Path(vfolder), vby, set(vs.names), Path(validate))
+    _all_listed(folder, by_name, listed, Path(stations),
+                " or --validate" if validate and vfolder is None else "")
     q = complete_joints(m, rig, st.camera, st.board, st.q, st.names)
     sets = _read_all(m, others, "DATA", None, unit) if others else []
     if system and others:
@@ -199,6 +205,16 @@ def _run(a: dict[str, Any], cams: list[str], boards: list[str], stations: str,
                                     st.camera, q, st.board, free=a["free"], loss=a["loss"],
                                     validate=val, limits=limits, progress=update,
                                     others=sets, sigma=stated)
+
+
+def _all_listed(folder: Path, by_name: dict[str, Path], listed: set[str], path: Path,
+                more: str = "") -> None:
+    """Every image of `folder` has a row (an image without joints is a mistake)."""
+    unlisted = sorted(set(by_name) - listed)
+    if unlisted:
+        raise InputError(f"{len(unlisted)} image(s) in {folder} without joints (no row in "
+                         f"{path.name}{more}): {', '.join(unlisted[:5])}"
+                         f"{', ...' if len(unlisted) > 5 else ''}", file=path)
 
 
 def _match(folder: Path, path: Path, names: list[str], by_name: dict[str, Path]) -> None:

@@ -64,8 +64,8 @@ class RigIdentifiability:
 
 def rig_identifiability(pixels: RigPixels, model, params: Array, nu: Array,
                         identified: Sequence[str], held: Sequence[str],
-                        tol: float = 1e-4, confounded: dict | None = None
-                        ) -> RigIdentifiability:
+                        tol: float = 1e-4, confounded: dict | None = None,
+                        scale_known: bool = False) -> RigIdentifiability:
     """Which mount takes up each `held` parameter (module docstring).
 
     Parameters
@@ -81,6 +81,8 @@ def rig_identifiability(pixels: RigPixels, model, params: Array, nu: Array,
     confounded : dict, optional
         The calibration's ``confounded_with`` (held parameter -> the free parameters whose
         combination has its effect), for the words of the held parameters no mount takes.
+    scale_known : bool
+        Other measurements carry lengths (a tracker's, a ballbar's): the scale is theirs.
     """
     names = list(identified) + list(held)
     cols = model.index(names) if names else np.zeros(0, np.intp)
@@ -109,7 +111,7 @@ def rig_identifiability(pixels: RigPixels, model, params: Array, nu: Array,
         out.taken_up_by[name] = by
         for g in by:
             out.mounts.setdefault(g, []).append(name)
-    out.scale_free = _scale_free(pixels, params, nu, basis, rows, tol)
+    out.scale_free = not scale_known and _scale_free(pixels, params, nu, basis, rows, tol)
     out.sentences = _sentences(out, pixels, none, confounded or {})
     return out
 
@@ -140,17 +142,22 @@ def _sentences(info: RigIdentifiability, pixels: RigPixels, none: list[str],
     links = {f"camera {c.name}": c.link for c in pixels.cameras}
     links.update({f"board {b.name}": b.link for b in pixels.boards})
     out = []
-    for g, params in info.mounts.items():
-        link = links.get(g)
-        if link == WORLD:
+    grouped: dict[tuple, list[str]] = {}
+    for g, params in info.mounts.items():  # mounts that take up the same, said once
+        grouped.setdefault((links.get(g) == WORLD, links.get(g) is None, tuple(params)),
+                           []).append(g)
+    for (static, intrinsics, params), names in grouped.items():
+        where = ", ".join(f"{g} ({links.get(g) or 'intrinsics'})" for g in names)
+        if static:
             what = ("a static mount and the robot's base are seen only together (a rigid "
                     "move of the whole robot is the mount's move the other way)")
-        elif link is not None:
-            what = f"they move what hangs from {link} as this mount does"
+        elif not intrinsics:
+            what = "they move what hangs from the link as this mount does"
         else:
             what = "they change this camera's image as its intrinsics do"
-        out.append(f"{g} ({link or 'intrinsics'}) takes up {', '.join(params)}: {what}; held "
-                   "at nominal, the mount is given in the frame they make")
+        verb = "takes" if len(names) == 1 else "each take"
+        out.append(f"{where} {verb} up {', '.join(params)}: {what}; held at nominal, the "
+                   "mount is given in the frame they make")
     if none:
         out.append(f"{', '.join(none)}: no effect on any image (a tool point after the link a "
                    "camera or board hangs from); held at nominal")

@@ -132,7 +132,9 @@ def _calibrate(model, views, cameras, boards, K, dist, refine, rational, free, l
                                           sl["camera"][b])
     held = [n for n in model.calibratable if n not in set(fit.free)]
     ident = rig_identifiability(final, model, fit.params, zero, fit.free, held, rank_tol,
-                                fit.identifiability.confounded_with)
+                                fit.identifiability.confounded_with,
+                                scale_known=any(b.unit == "length"
+                                                for b in fit_blocks(fit, others)))
     val = _validation(model, validate, cameras, boards, he, final, fit.params, n_int)
     sigma_px = float(fit.extra["kinds"][0]["sigma"] or np.nan)
     outliers = sorted({int(i) for i in fit.outliers if i < block.n_obs})
@@ -152,6 +154,13 @@ def _calibrate(model, views, cameras, boards, K, dist, refine, rational, free, l
         val_before_px=None if val is None else val[0],
         val_after_px=None if val is None else val[1],
         seconds=time.perf_counter() - t0)
+
+
+def fit_blocks(fit, others: Sequence) -> list:
+    """The measurement sets beside the rig's pixels, as blocks (their units)."""
+    from kinecal.calibration.blocks.make import make_blocks
+
+    return make_blocks(fit.nominal_model, list(others)) if others else []
 
 
 def _fitted_pixels(block: RigBlock, fit) -> RigPixels:
