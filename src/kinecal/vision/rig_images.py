@@ -38,8 +38,9 @@ __all__ = ["calibrate_rig_images", "complete_joints", "detect_rig"]
 
 def _searched(rig: Rig, camera: NDArray[np.intp], boards: Sequence[str | None]
               ) -> list[list[int]]:
-    """The boards each image is searched for: its named board, else every board not on its
-    camera's link (several only when they can be told apart)."""
+    """The boards each image is searched for: its named board, else every board when they
+    can be told apart (ChArUco boards of their own marker ids), else the one board not on
+    its camera's link."""
     names = rig.board_names
     out = []
     for i, b in enumerate(boards):
@@ -47,8 +48,8 @@ def _searched(rig: Rig, camera: NDArray[np.intp], boards: Sequence[str | None]
             out.append([names.index(b)])
             continue
         link = rig.cameras[camera[i]].link
-        cand = [k for k, rb in enumerate(rig.boards) if rb.link != link] or \
-            list(range(len(names)))
+        cand = list(range(len(names))) if rig.told_apart() else \
+            [k for k, rb in enumerate(rig.boards) if rb.link != link] or list(range(len(names)))
         if len(cand) > 1 and not rig.told_apart():
             raise InputError(f"image {i + 1}: several boards ({', '.join(names[k] for k in cand)})"
                              " could show in it and not all are ChArUco boards with their own "
