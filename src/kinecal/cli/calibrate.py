@@ -250,6 +250,9 @@ def calibrate(
     orientation_format: str | None = orientation_format_option(),
     station_per_file: bool = station_per_file_option(),
     validate_register: str | None = validate_register_option(),
+    validate_images: Path | None = typer.Option(
+        None, "--validate-images", help="With --images: folder of the --validate stations' "
+        "images (default: the --images folder)."),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
     or from board images with --images; a robot system from rows of its chains."""
@@ -279,7 +282,7 @@ def calibrate(
 
         return calibrate_images(dict(locals()))
     for option, value in (("--board", board), ("--intrinsics", intrinsics),
-                          ("--min-corners", min_corners)):
+                          ("--min-corners", min_corners), ("--validate-images", validate_images)):
         if value is not None:
             raise InputError("applies to --images only", option=option)
     from kinecal.calibration.diagnostics.noise import check_stated_sigma

@@ -14,6 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import typer
 
 from kinecal.cli._common import (
@@ -149,7 +150,11 @@ def _run(a: dict[str, Any], cams: list[str], boards: list[str], stations: str,
     from kinecal.cli.systems import is_system_arg, load_system_arg
     from kinecal.io.rig_stations import read_rig_stations
     from kinecal.vision.rig import parse_rig
-    from kinecal.vision.rig_images import calibrate_rig_images, complete_joints
+    from kinecal.vision.rig_images import (
+        calibrate_rig_images,
+        complete_joints,
+        searched_boards,
+    )
 
     rig = parse_rig(cams, boards)
     system = is_system_arg(a["model"], a["base_link"], a["tip_link"])
@@ -166,6 +171,17 @@ def _run(a: dict[str, Any], cams: list[str], boards: list[str], stations: str,
     unit = a.get("angle_unit")
     st = read_rig_stations(Path(stations), m, rig.camera_names, rig.board_names,
                            angle_unit=unit)
+    search = searched_boards(rig, st.camera, st.board)  # boards one image cannot tell apart
+    unseen = [b for k, b in enumerate(rig.board_names) if not any(k in s for s in search)]
+    if unseen:
+        raise InputError(f"board(s) {', '.join(unseen)}: no image is searched for them (name "
+                         "the board of an image in the STATIONS.csv board column)",
+                         option="--board")
+    silent = [c for k, c in enumerate(rig.camera_names) if not np.any(st.camera == k)]
+    if silent:
+        raise InputError(f"camera(s) {', '.join(silent)}: no image of theirs in "
+                         f"{Path(stations).name} (every --camera needs images)",
+                         option="--camera")
     folder = Path(a["images"])
     by_name = {p.name: p for p in list_images(folder)}
     _match(folder, Path(stations), st.names, by_name)

@@ -106,10 +106,21 @@ def handeye_rig_cli(a: dict[str, Any]) -> None:
         if missing:
             raise InputError(f"camera(s) {', '.join(missing)}: no row in {path.name}",
                              option="--camera")
+        from kinecal.spatial import invert_transform
+        from kinecal.vision.detection import orientation_ambiguous
+        from kinecal.vision.turns import warn_symmetric
+
+        if orientation_ambiguous(board):
+            warn_symmetric(board)
+
+        def relative(c: int, b: int, rows: list[int]) -> np.ndarray:
+            """The board's link in the camera's: the flange poses (inverted in hand)."""
+            return invert_transform(F[rows]) if in_hand else F[rows]
+
         with progress("detecting", len(names), a["quiet"] or a["json_out"]) as update:
             views, intr, skipped = detect_rig(rig, [by_name[n] for n in names], names, camera,
                                               np.zeros((len(names), 0)), [None] * len(names),
-                                              limits, progress=update)
+                                              limits, progress=update, relative=relative)
         keep = [names.index(n) for n in views.names]
         if skipped:
             from kinecal import diagnostics

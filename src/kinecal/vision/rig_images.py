@@ -22,21 +22,25 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal import diagnostics
-from kinecal.calibration.camera.rig_pixels import RigViews
+from kinecal.calibration.camera.rig_frames import LinkFrames
+from kinecal.calibration.camera.rig_pixels import RigPixels, RigViews
 from kinecal.calibration.camera.rig_result import RigResult
-from kinecal.calibration.camera.rig_solve import calibrate_rig
+from kinecal.calibration.camera.rig_solve import add_validation, calibrate_rig
 from kinecal.errors import InputError
+from kinecal.spatial import invert_transform, transform_from
 from kinecal.vision.detect import QualityLimits
+from kinecal.vision.detection import orientation_ambiguous
 from kinecal.vision.intrinsics import CameraIntrinsics
 from kinecal.vision.rig import Rig
 from kinecal.vision.stages import board_poses, camera_intrinsics, detect_all
+from kinecal.vision.turns import turn_flipped, warn_symmetric
 
 Array = NDArray[np.float64]
 
-__all__ = ["calibrate_rig_images", "complete_joints", "detect_rig"]
+__all__ = ["calibrate_rig_images", "complete_joints", "detect_rig", "searched_boards"]
 
 
-def _searched(rig: Rig, camera: NDArray[np.intp], boards: Sequence[str | None]
+def searched_boards(rig: Rig, camera: NDArray[np.intp], boards: Sequence[str | None]
               ) -> list[list[int]]:
     """The boards each image is searched for: its named board, else every board when they
     can be told apart (ChArUco boards of their own marker ids), else the one board not on
@@ -70,7 +74,7 @@ def complete_joints(model, rig: Rig, camera: NDArray[np.intp], boards: Sequence[
     from kinecal.calibration.camera.rig_frames import WORLD
 
     cams, brds = rig.mounts(model)
-    search = _searched(rig, np.asarray(camera, np.intp), boards)
+    search = searched_boards(rig, np.asarray(camera, np.intp), boards)
     lim = np.asarray(model.joint_limits, float)
     mid = np.clip(0.0, lim[:, 0], lim[:, 1])
     for i in range(len(q)):
@@ -89,7 +93,8 @@ def detect_rig(rig: Rig, images: Sequence[Any], names: Sequence[str],
                camera: NDArray[np.intp], q: Array, boards: Sequence[str | None],
                limits: QualityLimits | None = None,
                intrinsics: Sequence[CameraIntrinsics | None] | None = None,
-               progress: Callable[..., None] | None = None, poses: bool = True
+               progress: Callable[..., None] | None = None, poses: bool = True,
+               relative: Callable[[int, int, list[int]], Array] | None = None
                ) -> tuple[RigViews, list[CameraIntrinsics], list[dict[str, str]]]:
     """Detected images of a rig, each camera's intrinsics and the skipped images.
 
@@ -109,6 +114,11 @@ def detect_rig(rig: Rig, images: Sequence[Any], names: Sequence[str],
         Per camera: the intrinsics to use (default: its file, else estimated).
     poses : bool
         Compute each found board's pose (PnP; rejects too oblique views).
+    relative : callable, optional
+        ``relative(camera, board, images)`` -> the board's link in the camera's link
+        ``(n, 4, 4)`` at those images (the nominal model): a board that looks the same
+        turned (`kinecal.vision.turns`) is then put back where the images' corners were
+        listed turned.
 
     Returns
     -------
@@ -120,7 +130,7 @@ def detect_rig(rig: Rig, images: Sequence[Any], names: Sequence[str],
     """
     limits = limits or QualityLimits()
     camera = np.asarray(camera, dtype=np.intp)
-    search = _searched(rig, camera, boards)
+    search = searched_boards(rig, camera, boards)
     n, nb = len(names), len(rig.boards)
     found: list[dict[int, Any]] = [{} for _ in range(n)]
     reasons: list[list[str]] = [[] for _ in range(n)]
@@ -144,6 +154,7 @@ def detect_rig(rig: Rig, images: Sequence[Any], names: Sequence[str],
         for b, rows, recs, _ in items:
             if poses:
                 board_poses(recs, rig.boards[b].board, intr_out[c], limits)
+                _turn_back(recs, rows, rig.boards[b].board, c, b, relative)
             for i, r in zip(rows, recs, strict=True):
                 if r.status == "used":
                     found[i][b] = r
@@ -164,6 +175,20 @@ def detect_rig(rig: Rig, images: Sequence[Any], names: Sequence[str],
     views = RigViews([names[i] for i in used], camera[used], np.asarray(q, float)[used], pts,
                      pix, brd, pp if poses else None)
     return views, intr_out, skipped
+
+
+def _turn_back(recs: list, rows: list[int], board, c: int, b: int,
+               relative: Callable[[int, int, list[int]], Array] | None) -> None:
+    """Images of a symmetric board listed turned, put back from the model's motions (one
+    camera-board pair: ``C = X^-1 G Y``, `kinecal.vision.turns.turn_flipped` on ``G``)."""
+    if relative is None or not orientation_ambiguous(board):
+        return
+    used = [k for k, r in enumerate(recs) if r.status == "used" and r.pose is not None]
+    if len(used) < 3:
+        return
+    G = relative(c, b, [rows[k] for k in used])
+    C = np.array([recs[k].pose.target2cam for k in used])
+    turn_flipped(recs, used, board, G, C, "eye-to-hand", "park")
 
 
 def calibrate_rig_images(model, rig: Rig, images: Sequence[Any], names: Sequence[str],
@@ -194,9 +219,20 @@ def calibrate_rig_images(model, rig: Rig, images: Sequence[Any], names: Sequence
         (`kinecal.calibration.camera.rig_solve.calibrate_rig`).
     """
     cams, brds = rig.mounts(model)
+
+    def relative(c: int, b: int, rows: list[int]) -> Array:
+        links = [cams[c].link, brds[b].link]
+        lp = LinkFrames(model, np.asarray(q, float)[rows], links).poses(model.nominal)
+        Lc = [transform_from(R, t) for R, t in zip(lp[links[0]].R, lp[links[0]].t, strict=True)]
+        Lb = [transform_from(R, t) for R, t in zip(lp[links[1]].R, lp[links[1]].t, strict=True)]
+        return invert_transform(np.array(Lc)) @ np.array(Lb)
+
     with diagnostics.collect() as found:
+        for rb in rig.boards:
+            if orientation_ambiguous(rb.board):
+                warn_symmetric(rb.board)
         views, intr, skipped = detect_rig(rig, images, names, camera, q, boards, limits,
-                                          progress=progress)
+                                          progress=progress, relative=relative)
         if len(views.q) < 3:
             eg = f"; e.g. {skipped[0]['image']}: {skipped[0]['reason']}" if skipped else ""
             raise InputError(f"{len(views.q)} usable image(s) of {len(names)}: the boards were "
@@ -219,10 +255,53 @@ def calibrate_rig_images(model, rig: Rig, images: Sequence[Any], names: Sequence
             model, views, cams, brds, [i.K for i in intr], [i.dist for i in intr],
             refine_intrinsics=[c.intrinsics is None for c in rig.cameras],
             rational=rational or any(i.rational for i in intr), free=free, loss=loss,
-            validate=val, board_specs=[b.board.spec for b in rig.boards], others=others,
-            sigma=sigma,
+            board_specs=[b.board.spec for b in rig.boards], others=others, sigma=sigma,
             extra={"skipped": skipped, "n_images": len(names), "n_used": len(views.q),
                    "intrinsics_given": {c.name: c.intrinsics is not None
                                         for c in rig.cameras}})
+        if val is not None:
+            add_validation(res, _orient(val, rig, res, model))
     res.warnings = list(found)
     return res
+
+
+def _orient(views: RigViews, rig: Rig, res: RigResult, model) -> RigViews:
+    """Held-out images of a symmetric board with their corners in the order the
+    calibrated rig predicts (a board listed turned put back: its corners permuted by the
+    turn that fits best)."""
+    if not any(orientation_ambiguous(b.board) for b in rig.boards) or not len(views.q):
+        return views
+    frames = LinkFrames(model, views.q, [m.link for m in res.cameras + res.boards])
+    px = RigPixels(frames, views, res.cameras, res.boards, res.K, res.dist,
+                   res.camera_poses, res.board_poses, [0] * len(res.cameras))
+    pred = px.predict(res.params, np.zeros(px.n_nuisance), strict=False)[0]
+    start = np.r_[0, np.cumsum(px.counts)]
+    pixels = [p.copy() for p in views.pixels]
+    for i in range(len(views.names)):
+        for b in np.unique(views.board[i]):
+            board = rig.boards[b].board
+            if not orientation_ambiguous(board):
+                continue
+            sel = np.flatnonzero(views.board[i] == b)
+            ids = _ids(views.points[i][sel], board)
+            if ids is None:
+                continue
+            want = pred[start[i] + sel]
+            best, err = pixels[i][sel], np.nansum((pixels[i][sel] - want) ** 2)
+            for _, perm in board.symmetries():
+                moved = np.full((board.n_corners, 2), np.nan)
+                moved[perm[ids]] = pixels[i][sel]
+                cand = moved[ids]
+                e = np.nansum((cand - want) ** 2)
+                if np.isfinite(cand).all() and e < err:
+                    best, err = cand, e
+            pixels[i][sel] = best
+    return RigViews(views.names, views.camera, views.q, views.points, pixels, views.board,
+                    views.poses)
+
+
+def _ids(P: Array, board) -> NDArray[np.intp] | None:
+    """The corner ids of board points `P` ``(N, 3)``."""
+    d = np.linalg.norm(P[:, None, :] - board.object_points[None], axis=2)
+    ids = np.argmin(d, axis=1)
+    return ids if np.allclose(d[np.arange(len(P)), ids], 0.0, atol=1e-9) else None

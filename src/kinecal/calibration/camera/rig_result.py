@@ -143,6 +143,8 @@ class RigResult:
     seconds: float = 0.0
     warnings: list[Diagnostic] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
+    #: the mounts and intrinsics fitted with the model at nominal (the "before")
+    start_mounts: tuple | None = None
 
     @property
     def model(self):

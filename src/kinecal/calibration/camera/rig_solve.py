@@ -38,7 +38,7 @@ from kinecal.spatial import axis_angle_from_matrix, invert_transform, matrix_fro
 
 Array = NDArray[np.float64]
 
-__all__ = ["calibrate_rig"]
+__all__ = ["add_validation", "calibrate_rig"]
 
 
 def calibrate_rig(model, views: RigViews, cameras: Sequence[Mount], boards: Sequence[Mount],
@@ -135,7 +135,7 @@ def _calibrate(model, views, cameras, boards, K, dist, refine, rational, free, l
                                 fit.identifiability.confounded_with,
                                 scale_known=any(b.unit == "length"
                                                 for b in fit_blocks(fit, others)))
-    val = _validation(model, validate, cameras, boards, he, final, fit.params, n_int)
+    val = _validation(model, validate, cameras, boards, he, final, fit.params)
     sigma_px = float(fit.extra["kinds"][0]["sigma"] or np.nan)
     outliers = sorted({int(i) for i in fit.outliers if i < block.n_obs})
     return RigResult(
@@ -153,7 +153,7 @@ def _calibrate(model, views, cameras, boards, K, dist, refine, rational, free, l
         val_camera=None if validate is None else np.asarray(validate.camera),
         val_before_px=None if val is None else val[0],
         val_after_px=None if val is None else val[1],
-        seconds=time.perf_counter() - t0)
+        seconds=time.perf_counter() - t0, start_mounts=he)
 
 
 def fit_blocks(fit, others: Sequence) -> list:
@@ -218,8 +218,23 @@ def _relative(Xa: Array, Xb: Array, cov: Array, sa: slice, sb: slice
     return T0, np.sqrt(np.clip(np.diag(C), 0.0, None))
 
 
+def add_validation(res: RigResult, views: RigViews) -> RigResult:
+    """`res` with the held-out images `views` judged (their reprojection with the model
+    at nominal and its mounts fitted there, and calibrated): for images whose corners
+    were put in order after the calibration (a symmetric board's, `kinecal.vision`)."""
+    model = res.fit.nominal_model
+    final = RigPixels(None, views, res.cameras, res.boards, res.K, res.dist,
+                      res.camera_poses, res.board_poses, [0] * len(res.cameras))
+    val = _validation(model, views, res.cameras, res.boards, res.start_mounts, final,
+                      res.params)
+    if val is not None:
+        res.val_names, res.val_camera = list(views.names), np.asarray(views.camera)
+        res.val_before_px, res.val_after_px = val
+    return res
+
+
 def _validation(model, validate: RigViews | None, cameras, boards, he, final: RigPixels,
-                params: Array, n_int) -> tuple[Array, Array] | None:
+                params: Array) -> tuple[Array, Array] | None:
     """Per-image RMS of held-out images: the model at nominal with the mounts fitted there,
     and calibrated."""
     if validate is None or not len(validate.q):
