@@ -174,19 +174,22 @@ def kinecal_corner_errors(res, scene, board):
 
 
 def timed_pair(scene, board, repeat):
-    """Best-of-`repeat` wall times of kinecal's pipeline and the plain OpenCV peer on the
-    same images, interleaved (k, p, k, p, ...) so that both see the same load."""
-    tk, tp = [], []
+    """Best-of-`repeat` wall and CPU times (the process's, all threads) of kinecal's
+    pipeline and the plain OpenCV peer on the same images, interleaved (k, p, k, p, ...) so
+    that both see the same load: ``(result, wall_k, wall_p, cpu_k, cpu_p)``."""
+    tk, tp, ck, cp = [], [], [], []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         res = kinecal_pipeline(scene, board)
-        t1 = time.perf_counter()
+        c1, t1 = time.process_time(), time.perf_counter()
         opencv_plain(scene.images, scene.flange2base, scene.K, scene.dist[:5], board,
                      scene.setup)
-        t2 = time.perf_counter()
+        c2, t2 = time.process_time(), time.perf_counter()
         tk.append(t1 - t0)
         tp.append(t2 - t1)
-    return res, min(tk), min(tp)
+        ck.append(c1 - c0)
+        cp.append(c2 - c1)
+    return res, min(tk), min(tp), min(ck), min(cp)
 
 
 def run(setup, kind, n_scenes, n_stations, conditions, seed0=0, repeat=3):
@@ -197,16 +200,18 @@ def run(setup, kind, n_scenes, n_stations, conditions, seed0=0, repeat=3):
     rows = ({"kinecal": [], "kinecal refinement on OpenCV's corners": []}
             | {f"OpenCV {m}": [] for m in CV_METHODS})
     corner = {"kinecal": [], "OpenCV": []}
-    t_kc, t_cv = [], []
+    t_kc, t_cv, c_kc, c_cv = [], [], [], []
     used, flagged, cover = [], 0, []
     for s in range(n_scenes):
         sc = render_handeye_scene(board, K, DIST, SIZE, n_stations, setup=setup, X=X,
                                   conditions=conditions,
                                   vary_light=0.25 if conditions is NOISY else 0.0,
                                   seed=seed0 + s, supersample=2)
-        res, tk, tp = timed_pair(sc, board, repeat)
+        res, tk, tp, ck, cp = timed_pair(sc, board, repeat)
         t_kc.append(tk)
         t_cv.append(tp)
+        c_kc.append(ck)
+        c_cv.append(cp)
         cv_res, cve, on_cv = opencv_accuracy(sc, board)
         err = pose_error(res.X, sc.X)
         rows["kinecal"].append(err)
@@ -223,9 +228,12 @@ def run(setup, kind, n_scenes, n_stations, conditions, seed0=0, repeat=3):
     med = {k: np.median(np.array(v), axis=0) for k, v in rows.items()}
     crms = {k: float(np.sqrt(np.mean(np.concatenate(v)))) for k, v in corner.items()}
     ratio = np.array(t_kc) / np.array(t_cv)
+    cpu = np.array(c_kc) / np.array(c_cv)
     extra = {"used": (min(used), max(used)), "flagged": flagged,
              "t_kc": float(np.median(t_kc)), "t_cv": float(np.median(t_cv)),
              "ratio": (float(np.median(ratio)), float(ratio.min()), float(ratio.max())),
+             "c_kc": float(np.median(c_kc)), "c_cv": float(np.median(c_cv)),
+             "cpu_ratio": (float(np.median(cpu)), float(cpu.min()), float(cpu.max())),
              "z_rms": float(np.median(cover))}
     return med, crms, extra
 
@@ -251,7 +259,10 @@ def table(title, med, crms, extra, n_scenes):
           f"translation error / reported std (median over scenes, RMS of 3 axes) "
           f"{extra['z_rms']:.2f}; time per scene (best of the interleaved repeats, median "
           f"over scenes) kinecal {1e3 * extra['t_kc']:.0f} ms, plain OpenCV pipeline "
-          f"{1e3 * extra['t_cv']:.0f} ms: ratio {r[0]:.2f} (scenes {r[1]:.2f}-{r[2]:.2f})")
+          f"{1e3 * extra['t_cv']:.0f} ms: ratio {r[0]:.2f} (scenes {r[1]:.2f}-{r[2]:.2f}); CPU "
+          f"time (all threads) kinecal {1e3 * extra['c_kc']:.0f} ms, OpenCV "
+          f"{1e3 * extra['c_cv']:.0f} ms: ratio {extra['cpu_ratio'][0]:.2f} (scenes "
+          f"{extra['cpu_ratio'][1]:.2f}-{extra['cpu_ratio'][2]:.2f})")
 
 
 PEER_SCRIPT = """\

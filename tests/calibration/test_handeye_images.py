@@ -261,3 +261,24 @@ def test_wrong_square_size_and_robot_in_metres_are_named():
     assert "square size (--board)" in msg["reprojection-rms"]
     msg = {w["code"]: w["message"] for w in metres.warnings}
     assert "robot poses in metres and target poses in millimetres" in msg["scale-mismatch"]
+
+
+def test_station_with_its_board_behind_the_camera_is_an_outlier_not_an_error():
+    """A robot pose that turns the camera away (a wrong pose, or the image of another
+    station) put its board behind the camera for any sensible X: the robust refinement
+    used to stop with "station 0: board behind the camera" naming whichever station came
+    first; the station is now left out and flagged, the others give X. Without the robust
+    passes it is an error that names the station."""
+    from kinecal.spatial import rot_x
+
+    F, pts, pix, X, Y = _stations("eye-in-hand", n=9, seed=6)
+    rng = np.random.default_rng(1)
+    pix = [p + rng.normal(scale=0.05, size=p.shape) for p in pix]
+    F = F.copy()
+    F[4] = F[4] @ transform_from(rot_x(np.pi), [0.0, 0.0, 0.0])
+    res = refine_reprojection(F, pts, pix, K, DIST, _perturb(X, 0.005, 1.0), Y)
+    assert res.outliers == [4] and not np.isfinite(res.station_rms[4])
+    rot, tr = pose_error(res.X, X)
+    assert rot < 0.01 and tr < 0.1
+    with pytest.raises(InputError, match=r"station\(s\) 4 \(0-based\)"):
+        refine_reprojection(F, pts, pix, K, DIST, X, Y, robust=False)

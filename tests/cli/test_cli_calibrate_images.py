@@ -169,23 +169,27 @@ def test_validation_stations_are_reprojected_not_fitted(scene, tmp_path):
 def test_min_corners_reaches_the_detection_and_is_checked(scene, tmp_path, capsys,
                                                           monkeypatch):
     """``--min-corners`` (ChArUco boards seen in part) as for handeye-images: checked against
-    the board, handed to the detection, refused without --images."""
+    the board, handed to the detection, refused without --images, and refused for a board
+    found whole or not at all (a chessboard: it used to be accepted and do nothing)."""
     import kinecal.vision.arm_images as arm
 
     seen = {}
-    real = arm.calibrate_arm_images
 
-    def spy(*args, **kwargs):
+    def spy(*args, **kwargs):  # the limits the detection would get; no need to detect
         seen["limits"] = kwargs["limits"]
-        return real(*args, **kwargs)
+        raise arm.InputError("stop")
 
     monkeypatch.setattr(arm, "calibrate_arm_images", spy)
     s = _copy(scene, tmp_path)
-    assert _calibrate(s, "--min-corners", "40", "--quiet") == 0
-    assert seen["limits"].min_corners == 40
-    capsys.readouterr()
-    (s / "r.json").unlink()
-    assert _calibrate(s, "--min-corners", "3") == 2
-    assert "option --min-corners" in capsys.readouterr().err and not (s / "r.json").exists()
+    charuco = "charuco:10x7:25:18:DICT_6X6_250"
+    assert _calibrate(s, "--min-corners", "40", board=charuco) == 2
+    assert seen["limits"].min_corners == 40 and "stop" in capsys.readouterr().err
+    for bad in ("3", "1000"):
+        assert _calibrate(s, "--min-corners", bad, board=charuco) == 2
+        assert "option --min-corners" in capsys.readouterr().err
+    assert _calibrate(s, "--min-corners", "40") == 2
+    err = capsys.readouterr().err
+    assert "option --min-corners" in err and "chessboard:9x6:25 is found whole" in err
+    assert not (s / "r.json").exists()
     assert main(["calibrate", "kr6-craig", str(s / "stations.csv"), "--min-corners", "10"]) == 2
     assert "applies to --images only" in capsys.readouterr().err

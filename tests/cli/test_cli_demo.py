@@ -52,6 +52,16 @@ def test_demo_writes_everything_and_the_calibrated_model_round_trips(tmp_path, c
     assert 'id="error-model"' in html and 'id="fig-residual-maps"' in html
     html = (out / "report.html").read_text(encoding="utf-8")
     assert html.count("data:image/png;base64,") == 5 and "ur5-laser-tracker:grid" in html
+    # the record names the command and the bundled inputs with their SHA-256 (it said
+    # "Python API (no command line)" and "No input file recorded")
+    from kinecal.io.bundled import input_file
+    from kinecal.report.provenance import file_sha256
+
+    for page in ("report.html", "report-error-model.html"):
+        text = (out / page).read_text(encoding="utf-8")
+        assert "No input file recorded" not in text and "Python API" not in text
+        assert "kinecal demo --out" in text
+        assert file_sha256(input_file("ur5-laser-tracker:grid")) in text
     for png in ("errors.png", "convergence.png"):
         data = (out / png).read_bytes()
         assert struct.unpack(">II", data[16:24]) == (720, 320)

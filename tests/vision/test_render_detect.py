@@ -122,3 +122,22 @@ def test_board_specs():
                 "chessboard:3x2:10"):
         with pytest.raises(InputError, match="board"):
             parse_board(bad)
+
+
+def test_truncated_jpeg_refused_after_a_pdf_report_in_the_same_process(tmp_path, monkeypatch):
+    """WeasyPrint sets Pillow's LOAD_TRUNCATED_IMAGES for its whole process when imported
+    (a PDF report): a truncated JPEG then loaded without error and its grey lower half
+    reached the detector."""
+    import cv2
+    from PIL import ImageFile
+
+    from kinecal.vision.image_files import check_image_file
+
+    img = np.tile(np.arange(256, dtype=np.uint8), (240, 1))
+    data = cv2.imencode(".jpg", img)[1].tobytes()
+    path = tmp_path / "half.jpg"
+    path.write_bytes(data[: len(data) // 2])
+    monkeypatch.setattr(ImageFile, "LOAD_TRUNCATED_IMAGES", True)  # what the import does
+    with pytest.raises(InputError, match="truncated or corrupt"):
+        check_image_file(path)
+    assert ImageFile.LOAD_TRUNCATED_IMAGES is True  # left as the process had it

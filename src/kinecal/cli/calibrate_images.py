@@ -13,11 +13,12 @@ from kinecal.cli._common import (
     check_paths,
     echo_json,
     progress,
+    report_record,
     warnings_scope,
     with_warnings,
     write_json,
 )
-from kinecal.cli._options import load_model_arg
+from kinecal.cli._options import check_unit, load_model_arg
 from kinecal.errors import InputError
 
 __all__ = ["calibrate_images"]
@@ -26,7 +27,9 @@ __all__ = ["calibrate_images"]
 _POSITION_ONLY = {"error_model": "--error-model", "harmonics": "--harmonics",
                   "folds": "--folds", "rotation_weight": "--rotation-weight",
                   "sigma": "--sigma", "maxiter": "--maxiter", "target": "--target",
-                  "fixture": "--fixture"}
+                  "fixture": "--fixture", "orientation_format": "--orientation-format",
+                  "station_per_file": "--station-per-file",
+                  "validate_register": "--validate-register"}
 
 
 def _one(value: Any, option: str) -> str | None:
@@ -47,13 +50,43 @@ def _match(folder: Path, path: Path, names: list[str], by_name: dict[str, Path])
                              file=path, row=row)
 
 
+def _validation(model: Any, path: Path, folder: Path, images: Path, by_name: dict[str, Path],
+                names: list[str], listed: set[str], angle_unit: str | None = None
+                ) -> tuple[Any, set[str]]:
+    """The held-out stations of ``--validate`` (their images in `folder`: ``--images`` or
+    ``--validate-images``) and the image names of ``--images`` now accounted for. A
+    validation image that is also a calibration image is refused (same file)."""
+    from kinecal.cli.handeye_images import list_images
+    from kinecal.io.stations import read_stations
+
+    vnames, vq = read_stations(path, model, angle_unit=angle_unit)
+    same = folder.resolve() == images.resolve()
+    vby = by_name if same else {p.name: p for p in list_images(folder)}
+    _match(folder, path, vnames, vby)
+    used = {by_name[n].resolve() for n in names}
+    both = [n for n in vnames if vby[n].resolve() in used]
+    if both:
+        raise InputError(f"{len(both)} image(s) also in the calibration stations, e.g. "
+                         f"{both[0]!r}: validation stations must be held out (images of "
+                         "another folder: --validate-images)", file=path)
+    if not same:
+        extra = sorted(set(vby) - set(vnames))
+        if extra:
+            raise InputError(f"{len(extra)} image(s) in {folder} without joints (no row in "
+                             f"{path.name}): {', '.join(extra[:5])}"
+                             f"{', ...' if len(extra) > 5 else ''}", file=path)
+        return ([vby[n] for n in vnames], vq, vnames), listed
+    return ([vby[n] for n in vnames], vq, vnames), listed | set(vnames)
+
+
 def calibrate_images(args: dict[str, Any]) -> None:
     """Run the calibration from images (see `kinecal.vision.arm_images`) and write the
     outputs; `args` are ``calibrate``'s arguments. Every argument is checked before any
     work."""
     from kinecal.cli._serial_common import free_option
 
-    given = [opt for key, opt in _POSITION_ONLY.items() if args.get(key) not in (None, [])]
+    given = [opt for key, opt in _POSITION_ONLY.items()
+             if args.get(key) not in (None, [], False)]
     if given:
         raise InputError("applies to measured positions, not to --images", option=given[0])
     data, validate = _one(args["data"], "STATIONS"), _one(args["validate"], "--validate")
@@ -63,15 +96,18 @@ def calibrate_images(args: dict[str, Any]) -> None:
          validate=validate, free=free_option(args["free"]), loss=args["loss"],
          out=args["out"], model_out=args["model_out"], report=args["report"],
          json_out=args["json_out"], quiet=args["quiet"], strict=args["strict"],
-         min_corners=args["min_corners"], angle_unit=args.get("angle_unit"))
+         min_corners=args["min_corners"], unit=args["unit"],
+         validate_images=args["validate_images"], angle_unit=args.get("angle_unit"),
+         record=(args["instrument"], args["operator"], args["note"]))
 
 
 def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
          images: Path, board: str | None, intrinsics: Path | None, setup: str, method: str,
          validate: str | None, free: Any, loss: str, out: Path | None,
          model_out: Path | None, report: Path | None, json_out: bool, quiet: bool,
-         strict: bool, min_corners: int | None = None,
-         angle_unit: str | None = None) -> None:
+         strict: bool, min_corners: int | None = None, unit: str = "auto",
+         validate_images: Path | None = None, angle_unit: str | None = None,
+         record: tuple[str | None, str | None, str | None] = (None, None, None)) -> None:
     from kinecal.cli.handeye_images import IMAGE_SUFFIXES, limits_option, list_images
 
     if method != "lm":
@@ -83,10 +119,17 @@ def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
     if setup not in ("eye-in-hand", "eye-to-hand"):
         raise InputError(f"unknown setup {setup!r}; expected eye-in-hand or eye-to-hand",
                          option="--setup")
-    check_paths({"MODEL": model, "STATIONS": data, "--images": images,
-                 "--intrinsics": intrinsics, "--validate": validate},
-                {"--out": out, "--model-out": model_out, "--report": report},
-                reads={"--images": IMAGE_SUFFIXES})
+    shown = check_unit(unit)
+    if validate_images is not None and validate is None:
+        raise InputError("applies to --validate only (the folder of its images)",
+                         option="--validate-images")
+    inputs = {"MODEL": model, "STATIONS": data, "--images": images,
+              "--intrinsics": intrinsics, "--validate": validate,
+              "--validate-images": validate_images}
+    folders = {"--images": IMAGE_SUFFIXES, "--validate-images": IMAGE_SUFFIXES}
+    check_paths(inputs, {"--out": out, "--model-out": model_out, "--report": report},
+                reads=folders)
+    prov = report_record(report, inputs, *record, suffixes=folders)
     if model_out is not None:
         from kinecal.io.models import check_model_file_name
 
@@ -104,18 +147,10 @@ def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
         files = list_images(images)
         by_name = {p.name: p for p in files}
         _match(images, Path(data), names, by_name)
-        val = None
-        listed = set(names)
+        val, listed = None, set(names)
         if validate is not None:
-            vnames, vq = read_stations(Path(validate), m, angle_unit=angle_unit)
-            _match(images, Path(validate), vnames, by_name)
-            both = [n for n in vnames if n in listed]
-            if both:
-                raise InputError(f"{len(both)} image(s) also in {Path(data).name}, e.g. "
-                                 f"{both[0]!r}: validation stations must be held out",
-                                 file=Path(validate))
-            listed |= set(vnames)
-            val = ([by_name[n] for n in vnames], vq, vnames)
+            val, listed = _validation(m, Path(validate), validate_images or images, images,
+                                      by_name, names, listed, angle_unit)
         unlisted = sorted(set(by_name) - listed)
         if unlisted:
             raise InputError(f"{len(unlisted)} image(s) in {images} without joints (no row in "
@@ -138,8 +173,8 @@ def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
         if report is not None:
             from kinecal.report.arm_images import arm_images_report
 
-            arm_images_report(res, report)
+            arm_images_report(res, report, provenance=prov)
     if json_out:
         echo_json(result)
     elif not quiet:
-        typer.echo(res.summary())
+        typer.echo(res.summary(shown))

@@ -65,8 +65,9 @@ def parse_sigma(values: list[str] | None, files: list[str]) -> list[float | None
             name, _, number = value.rpartition("=")
             hits = [i for i, f in enumerate(files) if f == name or Path(f).name == name]
             if len(hits) != 1:
-                raise InputError(f"{name!r} names {'no' if not hits else 'several'} of the "
-                                 f"files ({', '.join(files)})", option="--sigma")
+                what = "is none of" if not hits else "names several of"
+                raise InputError(f"{name!r} {what} the files ({', '.join(files)}): expected "
+                                 "FILE=SIGMA with FILE one of them", option="--sigma")
             out[hits[0]] = _number(number)
         elif "," in value:
             parts = value.split(",")

@@ -24,6 +24,15 @@ DEMO_DATA = "ur5-laser-tracker:grid"
 DEMO_VALIDATION = "ur5-laser-tracker:random"
 
 
+def demo_record() -> object:
+    """The record of the demo's reports: the command line and the bundled inputs (model,
+    calibration and validation poses) with their SHA-256."""
+    from kinecal.cli._common import report_record
+
+    return report_record(Path("report.html"), {"MODEL": DEMO_MODEL, "DATA": DEMO_DATA,
+                                               "--validate": DEMO_VALIDATION})
+
+
 def error_model_step(model, data, val, out: Path) -> tuple[object, list[Path]]:
     """The demo's second step: ``--error-model auto`` on the same poses; its files."""
     from kinecal.calibration.serial.error_model import calibrate_error_model
@@ -34,7 +43,8 @@ def error_model_step(model, data, val, out: Path) -> tuple[object, list[Path]]:
     written = [out / "error-model.json", out / f"{model.name}-calibrated-auto.yaml"]
     res.to_json(written[0])
     res.save_model(written[1])
-    written.append(calibration_report(res, out / "report-error-model.html"))
+    written.append(calibration_report(res, out / "report-error-model.html",
+                                      provenance=demo_record()))
     return res, written
 
 
@@ -78,7 +88,8 @@ def run_demo(out: Path, quiet: bool = False) -> tuple[object, list[Path], tuple,
         written = [out / "result.json", out / f"{model.name}-calibrated.yaml"]
         res.to_json(written[0])
         res.save_model(written[1])
-        written.append(calibration_report(res, out / "report.html", pngs))
+        written.append(calibration_report(res, out / "report.html", pngs,
+                                          provenance=demo_record()))
         written += save_calibration_figures(res, out, pngs)
         auto, files = error_model_step(model, data, val, out)
         written += files

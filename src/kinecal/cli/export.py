@@ -107,13 +107,15 @@ def _urdf_path(spec: str) -> Path | None:
 
 
 def _handeye_json(source: str) -> bool:
-    """True when SOURCE is a hand-eye result JSON (X and setup), not a calibration result."""
+    """True when SOURCE is a hand-eye result JSON (X and setup), not a calibration result
+    (an arm calibrated from images has X and setup too, and its parameters)."""
     if not source.lower().endswith(".json") or not Path(source).is_file():
         return False
     from kinecal._files import read_json
 
     data = read_json(Path(source))
-    return isinstance(data, dict) and "X" in data and "setup" in data
+    return isinstance(data, dict) and "X" in data and "setup" in data and \
+        "parameters" not in data
 
 
 @app.command("export")
@@ -240,23 +242,46 @@ def _export_urdf(model, params, urdf: Path | None, out: Path, what: str, chain_o
             metres_per_unit,
             read_handeye_result,
         )
-        from kinecal.io.urdf_camera import add_camera_mount, chain_links
+        from kinecal.io.urdf_camera import add_camera_mount
 
         X, setup, length_unit = read_handeye_result(camera)
         scale = metres_per_unit(length_unit, unit, camera)
-        base, flange = chain_links(model, params)
+        base, flange = _mount_links(model, params, camera)
+        given = parent is not None
         parent = (flange if setup == "eye-in-hand" else base) if parent is None else \
             check_frame(parent, "--parent-frame")
         child = DEFAULT_CHILD if child is None else check_frame(child, "--child-frame")
         text = add_camera_mount(text, parent, child, metres_in_cell(X, scale, camera))
-        typer.echo(f"camera mount ({setup}, {camera}): link {child} fixed to {parent}",
-                   err=True)
+        typer.echo(f"camera mount ({setup}, {camera}): link {child} fixed to {parent}"
+                   + ("" if given or setup != "eye-in-hand" else
+                      f" (the frame X is relative to; ROS-Industrial drivers publish the "
+                      f"flange as tool0, the default parent of --format ros-tf: give "
+                      f"--parent-frame {parent} there to hang the camera from this URDF's "
+                      "link)"), err=True)
     else:
         for opt, v in (("--unit", unit), ("--parent-frame", parent), ("--child-frame", child)):
             if v is not None:
                 raise InputError(f"{opt} applies to --format ros-tf and to --camera",
                                  option=opt)
     write_text_atomic(out, text)
+
+
+def _mount_links(model, params, camera: Path) -> tuple[str, str]:
+    """The URDF links a camera of `camera` hangs from: (base side, flange side). A hand-eye
+    result's X is relative to the robot's flange or base (the chain's flange and base
+    links); an arm calibrated from images (``calibrate --images``) has X relative to the
+    model's end frame and measurement frame (the ``tool`` and first links)."""
+    from kinecal._files import read_json
+    from kinecal.io.urdf_camera import chain_links
+
+    data = read_json(camera)
+    if isinstance(data, dict) and data.get("kind") == "camera":
+        from kinecal.io.urdf_export import urdf_joints
+
+        p = model.nominal if params is None else params
+        joints = urdf_joints(model, p)
+        return joints[0].parent, joints[-1].child
+    return chain_links(model, params)
 
 
 def _export_ur(model, params, out: Path, what: str, robot: str | None) -> None:

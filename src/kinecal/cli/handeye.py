@@ -257,6 +257,8 @@ def handeye(
         "outliers (0-based stations): "
         + (", ".join(str(i) for i in res.outliers) if res.outliers else "none"),
     ]
+    if res.noise is not None:  # how the lm refinement weighed the stations
+        lines.append(res.noise.describe(u))
     typer.echo("\n".join(lines))
 
 

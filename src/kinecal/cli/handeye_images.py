@@ -53,13 +53,16 @@ def list_images(folder: Path) -> list[Path]:
     return files
 
 
-def _parse_robot_noise(text: str | None) -> tuple[float, float] | None:
-    if text is None:
+def _parse_robot_noise(text: str | None) -> tuple[float, float] | str | None:
+    """``--robot-noise``: ``auto`` (default: estimated), ``exact`` or ``ROT_DEG,TRANS``."""
+    if text is None or text.strip() == "auto":
+        return "auto"
+    if text.strip() == "exact":
         return None
     try:
         rot_deg, trans = (float(v) for v in text.split(","))
     except ValueError:
-        raise InputError(f"{text!r}: expected ROT_DEG,TRANS (e.g. 0.02,0.1)",
+        raise InputError(f"{text!r}: expected auto, exact or ROT_DEG,TRANS (e.g. 0.02,0.1)",
                          option="--robot-noise") from None
     if not (rot_deg > 0 and trans > 0 and np.isfinite(rot_deg) and np.isfinite(trans)):
         raise InputError(f"{text!r}: expected two positive numbers", option="--robot-noise")
@@ -67,11 +70,17 @@ def _parse_robot_noise(text: str | None) -> tuple[float, float] | None:
 
 
 def limits_option(min_corners: int | None, board: Any) -> Any:
-    """QualityLimits with ``--min-corners`` checked against the board (4 .. its corners)."""
+    """QualityLimits with ``--min-corners`` checked against the board (4 .. its corners);
+    refused for boards found whole or not at all (chessboards, circle grids)."""
+    from kinecal.vision.boards import Charuco
     from kinecal.vision.detection import QualityLimits
 
     if min_corners is None:
         return QualityLimits()
+    if not isinstance(board, Charuco):
+        raise InputError(f"applies to ChArUco boards, which may be seen in part; the board "
+                         f"{board.spec} is found whole ({board.n_corners} corners) or not "
+                         "at all", option="--min-corners")
     if not 4 <= min_corners <= board.n_corners:
         raise InputError(f"{min_corners}: expected 4 to {board.n_corners} (the corners of "
                          f"{board.spec}; a board pose needs at least 4)",
@@ -105,9 +114,11 @@ def handeye_images(
     refine_intrinsics: bool | None = typer.Option(
         None, "--refine-intrinsics/--fix-intrinsics", help="Refine the intrinsics jointly "
         "with X (default: when estimated from the images, not when given)."),
-    robot_noise: str | None = typer.Option(None, "--robot-noise", metavar="ROT_DEG,TRANS",
-                                           help="Model robot pose errors of this std (deg, "
-                                           "board length unit, e.g. 0.02,0.1)."),
+    robot_noise: str | None = typer.Option(
+        None, "--robot-noise", metavar="auto|exact|ROT_DEG,TRANS",
+        help="Robot pose errors: auto (default) estimates their std from the stations' "
+        "consistency and models them when they matter; exact trusts the poses; or the std "
+        "(deg, board length unit, e.g. 0.02,0.1)."),
     min_corners: int | None = typer.Option(None, "--min-corners", help="Fewest corners an "
                                            "image must show (ChArUco boards, seen in part; "
                                            "default 60 % of the board's corners, at least "
@@ -210,9 +221,11 @@ def _summary(res: Any) -> str:
         + ", ".join(f"{v:.4f}" for v in xt) + " mm",
         f"board pose ({tframe}, mm):",
         _fmt_matrix(res.target),
+        res.refinement.robot_noise.describe("mm") if res.refinement.robot_noise is not None
+        else "",
         f"reprojection RMS {res.refinement.rms_px:.3f} px (corner sigma "
-        f"{res.refinement.sigma_px:.3f} px); intrinsics: {intr.source}"
-        + (f", calibration RMS {intr.rms_px:.3f} px" if intr.rms_px is not None else ""),
+        f"{res.refinement.sigma_px:.3f} px)",
+        intr.describe(res.intrinsics_refined),
     ]
     for r in res.records:
         if r.status != "used":

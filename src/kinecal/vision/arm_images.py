@@ -33,6 +33,7 @@ from kinecal.vision.stages import (
     camera_intrinsics,
     check_arguments,
     detect_all,
+    rejections,
 )
 
 Array = NDArray[np.float64]
@@ -164,11 +165,29 @@ def calibrate_arm_images(
             model, st, intr.K, intr.dist, setup=setup, free=free,
             refine_intrinsics=refine_intrinsics, rational=intr.rational, loss=loss,
             validate=val, extra={"board": board.spec, "intrinsics_source": intr.source,
+                                 "intrinsics_given": intr.given,
+                                 "intrinsics_line": intr.describe(refine_intrinsics),
                                  "skipped": skipped, "n_images": len(images),
                                  "n_used": len(st.q)})
+        if not intr.given and refine_intrinsics:
+            _check_intrinsics(res, intr.size)
     res.val_names = [] if val is None else list(val.names)
     res.warnings = list(found)
     return res
+
+
+def _check_intrinsics(res: ArmCameraResult, size: tuple[int, int] | None) -> None:
+    """``intrinsics-weak`` of intrinsics estimated from the images and refined with the arm:
+    the covariance of the camera block's unknowns (X, board, intrinsics), the arm's
+    parameters marginalised."""
+    from kinecal.calibration.handeye.camera import check_intrinsics_determined
+
+    k = len(res.free)
+    cov = res.uncertainty.covariance
+    m = len(res.nuisance_names)
+    if cov.shape[0] < k + m:
+        return
+    check_intrinsics_determined(cov[k:k + m, k:k + m], list(res.nuisance_names), res.K, size)
 
 
 def _joint_rows(images: Sequence[Any], q: Any, what: str) -> Array:
@@ -180,12 +199,7 @@ def _joint_rows(images: Sequence[Any], q: Any, what: str) -> Array:
 
 
 def _too_few(n: int, used: int, skipped: list[dict[str, str]], board: Board) -> str:
-    reasons: dict[str, int] = {}
-    for s in skipped:
-        key = s["reason"].split(":")[0].split(";")[0].split("(")[0].strip()
-        reasons[key] = reasons.get(key, 0) + 1
-    summary = ", ".join(f"{k}: {v}" for k, v in sorted(reasons.items(), key=lambda kv: -kv[1]))
-    eg = f"; e.g. {skipped[0]['image']}: {skipped[0]['reason']}" if skipped else ""
     return (f"{used} usable station(s) of {n}: the board {board.spec} was not found or not "
-            f"trusted in the others ({summary}{eg}); calibrating an arm needs at least 3 "
-            "(check the --board spec: chessboards count inner corners)")
+            "trusted in the others; calibrating an arm needs at least 3"
+            + rejections([(s["image"], s["reason"]) for s in skipped])
+            + " (check the --board spec: chessboards count inner corners)")

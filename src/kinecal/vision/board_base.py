@@ -147,8 +147,14 @@ def grid_size(spec: str) -> tuple[int, int]:
     return c, r
 
 
+#: board lengths outside this range are no printed board's in any length unit (a 1 um
+#: square in metres, 1000 km in millimetres), and their products overflow
+LENGTH_RANGE = (1e-6, 1e6)
+
+
 def positive_length(text: str, what: str) -> float:
-    """A positive finite length from the spec; `InputError` naming `what` otherwise."""
+    """A positive finite length from the spec (within `LENGTH_RANGE`); `InputError` naming
+    `what` otherwise."""
     try:
         v = float(text)
     except ValueError:
@@ -156,4 +162,9 @@ def positive_length(text: str, what: str) -> float:
     if not (np.isfinite(v) and v > 0):
         raise InputError(f"board {what} {text!r}: expected a positive length; {SYNTAX}",
                          option="--board")
+    lo, hi = LENGTH_RANGE
+    if not lo <= v <= hi:
+        raise InputError(f"board {what} {text!r}: implausible for a printed board (expected "
+                         f"{lo:g} to {hi:g} in the length unit of the robot poses or model, "
+                         "e.g. 25 for 25 mm squares)", option="--board")
     return v

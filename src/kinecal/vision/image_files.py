@@ -99,8 +99,12 @@ def check_image_file(path: str | Path) -> tuple[int, int] | None:
     size = check_image_size(path)
     if size is None:
         return None
-    from PIL import Image
+    from PIL import Image, ImageFile
 
+    # WeasyPrint (the PDF reports) sets Pillow's LOAD_TRUNCATED_IMAGES for its whole
+    # process at import: after a PDF report in the same process, a truncated JPEG loaded
+    # without error and its grey lower half reached the detector
+    lenient, ImageFile.LOAD_TRUNCATED_IMAGES = ImageFile.LOAD_TRUNCATED_IMAGES, False
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
@@ -113,4 +117,6 @@ def check_image_file(path: str | Path) -> tuple[int, int] | None:
     except (OSError, ValueError, SyntaxError, EOFError) as exc:
         raise InputError(f"truncated or corrupt image file ({' '.join(str(exc).split())})",
                          file=path) from None
+    finally:
+        ImageFile.LOAD_TRUNCATED_IMAGES = lenient
     return size

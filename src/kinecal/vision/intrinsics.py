@@ -33,7 +33,8 @@ from kinecal.vision.image_files import MAX_IMAGE_PIXELS
 
 Array = NDArray[np.float64]
 
-__all__ = ["CameraIntrinsics", "estimate_intrinsics", "read_intrinsics", "write_intrinsics"]
+__all__ = ["CameraIntrinsics", "check_focal", "estimate_intrinsics", "read_intrinsics",
+           "write_intrinsics"]
 
 #: the distortion models read (ROS camera_calibration's names; OpenCV's 5 and 8 coefficients)
 _MODELS = ("plumb_bob", "rational_polynomial")
@@ -81,11 +82,26 @@ class CameraIntrinsics:
         """Coefficients as OpenCV expects them (5 or 8)."""
         return self.dist if self.rational else self.dist[:5]
 
+    @property
+    def given(self) -> bool:
+        """Read from a file or passed in (not estimated from the images here)."""
+        return self.rms_px is None
+
+    def describe(self, refined: bool) -> str:
+        """Whether the intrinsics were given or estimated, and what X's sigma holds."""
+        if self.given:
+            how = "refined with X" if refined else "held as given"
+            held = ("X's sigma includes their uncertainty" if refined else
+                    "X's sigma leaves out their uncertainty")
+            return f"intrinsics given ({self.source}), {how}: {held}"
+        return (f"intrinsics estimated from the images ({self.source}; calibration RMS "
+                f"{self.rms_px:.3f} px): X's sigma includes their uncertainty")
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON-able dict (``K``, ``dist``, ``size``, ``rms_px``, ``source``)."""
+        """JSON-able dict (``K``, ``dist``, ``size``, ``rms_px``, ``source``, ``given``)."""
         return {"K": self.K.tolist(), "dist": self.cv_dist.tolist(),
                 "size": None if self.size is None else list(self.size),
-                "rms_px": self.rms_px, "source": self.source,
+                "rms_px": self.rms_px, "source": self.source, "given": self.given,
                 "model": "rational_polynomial" if self.rational else "plumb_bob"}
 
 
@@ -125,9 +141,37 @@ def _from_mapping(doc: dict, path: Path) -> CameraIntrinsics:
         raise InputError(f"{dname}: {d.size} coefficients, expected 4, 5 or 8", file=path)
     size = _image_size(doc, path)
     try:
-        return CameraIntrinsics(K.reshape(3, 3), d, size, source=path.name)
+        intr = CameraIntrinsics(K.reshape(3, 3), d, size, source=path.name)
     except InputError as exc:
         raise InputError(exc.message, file=path) from None
+    check_focal(intr.K, intr.size, path)
+    return intr
+
+
+#: a focal length beyond these multiples of the image width (field of view below 0.06 deg
+#: or above 175 deg) is no camera calibration's; nor fx / fy beyond `ASPECT`
+FOCAL_RANGE = (0.02, 1000.0)
+ASPECT = 10.0
+
+
+def check_focal(K: Array, size: tuple[int, int] | None, path: Path | None = None) -> None:
+    """Refuse implausible focal lengths (`FOCAL_RANGE` of the image width, the width
+    taken as twice the principal point's x when the size is not known): a mistyped or
+    overflowing value makes the board poses meaningless ("board behind the camera")."""
+    fx, fy = float(K[0, 0]), float(K[1, 1])
+    width = float(size[0]) if size and size[0] > 0 else 2.0 * abs(float(K[0, 2]))
+    if not width > 0:
+        return
+    lo, hi = FOCAL_RANGE
+    for name, f in (("fx", fx), ("fy", fy)):
+        if not lo * width <= f <= hi * width:
+            fov = float(np.degrees(2.0 * np.arctan(width / (2.0 * f)))) if f > 0 else 180.0
+            raise InputError(f"focal length {name} = {f:.6g} px is implausible for an image "
+                             f"{width:.0f} px wide (a field of view of {fov:.3g} deg); "
+                             f"expected {lo:g} to {hi:g} times the width", file=path)
+    if max(fx, fy) > ASPECT * min(fx, fy):
+        raise InputError(f"focal lengths fx = {fx:.6g} and fy = {fy:.6g} px differ by more "
+                         f"than {ASPECT:g} times: no camera has such pixels", file=path)
 
 
 def _image_size(doc: dict, path: Path) -> tuple[int, int] | None:

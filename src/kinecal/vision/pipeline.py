@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from kinecal import diagnostics
 from kinecal.calibration.handeye import calibrate_handeye
+from kinecal.calibration.handeye.board_scale import warn_board_scale
 from kinecal.calibration.handeye.images import refine_reprojection
 from kinecal.calibration.handeye.refinement import ReprojectionRefinement
 from kinecal.errors import InputError
@@ -64,7 +65,7 @@ def calibrate_handeye_images(
     setup: str = "eye-in-hand",
     method: str = "park",
     refine_intrinsics: bool | None = None,
-    robot_noise: tuple[float, float] | None = None,
+    robot_noise: tuple[float, float] | str | None = "auto",
     robust: bool = True,
     limits: QualityLimits | None = None,
     progress: Callable[..., None] | None = None,
@@ -93,8 +94,10 @@ def calibrate_handeye_images(
         same images (the hand-eye constraint ties the views together: on the rendered
         walkthrough scene X's translation error falls from 0.10 to 0.007 mm), no when they
         are given (a dedicated camera calibration is usually better conditioned).
-    robot_noise : (float, float), optional
-        Robot pose error std, rotation (rad) and translation (length): model it.
+    robot_noise : (float, float), "auto" or None
+        Robot pose error std, rotation (rad) and translation (length): model it. ``"auto"``
+        (default): estimated from the stations' consistency and modelled when it matters
+        (`kinecal.calibration.handeye.robot_noise`); None: the robot poses are exact.
     robust : bool
         Robust refinement with outlier stations (default).
     limits : QualityLimits, optional
@@ -149,22 +152,27 @@ def calibrate_handeye_images(
         obj = [records[k].detection.object_points(board) for k in used]
         pix = [records[k].detection.corners for k in used]
         axis = {"camera_height": camera_height, "board_contact": board_contact}
-        seed, ref, one = _seed_and_refine(F[idx], C, obj, pix, intr, setup, method,
+        seed, ref, one = _seed_and_refine(F[idx], C, obj, pix, intr, setup, method, board,
                                           refine_intrinsics, robot_noise, robust, axis)
         for j, k in enumerate(used):
             records[k].residuals = ref.residuals[j]
         for j in ref.outliers:
             r = records[used[j]]
             r.status = "outlier"
-            r.reason = (f"station inconsistent with the others: corner RMS "
-                        f"{ref.station_rms[j]:.2f} px vs median "
-                        f"{float(np.median(ref.station_rms)):.2f} px (robot pose or image "
-                        "wrong?)")
+            med = float(np.median(ref.station_rms))
+            r.reason = ("station inconsistent with the others: " + (
+                f"corner RMS {ref.station_rms[j]:.2f} px vs median {med:.2f} px"
+                if np.isfinite(ref.station_rms[j]) else "its board would be behind the camera")
+                + " (robot pose or image wrong?)")
         if refine_intrinsics:
             intr = CameraIntrinsics(ref.K, ref.dist, intr.size, intr.rms_px,
                                     intr.source + ", refined with X", intr.per_view_rms,
                                     intr.rational)
         _plausibility(ref, records, limits)
+        if intrinsics is None:
+            from kinecal.calibration.handeye.camera import check_intrinsics_determined
+
+            check_intrinsics_determined(ref.cov, ref.names, ref.K, size)
     warnings = [d.to_dict() for d in found]
     res = ImageHandEyeResult(ref.X, ref.Y, setup, seed.method, board, intr, refine_intrinsics,
                              records, ref, seed, warnings, time.perf_counter() - t0)
@@ -188,8 +196,9 @@ def _one_axis(seed: Any, F: Array, setup: str, camera_height: float | None,
 
 
 def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
-                     intr: CameraIntrinsics, setup: str, method: str, refine_intrinsics: bool,
-                     robot_noise: tuple[float, float] | None, robust: bool,
+                     intr: CameraIntrinsics, setup: str, method: str, board: Board,
+                     refine_intrinsics: bool,
+                     robot_noise: tuple[float, float] | str | None, robust: bool,
                      axis: dict[str, Any]) -> tuple[Any, ReprojectionRefinement, Any]:
     """The closed form (with the pose-level checks) seeds the refinement on the pixels,
     which is robust itself. When that refinement flags stations, it runs again from the
@@ -200,7 +209,8 @@ def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
         return refine_reprojection(F, obj, pix, intr.K, intr.dist, seed.X, seed.target,
                                    setup=setup, refine_intrinsics=refine_intrinsics,
                                    rational=intr.rational, robot_noise=robot_noise,
-                                   robust=robust, one_axis=one)
+                                   robust=robust, one_axis=one,
+                                   intrinsics_estimated=intr.rms_px is not None)
 
     from kinecal.calibration.handeye.scara import detect_one_axis
     from kinecal.spatial import invert_transform
@@ -212,12 +222,21 @@ def _seed_and_refine(F: Array, C: Array, obj: list[Array], pix: list[Array],
     # the refinement on the pixels judges the outlier stations: the closed form's own
     # flags (a robust pose-level refinement, `robust=True` with refine "none") would be
     # that work twice; its other checks run
-    seed = calibrate_handeye(F, C, setup=setup, method=method, refine=first,
-                             robust=first == "lm", **axis)
+    with diagnostics.expect("scale-mismatch") as scale:  # said below with the board's size
+        seed = calibrate_handeye(F, C, setup=setup, method=method, refine=first,
+                                 robust=first == "lm", **axis)
+    if scale:
+        warn_board_scale(board.spec, board.pitch, G, C, seed.X, scale[0].message)
     one = _one_axis(seed, F, setup, axis["camera_height"], axis["board_contact"])
-    ref = refine(seed)
-    if robust and ref.outliers and first == "none":
-        seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm", **axis)
+    try:
+        ref = refine(seed)
+    except InputError:  # a seed pulled by wrong stations puts boards behind the camera
+        if not robust or first != "none":
+            raise
+        ref = None
+    if robust and first == "none" and (ref is None or ref.outliers):
+        with diagnostics.expect("scale-mismatch"):  # the first seed's check said it
+            seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm", **axis)
         ref = refine(seed)
     return seed, ref, one
 

@@ -52,17 +52,20 @@ class ImageRecord:
 
     @property
     def rms_px(self) -> float | None:
-        """RMS corner residual after the refinement (px)."""
+        """RMS corner residual after the refinement (px); None without residuals or when
+        the station's board is behind the camera for the solution."""
         if self.residuals is None or not len(self.residuals):
             return None
-        return float(np.sqrt(np.mean(np.sum(self.residuals**2, axis=1))))
+        v = float(np.sqrt(np.mean(np.sum(self.residuals**2, axis=1))))
+        return v if np.isfinite(v) else None
 
     @property
     def max_px(self) -> float | None:
         """Largest corner residual after the refinement (px)."""
         if self.residuals is None or not len(self.residuals):
             return None
-        return float(np.max(np.linalg.norm(self.residuals, axis=1)))
+        v = float(np.max(np.linalg.norm(self.residuals, axis=1)))
+        return v if np.isfinite(v) else None
 
     def to_dict(self) -> dict[str, Any]:
         """The per-image entry of the JSON result."""
@@ -176,6 +179,8 @@ class ImageHandEyeResult:
             "images": [r.to_dict() for r in self.records],
             "rejected": [{"image": r.name, "reason": r.reason} for r in self.rejected],
             "outliers": self.outliers,
+            "robot_noise": (None if ref.robot_noise is None
+                            else ref.robot_noise.to_dict()),
             "robot_corrections": (None if ref.corrections is None
                                   else ref.corrections.tolist()),
             "seed": {"method": self.method, "X": self.seed.X.tolist(),

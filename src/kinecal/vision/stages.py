@@ -6,6 +6,7 @@ pose of every accepted image; rejected images keep their reason.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -18,14 +19,14 @@ from kinecal import diagnostics
 from kinecal.errors import InputError
 from kinecal.vision import require_cv2
 from kinecal.vision.boards import Board
-from kinecal.vision.detect import QualityLimits, as_gray, detect
+from kinecal.vision.detect import QualityLimits, Survey, as_gray, detect
 from kinecal.vision.image_files import check_image_file
 from kinecal.vision.intrinsics import CameraIntrinsics, estimate_intrinsics
 from kinecal.vision.pnp import board_pose
 from kinecal.vision.results import ImageRecord
 
 __all__ = ["as_rows", "board_poses", "camera_intrinsics", "check_arguments", "cpu_count",
-           "detect_all", "load_gray", "take_board_pose", "too_few"]
+           "detect_all", "load_gray", "rejections", "take_board_pose", "too_few"]
 
 
 def check_arguments(images: Sequence[Any], names: Sequence[str] | None, board: Any,
@@ -122,6 +123,7 @@ def detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
     it (`kinecal.vision.image_files.check_image_file`)."""
     pre = _sizes_before_decoding(images)
     size = _session_size([z for z in pre if isinstance(z, tuple)], expected)
+    session = Survey()
 
     def one(item: tuple[str, Any, Any]) -> tuple[ImageRecord, tuple[int, int] | None]:
         name, im, known = item
@@ -135,7 +137,7 @@ def detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
         h, w = gray.shape[:2]
         if size is not None and (w, h) != size:
             return ImageRecord(str(name), "rejected", _odd_size((w, h), size)), (w, h)
-        det = detect(gray, board, limits)
+        det = detect(gray, board, limits, session)
         record = ImageRecord(str(name), "used" if det.ok else "rejected", det.reason, det)
         if pose_of is not None and det.ok:
             pose_of(record)
@@ -232,16 +234,42 @@ def take_board_pose(r: ImageRecord, board: Board, intr: CameraIntrinsics,
 
 
 def too_few(records: list[ImageRecord]) -> str:
+    """Why fewer than 3 images are usable (`rejections`), for hand-eye calibration."""
     used = sum(r.status == "used" for r in records)
-    reasons: dict[str, int] = {}
-    example: dict[str, ImageRecord] = {}
-    for r in records:
-        if r.status == "rejected":
-            key = r.reason.split(":")[0].split(";")[0].split("(")[0].strip()
-            reasons[key] = reasons.get(key, 0) + 1
-            example.setdefault(key, r)
-    ranked = sorted(reasons.items(), key=lambda kv: -kv[1])
-    summary = ", ".join(f"{k}: {v}" for k, v in ranked)
-    first = example[ranked[0][0]] if ranked else None
     return (f"{used} usable image(s) of {len(records)}: hand-eye calibration needs at least 3"
-            + (f" (rejected: {summary}; e.g. {first.name}: {first.reason})" if first else ""))
+            + rejections([(r.name, r.reason) for r in records if r.status == "rejected"]))
+
+
+#: a rejection reason naming the whole chessboard seen (`kinecal.vision.detect`)
+_SEEN = re.compile(r"a whole chessboard of (\d+)x(\d+) inner corners is seen, not the "
+                   r"(\d+)x(\d+) of the board spec")
+
+
+def rejections(rejected: list[tuple[str, str]]) -> str:
+    """`` (rejected: REASON: COUNT, ...; e.g. NAME: REASON)`` for the (name, reason) pairs
+    of the rejected images, led by the board size the images show when most of them name
+    one (a wrong ``--board`` spec); empty when none was rejected."""
+    if not rejected:
+        return ""
+    reasons: dict[str, int] = {}
+    example: dict[str, tuple[str, str]] = {}
+    sizes: dict[str, int] = {}
+    for name, reason in rejected:
+        key = reason.split(":")[0].split(";")[0].split("(")[0].strip()
+        reasons[key] = reasons.get(key, 0) + 1
+        example.setdefault(key, (name, reason))
+        m = _SEEN.search(reason)
+        if m:
+            sizes[f"{m[1]}x{m[2]}"] = sizes.get(f"{m[1]}x{m[2]}", 0) + 1
+            spec = f"{m[3]}x{m[4]}"
+    ranked = sorted(reasons.items(), key=lambda kv: -kv[1])
+    name, reason = example[ranked[0][0]]
+    lead = ""
+    if sizes:
+        seen, k = max(sizes.items(), key=lambda kv: kv[1])
+        if 2 * k >= len(rejected):
+            lead = (f"; the images show a chessboard of {seen} inner corners ({k} of "
+                    f"{len(rejected)} rejected), not the {spec} of the board spec: "
+                    f"--board chessboard:{seen}:SQUARE")
+    return (lead + " (rejected: " + ", ".join(f"{k}: {v}" for k, v in ranked)
+            + f"; e.g. {name}: {reason})")

@@ -1,9 +1,10 @@
 """Calibrate a serial arm from camera images: arm, camera mount and board in one bundle
-adjustment (issue 24).
+adjustment (docs/arm-from-images.md).
 
-The camera pixels are one residual block of issue 25's stacked calibration
-(`kinecal.calibration.blocks`): `CameraBlock` (`kinecal.calibration.camera.residual_block`)
-mixes with tracker points, ballbars, sockets and planes in one problem.
+The camera pixels are one residual block of the stacked calibration of several measurement
+kinds (`kinecal.calibration.blocks`, docs/measurement-kinds.md): `CameraBlock`
+(`kinecal.calibration.camera.residual_block`) mixes with tracker points, ballbars, sockets
+and planes in one problem.
 
 The measurement is the pixel position of every board corner seen by a camera on the
 flange (eye-in-hand) or fixed beside the arm (eye-to-hand). The residual block

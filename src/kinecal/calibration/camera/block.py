@@ -43,13 +43,34 @@ from kinecal.calibration.handeye.camera import (
 from kinecal.calibration.handeye.refine import _jr
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
-from kinecal.spatial import matrix_from_axis_angle, skew, transform_from
+from kinecal.spatial import matrix_from_axis_angle, transform_from
 
 Array = NDArray[np.float64]
 
 __all__ = ["SETUPS", "PixelBlock", "nuisance_names"]
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
+
+
+def _jr_of(w: Array) -> Array:
+    """The right Jacobian of SO(3) at one rotation vector `w` ``(3,)`` (the increments of
+    X and the board pose; `kinecal.calibration.handeye.refine._jr` for stacks): the identity
+    at zero, where every fit starts and most evaluations are."""
+    w = np.asarray(w, float)
+    if not w.any():
+        return np.eye(3)
+    return _jr(w)
+
+
+def _cross_rows(V: Array, a: Array) -> Array:
+    """``V_c,r x a_c`` ``(M, r, 3)`` for rows `V` ``(M, r, 3)`` and vectors `a` ``(M, 3)``
+    (``v^T [a]x = (v x a)^T``), written out: numpy's cross is several times slower here."""
+    out = np.empty_like(V)
+    a0, a1, a2 = a[:, None, 0], a[:, None, 1], a[:, None, 2]
+    out[..., 0] = V[..., 1] * a2 - V[..., 2] * a1
+    out[..., 1] = V[..., 2] * a0 - V[..., 0] * a2
+    out[..., 2] = V[..., 0] * a1 - V[..., 1] * a0
+    return out
 
 
 def nuisance_names(setup: str, n_int: int) -> list[str]:
@@ -119,6 +140,9 @@ class PixelBlock:
         self.X0 = np.asarray(self.X0, float)
         self.Y0 = np.asarray(self.Y0, float)
         self.eye_in_hand = self.setup == "eye-in-hand"
+        ends = np.cumsum(counts)
+        self._bounds = list(zip((ends - counts).tolist(), ends.tolist(), strict=True))
+        self._equal = bool(n and np.all(counts == counts[0]))
 
     # ------------------------------------------------------------------ sizes and names
     @property
@@ -164,7 +188,7 @@ class PixelBlock:
         return X, Y, K, d
 
     def predict(self, params: Array, nu: Array, columns: Array | None = None,
-                jac: bool = False, scale_column: bool = False
+                jac: bool = False, scale_column: bool = False, strict: bool = True
                 ) -> tuple[Array, Array | None, Array | None]:
         """Predicted pixels and (optionally) their Jacobians.
 
@@ -181,6 +205,9 @@ class PixelBlock:
         scale_column : bool
             Append to the nuisance Jacobian the column of a uniform scale of the board
             (``P -> (1 + s) P``): the board's size as an unknown.
+        strict : bool
+            False: a corner behind the camera gives NaN pixels instead of the error (the
+            residuals of stations judged after a fit that left them out).
 
         Returns
         -------
@@ -200,55 +227,106 @@ class PixelBlock:
         cols = np.zeros(0, np.intp) if columns is None else np.asarray(columns, np.intp)
         sw = self.model.sweep(self.q, params)
         RF, tF = sw.rotations, sw.positions
-        s = self.sid
         RY, tY, RX, tX = Y[:3, :3], Y[:3, 3], X[:3, :3], X[:3, 3]
         w = self.P @ RY.T + tY  # board point in the base (in-hand) or flange (to-hand) frame
-        if self.eye_in_hand:
-            dw = w - tF[s]
-            u = np.einsum("mji,mj->mi", RF[s], dw)  # F^-1 w, in the flange frame
-        else:
-            Rw = np.einsum("mij,mj->mi", RF[s], w)
-            u = Rw + tF[s]  # F w, in the base frame
-        pc = (u - tX) @ RX  # R_X^T (u - t_X)
-        if np.any(pc[:, 2] <= 0):
-            bad = int(s[np.argmax(pc[:, 2] <= 0)])
-            raise InputError(f"station {bad + 1}: the board is behind the camera for these "
-                             "joints and X: the joints do not fit the images (wrong --setup, "
-                             "joint order or unit?)")
-        uv, Jp, Jint = project_jacobian(K, d, pc, rational=self.n_int == 12)
+        # every station's board-to-camera map pc = Mc w + oc (camera frame)
+        if self.eye_in_hand:  # pc = R_X^T (R_F^T (w - t_F) - t_X)
+            Mc = RX.T @ np.swapaxes(RF, 1, 2)
+            oc = -np.einsum("nij,nj->ni", Mc, tF) - RX.T @ tX
+        else:  # pc = R_X^T (R_F w + t_F - t_X)
+            Mc = RX.T @ RF
+            oc = (tF - tX) @ RX
+        pc = self._per_station(w, Mc, oc)
+        behind = pc[:, 2] <= 0
+        if np.any(behind):
+            if strict:
+                bad = int(self.sid[np.argmax(behind)])
+                raise InputError(f"station {bad + 1}: the board is behind the camera for "
+                                 "these joints and X: the joints do not fit the images (wrong "
+                                 "--setup, joint order or unit?)")
+            pc = np.where(behind[:, None], np.nan, pc)
+        uv, Jp, Jint = project_jacobian(K, d, pc, rational=self.n_int == 12,
+                                        jacobians=jac, intrinsics=self.n_int > 0)
         if not jac:
             return uv, None, None
-        M = len(pc)
-        JpR = Jp @ RX.T  # d uv / d u   (M, 2, 3)
-        # arm: d uv / d(t_F, phi_F) per corner, then through the pose Jacobian
-        Jpose = sw.jacobian_t("pose", columns=cols) if cols.size else np.zeros((0, 6, len(RF)))
-        Jt_arm = np.transpose(Jpose[:, :3, :], (2, 1, 0))  # (n, 3, k)
-        Jr_arm = np.transpose(Jpose[:, 3:, :], (2, 1, 0))
-        if self.eye_in_hand:
-            B = JpR @ np.swapaxes(RF, 1, 2)[s]  # d uv / d(base-frame vector)
-            J_arm = (B @ skew(dw)) @ Jr_arm[s] - B @ Jt_arm[s]
-            dq_dw = np.swapaxes(RF, 1, 2)
-        else:
-            B = JpR
-            J_arm = -(B @ skew(Rw)) @ Jr_arm[s] + B @ Jt_arm[s]
-            dq_dw = RF
-        J_nu = np.zeros((M, 2, self.n_nuisance + (1 if scale_column else 0)))
-        J_nu[:, :, 0:3] = Jp @ (skew(pc) @ _jr(np.asarray(nu[0:3], float)))
-        J_nu[:, :, 3:6] = Jp @ (-RX.T)
-        A = JpR @ dq_dw[s]  # d uv / d w
-        J_nu[:, :, 6:9] = A @ (-RY @ skew(self.P) @ _jr(np.asarray(nu[6:9], float)))
-        J_nu[:, :, 9:12] = A
-        if self.n_int:
-            J_nu[:, :, 12:12 + self.n_int] = Jint
-        if scale_column:
-            J_nu[:, :, -1] = np.einsum("mij,mj->mi", A, self.P @ RY.T)
-        return uv, J_arm, J_nu
+        A = self._stations_times(Jp, Mc)  # d uv / d w = Jp Mc
+        return uv, self._arm_jacobian(sw, cols, Jp, A, w, tF, RX), \
+            self._nuisance_jacobian(nu, Jp, Jint, A, pc, RX, RY, scale_column)
 
-    def residuals(self, params: Array, nu: Array) -> Array:
-        """Predicted minus observed pixels ``(M, 2)``."""
-        return self.predict(params, nu)[0] - self.uv
+    def _per_station(self, v: Array, R: Array, o: Array | None = None) -> Array:
+        """``R_s v_c (+ o_s)`` ``(M, 3)`` for every corner c of station s, one matrix
+        product per station (faster than gathering ``(M, 3, 3)`` per-corner copies)."""
+        if self._equal:  # one batched product (a grid board: every station sees all)
+            n = len(self._bounds)
+            out = (v.reshape(n, -1, 3) @ np.swapaxes(R, 1, 2))
+            if o is not None:
+                out += o[:, None, :]
+            return out.reshape(-1, 3)
+        out = np.empty_like(v)
+        for i, (a, b) in enumerate(self._bounds):
+            out[a:b] = v[a:b] @ R[i].T
+            if o is not None:
+                out[a:b] += o[i]
+        return out
+
+    def _stations_times(self, H: Array, G: Array) -> Array:
+        """``H_c G_s`` ``(M, r, q)`` for the corner blocks `H` ``(M, r, k)`` and the station
+        matrices `G` ``(n, k, q)``."""
+        M, r, k = H.shape
+        if self._equal:
+            n = len(self._bounds)
+            return (H.reshape(n, -1, k) @ G).reshape(M, r, -1)
+        out = np.empty((M, r, G.shape[2]))
+        for i, (a, b) in enumerate(self._bounds):
+            out[a:b] = (H[a:b].reshape(-1, H.shape[2]) @ G[i]).reshape(b - a, r, -1)
+        return out
+
+    def _arm_jacobian(self, sw, cols: Array, Jp: Array, A: Array, w: Array, tF: Array,
+                      RX: Array) -> Array:
+        """Pixels per unit of the arm's parameters `cols` ``(M, 2, k)``: per corner
+        ``d uv / d(t_F, phi_F)`` (module docstring), times each station's pose Jacobian."""
+        M = len(w)
+        if not cols.size:
+            return np.zeros((M, 2, 0))
+        H = np.empty((M, 2, 6))
+        if self.eye_in_hand:  # d uv = A [w - t_F]x dphi - A dt, A = Jp R_X^T R_F^T
+            H[:, :, :3] = -A
+            H[:, :, 3:] = _cross_rows(A, w - tF[self.sid])
+        else:  # d uv = -JpR [R_F w]x dphi + JpR dt, JpR = Jp R_X^T
+            JpR = (Jp.reshape(-1, 3) @ RX.T).reshape(M, 2, 3)
+            Rw = self._per_station(w, sw.rotations)
+            H[:, :, :3] = JpR
+            H[:, :, 3:] = -_cross_rows(JpR, Rw)
+        G = np.transpose(sw.jacobian_t("pose", columns=cols), (2, 1, 0))  # (n, 6, k)
+        return self._stations_times(H, G)
+
+    def _nuisance_jacobian(self, nu: Array, Jp: Array, Jint: Array | None, A: Array,
+                           pc: Array, RX: Array, RY: Array, scale_column: bool) -> Array:
+        """Pixels per unit of X, the board pose and the intrinsics (module docstring)."""
+        M = len(pc)
+        J = np.empty((M, 2, self.n_nuisance + (1 if scale_column else 0)))
+        # v^T [a]x = (v x a)^T: the rows of Jp [pc]x are Jp's rows crossed with pc
+        J[:, :, 0:3] = (_cross_rows(Jp, pc).reshape(-1, 3)
+                        @ _jr_of(nu[0:3])).reshape(M, 2, 3)
+        J[:, :, 3:6] = (Jp.reshape(-1, 3) @ -RX.T).reshape(M, 2, 3)
+        AR = (A.reshape(-1, 3) @ RY).reshape(M, 2, 3)
+        J[:, :, 6:9] = (-_cross_rows(AR, self.P).reshape(-1, 3)
+                        @ _jr_of(nu[6:9])).reshape(M, 2, 3)
+        J[:, :, 9:12] = A
+        if self.n_int:
+            J[:, :, 12:12 + self.n_int] = Jint
+        if scale_column:
+            J[:, :, -1] = np.einsum("mij,mj->mi", A, self.P @ RY.T)
+        return J
+
+    def residuals(self, params: Array, nu: Array, strict: bool = True) -> Array:
+        """Predicted minus observed pixels ``(M, 2)`` (NaN behind the camera unless
+        `strict`)."""
+        return self.predict(params, nu, strict=strict)[0] - self.uv
 
     def station_rms(self, r: Array) -> Array:
-        """RMS corner residual ``(n,)`` per station (px) of residuals `r` ``(M, 2)``."""
+        """RMS corner residual ``(n,)`` per station (px) of residuals `r` ``(M, 2)``;
+        infinite for a station with a corner behind the camera (NaN residuals)."""
         ss = np.bincount(self.sid, weights=np.sum(r * r, axis=1), minlength=self.n_stations)
-        return np.sqrt(ss / np.maximum(self.counts, 1))
+        rms = np.sqrt(ss / np.maximum(self.counts, 1))
+        return np.where(np.isfinite(rms), rms, np.inf)

@@ -1,5 +1,5 @@
 """`CameraBlock`: camera pixels as one residual block of the stacked calibration
-(`kinecal.calibration.blocks`, issue 25's framework).
+(`kinecal.calibration.blocks`, docs/measurement-kinds.md).
 
 An observation is one image (station); its rows are the two pixel coordinates of every
 corner found in it. The nuisance is the block's camera mount X, board pose and (optionally)
@@ -68,6 +68,7 @@ class CameraBlock(ResidualBlock):
         self.K, self.dist, self.setup, self.n_int = K, dist, setup, n_int
         self.method, self.robust_start = method, robust_start
         self.pixels: PixelBlock | None = None
+        self._recent: list[tuple[Any, bool, BlockRows]] = []
         #: stations the robust closed-form start judged inconsistent with the others
         self.start_outliers: list[int] = []
         counts = np.array([len(p) for p in stations.points], dtype=np.intp)
@@ -119,13 +120,26 @@ class CameraBlock(ResidualBlock):
         if self.pixels is None:
             self.start(model, params)
         cols = None if columns is None else np.asarray(columns, np.intp)
+        # the stacked fit asks again where it was (a solver's last point, then the noise
+        # estimate's and the analysis's): the rows of the last points are kept (read-only)
+        key = (id(self.pixels), np.asarray(params, float).tobytes(),
+               np.asarray(nuisance, float).tobytes(), None if cols is None else cols.tobytes())
+        for k, jac, rows in self._recent:
+            if k == key and (jac or not jacobian):
+                return rows if jacobian or rows.arm is None else BlockRows(rows.r)
         uv, Ja, Jn = self.pixels.predict(params, nuisance, cols, jacobian)
         r = (uv - self.pixels.uv).ravel()
         if not jacobian:
-            return BlockRows(r)
-        m = r.size
-        arm = Ja.reshape(m, -1) if Ja is not None else np.zeros((m, 0))
-        return BlockRows(r, arm, Jn.reshape(m, -1))
+            rows = BlockRows(r)
+        else:
+            m = r.size
+            arm = Ja.reshape(m, -1) if Ja is not None else np.zeros((m, 0))
+            rows = BlockRows(r, arm, Jn.reshape(m, -1))
+        for a in (rows.r, rows.arm, rows.nuisance):
+            if a is not None:
+                a.flags.writeable = False
+        self._recent = [(key, jacobian, rows), *self._recent[:2]]
+        return rows
 
     def observation_errors(self, r: Array) -> Array:
         """RMS corner error per image (px, the norm of a corner's two coordinates)."""

@@ -225,9 +225,14 @@ class ArmCameraResult:
         save_model(self.model, path)
 
     # ------------------------------------------------------------------ text
-    def summary(self) -> str:
-        """Plain-text summary."""
+    def summary(self, unit: str | None = None) -> str:
+        """Plain-text summary; `unit` (``mm``, ``um``, ``m``, or ``auto``/None: the model's)
+        is the length unit of the text only (`kinecal.metrology.units.display_unit`)."""
+        from kinecal.metrology.units import DisplayUnit, display_unit
+
         nom = self.nominal_model
+        shown = DisplayUnit(nom.length_unit, 1.0) if unit in (None, "auto") else \
+            display_unit(nom.length_unit, unit)
         keep = self.inliers
         b, a = _rms(self.before_px[keep]), _rms(self.after_px[keep])
         rep = self.identifiability.report
@@ -249,13 +254,16 @@ class ArmCameraResult:
         order = idx[np.argsort(-np.abs(dev[idx] / np.where(nom.is_angle()[idx], 0.01, 0.1)))]
         lines.append("largest corrections (identified - nominal, 1 sigma):")
         for k in order[:8]:
-            u = nom.angle_unit if nom.is_angle()[k] else nom.length_unit
-            lines.append(f"  {nom.parameter_names[k]:10s} {dev[k]:+.4f} {u} "
-                         f"(+- {self.std[k] * conv[k]:.4f})")
+            angle = nom.is_angle()[k]
+            u, g = (nom.angle_unit, 1.0) if angle else (shown.name, shown.factor)
+            lines.append(f"  {nom.parameter_names[k]:10s} {dev[k] * g:+.4f} {u} "
+                         f"(+- {self.std[k] * conv[k] * g:.4f})")
         xr, xt = self.X_std
         lines.append("X std (1 sigma): rotation " + ", ".join(f"{v:.4f}" for v in xr)
-                     + " deg, translation " + ", ".join(f"{v:.4f}" for v in xt)
-                     + f" {nom.length_unit}")
+                     + " deg, translation " + ", ".join(f"{v * shown.factor:.4f}" for v in xt)
+                     + f" {shown.name}")
+        if "intrinsics_line" in self.extra:
+            lines.append(str(self.extra["intrinsics_line"]).replace("with X", "with the arm"))
         lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations, "
                      f"{self.seconds:.3g} s")
         if self.outliers:

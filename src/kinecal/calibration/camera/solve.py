@@ -124,14 +124,21 @@ def _calibrate(model, st, K, dist, setup, free, refine_intrinsics, rational, los
         raise InputError(f"{len(st.q)} usable stations: calibrating an arm from images needs "
                          "at least 3 (many more in practice: 20-40)")
     n_int = (12 if rational else 9) if refine_intrinsics else 0
-    block = CameraBlock(st, K, dist, setup, n_int, method=method,
-                        robust_start=loss != "linear")
+    # the robust start (RANSAC and reweighted LM) for every loss: it names the stations
+    # that fit no camera mount with the others, which a plain start would fit all together
+    block = CameraBlock(st, K, dist, setup, n_int, method=method, robust_start=True)
     p0 = model.nominal
     if X0 is not None and Y0 is not None:
         block.set_references(model, X0, Y0)
-    nu_he, r_he = fit_nuisance(block, model, p0, block.start(model, p0))
+    start = block.start(model, p0)
+    # the "before" (arm nominal, X and board refined) and the analysis without the stations
+    # the robust start found inconsistent: their boards may be behind the camera
+    pre = block.start_outliers if len(st.q) - len(block.start_outliers) >= 3 else []
+    clean = _without(block, model, pre) if pre else block
+    nu_he, _ = fit_nuisance(clean, model, p0, start)
+    r_he = block.pixels.residuals(p0, nu_he, strict=False)
     cands = candidate_names(model, free)
-    ident = camera_identifiability(block.pixels, p0, nu_he, cands, tol=rank_tol)
+    ident = camera_identifiability(clean.pixels, p0, nu_he, cands, tol=rank_tol)
     fit, outliers = _robust_fits(model, block, free, loss, f_scale, rank_tol)
     unknowns = {u["name"]: u for u in fit.extra["kinds"][0]["unknowns"]}
     final = _fitted_pixels(model, block, fit)
@@ -143,7 +150,7 @@ def _calibrate(model, st, K, dist, setup, free, refine_intrinsics, rational, los
     if n_int:
         Kf, df = np.array(unknowns["intrinsics"]["K"]), np.array(unknowns["intrinsics"]["dist"])
         nstd += unknowns["intrinsics"]["std"]
-    r = final.residuals(fit.params, np.zeros(12))
+    r = final.residuals(fit.params, np.zeros(12), strict=False)
     he = block.pixels.unpack(nu_he)
     val = None
     if validate is not None and len(validate.q):
@@ -178,13 +185,17 @@ def _robust_fits(model: SerialModel, block: CameraBlock, free, loss: str, f_scal
                  rank_tol: float) -> tuple[Any, list[int]]:
     """The fit and its outlier stations (indices into `block`'s stations).
 
-    Linear loss: one fit of every station (outliers flagged, kept). Robust loss: the
-    stations the robust closed-form start found inconsistent (a joint reading 20 deg off
-    wrecks the arm's fit even down-weighted: it starts hundreds of pixels away) are left
-    out from the first fit; stations that fit flags too are left out of a final one (a
-    joint read a degree off moves its corners by pixels; down-weighted they still pull)."""
+    The stations the robust closed-form start found inconsistent (a joint reading 20 deg
+    off, swapped images, an image turned by 180 deg: they start hundreds of pixels away
+    and wreck the arm's fit even down-weighted) are left out of a first fit, and every
+    station is judged again at that fit (the start's judgement is coarse: the arm at
+    nominal; a station it flagged that fits now is used again). Robust loss: the outliers
+    are left out of the final fit (a joint read a degree off moves its corners by pixels;
+    down-weighted they still pull). Linear loss: they are kept in the final fit and named,
+    as the tracker path does; a fit they make impossible (a board behind the camera) is an
+    error that names them."""
     n = len(block.stations.q)
-    pre = sorted(block.start_outliers) if loss != "linear" else []
+    pre = sorted(block.start_outliers)
     if n - len(pre) < 3:
         pre = []
     kept = np.array([i for i in range(n) if i not in set(pre)], dtype=np.intp)
@@ -192,14 +203,29 @@ def _robust_fits(model: SerialModel, block: CameraBlock, free, loss: str, f_scal
         fit = calibrate_blocks(model, [_without(block, model, pre) if pre else block],
                                free=free, loss=loss, f_scale=f_scale, rank_tol=rank_tol)
     outliers = sorted(int(kept[i]) for i in fit.outliers)
-    if pre:  # every station judged again at this fit (the start's judgement is coarse: the
-        # arm at nominal; a station it flagged that fits now is used again)
+    behind: list[int] = []
+    if pre:  # every station judged again at this fit
         every = _fitted_pixels(model, block, fit)
-        e = every.station_rms(every.residuals(fit.params, np.zeros(12)))
+        e = every.station_rms(every.residuals(fit.params, np.zeros(12), strict=False))
         outliers = sorted(set(outliers) | set(chi_outliers(e, block.obs_dof)))
-    if loss != "linear" and outliers != pre and n - len(outliers) >= 3:
-        fit = calibrate_blocks(model, [_without(block, model, outliers) if outliers else block],
-                               free=free, loss=loss, f_scale=f_scale, rank_tol=rank_tol)
+        behind = [int(i) for i in np.flatnonzero(~np.isfinite(e))]
+    robust = loss != "linear"
+    if (robust and outliers != pre and n - len(outliers) >= 3) or (not robust and pre):
+        # linear loss keeps every station it can: not one whose board would be behind
+        # the camera (a joint reading far off), which no fit can take
+        drop = outliers if robust else behind
+        try:
+            fit = calibrate_blocks(model, [_without(block, model, drop) if drop else block],
+                                   free=free, loss=loss, f_scale=f_scale, rank_tol=rank_tol)
+        except InputError as exc:
+            names = ", ".join(block.stations.names[i] for i in outliers[:5])
+            raise InputError(f"station(s) {names} fit no camera mount with the others (a "
+                             "joint read wrong, or the image of another station); kept by "
+                             f"--loss linear they make the fit impossible ({exc.message}): "
+                             "check their joints and images, or leave them out with --loss "
+                             "huber") from None
+        if not robust:  # kept: the fit of every station flags them too, and maybe more
+            outliers = sorted(set(outliers) | set(fit.outliers))
     else:
         for d in first:
             diagnostics.warn(d.code, d.message)

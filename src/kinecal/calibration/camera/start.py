@@ -20,7 +20,11 @@ from kinecal.kinematics.serial.model import SerialModel
 
 Array = NDArray[np.float64]
 
-__all__ = ["closed_form_start"]
+__all__ = ["MANY_OUTLIERS", "closed_form_start"]
+
+#: stations the robust start may flag as outliers before the data count as not fitting the
+#: model and set-up at all (the share of ``many-outliers``)
+MANY_OUTLIERS = 0.3
 
 
 def closed_form_start(model: SerialModel, q: Array, target2cam: Array, setup: str,
@@ -66,11 +70,48 @@ def closed_form_start(model: SerialModel, q: Array, target2cam: Array, setup: st
         raise InputError(f"{len(q)} stations with joints and {len(C)} board poses: the start "
                          "needs at least 3 of each, one per station")
     F = model.fk(q, params)
-    with diagnostics.expect("handeye-inconsistent") as bad:
+    with diagnostics.expect("handeye-inconsistent", "scale-mismatch") as bad:
         seed = calibrate_handeye(F, C, setup=setup, method=method, refine="lm", robust=robust)
-    if bad:
+    _check_board_scale(model, F, C, setup, seed.X)
+    if any(d.code == "handeye-inconsistent" for d in bad) and \
+            not _inliers_consistent(F, C, setup, method, seed.outliers):
         raise InputError(_no_mount(model, F, C, setup, method))
+    for d in bad:
+        diagnostics.warn(d.code, d.message)
     return np.asarray(seed.X, float), np.asarray(seed.target, float), seed
+
+
+def _inliers_consistent(F: Array, C: Array, setup: str, method: str,
+                        outliers: list[int]) -> bool:
+    """The stations the robust start kept fit one mount (the inconsistency it reported is
+    the outliers': a station turned by 180 deg, another station's image)."""
+    keep = np.setdiff1d(np.arange(len(F)), outliers)
+    # a few wrong stations, not most of them (a wrong set-up or model leaves a "consistent"
+    # handful by chance)
+    if not len(outliers) or len(keep) < 3 or len(outliers) > MANY_OUTLIERS * len(F):
+        return False
+    with diagnostics.expect("handeye-inconsistent", "scale-mismatch") as bad:
+        calibrate_handeye(F[keep], C[keep], setup=setup, method=method, refine="lm",
+                          robust=False)
+    return not any(d.code == "handeye-inconsistent" for d in bad)
+
+
+def _check_board_scale(model: SerialModel, F: Array, C: Array, setup: str, X: Array) -> None:
+    """Refuse a factor between the arm's translations and the camera's: the board poses
+    take their lengths from the board's size (``--board``), so 2.5 for 25 mm squares puts
+    every board ten times nearer (and the bundle adjustment's boards behind the camera)."""
+    from kinecal.calibration.diagnostics.handeye import translation_scale
+    from kinecal.spatial import invert_transform
+
+    G = F if setup == "eye-in-hand" else invert_transform(F)
+    sc = translation_scale(G, C, X)
+    if sc is None or not sc.unit_factor:
+        return
+    raise InputError(f"the joints move the camera {sc.s:.4g} times as far as the images "
+                     "measure with the board's size: the --board square size (or spacing) is "
+                     f"probably {sc.s:.4g} times too {'small' if sc.s > 1 else 'large'} (in "
+                     f"the model's length unit, {model.length_unit}: measure the print), or "
+                     "the focal length of --intrinsics is wrong")
 
 
 def _no_mount(model: SerialModel, F: Array, C: Array, setup: str, method: str) -> str:

@@ -54,6 +54,7 @@ CODES: dict[str, str] = {
     "board-turned": "images of a symmetric board turned back to fit the robot poses",
     "intrinsics-size": "intrinsics made for another image size than the images'",
     "intrinsics-rms": "the camera calibration from the images leaves more than 1 px RMS",
+    "intrinsics-weak": "the views leave the intrinsics estimated from them poorly determined",
     "pnp-rms": "the board poses fit the detected corners poorly (wrong intrinsics or board)",
     "images-rejected": "more than half of the images rejected",
     "reprojection-rms": "the hand-eye solution reprojects the corners poorly",

@@ -13,6 +13,7 @@ each station's six residuals scaled by the RMS rotation and translation residual
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -93,20 +94,34 @@ def check_handeye_stations(F: Array, C: Array) -> int:
     return distinct
 
 
-def check_handeye_units(G: Array, C: Array, X: Array, what: str = "stations") -> bool:
-    """``scale-mismatch``: robot and target translations in different length units.
+@dataclass
+class TranslationScale:
+    """The scale ``s`` between the robot's lengths and the target's in ``G X C = Y``
+    (`translation_scale`): ``s`` target lengths are one robot length."""
 
-    With the rotation of X known (a closed form's rotation does not depend on lengths),
-    the translation part of ``G_i X C_i = Y``,
-    ``R_Gi R_X (s t_Ci) + R_Gi t_X - t_Y = -t_Gi``, is linear in ``t_X``, ``t_Y`` and a
-    scale ``s`` between the two instruments' units; the camera-to-target distances pin
-    ``s`` down (unless every motion turns about one axis). A scale outside [0.5, 2] and
-    more than `SIGMAS` standard deviations from 1 is a unit mismatch. Returns True when it
-    warned.
-    """
+    s: float
+    var: float  # its variance
+    rms_s: float  # residual rms with s free
+    rms_1: float  # and with s = 1
+    distance: float  # camera-target distance in the robot's unit (rms)
+
+    @property
+    def unit_factor(self) -> bool:
+        """Far from 1, many standard deviations from it, and explaining the data (with it
+        the stations fit; quaternions in another order, degrees read as radians or inverted
+        poses also pull s away from 1 but leave a residual no scale removes)."""
+        s = self.s
+        return bool(s > 0 and abs(np.log(s)) > np.log(2.0)
+                    and (s - 1.0) ** 2 > SIGMAS**2 * self.var
+                    and np.sqrt(3.0) * self.rms_s <= TRANSLATION_LIMIT * self.distance)
+
+
+def translation_scale(G: Array, C: Array, X: Array) -> TranslationScale | None:
+    """The scale between robot and target translations (`check_handeye_units`); None when
+    the stations do not see it (every motion turns about the target)."""
     n = len(G)
     if n < 4:
-        return False
+        return None
     RG = G[:, :3, :3]
     RGX = RG @ X[:3, :3]
     tc = C[:, :3, 3]
@@ -123,29 +138,40 @@ def check_handeye_units(G: Array, C: Array, X: Array, what: str = "stations") ->
     rest = M[:, 1:]
     part = M[:, 0] - rest @ np.linalg.lstsq(rest, M[:, 0], rcond=None)[0]
     if np.linalg.norm(part) <= OBSERVABLE * np.linalg.norm(M[:, 0]):
-        return _spread_units(G, C, what)
+        return None
     sol, *_ = np.linalg.lstsq(M, rhs, rcond=None)
     s = float(sol[0])
     rss = float(np.sum((M @ sol - rhs) ** 2))
-    var_s = rss / (M.shape[0] - 10) / float(part @ part)
     fixed, *_ = np.linalg.lstsq(M[:, 1:], rhs - M[:, 0], rcond=None)
-    rms_s = float(np.sqrt(rss / M.shape[0]))
-    rms_1 = float(np.sqrt(np.mean((M[:, 1:] @ fixed + M[:, 0] - rhs) ** 2)))
-    # a unit factor, not noise: far from 1, and many standard deviations from it (with
-    # rotations about one axis only, s trades off against the translations along it)
-    if not (s > 0 and abs(np.log(s)) > np.log(2.0) and (s - 1.0) ** 2 > SIGMAS**2 * var_s):
+    return TranslationScale(
+        s, rss / (M.shape[0] - 10) / float(part @ part), float(np.sqrt(rss / M.shape[0])),
+        float(np.sqrt(np.mean((M[:, 1:] @ fixed + M[:, 0] - rhs) ** 2))),
+        s * float(np.sqrt(np.mean(np.sum(tc**2, axis=1)))))
+
+
+def check_handeye_units(G: Array, C: Array, X: Array, what: str = "stations") -> bool:
+    """``scale-mismatch``: robot and target translations in different length units.
+
+    With the rotation of X known (a closed form's rotation does not depend on lengths),
+    the translation part of ``G_i X C_i = Y``,
+    ``R_Gi R_X (s t_Ci) + R_Gi t_X - t_Y = -t_Gi``, is linear in ``t_X``, ``t_Y`` and a
+    scale ``s`` between the two instruments' units; the camera-to-target distances pin
+    ``s`` down (unless every motion turns about one axis). A scale outside [0.5, 2] and
+    more than `SIGMAS` standard deviations from 1 is a unit mismatch. Returns True when it
+    warned.
+    """
+    if len(G) < 4:
         return False
-    # a unit factor explains the data: with it the stations fit (quaternions in another
-    # order, degrees read as radians or inverted poses also pull s away from 1, but leave
-    # a residual no scale removes: `handeye-inconsistent` reports those)
-    dist = s * float(np.sqrt(np.mean(np.sum(tc**2, axis=1))))  # in the robot's unit
-    if np.sqrt(3.0) * rms_s > TRANSLATION_LIMIT * dist:
+    sc = translation_scale(G, C, X)
+    if sc is None:
+        return _spread_units(G, C, what)
+    if not sc.unit_factor:
         return False
     warn("scale-mismatch",
-         f"the robot's translations are {s:.4g} times the target's in G X C = Y over the "
-         f"{what} ({_units(1.0 / s)}; "
-         f"residual {rms_s:.3g} instead of {rms_1:.3g}): give the flange and target poses in "
-         "one length unit")
+         f"the robot's translations are {sc.s:.4g} times the target's in G X C = Y over the "
+         f"{what} ({_units(1.0 / sc.s)}; "
+         f"residual {sc.rms_s:.3g} instead of {sc.rms_1:.3g}): give the flange and target "
+         "poses in one length unit")
     return True
 
 
@@ -195,13 +221,16 @@ def _spread_units(G: Array, C: Array, what: str) -> bool:
 
 def handeye_uncertainty(G: Array, C: Array, X: Array, Y: Array,
                         inliers: Array | None = None,
-                        residuals: tuple[Array, Array, Array] | None = None
-                        ) -> XUncertainty | None:
+                        residuals: tuple[Array, Array, Array] | None = None,
+                        noise: tuple[Any, bool] | None = None) -> XUncertainty | None:
     """First-order uncertainty of X at the solution (see the module docstring).
 
     `residuals`: ``residuals_and_jacobian(G, C, X, Y, 0)`` of all stations
     (`kinecal.calibration.handeye.refine`), when the caller has them (no `inliers` then).
-    None when it cannot be estimated (noise-free data, no degrees of freedom).
+    `noise`: the stations' estimated noise model and whether the set-up is eye-in-hand
+    (`kinecal.calibration.handeye.noise.StationNoise`): the residuals are whitened by it
+    instead of two scales. None when it cannot be estimated (noise-free data, no degrees of
+    freedom).
     """
     from kinecal.calibration.handeye.refine import residuals_and_jacobian
 
@@ -217,9 +246,17 @@ def handeye_uncertainty(G: Array, C: Array, X: Array, Y: Array,
     L = float(np.sqrt(np.mean(np.sum(C[:, :3, 3] ** 2, axis=1))))
     if not (sr > 1e-12 and st > 1e-12 * max(L, 1e-300)):
         return None
-    scale = np.r_[[1.0 / sr] * 3, [1.0 / st] * 3]
-    Js = (J * scale[None, :, None]).reshape(-1, UNKNOWNS)
-    r = np.concatenate([rot / sr, tr / st], axis=1).ravel()
+    if noise is not None:
+        from kinecal.calibration.handeye.noise import station_components, whitening
+
+        floor = np.r_[[1e-26] * 3, [(1e-13 * L) ** 2] * 3]
+        Li = whitening(noise[0].theta, station_components(G, C, X, Y, rot, noise[1]), floor)
+        Js = (Li @ J).reshape(-1, UNKNOWNS)
+        r = np.einsum("nij,nj->ni", Li, np.concatenate([rot, tr], axis=1)).ravel()
+    else:
+        scale = np.r_[[1.0 / sr] * 3, [1.0 / st] * 3]
+        Js = (J * scale[None, :, None]).reshape(-1, UNKNOWNS)
+        r = np.concatenate([rot / sr, tr / st], axis=1).ravel()
     # columns scaled to unit norm before the pseudo-inverse: rotation rows weighted by
     # 1 / s_R (1e11 for exact rotations read from a file) otherwise put the translation's
     # information below pinv's cut-off, and X's translation came out 1e-26 "certain"

@@ -209,9 +209,11 @@ def _calibrate_handeye(flange2base, target2cam, setup, method, refine, pairs, se
         from kinecal.calibration.handeye.one_axis import warn_height_unused
 
         warn_height_unused(height, G)
-    X, Y, outliers, history, nfev = _refined(G, C, X0, Y0, refine, robust, rotation_weight,
-                                             seed, pairs, options)
-    res = _judged(F, C, G, X, Y, X0, A, B, setup, method, refine, pairs, robust, outliers)
+    X, Y, outliers, history, nfev, noise = _refined(G, C, X0, Y0, refine, robust,
+                                                    rotation_weight, seed, pairs, options,
+                                                    setup == "eye-in-hand")
+    res = _judged(F, C, G, X, Y, X0, A, B, setup, method, refine, pairs, robust, outliers,
+                  noise)
     res.history, res.nfev, res.seconds = history, nfev, time.perf_counter() - t0
     return res
 
@@ -239,26 +241,29 @@ def _checked_inputs(flange2base, target2cam, setup, method, refine, robust, rota
     return F, C
 
 
-def _refined(G, C, X, Y, refine, robust, rotation_weight, seed, pairs, options):
-    """The refinement of the closed form (X, Y): ``(X, Y, outliers, history, nfev)``; the
-    outliers of ``lm`` (others are judged in `_judged`)."""
+def _refined(G, C, X, Y, refine, robust, rotation_weight, seed, pairs, options,
+             eye_in_hand=True):
+    """The refinement of the closed form (X, Y): ``(X, Y, outliers, history, nfev,
+    noise)``; the outliers and the station noise model of ``lm`` (others are judged in
+    `_judged`)."""
     if refine == "lm":
         from kinecal.calibration.handeye.refine import lm
 
-        res = lm(G, C, X, Y, robust=robust, rotation_weight=rotation_weight)
+        res = lm(G, C, X, Y, robust=robust, rotation_weight=rotation_weight,
+                 eye_in_hand=eye_in_hand)
         if robust:
-            res = _consensus_refinement(G, C, res, seed, rotation_weight)
-        return res.X, res.Y, res.outliers, res.history, res.nfev
+            res = _consensus_refinement(G, C, res, seed, rotation_weight, eye_in_hand)
+        return res.X, res.Y, res.outliers, res.history, res.nfev, res.noise
     if refine in ("igwo", "dlh-gwo-de"):
         from kinecal.calibration.handeye.refine_meta import metaheuristic
 
         res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **_meta_options(options))
-        return res.X, mean_target_pose(G, res.X, C), [], res.history, res.nfev
-    return X, Y, [], [], 0
+        return res.X, mean_target_pose(G, res.X, C), [], res.history, res.nfev, None
+    return X, Y, [], [], 0, None
 
 
 def _judged(F, C, G, X, Y, X0, A, B, setup, method, refine, pairs, robust,
-            outliers) -> HandEyeResult:
+            outliers, noise=None) -> HandEyeResult:
     """Station residuals, outliers of results not refined by ``lm`` (``robust``), the
     uncertainty of X, conditioning, and stations that fit no X (a mix-up, a unit factor)."""
     from kinecal.calibration.diagnostics.handeye import (
@@ -291,7 +296,9 @@ def _judged(F, C, G, X, Y, X0, A, B, setup, method, refine, pairs, robust,
     if inliers is not None and len(inliers) < 3:
         inliers = None
     unc = handeye_uncertainty(G, C, X, Y, inliers,
-                              residuals=shared if inliers is None else None)
+                              residuals=shared if inliers is None else None,
+                              noise=None if noise is None or noise.source != "estimated"
+                              else (noise, setup == "eye-in-hand"))
     check_handeye_conditioning(unc, G if inliers is None else G[inliers])
     # stations that fit no X: a mix-up that makes them fit is named first; else a unit
     # factor between robot and target (`scale-mismatch`); else the generic warning
@@ -301,7 +308,7 @@ def _judged(F, C, G, X, Y, X0, A, B, setup, method, refine, pairs, robust,
     elif not check_handeye_units(G, C, X0) and inc is not None:
         warn_inconsistent(inc)
     res = HandEyeResult(X, Y, setup, method, refine, rot, tr, arot, atr, outliers, [], 0)
-    res.x_uncertainty = unc
+    res.x_uncertainty, res.noise = unc, noise
     return res
 
 
@@ -316,7 +323,7 @@ def _meta_options(options: dict[str, Any] | None) -> dict[str, Any]:
 
 
 def _consensus_refinement(G: Array, C: Array, first: Any, seed: Any,
-                          rotation_weight: float | None) -> Any:
+                          rotation_weight: float | None, eye_in_hand: bool = True) -> Any:
     """Also refine from a RANSAC start on minimal sets
     (`ransac.consensus_start`) and keep whichever solution fits the best 40 % of the
     stations clearly better (least trimmed squares, common scales, 10 % margin): at 50 %
@@ -330,7 +337,7 @@ def _consensus_refinement(G: Array, C: Array, first: Any, seed: Any,
     if cs is None:
         return first
     second = lm(G, C, cs.X, cs.Y, robust=True, rotation_weight=rotation_weight,
-                start_inliers=cs.inliers)
+                start_inliers=cs.inliers, eye_in_hand=eye_in_hand)
     sr, st = second.scales
     k = max(3, int(np.ceil(TRIM * len(G))))
 

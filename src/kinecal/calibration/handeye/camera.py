@@ -30,6 +30,7 @@ Array = NDArray[np.float64]
 __all__ = [
     "INTRINSIC_NAMES",
     "check_camera",
+    "check_intrinsics_determined",
     "intrinsic_vector",
     "project",
     "project_jacobian",
@@ -115,7 +116,8 @@ def project(K: ArrayLike, dist: ArrayLike | None, P: ArrayLike) -> Array:
 
 
 def project_jacobian(
-    K: Array, dist8: Array, P: Array, rational: bool = False, jacobians: bool = True
+    K: Array, dist8: Array, P: Array, rational: bool = False, jacobians: bool = True,
+    intrinsics: bool = True,
 ) -> tuple[Array, Array | None, Array | None]:
     """Projection of points ``(N, 3)`` and its Jacobians.
 
@@ -130,6 +132,8 @@ def project_jacobian(
         Include ``k4, k5, k6`` in the intrinsic Jacobian (12 columns instead of 9).
     jacobians : bool
         False: the pixels only (both Jacobians None).
+    intrinsics : bool
+        False: no intrinsic Jacobian (None; callers with the intrinsics held).
 
     Returns
     -------
@@ -170,6 +174,8 @@ def project_jacobian(
     J_point[:, 1, 0] = a10 * iz
     J_point[:, 1, 1] = a11 * iz
     J_point[:, 1, 2] = -(a10 * x + a11 * y) * iz
+    if not intrinsics:
+        return uv, J_point, None
     # intrinsics: d(xd, yd) / d coefficient, then through Juv
     r4, r6 = r2 * r2, r2 * r2 * r2
     cols = [
@@ -192,3 +198,49 @@ def project_jacobian(
         J_int[:, 0, 4 + k] = fx * ax + s * ay
         J_int[:, 1, 4 + k] = fy * ay
     return uv, J_point, J_int
+
+
+#: ``intrinsics-weak`` beyond these 1-sigma uncertainties of intrinsics estimated from the
+#: views: the focal length relative to itself, the principal point relative to the image
+#: width (a good camera calibration: 0.1-0.3 % and 1-3 px on a 640 px image)
+WEAK_FOCAL = 0.005
+WEAK_CENTRE = 0.005
+
+
+def check_intrinsics_determined(cov: Array, names: list[str], K: Array,
+                                size: tuple[int, int] | None) -> bool:
+    """``intrinsics-weak``: intrinsics estimated from views that leave the focal length or
+    the principal point poorly determined (`WEAK_FOCAL`, `WEAK_CENTRE`; nearly face-on
+    views confound the focal length with the distance, and X's translation with both).
+    `cov` ``(p, p)`` is the covariance of the unknowns `names` (``fx`` ... among them).
+    Returns True when it warned."""
+    from kinecal import diagnostics
+
+    if "fx" not in names:
+        return False
+    k = names.index("fx")
+    sd = np.sqrt(np.clip(np.diag(cov)[k:k + 4], 0.0, None))
+    width = float(size[0]) if size else 2.0 * float(K[0, 2])
+    f = float(np.sqrt(K[0, 0] * K[1, 1]))
+    rel_f = float(max(sd[0] / K[0, 0], sd[1] / K[1, 1]))
+    c = float(max(sd[2], sd[3]))
+    if not (rel_f > WEAK_FOCAL or c > WEAK_CENTRE * width):
+        return False
+    # X's translation sigma with the intrinsics' uncertainty and without it (conditional)
+    idx = np.arange(k, len(names))
+    C = cov[np.ix_(idx, idx)]
+    Xk = cov[3:6][:, idx]
+    try:
+        cond = cov[3:6, 3:6] - Xk @ np.linalg.solve(C, Xk.T)
+    except np.linalg.LinAlgError:
+        cond = cov[3:6, 3:6]
+    full = float(np.sqrt(np.trace(cov[3:6, 3:6])))
+    own = float(np.sqrt(max(np.trace(cond), 0.0)))
+    diagnostics.warn("intrinsics-weak",
+                     f"the views leave the intrinsics estimated from them poorly determined "
+                     f"(1 sigma: focal length {max(sd[0], sd[1]):.3g} px = {100 * rel_f:.2g} % "
+                     f"of {f:.4g} px, principal point {c:.3g} px): X moves with them, its "
+                     f"translation sigma {full:.3g} instead of {own:.3g} with the intrinsics "
+                     "known; add views tilted 30-45 deg about both board axes and at several "
+                     "distances, or give --intrinsics from a camera calibration")
+    return True

@@ -143,3 +143,4 @@ def rms(x: Array) -> float:
     """Root mean square of an array (0 for an empty one)."""
     x = np.asarray(x, dtype=float)
     return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
+

@@ -92,7 +92,8 @@ def calibrate_one_axis(F: Array, C: Array, G: Array, setup: str, axis: OneAxis,
     nfev = 0
     outliers: list[int] = []
     if refine == "lm":
-        res = lm(G, C, X, Y, robust=robust, rotation_weight=rotation_weight)
+        res = lm(G, C, X, Y, robust=robust, rotation_weight=rotation_weight,
+                 eye_in_hand=setup == "eye-in-hand")
         X, Y, outliers, history, nfev = res.X, res.Y, res.outliers, res.history, res.nfev
     elif refine in ("igwo", "dlh-gwo-de"):
         from kinecal.calibration.handeye.refine_meta import metaheuristic
@@ -100,7 +101,7 @@ def calibrate_one_axis(F: Array, C: Array, G: Array, setup: str, axis: OneAxis,
         res = metaheuristic(G, C, X, refine, rng=seed, pairs=pairs, **options)
         X, history, nfev = res.X, res.history, res.nfev
         Y = mean_target_pose(G, X, C)
-    X, Y = height.place(axis, X, Y)  # eq. (8) again: the refiners may drift along eq. (3)
+    X, Y = height.place(axis, X, Y)  # (S8) again: the refiners may drift along (S3)
     if refine != "lm" and robust:
         outliers = flag_outliers(G, C, X, Y)
     rot, tr = station_residuals(G, X, C, Y)

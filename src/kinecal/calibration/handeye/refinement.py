@@ -6,6 +6,7 @@ covariance, per-station RMS, outliers, estimated intrinsics and robot-pose corre
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,15 +38,20 @@ class ReprojectionRefinement:
         Stations left out of the final pass.
     sigma_px : float
         Corner noise (px per axis), robust estimate.
-    cov : ndarray, shape (p, p)
-        Covariance of the free parameters (order: X rotation, X translation, Y rotation,
-        Y translation, intrinsics, corrections).
+    cov : ndarray, shape (g, g)
+        Covariance of the shared free parameters (order: X rotation, X translation, Y
+        rotation, Y translation, intrinsics), the corrections marginalised.
     names : list of str
-        Names of the free parameters.
+        Names of those parameters.
     nfev : int
     history : list of float
         Cost after each pass.
     seconds : float
+    robot_noise : RobotNoise or None
+        The robot-pose noise used: given, estimated (modelled or negligible) or exact
+        (`kinecal.calibration.handeye.robot_noise`).
+    corrections_std : ndarray, shape (n, 6) or None
+        Standard deviations of the corrections (rad, length), when modelled.
     """
 
     X: Array
@@ -62,6 +68,8 @@ class ReprojectionRefinement:
     nfev: int = 0
     history: list[float] = field(default_factory=list)
     seconds: float = 0.0
+    robot_noise: Any = None
+    corrections_std: Array | None = None
 
     @property
     def X_cov(self) -> Array:

@@ -31,8 +31,8 @@ from kinecal.spatial import matrix_from_axis_angle, skew, transform_from
 
 Array = NDArray[np.float64]
 
-__all__ = ["ReprojectionProblem", "parameter_names", "predict_blocks", "predict_corners",
-           "predict_pixels", "unpack"]
+__all__ = ["ReprojectionProblem", "behind_camera", "parameter_names", "predict_blocks",
+           "predict_corners", "predict_pixels", "unpack"]
 
 
 @dataclass
@@ -51,6 +51,9 @@ class ReprojectionProblem:
     Y0: Array
     n_int: int  # free intrinsics (0, 9 or 12)
     robot: tuple[float, float] | None
+    #: a corner behind the camera raises; else its pixels are NaN (a refinement's trial step
+    #: that swings a board behind the camera is rejected, not fatal)
+    strict: bool = True
 
     @property
     def n(self) -> int:
@@ -159,14 +162,26 @@ def _predict(pr: ReprojectionProblem, p: Array, blocks: bool = False) -> tuple[A
         q = np.einsum("mij,mj->mi", RF[s], ew) + tF[s]
         dq_dw = RF @ RE if blocks else None
     pc = (q - tX) @ RX  # R_X^T (q - t_X)
-    if np.any(pc[:, 2] <= 0):
-        bad = int(s[np.argmax(pc[:, 2] <= 0)])
-        raise InputError(f"station {bad}: board behind the camera for the current X; the "
-                         "robot poses do not fit the images (wrong setup or pose convention?)")
+    behind = pc[:, 2] <= 0
+    if np.any(behind):
+        if pr.strict:
+            bad = np.unique(s[behind])
+            raise InputError(f"station(s) {', '.join(str(int(i)) for i in bad[:5])}: board "
+                             "behind the camera for the current X; the robot poses do not fit "
+                             "the images (wrong setup or pose convention?)")
+        pc = np.where(behind[:, None], np.nan, pc)
     if not blocks:
         return project_jacobian(K, d, pc, rational=pr.n_int == 12, jacobians=False)[0], ()
     uv, Jp, Jint = project_jacobian(K, d, pc, rational=pr.n_int == 12)
     return uv, (X, Y, E, pc, q, w, RE, dq_dw, Jp, Jint)
+
+
+def behind_camera(pr: ReprojectionProblem, p: Array) -> NDArray[np.bool_]:
+    """Stations ``(n,)`` with a corner at or behind the camera at `p`."""
+    lax = ReprojectionProblem(**{**pr.__dict__, "strict": False})
+    pred = _predict(lax, p)[0]
+    bad = ~np.isfinite(pred).all(axis=1)
+    return np.bincount(pr.sid, weights=bad, minlength=pr.n) > 0
 
 
 def predict_corners(flange2base: Array, points: list[Array], K: Array, dist: Array | None,

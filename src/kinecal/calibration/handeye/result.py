@@ -51,6 +51,10 @@ class HandEyeResult:
     one_axis : dict or None
         One-axis stations (SCARA): the axis, where X's height along it came from and the
         heights (`kinecal.calibration.handeye.one_axis.one_axis_summary`); None otherwise.
+    noise : StationNoise or None
+        The stations' noise model the ``lm`` refinement weighed them by: the camera's
+        rotation, the translation and the robot's rotation, estimated from the residuals
+        or fixed (`kinecal.calibration.handeye.noise`); None for other refiners.
     """
 
     X: Array
@@ -69,6 +73,7 @@ class HandEyeResult:
     warnings: list = field(default_factory=list)
     x_uncertainty: Any = None
     one_axis: dict[str, Any] | None = None
+    noise: Any = None
 
     @property
     def rotation_rms_deg(self) -> float:
@@ -111,5 +116,6 @@ class HandEyeResult:
             "seconds": self.seconds,
             "x_uncertainty": None if self.x_uncertainty is None else self.x_uncertainty.to_dict(),
             "one_axis": self.one_axis,
+            "noise": None if self.noise is None else self.noise.to_dict(),
             "warnings": [d.to_dict() for d in self.warnings],
         }

@@ -3,28 +3,31 @@ palletising arms): Ulrich & Steger (2016), "Hand-eye calibration of SCARA robots
 quaternions", Pattern Recognition and Image Analysis 26(1), 231-239, on Daniilidis (1999)
 (`kinecal.calibration.handeye.axxb.daniilidis`).
 
-Equations (numbered here; Daniilidis's numbers where his matrix is used):
+The derivation below is kinecal's, numbered (S1)-(S8) here (not the paper's equation
+numbers); Ulrich & Steger's result is (S5), the rank deficiency of Daniilidis's matrix for
+one-axis motions and its null space, and the idea of (S8), the height from outside the
+data. Daniilidis's own equation numbers are cited as his.
 
-(1) ``G_i X C_i = Y`` (`kinecal.calibration.handeye`): G_i maps a moving frame m (the flange
+(S1) ``G_i X C_i = Y`` (`kinecal.calibration.handeye`): G_i maps a moving frame m (the flange
     eye-in-hand, the base eye-to-hand) into a fixed frame f (the base, the flange).
-(2) One-axis data: every relative motion ``A = G_j^-1 G_i`` turns about one direction
+(S2) One-axis data: every relative motion ``A = G_j^-1 G_i`` turns about one direction
     ``k_m`` (frame m); then ``R_Gi k_m = k_f`` is the same direction for every station.
-(3) Hence ``G_i T(s k_m) = T(s k_f) G_i``: ``(T(s k_m) X, T(s k_f) Y)`` fits every station
+(S3) Hence ``G_i T(s k_m) = T(s k_f) G_i``: ``(T(s k_m) X, T(s k_f) Y)`` fits every station
     exactly as ``(X, Y)`` does, for any s. The translation of X along the axis (and of Y along
     it, in step) is unobservable; everything else is determined as long as the motions'
     screw axes do not all coincide (a flange that only turns in place leaves X's rotation
     about the axis unobservable too).
-(4) Each motion gives Daniilidis's six screw equations ``S_k (q, q') = 0`` (his eq. (31)),
+(S4) Each motion gives Daniilidis's six screw equations ``S_k (q, q') = 0`` (his eq. (31)),
     stacked into T (his eq. (33)), q the rotation and ``q' = 1/2 t q`` the dual part of X.
-(5) For one-axis data T has rank 5 instead of 6 (Ulrich & Steger): its null space is
+(S5) For one-axis data T has rank 5 instead of 6 (Ulrich & Steger): its null space is
     ``span{(q, q'), (0, q), (0, k q)}``, the third vector being the shift of (3).
-(6) The real parts of the null space are therefore all multiples of q: q is the principal
+(S6) The real parts of the null space are therefore all multiples of q: q is the principal
     direction of the real block of the three right singular vectors of smallest singular
     value.
-(7) With q known, the dual rows of (4) are linear in t; with t restricted to the plane
+(S7) With q known, the dual rows of (S4) are linear in t; with t restricted to the plane
     normal to ``k_m`` (the component (3) leaves free is set to zero) they are two unknowns
     solved by least squares.
-(8) The missing component comes from outside the data: a stated camera height
+(S8) The missing component comes from outside the data: a stated camera height
     ``k_m . t_X = h``, or a board contact, a point P (frame f) of the board's printed plane
     touched by the tool: ``n_Y . (P - t_Y - s k_f) = 0`` with ``n_Y`` the board normal gives
     s. Without either, ``k_m . t_X = 0`` (the camera at the flange's height) with the
@@ -73,7 +76,7 @@ MAX_LENGTH = 1e9
 
 @dataclass
 class OneAxis:
-    """The one rotation axis of a data set (eq. (2)).
+    """The one rotation axis of a data set (S2).
 
     Attributes
     ----------
@@ -101,7 +104,7 @@ class OneAxis:
 
     def shift(self, X: Array, Y: Array, s: float) -> tuple[Array, Array]:
         """``(T(s k_m) X, T(s k_f) Y)``: the solution moved along the unobservable
-        direction (eq. (3))."""
+        direction (S3)."""
         X2, Y2 = X.copy(), Y.copy()
         X2[:3, 3] += s * self.moving
         Y2[:3, 3] += s * self.fixed
@@ -115,7 +118,7 @@ class OneAxis:
 
 @dataclass
 class AxisHeight:
-    """What fixes the unobservable component (eq. (8)).
+    """What fixes the unobservable component (S8).
 
     Attributes
     ----------
@@ -169,7 +172,7 @@ class AxisHeight:
         return "board-contact" if self.board_contact is not None else "none"
 
     def place(self, axis: OneAxis, X: Array, Y: Array) -> tuple[Array, Array]:
-        """X and Y moved along the axis so that eq. (8) holds."""
+        """X and Y moved along the axis so that (S8) holds."""
         if self.board_contact is not None:
             n = Y[:3, 2]
             c = float(n @ axis.fixed)
@@ -186,7 +189,7 @@ class AxisHeight:
         return axis.shift(X, Y, s)
 
     def constraint(self, axis: OneAxis, Y: Array) -> Array:
-        """Row ``(12,)`` of the linearised eq. (8) in the refinement's parameters
+        """Row ``(12,)`` of the linearised (S8) in the refinement's parameters
         ``(omega_X, v_X, omega_Y, v_Y)`` (`refine.residual_jacobian`)."""
         c = np.zeros(12)
         if self.board_contact is None:
@@ -199,7 +202,7 @@ class AxisHeight:
 
 
 def detect_one_axis(G: Array, setup: str, limit_deg: float = ONE_AXIS_DEG) -> OneAxis | None:
-    """The common rotation axis of the robot motions (eq. (2)), or None when they turn about
+    """The common rotation axis of the robot motions (S2), or None when they turn about
     several axes (or do not turn at all: `_motions.check_motions` reports that).
 
     Parameters
@@ -270,7 +273,7 @@ def ulrich_steger(A: Array, B: Array, k: Array) -> Array:
     As[:, :3, 3] /= L
     Bs[:, :3, 3] /= L
     qa, qb, da, db = _aligned(As, Bs, k)
-    # eq. (4): vector parts of a x - x b, rows of Daniilidis's S (eq. (31)) per motion
+    # (S4): vector parts of a x - x b, rows of Daniilidis's S (his eq. (31)) per motion
     D0 = (qmat_left(qa) - qmat_right(qb))[:, 1:]
     D1 = (qmat_left(da) - qmat_right(db))[:, 1:]
     S = np.zeros((len(A), 6, 8))
@@ -282,7 +285,7 @@ def ulrich_steger(A: Array, B: Array, k: Array) -> Array:
     U, _, _ = np.linalg.svd(Vt[5:, :4].T)
     q = U[:, 0] * (1.0 if U[0, 0] >= 0 else -1.0)
     q /= np.linalg.norm(q)
-    # eq. (7): D0 q' = -D1 q with q' = 1/2 (0, t) q = 1/2 R(q) (0, t), t = E c, E normal to k
+    # (S7): D0 q' = -D1 q with q' = 1/2 (0, t) q = 1/2 R(q) (0, t), t = E c, E normal to k
     E = np.linalg.svd(k.reshape(1, 3))[2][1:].T  # (3, 2) orthonormal basis of k's normal
     dq_dt = 0.5 * qmat_right(q)[:, 1:]  # (4, 3): q' for a unit t
     M = (D0 @ dq_dt @ E).reshape(-1, 2)
@@ -292,7 +295,7 @@ def ulrich_steger(A: Array, B: Array, k: Array) -> Array:
 
 
 def solve_one_axis(G: Array, C: Array, axis: OneAxis) -> tuple[Array, Array]:
-    """X (``k_m . t_X = 0``) and the target pose Y from one-axis stations (eq. (1)).
+    """X (``k_m . t_X = 0``) and the target pose Y from one-axis stations (S1).
 
     Raises
     ------
@@ -309,7 +312,7 @@ def solve_one_axis(G: Array, C: Array, axis: OneAxis) -> tuple[Array, Array]:
 
 
 def _check_screw_axes(A: Array, k: Array) -> None:
-    """`InputError` when every motion is a screw about one line along k (eq. (3), last
+    """`InputError` when every motion is a screw about one line along k ((S3), last
     case): some point p then has ``(I - R) p = t - (t . k) k`` for every motion."""
     R, t = A[:, :3, :3], A[:, :3, 3]
     rhs = (t - np.outer(t @ k, k)).reshape(-1)
@@ -326,10 +329,10 @@ def _check_screw_axes(A: Array, k: Array) -> None:
 
 def constrained_uncertainty(G: Array, C: Array, X: Array, Y: Array, row: Array,
                             axis: OneAxis, inliers: Array | None = None) -> Any:
-    """First-order uncertainty of X under the height constraint (eq. (8)).
+    """First-order uncertainty of X under the height constraint (S8).
 
     As `kinecal.calibration.diagnostics.handeye.handeye_uncertainty`, with the 12 unknowns
-    restricted to the hyperplane ``row . p = 0`` (the null direction of eq. (3) removed).
+    restricted to the hyperplane ``row . p = 0`` (the null direction of (S3) removed).
     The anisotropy and weak direction are those of the translation across the axis.
 
     Returns
