@@ -141,7 +141,7 @@ def handeye_images(
     if camera:  # several cameras: X per camera and camera-to-camera, its own module
         from kinecal.cli.handeye_rig import handeye_rig_cli
 
-        return handeye_rig_cli(dict(locals()))
+        return handeye_rig_cli(dict(locals()), list_images, limits_option, IMAGE_SUFFIXES)
     check_paths({"IMAGES_DIR": images_dir, "ROBOT_POSES": robot_poses,
                  "--intrinsics": intrinsics}, {"--out": out, "--report": report},
                 reads={"IMAGES_DIR": IMAGE_SUFFIXES})

@@ -11,6 +11,7 @@ every pair's camera-to-camera extrinsics with their uncertainty
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -49,19 +50,19 @@ def _cameras(values: list[str]) -> list[tuple[str, str | None]]:
     return out
 
 
-def handeye_rig_cli(a: dict[str, Any]) -> None:
+def handeye_rig_cli(a: dict[str, Any], list_images: Callable, limits_option: Callable,
+                    suffixes: tuple[str, ...]) -> None:
     """Run a multi-camera hand-eye calibration (module docstring); `a`: the
-    ``handeye-images`` arguments, every one checked before any work."""
+    ``handeye-images`` arguments, every one checked before any work; the image folder's
+    listing, the ``--min-corners`` check and the image suffixes are that command's."""
     given = [opt for key, opt in _ONE_CAMERA.items() if a.get(key) not in (None, False)]
     if given:
         raise InputError("does not apply with several cameras (each camera's intrinsics: "
                          "--camera NAME:intrinsics.yaml)", option=given[0])
-    from kinecal.cli.handeye_images import IMAGE_SUFFIXES, limits_option, list_images
-
     cams = _cameras(a["camera"])
     inputs = {"IMAGES_DIR": a["images_dir"], "ROBOT_POSES": a["robot_poses"],
               **{f"--camera {n}": p for n, p in cams if p is not None}}
-    check_paths(inputs, {"--out": a["out"]}, reads={"IMAGES_DIR": IMAGE_SUFFIXES})
+    check_paths(inputs, {"--out": a["out"]}, reads={"IMAGES_DIR": suffixes})
     if a["setup"] not in ("eye-in-hand", "eye-to-hand"):
         raise InputError(f"unknown setup {a['setup']!r}; expected eye-in-hand or eye-to-hand",
                          option="--setup")

@@ -266,3 +266,46 @@ def test_block_sparse_normal_equations_equal_the_dense(kr6):
     assert np.allclose(r, prob.residuals(x), rtol=1e-12, atol=1e-12)
     assert np.allclose(A, J.T @ J, rtol=1e-10, atol=1e-8 * np.abs(A).max())
     assert np.allclose(g, J.T @ r, rtol=1e-10, atol=1e-8 * np.abs(g).max())
+
+
+@pytest.mark.parametrize("layout", ["partial", "interleaved"])
+def test_jacobian_of_views_of_unequal_or_interleaved_corners(kr6, layout):
+    """Views with different corner counts (boards seen in part) and images whose two
+    boards' corners are interleaved: the per-view products against central differences."""
+    cams = [Mount("a", "world"), Mount("b", "world")]
+    boards = [Mount("held", "flange"), Mount("beside", "flange")]
+    scene = render_rig_stations(kr6, cams, [(boards[0], BOARD)], [(K, DIST, SIZE)] * 2, 6,
+                                seed=2, render=False)
+    v = scene_views(scene)
+    Y = [scene.Y[0], scene.Y[0] @ transform_from(np.eye(3), [40.0, 30.0, 0.0])]
+    rng = np.random.default_rng(1)
+    pts, pix, brd = [], [], []
+    for P, uv in zip(v.points, v.pixels, strict=True):
+        P2, uv2 = np.vstack([P, P]), np.vstack([uv, uv])  # both boards (pixels unused)
+        b2 = np.r_[np.zeros(len(P), np.intp), np.ones(len(P), np.intp)]
+        if layout == "partial":
+            order = np.sort(rng.choice(len(P2), len(P2) - rng.integers(1, 9), replace=False))
+        else:
+            order = rng.permutation(len(P2))
+        pts.append(P2[order])
+        pix.append(uv2[order])
+        brd.append(b2[order])
+    v = RigViews(v.names, v.camera, v.q, pts, pix, brd)
+    fr = LinkFrames(kr6, v.q, ["world", "flange"])
+    px = RigPixels(fr, v, cams, boards, [K] * 2, [DIST] * 2, scene.X, Y, [9, 0])
+    assert px.view_n == 0 and px.view_sorted == (layout == "partial")
+    p0, nu = scene.true_params, np.random.default_rng(2).normal(size=px.n_nuisance) * 1e-3
+    cols = kr6.index(["a2", "theta3", "d4", "alpha5", "theta6"])
+    uv, J = px.predict(p0, nu, cols, jac=True)
+    h = 1e-6
+    for j, c in enumerate(cols):
+        e = np.zeros_like(p0)
+        e[c] = h
+        fd = (px.predict(p0 + e, nu)[0] - px.predict(p0 - e, nu)[0]) / (2 * h)
+        assert np.allclose(J.arm[:, :, j], fd, atol=1e-4 * max(1.0, np.abs(fd).max()))
+    Jn = J.dense_nuisance(px.n_nuisance).reshape(-1, 2, px.n_nuisance)
+    for j in range(px.n_nuisance):
+        e = np.zeros_like(nu)
+        e[j] = h
+        fd = (px.predict(p0, nu + e)[0] - px.predict(p0, nu - e)[0]) / (2 * h)
+        assert np.allclose(Jn[:, :, j], fd, atol=1e-4 * max(1.0, np.abs(fd).max()))

@@ -18,24 +18,46 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal.calibration.camera.block import _cross_rows as cross_rows
 from kinecal.calibration.handeye.refine import _jr
 from kinecal.spatial import matrix_from_axis_angle
 
 Array = NDArray[np.float64]
 Index = NDArray[np.intp]
 
-__all__ = ["RigJacobian", "cross_rows", "rig_jacobian"]
+__all__ = ["RigJacobian", "rig_jacobian", "rotate_by_view", "times_by_view"]
 
 
-def cross_rows(V: Array, a: Array) -> Array:
-    """``V_m,r x a_m`` ``(M, r, 3)`` for rows `V` ``(M, r, 3)`` and vectors `a` ``(M, 3)``:
-    the rows of ``V [a]x`` (``v^T [a]x = (v x a)^T``), written out (numpy's cross and
-    batched skew products are several times slower)."""
-    out = np.empty_like(V)
-    a0, a1, a2 = a[:, None, 0], a[:, None, 1], a[:, None, 2]
-    out[..., 0] = V[..., 1] * a2 - V[..., 2] * a1
-    out[..., 1] = V[..., 2] * a0 - V[..., 0] * a2
-    out[..., 2] = V[..., 0] * a1 - V[..., 1] * a0
+def times_by_view(px, X: Array, M: Array, views: Index | None = None) -> Array:
+    """``X_m M_{view(m)}`` ``(N, r, q)`` for the rows `X` ``(N, r, c)`` of the corners of
+    `views` (default all; sorted view indices; the rows in corner order) and one matrix
+    per view `M` ``(len(views), c, q)``: one batched product when every view has as many
+    corners (a grid board seen whole), one product per view when each view's corners are
+    in one run, a gathered product else."""
+    views = np.arange(len(px.view_img)) if views is None else np.asarray(views, np.intp)
+    N, r, c = X.shape
+    q = M.shape[2]
+    if px.view_n:
+        n = px.view_n
+        return (X.reshape(len(views), n * r, c) @ M).reshape(N, r, q)
+    if px.view_sorted:
+        out = np.empty((N, r, q))
+        at = 0
+        for j, v in enumerate(views):
+            a, b = px.view_bounds[v]
+            out[at:at + b - a] = (X[at:at + b - a].reshape(-1, c) @ M[j]).reshape(b - a, r, q)
+            at += b - a
+        return out
+    of = px.vid if len(views) == len(px.view_img) else px.vid[np.isin(px.vid, views)]
+    return X @ M[np.searchsorted(views, of)]  # each row its view's matrix (rows in order)
+
+
+def rotate_by_view(px, P: Array, R: Array, o: Array | None = None) -> Array:
+    """``R_v P_m (+ o_v)`` ``(M, 3)`` for every corner `P` ``(M, 3)`` of view v, `R`
+    ``(V, 3, 3)`` and `o` ``(V, 3)`` per view."""
+    out = times_by_view(px, P[:, None, :], np.swapaxes(R, 1, 2))[:, 0, :]
+    if o is not None:
+        out += o[px.vid]
     return out
 
 
@@ -143,24 +165,31 @@ def rig_jacobian(px, nu: Array, poses: dict, cols: Index, Jp: Array, Jint: list,
     the projection Jacobian `Jp` ``(M, 2, 3)`` and per camera the intrinsic one, camera
     points `pc`, and per view the world-to-camera rotation `B`, board-link-to-camera `Mw`,
     board mount rotation `RY` and translation `tY`, board and camera link poses."""
-    v, img = px.vid, px.img
+    v = px.vid
     nc, nb = len(px.cameras), len(px.boards)
-    A = Jp @ B[v]  # pixels per world vector
+    A = times_by_view(px, Jp, B)  # pixels per world vector
     P = px.P
-    w = np.einsum("mij,mj->mi", RY[v], P) + tY[v]  # board point in its link
-    Rw = np.einsum("mij,mj->mi", Rb[v], w)  # u - t_b
+    w = rotate_by_view(px, P, RY, tY)  # board point in its link
+    Rw = rotate_by_view(px, w, Rb)  # u - t_b
     arm = np.zeros((len(pc), 2, len(cols)))
     if len(cols):
         u_tc = Rw + tb[v] - tc[v]
         Hb = np.concatenate([A, -cross_rows(A, Rw)], axis=2)
         Hc = np.concatenate([-A, cross_rows(A, u_tc)], axis=2)
-        for mounts, H, of in ((px.boards, Hb, px.board_of), (px.cameras, Hc, px.cam_of)):
+        view_cam = px.views.camera[px.view_img]
+        for mounts, H, vof in ((px.boards, Hb, px.view_board), (px.cameras, Hc, view_cam)):
+            # each view's link pose Jacobian (zero for a static mount's views): one batched
+            # product per side, no scatter into the rows of each mount
+            G = np.zeros((len(vof), 6, len(cols)))
+            moving = False
             for k, m in enumerate(mounts):
                 lp = poses[m.link]
-                if not lp.moves:
-                    continue
-                sel = of == k
-                arm[sel] += H[sel] @ lp.G[img[sel]]
+                if lp.moves:
+                    views = vof == k
+                    G[views] = lp.G[px.view_img[views]]
+                    moving = True
+            if moving:
+                arm += times_by_view(px, H, G)
     nu = np.asarray(nu, float)
     ac = np.array([nu[s][:3] for s in px.slices["camera"]])
     RX = np.array([x0[:3, :3] @ matrix_from_axis_angle(a) for x0, a in
@@ -171,7 +200,7 @@ def rig_jacobian(px, nu: Array, poses: dict, cols: Index, Jp: Array, Jint: list,
     ab = np.array([nu[s][:3] for s in px.slices["board"]])
     RYb = np.array([y0[:3, :3] @ matrix_from_axis_angle(a) for y0, a in
                     zip(px.Y0, ab, strict=True)])
-    Ab = Jp @ Mw[v]
+    Ab = times_by_view(px, Jp, Mw)
     brd = np.empty((len(pc), 2, 6))
     brd[:, :, :3] = -_per_group(cross_rows(_per_group(Ab, RYb, px.board_of, nb), P),
                                 _jr(ab), px.board_of, nb)

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal.calibration.camera.rig_jacobian import RigJacobian, rig_jacobian
+from kinecal.calibration.camera.rig_jacobian import RigJacobian, rig_jacobian, rotate_by_view
 from kinecal.calibration.handeye.camera import (
     INTRINSIC_NAMES,
     check_camera,
@@ -178,6 +178,13 @@ class RigPixels:
         vkeys, self.vid = np.unique(key, return_inverse=True)
         self.view_img = (vkeys // max(nb, 1)).astype(np.intp)
         self.view_board = (vkeys % max(nb, 1)).astype(np.intp)
+        # corners of one view in one run (the usual layout): per-view matrix products
+        vcount = np.bincount(self.vid, minlength=len(vkeys))
+        self.view_sorted = bool(np.all(np.diff(self.vid) >= 0))
+        self.view_n = int(vcount[0]) if self.view_sorted and len(vcount) and np.all(
+            vcount == vcount[0]) else 0
+        ends = np.cumsum(vcount)
+        self.view_bounds = list(zip((ends - vcount).tolist(), ends.tolist(), strict=True))
         self.slices = self._slices()
 
     # ------------------------------------------------------------------ layout
@@ -282,8 +289,7 @@ class RigPixels:
         Mv = Mw @ RY  # board -> camera
         ov = np.einsum("vij,vj->vi", B, np.einsum("vij,vj->vi", Rb, tY) + tb - tc) \
             - np.einsum("vji,vj->vi", RX, tX)
-        v = self.vid
-        pc = np.einsum("mij,mj->mi", Mv[v], self.P) + ov[v]
+        pc = rotate_by_view(self, self.P, Mv, ov)
         behind = pc[:, 2] <= 0
         if np.any(behind):
             if strict:
@@ -301,7 +307,8 @@ class RigPixels:
             sel = self.cam_of == c
             if not sel.any():
                 continue
-            u, jp, ji = project_jacobian(Ks[c], ds[c], pc[sel], self.n_int[c] == 12, jac)
+            u, jp, ji = project_jacobian(Ks[c], ds[c], pc[sel], self.n_int[c] == 12, jac,
+                                         intrinsics=self.n_int[c] > 0)
             uv[sel] = u
             if jac:
                 Jp[sel] = jp
