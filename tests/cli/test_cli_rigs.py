@@ -80,10 +80,13 @@ def test_images_mixed_with_a_tracker_file(rig, tmp_path, capsys):
     assert main(["simulate", "kr6-craig", "--poses", "15", "--noise", "0.01", "--errors",
                  str(rig / "truth.json"), "--seed", "2", "--out", str(tracker),
                  "--quiet"]) == 0
-    args = _calibrate(rig, "--out", str(out), "--quiet")
+    report = tmp_path / "r.html"
+    args = _calibrate(rig, "--out", str(out), "--report", str(report), "--quiet")
     args.insert(3, str(tracker))
     assert main(args) == 0, capsys.readouterr().err
     res = json.loads(out.read_text())
+    # the report lists the mounts beside the gauges' unknowns (it stopped at them before)
+    assert "camera left (camera2world)" in report.read_text()
     assert [k["kind"] for k in res["kinds"]] == ["rig", "tracker"]
     truth = json.loads((rig / "truth.json").read_text())
     for name in CAMS:  # the tracker fixes the world frame: the cameras where they are
