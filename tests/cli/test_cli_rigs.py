@@ -154,3 +154,27 @@ def test_mistakes_exit_2_and_write_nothing(rig, tmp_path, capsys, args, message)
 def test_camera_needs_images(capsys):
     assert main(["calibrate", "kr6-craig", "x.csv", "--camera", "a:world"]) == 2
     assert "--camera: applies to --images only" in capsys.readouterr().err
+
+
+def test_head_camera_on_a_system_mixed_with_the_arm_tracker_rows(tmp_path, capsys):
+    """A robot system (the bundled head-arm): the head camera's images and tracker rows of
+    the arm's tip (a tip column, the head's joints blank) in one problem."""
+    d = tmp_path
+    write_intrinsics(d / "cam.yaml", CameraIntrinsics(K, DIST, (480, 360)))
+    assert main(["simulate", "head-arm", "--images", str(d / "images"), "--poses", "10",
+                 "--seed", "4", "--camera", f"eye:head:{d / 'cam.yaml'}", "--board",
+                 f"held:arm:{BOARD}", "--out", str(d / "s.csv"), "--truth-out",
+                 str(d / "truth.json"), "--quiet"]) == 0
+    assert main(["simulate", "head-arm", "--poses", "12", "--tip", "arm", "--noise", "0.01",
+                 "--errors", str(d / "truth.json"), "--out", str(d / "t.csv"),
+                 "--quiet"]) == 0
+    out = d / "r.json"
+    assert main(["calibrate", "head-arm", str(d / "s.csv"), str(d / "t.csv"), "--images",
+                 str(d / "images"), "--camera", f"eye:head:{d / 'cam.yaml'}", "--board",
+                 f"held:arm:{BOARD}", "--out", str(out), "--quiet"]) == 0, \
+        capsys.readouterr().err
+    res = json.loads(out.read_text())
+    assert [k["kind"] for k in res["kinds"]] == ["rig", "tracker"]
+    assert res["cameras"]["eye"]["link"] == "head" and res["boards"]["held"]["link"] == "arm"
+    assert "arm.tool.x" in res["free"]  # the tracker sees the tool point the images cannot
+    assert {"head.theta2", "head.d2"} <= set(res["rig"]["confounded"]["camera eye"])

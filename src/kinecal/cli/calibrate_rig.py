@@ -210,11 +210,12 @@ def _run(a: dict[str, Any], cams: list[str], boards: list[str], stations: str,
     _all_listed(folder, by_name, listed, Path(stations),
                 " or --validate" if validate and vfolder is None else "")
     q = complete_joints(m, rig, st.camera, st.board, st.q, st.names)
-    sets = _read_all(m, others, "DATA", None, unit) if others else []
-    if system and others:
+    if system:
         from kinecal.cli.systems import _read
 
         sets = _read(m, others, "DATA", a.get("tip"), unit)
+    else:
+        sets = _read_all(m, others, "DATA", None, unit) if others else []
     stated = parse_sigma(a["sigma"], others) if others else None
     with progress("detecting", len(st.names), a["quiet"] or a["json_out"]) as update:
         return calibrate_rig_images(m, rig, [by_name[n] for n in st.names], st.names,
