@@ -1,15 +1,12 @@
-"""File helpers used by every layer: atomic writes and strict reads.
+"""File helpers used by every layer: atomic writes and strict reads (YAML: `kinecal._yaml`).
 
 Writes go to a temporary file in the target directory, then a rename: an existing output
 is never half overwritten. Reads turn every failure into `kinecal.InputError` naming the
 file. (This module sits beside `kinecal.errors`, below all layers.)
 
-Temporary files are named ``.<name>.kinecal-<host>-<pid>.<random>.tmp`` (``<host>``: 8 hex
-digits of a hash of the host name, ``<pid>``: the writing process). A write that is killed
-before its rename (SIGKILL, power loss) leaves one behind; the next write into the same
-folder removes every such file whose writer process is gone (same host) or that has not
-been touched for `STALE_TEMP_SECONDS` (any host), so a killed 500 MB write does not stay
-on the disk for good.
+A write killed before its rename leaves its temporary file; the next write into the same
+folder removes it (`kinecal._temps`). `all_or_nothing` commits the several files of one
+command together.
 """
 
 from __future__ import annotations
@@ -18,45 +15,30 @@ import contextlib
 import errno
 import json
 import os
-import re
 import stat
 import tempfile
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
+from kinecal._temps import remove_own_temp_files, sweep_once, temp_prefix
 from kinecal.errors import InputError
 
 __all__ = [
     "MAX_TEXT_BYTES",
-    "MAX_YAML_ALIAS_NODES",
-    "STALE_TEMP_SECONDS",
+    "all_or_nothing",
     "atomic_open",
     "check_input_file",
-    "load_yaml",
     "probe_writable",
     "read_json",
     "read_text",
-    "read_yaml_mapping",
-    "sweep_stale_temp_files",
     "write_bytes_atomic",
     "write_text_atomic",
+    "written_in_place",
 ]
 
-#: a temporary file of another host (or of a recycled pid) untouched this long is stale
-STALE_TEMP_SECONDS = 24 * 3600.0
-#: YAML aliases may add at most this many nodes to a document once expanded (a "billion
-#: laughs" file of 1 kB expands to 10^9 nodes; a real jobs or model file has no need of more)
-MAX_YAML_ALIAS_NODES = 1_000_000
 #: largest text input (model, geometry, jobs, JSON, FileStorage YAML) read into memory
 MAX_TEXT_BYTES = 256_000_000
-#: the part of the target's name kept in a temporary name (names are limited to 255 bytes)
-_NAME_KEEP = 100
-
-_TEMP_RE = re.compile(r"^\..*\.kinecal-([0-9a-f]{8})-(\d+)\.[^.]+\.tmp$", re.DOTALL)
-#: folders already swept by this process (a sweep lists the folder: once is enough)
-_SWEPT: set[str] = set()
 #: errors of the path itself (a user mistake, exit 2), as opposed to the disk (exit 1)
 _PATH_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENAMETOOLONG, errno.ENOTDIR,
                 errno.EISDIR, errno.ELOOP, errno.ENOENT}
@@ -64,66 +46,6 @@ _PATH_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENAMETOOLONG, errn
 
 #: errors of the disk (exit 1), not of the path
 _DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO}
-
-
-def _host_tag() -> str:
-    import hashlib  # lazily: 4 ms of every command's start-up
-    import socket
-
-    return hashlib.sha1(socket.gethostname().encode("utf-8", "replace")).hexdigest()[:8]
-
-
-def pid_alive(pid: int) -> bool:
-    """Whether process `pid` exists (True when it cannot be probed: Windows, no permission)."""
-    if os.name == "nt":  # os.kill(pid, 0) is not a probe there: rely on the age rule
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except (PermissionError, OverflowError, OSError):  # exists, or cannot be probed
-        return True
-    return True
-
-
-def sweep_stale_temp_files(folder: str | Path, *, now: float | None = None) -> list[Path]:
-    """Remove kinecal's own stale temporary files in `folder`; return the removed paths.
-
-    A temporary file (see the module docstring for the naming) is stale when it was
-    written on this host by a process that no longer exists, or when it has not been
-    modified for `STALE_TEMP_SECONDS`. Other files are never touched; errors (a file
-    removed meanwhile, no permission) are ignored.
-    """
-    folder = Path(folder)
-    now = time.time() if now is None else now
-    host, removed = _host_tag(), []
-    try:
-        entries = list(os.scandir(folder))
-    except OSError:
-        return removed
-    for entry in entries:
-        m = _TEMP_RE.match(entry.name)
-        if m is None:
-            continue
-        try:
-            st = entry.stat(follow_symlinks=False)
-            if not stat.S_ISREG(st.st_mode):
-                continue
-            dead = m.group(1) == host and int(m.group(2)) != os.getpid() \
-                and not pid_alive(int(m.group(2)))
-            if dead or now - st.st_mtime > STALE_TEMP_SECONDS:
-                os.unlink(entry.path)
-                removed.append(Path(entry.path))
-        except OSError:
-            continue
-    return removed
-
-
-def _sweep_once(folder: Path) -> None:
-    key = os.path.abspath(folder)
-    if key not in _SWEPT:
-        _SWEPT.add(key)
-        sweep_stale_temp_files(folder)
 
 
 def _path_error(exc: OSError, path: Path) -> Exception:
@@ -140,11 +62,44 @@ def _named(exc: OSError, path: Path) -> OSError:
     return exc
 
 
+def _open_fd(path: Path) -> int | None:
+    """The descriptor behind `path` when it names one of this process's open files
+    (``/dev/stdout``, ``/dev/stderr``, ``/dev/fd/N``, ``/proc/self/fd/N``): the output the
+    shell redirected, written through that descriptor (a pipe, a terminal, a file opened
+    for appending), never replaced. None for any other path."""
+    names = {"/dev/stdout": 1, "/dev/stderr": 2}
+    text = os.path.abspath(path)
+    for _ in range(8):  # /dev/stdout -> /proc/self/fd/1 -> ...
+        if text in names:
+            return names[text]
+        for prefix in ("/dev/fd/", "/proc/self/fd/", f"/proc/{os.getpid()}/fd/"):
+            if text.startswith(prefix) and text[len(prefix):].isdigit():
+                return int(text[len(prefix):])
+        try:
+            link = os.readlink(text)
+        except OSError:
+            return None
+        text = os.path.normpath(os.path.join(os.path.dirname(text), link))
+    return None
+
+
+def written_in_place(path: str | Path) -> bool:
+    """True when a write to `path` goes into it directly rather than by a rename: an open
+    descriptor (`_open_fd`), a device (``/dev/null``), a FIFO."""
+    if _open_fd(Path(path)) is not None:
+        return True
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
 def probe_writable(path: str | Path) -> None:
     """Create and remove a temporary file beside `path`, as `atomic_open` will: the one
     sure test that the folder takes a new file (``/proc``, a read-only mount, a full
-    inode table refuse it whatever the permission bits say). Devices and FIFOs, written in
-    place, and missing folders are left to the writer.
+    inode table refuse it whatever the permission bits say). Devices, FIFOs and open
+    descriptors, written in place, and missing folders are left to the writer.
 
     Raises
     ------
@@ -152,22 +107,117 @@ def probe_writable(path: str | Path) -> None:
         The folder refuses the file (with the reason).
     """
     path = Path(path)
-    target = Path(os.path.realpath(path)) if path.is_symlink() else path
-    try:
-        if target.exists() and not target.is_file():
-            return
-    except OSError:
+    if written_in_place(path):
         return
+    target = Path(os.path.realpath(path)) if path.is_symlink() else path
     if not target.parent.is_dir():
         return
-    prefix = f".{target.name[:_NAME_KEEP]}.kinecal-{_host_tag()}-{os.getpid()}."
+    with _signals_held():  # Ctrl-C between the creation and the removal would leave it
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=temp_prefix(target), suffix=".tmp",
+                                       dir=target.parent)
+        except OSError as exc:
+            raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None
+        os.close(fd)
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+
+
+#: the writes of the open `all_or_nothing` block: target -> its finished temporary file
+_PENDING: dict[Path, str] | None = None
+#: the folders the open block writes into (cleaned of this process's temporary files when
+#: the block fails, even one whose writer was interrupted before it could remove it)
+_FOLDERS: set[Path] = set()
+
+
+@contextlib.contextmanager
+def all_or_nothing() -> Iterator[None]:
+    """Commit every `atomic_open` write of the block together, or none of them.
+
+    Inside the block each file is written, flushed and synced to its temporary file as
+    usual, but not yet renamed; when the block ends normally every temporary file is
+    renamed over its target (with Ctrl-C, SIGTERM and SIGHUP held back for those few
+    renames). When the block ends by an exception (a disk full while the report is
+    written, Ctrl-C while a PDF is rendered, a ``ulimit -f`` exceeded), every temporary
+    file is removed and no earlier output is replaced: a command's result JSON, model and
+    report are either all new or all as they were. Writes in place (`written_in_place`:
+    ``/dev/stdout``, a device, a FIFO) cannot wait and are made at once. Blocks nest: the
+    outermost one commits.
+    """
+    global _PENDING
+    if _PENDING is not None:
+        yield
+        return
+    _PENDING = pending = {}
+    _FOLDERS.clear()
     try:
-        fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=".tmp", dir=target.parent)
+        yield
+    except BaseException:
+        _discard(pending)
+        for folder in _FOLDERS:
+            remove_own_temp_files(folder)
+        raise
+    finally:
+        _PENDING = None
+    _commit(pending)
+
+
+def _discard(pending: dict[Path, str]) -> None:
+    for tmp in pending.values():
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+    pending.clear()
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Ctrl-C, SIGTERM and SIGHUP held back (delivered at the end) for a few system calls
+    that must not be cut apart (POSIX, main thread; elsewhere nothing is held)."""
+    import signal
+    import threading
+
+    if not hasattr(signal, "pthread_sigmask") or \
+            threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = [getattr(signal, s) for s in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, s)]
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _commit(pending: dict[Path, str]) -> None:
+    """Rename every finished temporary file over its target, signals held back meanwhile."""
+    with _signals_held():
+        try:
+            for target in list(pending):
+                try:
+                    os.replace(pending[target], target)
+                except OSError as exc:
+                    raise _path_error(exc, target) from None
+                del pending[target]
+        finally:
+            _discard(pending)
+
+
+@contextlib.contextmanager
+def _in_place(path: Path, target: Path, fd: int | None, mode: str,
+              encoding: str | None) -> Iterator[IO]:
+    """Write a device, a FIFO or an open descriptor (`fd`) directly."""
+    try:
+        if fd is not None:  # the redirected output: its own descriptor, not a reopening
+            fh = os.fdopen(os.dup(fd), mode, encoding=encoding)
+        else:
+            fh = open(target, mode, encoding=encoding)
     except OSError as exc:
-        raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None
-    os.close(fd)
-    with contextlib.suppress(OSError):
-        os.unlink(tmp)
+        raise _path_error(exc, path) from None
+    try:
+        with fh:
+            yield fh
+    except OSError as exc:  # /dev/full: name the file written
+        raise _named(exc, path) from None
 
 
 @contextlib.contextmanager
@@ -177,29 +227,25 @@ def atomic_open(path: str | Path, mode: str = "w", encoding: str | None = "utf-8
     An exception inside the ``with`` block removes the temporary file and leaves any
     existing `path` untouched. A symbolic link is followed (the file it points to is
     replaced, the link stays); an existing target that is not a regular file (a device
-    such as ``/dev/null``, a FIFO) is written directly, never replaced. An existing file
-    without write permission is refused. Stale temporary files of earlier killed writes
-    in the folder are removed first (`sweep_stale_temp_files`).
+    such as ``/dev/null``, a FIFO) and an open descriptor (``/dev/stdout``, written through
+    the descriptor the shell redirected) are written directly, never replaced. An existing
+    file without write permission is refused. Stale temporary files of earlier killed
+    writes in the folder are removed first (`sweep_stale_temp_files`). Inside an
+    `all_or_nothing` block the rename waits for the end of the block.
     """
     path = Path(path)
-    if path.is_dir():
+    encoding = None if "b" in mode else encoding
+    fd = _open_fd(path)
+    if fd is None and path.is_dir():
         raise InputError("is a directory; expected a file path to write", file=path)
     target = Path(os.path.realpath(path)) if path.is_symlink() else path
-    binary = "b" in mode
     try:
         st = target.stat()
     except OSError:
         st = None
-    if st is not None and not stat.S_ISREG(st.st_mode):  # /dev/null, a FIFO: no rename
-        try:
-            fh = open(target, mode, encoding=None if binary else encoding)
-        except OSError as exc:
-            raise _path_error(exc, path) from None
-        try:
-            with fh:
-                yield fh
-        except OSError as exc:  # /dev/full: name the file written
-            raise _named(exc, path) from None
+    if fd is not None or (st is not None and not stat.S_ISREG(st.st_mode)):
+        with _in_place(path, target, fd, mode, encoding) as fh:
+            yield fh
         return
     if st is not None and not os.access(target, os.W_OK):
         raise InputError("is read-only; refusing to replace it (change its permissions or "
@@ -208,21 +254,28 @@ def atomic_open(path: str | Path, mode: str = "w", encoding: str | None = "utf-8
         raise InputError("file name too long (at most 255 bytes)", file=path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        _sweep_once(target.parent)
-        prefix = f".{target.name[:_NAME_KEEP]}.kinecal-{_host_tag()}-{os.getpid()}."
-        fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=".tmp", dir=target.parent)
+        sweep_once(target.parent)
+        if _PENDING is not None:
+            _FOLDERS.add(target.parent)
+        fd, tmp = tempfile.mkstemp(prefix=temp_prefix(target), suffix=".tmp", dir=target.parent)
     except OSError as exc:  # parent is a file, no permission, read-only file system
         raise InputError(f"cannot write here ({exc.strerror or exc})", file=path) from None
     try:
         os.chmod(tmp, _file_mode(target))  # mkstemp makes 0600; a result file is 0644-like
         try:
-            with os.fdopen(fd, mode, encoding=None if binary else encoding,
-                           newline=None) as fh:
+            with os.fdopen(fd, mode, encoding=encoding, newline=None) as fh:
                 yield fh
                 fh.flush()
                 os.fsync(fh.fileno())
         except OSError as exc:
             raise _named(exc, path) from None
+        if _PENDING is not None:  # all_or_nothing: renamed with the others at its end
+            old = _PENDING.pop(target, None)
+            _PENDING[target] = tmp
+            if old is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(old)
+            return
         try:
             os.replace(tmp, target)
         except OSError as exc:
@@ -312,92 +365,3 @@ def read_json(path: str | Path) -> Any:
         raise InputError("not valid JSON: a number of thousands of digits", file=path) from None
     except RecursionError:
         raise InputError("not valid JSON: nested too deeply", file=path) from None
-
-
-def _children(node: Any) -> list:
-    import yaml
-
-    if isinstance(node, yaml.SequenceNode):
-        return list(node.value)
-    if isinstance(node, yaml.MappingNode):
-        return [n for pair in node.value for n in pair]
-    return []
-
-
-def _alias_growth(root: Any) -> int | None:
-    """Nodes the aliases add to the document rooted at `root` when expanded (None: a
-    recursive alias, i.e. infinitely many). Iterative: no recursion limit."""
-    size: dict[int, int] = {}
-    open_: set[int] = set()
-    stack = [(root, False)]
-    while stack:
-        node, closing = stack.pop()
-        key = id(node)
-        if closing:
-            size[key] = 1 + sum(size[id(c)] for c in _children(node))
-            open_.discard(key)
-            continue
-        if key in size:
-            continue
-        open_.add(key)
-        stack.append((node, True))
-        for child in _children(node):
-            if id(child) in open_:
-                return None
-            if id(child) not in size:
-                stack.append((child, False))
-    return size[id(root)] - len(size)
-
-
-def load_yaml(text: str, file: str | Path | None = None, loader: type | None = None) -> Any:
-    """Parse one YAML document safely (`yaml.SafeLoader`, or the given subclass).
-
-    Anchors and aliases are allowed, but a document whose aliases expand it by more than
-    `MAX_YAML_ALIAS_NODES` nodes ("billion laughs") or refer to themselves is refused
-    before it is built, and so is nesting deeper than Python's recursion limit.
-
-    Raises
-    ------
-    InputError
-        Not valid YAML (with the line), an alias bomb, or too deep nesting; names `file`.
-    """
-    import yaml
-
-    ld = None
-    try:
-        ld = (loader or yaml.SafeLoader)(text)  # its reader already refuses control chars
-        node = ld.get_single_node()
-        if node is None:
-            return None
-        growth = _alias_growth(node)
-        if growth is None:
-            raise InputError("YAML alias refers to itself (a recursive document); expected "
-                             "plain data", file=file)
-        if growth > MAX_YAML_ALIAS_NODES:
-            raise InputError(f"YAML aliases expand the document by {growth:.3g} nodes, more "
-                             f"than the {MAX_YAML_ALIAS_NODES:,} allowed (an alias bomb?)",
-                             file=file)
-        return ld.construct_document(node)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None)
-        raise InputError(f"not valid YAML{where}" + (f": {problem}" if problem else ""),
-                         file=file) from None
-    except RecursionError:
-        raise InputError("YAML nested too deeply", file=file) from None
-    finally:
-        if ld is not None:
-            ld.dispose()
-
-
-def read_yaml_mapping(path: str | Path, text: str | None = None) -> dict:
-    """The YAML mapping in `path` (or in `text` read from it); `InputError` otherwise.
-
-    Parsed by `load_yaml` (safe, alias bombs refused).
-    """
-    text = read_text(path) if text is None else text
-    data = load_yaml(text, path)
-    if not isinstance(data, dict):
-        raise InputError("expected a YAML mapping (key: value) at the top level", file=path)
-    return data

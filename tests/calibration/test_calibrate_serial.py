@@ -239,3 +239,27 @@ def test_predicted_position_error_matches_monte_carlo():
     assert 0.7 <= ratio.min() and ratio.max() <= 1.4, ratio
     summary = res.to_dict()["predicted_error"]
     assert summary["calibration_mean"] > 0 and summary["validation_mean"] is None
+
+
+def test_writing_a_result_costs_no_memory_per_pose():
+    """The predicted error of the result (`to_dict`) is computed in blocks of poses: its
+    peak memory does not grow with the poses (it took 1.58 kB per pose: the Jacobian of
+    every pose at once), and its value is the plain formula's."""
+    import tracemalloc
+
+    m = kinecal.load_model("ur5")
+    sim = simulate(m, 20000, noise=0.01, rng=4)
+    res = calibrate(m, sim.data)
+    peaks = {}
+    for n in (8000, 20000):
+        q = sim.data.q[:n]
+        tracemalloc.start()
+        pred = res.predicted_position_error(q)
+        peaks[n] = tracemalloc.get_traced_memory()[1] - pred.nbytes
+        tracemalloc.stop()
+    assert (peaks[20000] - peaks[8000]) / 12000 < 100, peaks  # bytes per pose
+    idx = m.index(res.free)
+    J = m.identification_jacobian(sim.data.q[:50], res.params)[:, :, idx]
+    plain = np.sqrt(np.trace(J @ res.covariance @ np.swapaxes(J, 1, 2), axis1=1, axis2=2))
+    np.testing.assert_allclose(res.predicted_position_error(sim.data.q[:50]), plain,
+                               rtol=1e-12)

@@ -178,3 +178,18 @@ def test_the_report_has_a_section_per_measurement_set(arm):
     assert "Measurement sets" in html and "pivot P2" in html and "plane F1" in html
     assert "Validation sets" in html and "Not seen by this mix" in html
     assert res.val_after.max() < 0.1 < res.val_before.max()  # the points, held out
+
+
+def test_a_validation_set_that_repeats_a_calibration_set_is_named(arm):
+    """``validation-overlap`` in a mix as on the tracker path: a ballbar file given as both
+    calibration and validation is named (every row); held-out ballbar rows, and another
+    kind measured at the same poses, are not."""
+    m, truth = arm[0], arm[1]
+    bb, pt = _noisy(arm, "ballbar", 1), _noisy(arm, "point", 1)
+    same = calibrate_blocks(m, [bb, pt], sigma=[0.002, 0.010], validate=[bb])
+    overlap = [w.message for w in same.warnings if w.code == "validation-overlap"]
+    assert len(overlap) == 1 and f"{len(bb)} of {len(bb)} rows" in overlap[0], same.warnings
+    held = simulate_kind(m, "ballbar", 20, true_params=truth, rng=np.random.default_rng(7))
+    other = calibrate_blocks(m, [bb, pt], sigma=[0.002, 0.010], validate=[held.data])
+    assert not [w for w in other.warnings if w.code == "validation-overlap"], other.warnings
+    assert other.extra["validation_kinds"][0]["kind"] == "ballbar"

@@ -79,3 +79,31 @@ def test_list_and_write(tmp_path, capsys):
     assert edited.read_text() == "mine"  # never replaced
     assert main(["datasets", "nope"]) == 2
     assert "unknown set 'nope'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("device", ["/dev/full", "/dev/zero"])
+def test_a_file_in_the_folder_linked_to_a_device_is_refused_without_reading_it(
+        device, tmp_path, capsys):
+    """``datasets ... --out d`` with ``d/grid.csv -> /dev/full`` read the device until a
+    MemoryError; now it is a file that differs from the bundled one (exit 2), nothing
+    written, and an identical copy is left as it is."""
+    d = tmp_path / "d"
+    d.mkdir()
+    (d / "grid.csv").symlink_to(device)
+    assert main(["datasets", "ur5-laser-tracker", "--out", str(d)]) == 2
+    assert f"{d / 'grid.csv'} exists and differs from the bundled file" in \
+        capsys.readouterr().err
+    assert sorted(p.name for p in d.iterdir()) == ["grid.csv"]
+    (d / "grid.csv").unlink()
+    assert main(["datasets", "ur5-laser-tracker", "--out", str(d)]) == 0
+    assert main(["datasets", "ur5-laser-tracker", "--out", str(d)]) == 0  # the same bytes
+
+
+def test_a_loop_of_links_is_refused(tmp_path, capsys):
+    """``datasets --out loop`` (``ln -s loop loop``) was an internal error."""
+    loop = tmp_path / "loop"
+    loop.symlink_to(loop)
+    for out in (loop, loop / "sub"):
+        assert main(["datasets", "ur5-laser-tracker", "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert f"{out}: a loop of symbolic links" in err and err.count("\n") == 1

@@ -2,11 +2,13 @@
 
 import json
 from importlib import resources
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
+import kinecal
 from kinecal.cli import main
 from kinecal.io.measurements import read_measurements
 from kinecal.io.models import load_model
@@ -106,3 +108,24 @@ def test_export_warns_and_strict_refuses(tmp_path, capsys):
     assert main(["export", str(urdf), "--out", str(tmp_path / "y.yaml"), "--strict"]) == 2
     assert "urdf-joint-limits" in capsys.readouterr().err
     assert not (tmp_path / "y.yaml").exists()
+
+
+def test_a_stewart_geometry_is_named_as_such_with_what_export_takes(tmp_path, capsys):
+    """``export liu2008-cmm`` said "not a bundled model": it is a bundled Stewart geometry
+    (bundled or as a file); other commands name the kind too."""
+    geometry = tmp_path / "g.yaml"
+    geometry.write_bytes((Path(kinecal.__file__).parent / "robots" / "liu2008-cmm.yaml")
+                         .read_bytes())
+    for source in ("liu2008-cmm", str(geometry)):
+        assert main(["export", source, "--out", str(tmp_path / "x.urdf")]) == 2
+        err = capsys.readouterr().err
+        assert f"{source} is a Stewart-platform geometry: export writes serial arms (a " \
+               "model: bundled name, YAML or URDF; or a calibration result JSON" in err
+        assert "stewart calibrate --geometry-out" in err and err.count("\n") == 1
+    assert not list(tmp_path.glob("x.*"))
+    assert main(["fk", "liu2008-cmm", "0,0,0,0,0,0"]) == 2
+    assert "'liu2008-cmm' is a bundled Stewart-platform geometry, not a serial-arm model " \
+           "(bundled serial-arm models: " in capsys.readouterr().err
+    assert main(["stewart", "ik", "ur5", str(geometry)]) == 2
+    assert "'ur5' is a bundled serial-arm model, not a Stewart-platform geometry" in \
+        capsys.readouterr().err

@@ -11,15 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from kinecal import _files
-from kinecal._files import (
-    STALE_TEMP_SECONDS,
-    atomic_open,
-    load_yaml,
-    read_yaml_mapping,
-    sweep_stale_temp_files,
-    write_text_atomic,
-)
+from kinecal import _temps
+from kinecal._files import atomic_open, write_text_atomic
+from kinecal._temps import STALE_TEMP_SECONDS, sweep_stale_temp_files
+from kinecal._yaml import load_yaml, read_yaml_mapping
 from kinecal.errors import InputError
 
 SRC = str(Path(__file__).resolve().parents[2] / "src")
@@ -54,13 +49,13 @@ def test_killed_write_leaves_a_temp_file_that_the_next_write_removes(tmp_path):
     left = [p.name for p in tmp_path.iterdir()]
     assert len(left) == 1 and left[0].startswith(".big.csv.kinecal-")  # big.csv never made
     assert (tmp_path / left[0]).stat().st_size == 1_000_000
-    _files._SWEPT.discard(os.path.abspath(tmp_path))
+    _temps._SWEPT.discard(os.path.abspath(tmp_path))
     write_text_atomic(tmp_path / "other.json", "{}\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["other.json"]
 
 
 def test_sweep_keeps_live_writers_foreign_files_and_fresh_files_of_other_hosts(tmp_path):
-    host = _files._host_tag()
+    host = _temps.host_tag()
     other = "0" * 8 if host != "0" * 8 else "1" * 8
     dead, alive = _dead_pid(), os.getppid()
     names = {

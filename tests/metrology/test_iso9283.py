@@ -147,3 +147,34 @@ def test_bad_tests_are_refused():
         RepeatedPoses(("a", "b"), np.arange(3), np.zeros((1, 3, 3)), np.zeros((2, 3)))
     with pytest.raises(InputError, match="two different poses"):
         iso9283(make_test(orientation=False), [(0, 0)])
+
+
+def test_a_long_test_pairs_consecutive_poses_in_time_and_memory_linear_in_it():
+    """2000 poses took more than 120 s and 2.8 GB (every pair, each recomputing every
+    pose's angles), 20 000 a MemoryError: up to 45 poses every pair, beyond each pose with
+    the next; the figures of a pair are those of the pair computed alone (hand check)."""
+    import time
+    import tracemalloc
+
+    from kinecal.metrology.iso9283 import MAX_DEFAULT_PAIRS, default_pairs
+
+    assert len(default_pairs(45)) == 990 <= MAX_DEFAULT_PAIRS
+    assert default_pairs(46) == [(i, i + 1) for i in range(45)]
+    rng = np.random.default_rng(4)
+    p, n = 3000, 3
+    commanded = rng.uniform(-800.0, 800.0, (p, 3))
+    measured = commanded[:, None, :] + rng.normal(0.0, 0.02, (p, n, 3))
+    rot_c = matrix_from_rpy(rng.uniform(-1.5, 1.5, (p, 3)))
+    data = RepeatedPoses(tuple(f"P{i + 1}" for i in range(p)), np.arange(1, n + 1), measured,
+                         commanded, np.repeat(rot_c[:, None], n, axis=1), rot_c)
+    t0 = time.process_time()
+    tracemalloc.start()
+    res = iso9283(data, check=False)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert time.process_time() - t0 < 30 and peak < 100e6, peak
+    assert res.pairs == [(i, i + 1) for i in range(p - 1)]
+    alone = iso9283(data, [(1500, 1501)], check=False).distances[0]
+    assert res.distances[1500] == alone
+    with pytest.raises(InputError, match="10,001 pose pairs: expected at most 10,000"):
+        iso9283(data, [(0, 1)] * 10_001, check=False)

@@ -13,7 +13,7 @@ import sys
 from collections.abc import Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 
-from kinecal._files import pid_alive
+from kinecal._temps import pid_alive
 from kinecal.errors import InputError
 
 __all__ = ["BLAS_THREAD_VARS", "TRACKER_FILTER", "dask_executor", "local_executor",

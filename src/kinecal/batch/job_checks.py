@@ -6,13 +6,10 @@ stated sigma against the machine's size). Each failure names the job and its key
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from kinecal._limits import check_count
 from kinecal.errors import InputError
-
-if TYPE_CHECKING:
-    from kinecal.batch.jobs import Job
 
 __all__ = ["JOB_BYTES", "JOB_POSE_BYTES", "check_job", "check_models"]
 
@@ -22,6 +19,29 @@ JOB_BYTES = 16384
 #: peak memory of a simulated job per pose (calibration and validation): measured 1.3 kB
 #: (irb120, lm), with a margin
 JOB_POSE_BYTES = 4096
+
+
+class Job(Protocol):
+    """What the checks read of a job (`kinecal.batch.jobs.Job` has it; this module does not
+    import that one, which imports these checks)."""
+
+    name: str
+    model: str
+    method: str
+    data: Any
+    poses: int | None
+    validation_poses: int
+    noise: float
+    loss: str
+    maxiter: int | None
+    target: float | None
+    options: dict[str, Any] | None
+    error_model: str | None
+    harmonics: int | None
+    folds: int | None
+    sigma: Any
+    base_link: str | None
+    tip_link: str | None
 
 
 def check_job(job: Job, source: str | Path | None) -> None:

@@ -24,8 +24,9 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from kinecal._files import load_yaml, read_text
+from kinecal._files import read_text
 from kinecal._limits import MAX_JOBS, check_count
+from kinecal._yaml import load_yaml
 from kinecal.batch.job_checks import JOB_BYTES, check_job, check_models
 from kinecal.errors import InputError
 

@@ -150,6 +150,17 @@ def _internal_error(exc: BaseException) -> int:
     return 1
 
 
+def _check_source_date_epoch() -> None:
+    """Refuse a malformed ``SOURCE_DATE_EPOCH`` before any library reads it; an empty one
+    counts as unset (and is removed, as numpy's f2py would fail on it)."""
+    if not os.environ["SOURCE_DATE_EPOCH"].strip():
+        del os.environ["SOURCE_DATE_EPOCH"]
+        return
+    from kinecal._reproducible import source_date_epoch
+
+    source_date_epoch()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return (and exit with) the status code."""
     args = sys.argv[1:] if argv is None else list(argv)
@@ -158,6 +169,9 @@ def main(argv: list[str] | None = None) -> int:
     _common.COMMAND_LINE = ["kinecal", *args]  # for the record of a report
     _load_commands(args)
     try:
+        if "SOURCE_DATE_EPOCH" in os.environ:
+            # checked first: numpy's f2py (imported by scipy.linalg) reads it with int()
+            _check_source_date_epoch()
         code = _run(args)
         sys.stdout.flush()  # a full disk or a closed pipe on stdout shows here, not at exit
         if code == 130:  # typer turns Ctrl-C into Exit(130), returned without a word

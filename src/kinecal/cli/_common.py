@@ -1,18 +1,21 @@
-"""Helpers shared by the command modules: output, bundled data paths, progress bars."""
+"""Helpers shared by the command modules: output, bundled data paths, the path checks; the
+progress bars of `kinecal.cli._progress` (imported here for the command modules)."""
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from kinecal._files import check_input_file, probe_writable, write_text_atomic
+from kinecal._files import atomic_open, check_input_file, probe_writable, written_in_place
+from kinecal.cli._progress import progress, progress_columns, quiet_requested, status
 from kinecal.errors import InputError
 
 __all__ = [
@@ -20,11 +23,14 @@ __all__ = [
     "echo_json",
     "progress",
     "progress_columns",
+    "quiet_requested",
     "report_record",
     "resolve_data_path",
+    "status",
     "to_jsonable",
     "warnings_scope",
     "with_warnings",
+    "without_times",
     "write_json",
 ]
 
@@ -48,14 +54,40 @@ def to_jsonable(obj: Any) -> Any:
     return obj
 
 
+#: keys of a result dictionary that hold the time a run took
+TIME_KEYS = ("seconds", "seconds_mean", "elapsed")
+
+
+def without_times(obj: Any) -> Any:
+    """`obj` (a result dictionary) with every time a run took (`TIME_KEYS`) set to None
+    when ``SOURCE_DATE_EPOCH`` is set (`kinecal._reproducible.reproducible`): two runs
+    then print and write the same bytes. `obj` itself otherwise."""
+    from kinecal._reproducible import reproducible
+
+    if not reproducible():
+        return obj
+
+    def strip(o: Any) -> Any:
+        if isinstance(o, dict):
+            return {k: None if k in TIME_KEYS else strip(v) for k, v in o.items()}
+        if isinstance(o, list | tuple):
+            return [strip(v) for v in o]
+        return o
+
+    return strip(obj)
+
+
 def echo_json(obj: Any) -> None:
-    """Print `obj` as indented JSON on stdout."""
-    sys.stdout.write(json.dumps(to_jsonable(obj), indent=2) + "\n")
+    """Print `obj` as indented JSON on stdout (`without_times`)."""
+    sys.stdout.write(json.dumps(to_jsonable(without_times(obj)), indent=2) + "\n")
 
 
 def write_json(path: str | Path, obj: Any) -> None:
-    """Write `obj` as JSON to `path` atomically."""
-    write_text_atomic(path, json.dumps(to_jsonable(obj), indent=2) + "\n")
+    """Write `obj` as indented JSON to `path` atomically (`without_times`), encoded piece
+    by piece into the file rather than as one string."""
+    with atomic_open(path, "w") as fh:
+        json.dump(to_jsonable(without_times(obj)), fh, indent=2)
+        fh.write("\n")
 
 
 def resolve_data_path(spec: str, option: str = "DATA") -> Path:
@@ -133,11 +165,14 @@ def check_paths(
         if spec is not None and (path := input_file(spec)) is not None:
             ins[name] = path
     outs: list[tuple[str, Path]] = [(k, Path(v)) for k, v in outputs.items() if v is not None]
+    for opt, path in outs:
+        _check_no_loop(opt, path)
     made: set[Path] = set()  # output folders: created by the command
     for opt, (folder, names) in (folders or {}).items():
         if folder is None:
             continue
         folder = Path(folder)
+        _check_no_loop(opt, folder)
         if folder.exists() and not folder.is_dir():
             raise InputError(f"{folder} is a file, expected a directory", option=opt)
         made.add(folder.resolve())
@@ -145,6 +180,13 @@ def check_paths(
     in_dirs = {name: Path(os.path.realpath(p)) for name, p in ins.items() if p.is_dir()}
     seen: list[tuple[str, Path]] = []
     for opt, path in outs:
+        if (raw := _given_as_folder(opt)) is not None:
+            raise InputError(f"{raw} names a folder (it ends in {raw[-1]!r}): expected a file "
+                             f"to write, such as {raw}NAME", option=opt)
+        if written_in_place(path):  # /dev/stdout, /dev/null, a FIFO: no folder to check
+            _check_not_input(opt, path, ins)
+            seen.append((opt, path))
+            continue
         if len(os.fsencode(path.name)) > 255:
             raise InputError(f"file name too long ({len(os.fsencode(path.name))} bytes, at "
                              "most 255)", option=opt)
@@ -160,10 +202,7 @@ def check_paths(
             raise InputError(f"folder {folder} is not writable", option=opt)
         if path.is_file() and not os.access(path, os.W_OK):
             raise InputError(f"{path} is read-only; refusing to replace it", option=opt)
-        for name, src in ins.items():
-            if _same_file(path, src):
-                raise InputError(f"{path} is also the input {name}: refusing to overwrite an "
-                                 "input, choose another output path", option=opt)
+        _check_not_input(opt, path, ins)
         _check_in_folders(opt, path, in_dirs, reads or {})
         for other, prev in seen:
             if _same_file(path, prev):
@@ -171,11 +210,51 @@ def check_paths(
                 raise InputError(f"{path} is also {what}: two outputs cannot share a path",
                                  option=opt)
         seen.append((opt, path))
+    if seen:  # a malformed SOURCE_DATE_EPOCH is refused before any work, not at the end
+        from kinecal._reproducible import source_date_epoch
+
+        source_date_epoch()
     for opt, path in seen:  # last, after the cheap checks: a file is created and removed
         try:
             probe_writable(path)
         except InputError as exc:
             raise InputError(f"{path}: {exc.message}", option=opt) from None
+
+
+def _check_no_loop(opt: str, path: Path) -> None:
+    """Refuse a path through a loop of symbolic links (``ln -s loop loop``): every later
+    look-up of it would fail."""
+    try:
+        os.stat(path)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise InputError(f"{path}: a loop of symbolic links (it points back to itself); "
+                             "expected a folder or file path", option=opt) from None
+    except ValueError:
+        pass
+
+
+def _check_not_input(opt: str, path: Path, ins: dict[str, Path]) -> None:
+    for name, src in ins.items():
+        if _same_file(path, src):
+            raise InputError(f"{path} is also the input {name}: refusing to overwrite an "
+                             "input, choose another output path", option=opt)
+
+
+def _given_as_folder(option: str) -> str | None:
+    """The value of `option` on the command line when it ends in a path separator (``--out
+    d/``: typer hands the command ``Path("d")``, which would write a file named ``d``)."""
+    args = COMMAND_LINE or []
+    seps = tuple(s for s in (os.sep, os.altsep) if s)
+    for i, arg in enumerate(args):
+        value = None
+        if arg == option and i + 1 < len(args):
+            value = args[i + 1]
+        elif arg.startswith(option + "="):
+            value = arg[len(option) + 1:]
+        if value and value.endswith(seps):
+            return value
+    return None
 
 
 def _check_in_folders(opt: str, path: Path, in_dirs: dict[str, Path],
@@ -272,43 +351,3 @@ def with_warnings(obj: dict, found: list) -> dict:
             own.append(d.to_dict())
             seen.add((d.code, d.message))
     return {**obj, "warnings": own}
-
-
-def quiet_requested(quiet: bool) -> bool:
-    """True when progress bars must stay off (asked for, or stderr is not a terminal)."""
-    return quiet or not sys.stderr.isatty()
-
-
-def progress_columns(total: int | None) -> list:
-    """The columns of a progress bar: ``done/total`` when the total is known, else the
-    count of steps done alone (an iteration count with no budget: never ``19/None``)."""
-    from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
-
-    count = "{task.completed}/{task.total}" if total is not None else "{task.completed} it."
-    return [TextColumn("[bold]{task.description}"), BarColumn(), TextColumn(count),
-            TextColumn("{task.fields[best]}"), TimeElapsedColumn()]
-
-
-@contextlib.contextmanager
-def progress(
-    description: str, total: int | None, quiet: bool = False
-) -> Iterator[Callable[..., None]]:
-    """Context manager yielding ``update(advance=1, best=None)`` that drives a rich bar.
-
-    The bar goes to stderr and is silent when `quiet` or stderr is not a terminal.
-    """
-    if quiet_requested(quiet):
-        yield lambda advance=1, best=None: None
-        return
-    from rich.console import Console
-    from rich.progress import Progress
-
-    with Progress(*progress_columns(total), console=Console(stderr=True),
-                  transient=True) as bar:
-        task = bar.add_task(description, total=total, best="")
-
-        def update(advance: int = 1, best: float | None = None) -> None:
-            fields = {} if best is None else {"best": f"best {best:.4g}"}
-            bar.update(task, advance=advance, **fields)
-
-        yield update

@@ -4,13 +4,16 @@ identify the most)."""
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import typer
 
 from kinecal._limits import check_count, check_finite
 from kinecal.calibration.method_options import check_error_model_options, check_method_options
+from kinecal.cli import _calibrate_options as opt
 from kinecal.cli._app import app
+from kinecal.cli._calibrate_options import ERROR_MODELS, FIXTURE_HELP
 from kinecal.cli._common import (
     check_paths,
     echo_json,
@@ -18,10 +21,8 @@ from kinecal.cli._common import (
     resolve_data_path,
     warnings_scope,
     with_warnings,
-    write_json,
 )
 from kinecal.cli._options import (
-    CALIBRATION_METHOD_CHOICES,
     MODEL_HELP,
     angle_unit_option,
     base_link_option,
@@ -41,6 +42,7 @@ from kinecal.cli._options import (
     tip_option,
     unit_option,
 )
+from kinecal.cli._outputs import write_outputs
 from kinecal.cli._serial_common import POSE_BYTES, free_option
 from kinecal.cli.calibrate_kinds import (
     calibrate_files,
@@ -56,12 +58,6 @@ from kinecal.cli.tracker_options import (
     validate_register_option,
 )
 from kinecal.errors import InputError
-
-FIXTURE_HELP = ("Known fixtures: CSV of point,px,py,pz or plane,px,py,pz,nx,ny,nz rows (base "
-                "frame, length unit) for the point or plane files' ids (repeatable). See "
-                "docs/measurement-kinds.md.")
-#: --error-model values (and families joined by '+')
-ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto")
 
 
 @app.command()
@@ -183,69 +179,36 @@ def calibrate(
     base_link: str | None = base_link_option(),
     tip_link: list[str] | None = tip_links_option(),
     tip: str | None = tip_option(),
-    data: list[str] = typer.Argument(..., help="Measurement CSV(s) or NAME:PART; several "
-                                     "files of any kinds make one problem "
-                                     "(docs/measurement-kinds.md)."),
-    method: str = typer.Option("lm", "--method", metavar=choices(*CALIBRATION_METHOD_CHOICES),
-                               help="Levenberg-Marquardt, Householder Gauss-Newton, a "
-                               "metaheuristic, or least squares then a metaheuristic "
-                               "(hybrid-ga, ...). See docs/optimizers.md."),
-    validate: list[str] | None = typer.Option(
-        None, "--validate", help="Validation CSV or NAME:PART (any kind; repeatable)."),
-    free: str = typer.Option("identifiable", "--free",
-                             metavar=choices("identifiable", "all", "NAMES"),
-                             help="The identifiable parameters, all or comma-separated "
-                             "names."),
+    data: list[str] = opt.DATA,
+    method: str = opt.METHOD,
+    validate: list[str] | None = opt.VALIDATE,
+    free: str = opt.FREE,
     seed: int = seed_option("Random seed (metaheuristics; an integer >= 0)."),
-    loss: str = typer.Option("linear", "--loss", metavar=choices(
-        "linear", "huber", "soft_l1", "cauchy", "arctan"), help="Loss of the residuals (robust "
-        "losses with lm only)."),
-    maxiter: int | None = typer.Option(None, "--maxiter", help="Iteration budget."),
-    target: float | None = typer.Option(None, "--target", help="Stop at this mean distance "
-                                        "error (model length unit; metaheuristics)."),
-    out: Path | None = typer.Option(None, "--out", help="Result JSON to write."),
-    model_out: Path | None = typer.Option(None, "--model-out", help="Calibrated model YAML."),
+    loss: str = opt.LOSS,
+    maxiter: int | None = opt.MAXITER,
+    target: float | None = opt.TARGET,
+    out: Path | None = opt.OUT,
+    model_out: Path | None = opt.MODEL_OUT,
     report: Path | None = report_option(),
-    json_out: bool = typer.Option(False, "--json", help="Print the result JSON."),
+    json_out: bool = opt.JSON,
     unit: str = unit_option(),
     quiet: bool = quiet_option(),
     strict: bool = strict_option(),
-    rotation_weight: float | None = typer.Option(
-        None, "--rotation-weight", help="With measured orientations: length units per rad of "
-        "rotation error (default: the workspace's characteristic length)."),
-    error_model: str | None = typer.Option(
-        None, "--error-model", metavar=choices(*ERROR_MODELS), help="auto: chosen by "
-        "cross-validation on the calibration poses; or families joined by '+' (default: the "
-        "model file's joint_errors, else geometric). See docs/error-models.md."),
-    harmonics: int | None = typer.Option(
-        None, "--harmonics", help="Harmonic order (default 2; auto tries 1..3)."),
-    folds: int | None = typer.Option(None, "--folds", help="Cross-validation folds "
-                                     "(--error-model auto; default 10)."),
-    sigma: list[str] | None = typer.Option(
-        None, "--sigma", help="The instrument's stated 1-sigma noise per coordinate (length "
-        "unit): the residual is tested against it (chi-square) and the standard errors with "
-        "it known are added. Several files: FILE=SIGMA (repeatable) or SIGMA,SIGMA,... in "
-        "file order. See docs/diagnostics.md."),
+    rotation_weight: float | None = opt.ROTATION_WEIGHT,
+    error_model: str | None = opt.ERROR_MODEL,
+    harmonics: int | None = opt.HARMONICS,
+    folds: int | None = opt.FOLDS,
+    sigma: list[str] | None = opt.SIGMA,
     instrument: str | None = instrument_option(),
     operator: str | None = operator_option(),
     note: str | None = note_option(),
-    images: Path | None = typer.Option(None, "--images", help="Folder of board images: "
-                                       "DATA is then STATIONS.csv (image,q1..qn). See "
-                                       "docs/arm-from-images.md."),
-    board: list[str] | None = typer.Option(None, "--board", help="With --images: the board, "
-                                           "e.g. chessboard:9x6:25; a rig's NAME:LINK:SPEC "
-                                           "(repeatable; docs/rigs.md)."),
-    camera: list[str] | None = typer.Option(None, "--camera", help="With --images: a rig's "
-                                            "camera NAME:LINK[:intrinsics.yaml] (repeatable; "
-                                            "LINK world, flange or a system's link)."),
-    intrinsics: Path | None = typer.Option(None, "--intrinsics", help="With --images: "
-                                           "camera YAML (default: from the images)."),
-    setup: str = typer.Option("eye-in-hand", "--setup", help="With --images: eye-in-hand "
-                              "or eye-to-hand."),
-    min_corners: int | None = typer.Option(None, "--min-corners", help="With --images: "
-                                           "fewest corners an image must show (ChArUco, "
-                                           "seen in part; default 60 % of the board's)."),
-    fixture: list[Path] | None = typer.Option(None, "--fixture", help=FIXTURE_HELP),
+    images: Path | None = opt.IMAGES,
+    board: list[str] | None = opt.BOARD,
+    camera: list[str] | None = opt.CAMERA,
+    intrinsics: Path | None = opt.INTRINSICS,
+    setup: str = opt.SETUP,
+    min_corners: int | None = opt.MIN_CORNERS,
+    fixture: list[Path] | None = opt.FIXTURE,
     angle_unit: str | None = angle_unit_option("the data files' joint columns"),
     orientation_format: str | None = orientation_format_option(),
     station_per_file: bool = station_per_file_option(),
@@ -285,11 +248,7 @@ def calibrate(
                           ("--min-corners", min_corners), ("--validate-images", validate_images)):
         if value is not None:
             raise InputError("applies to --images only", option=option)
-    from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.serial.api import CALIBRATION_METHODS
-    from kinecal.calibration.serial.api import calibrate as run
-    from kinecal.cli._common import progress
-    from kinecal.io.measurements import read_measurements
 
     if method not in CALIBRATION_METHODS:
         raise InputError(f"unknown method {method!r}; expected one of "
@@ -310,67 +269,80 @@ def calibrate(
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
                            "--folds": folds}, record=(instrument, operator, note),
             unit=shown, fixture=fixture, angle_unit=angle_unit, tracker=tracker)
-    data, validate = data[0], (validate[0] if validate else None)
-    sigma = parse_sigma(sigma, [data])[0]
-    check_paths({"MODEL": model, "DATA": data, "--validate": validate},
-                {"--out": out, "--model-out": model_out, "--report": report})
-    record = report_record(report, {"MODEL": model, "DATA": data, "--validate": validate},
-                           instrument, operator, note)
-    if model_out is not None:
+    return _calibrate_tracker(SimpleNamespace(**locals()), shown)
+
+
+def _calibrate_tracker(a: SimpleNamespace, shown: str | None) -> None:
+    """``kinecal calibrate MODEL DATA.csv``: one tracker file (`a`: the command's
+    arguments; `shown`: the summary's unit)."""
+    from kinecal.calibration.diagnostics.noise import check_stated_sigma
+    from kinecal.cli._common import progress
+    from kinecal.io.measurements import read_measurements
+
+    data, validate = a.data[0], (a.validate[0] if a.validate else None)
+    sigma = parse_sigma(a.sigma, [data])[0]
+    check_paths({"MODEL": a.model, "DATA": data, "--validate": validate},
+                {"--out": a.out, "--model-out": a.model_out, "--report": a.report})
+    record = report_record(a.report, {"MODEL": a.model, "DATA": data, "--validate": validate},
+                           a.instrument, a.operator, a.note)
+    if a.model_out is not None:
         from kinecal.io.models import check_model_file_name
 
-        check_model_file_name(model_out, "--model-out")
-    if maxiter is not None and maxiter < 1:
-        raise InputError(f"expected a positive iteration budget, got {maxiter}",
+        check_model_file_name(a.model_out, "--model-out")
+    if a.maxiter is not None and a.maxiter < 1:
+        raise InputError(f"expected a positive iteration budget, got {a.maxiter}",
                          option="--maxiter")
-    check_finite(target, "--target")
-    check_finite(rotation_weight, "--rotation-weight", positive=True)
+    check_finite(a.target, "--target")
+    check_finite(a.rotation_weight, "--rotation-weight", positive=True)
     check_finite(sigma, "--sigma", positive=True)
-    check_method_options(method, loss=loss, maxiter=maxiter, target=target)
-    check_error_model_options(error_model, harmonics=harmonics, folds=folds)
-    with warnings_scope(strict) as found:
-        m = load_model_arg(model, base_link, tip_link)
+    check_method_options(a.method, loss=a.loss, maxiter=a.maxiter, target=a.target)
+    check_error_model_options(a.error_model, harmonics=a.harmonics, folds=a.folds)
+    with warnings_scope(a.strict) as found:
+        m = load_model_arg(a.model, a.base_link, a.tip_link)
         check_stated_sigma(m, sigma)  # not larger than the machine
-        meas = read_measurements(resolve_data_path(data, "DATA"), m, orientation_format,
-                                 angle_unit=angle_unit)
-        if rotation_weight is not None and meas.rotations is None:
+        meas = read_measurements(resolve_data_path(data, "DATA"), m, a.orientation_format,
+                                 angle_unit=a.angle_unit)
+        if a.rotation_weight is not None and meas.rotations is None:
             raise InputError("applies to measured orientations (qw..qz columns) only",
                              option="--rotation-weight")
         val = None
         if validate is not None:
             val = read_measurements(resolve_data_path(validate, "--validate"), m,
-                                    orientation_format, angle_unit=angle_unit)
-        iterative = method not in ("lm",)
-        with progress(f"calibrate {m.name} ({method})", maxiter if iterative else None,
-                      quiet or json_out) as update:
-            kw = dict(free=free_option(free), validate=val, rng=seed, loss=loss,
-                      maxiter=maxiter, target=target, rotation_weight=rotation_weight,
-                      sigma=sigma, validate_register=validate_register,
+                                    a.orientation_format, angle_unit=a.angle_unit)
+        iterative = a.method not in ("lm",)
+        with progress(f"calibrate {m.name} ({a.method})", a.maxiter if iterative else None,
+                      a.quiet or a.json_out) as update:
+            kw = dict(free=free_option(a.free), validate=val, rng=a.seed, loss=a.loss,
+                      maxiter=a.maxiter, target=a.target, rotation_weight=a.rotation_weight,
+                      sigma=sigma, validate_register=a.validate_register,
                       progress=(lambda it, best: update(1, best)) if iterative else None)
-            if error_model is None and m.joint_errors is None and harmonics is None:
-                res = run(m, meas, method, **kw)
+            if a.error_model is None and m.joint_errors is None and a.harmonics is None:
+                from kinecal.calibration.serial.api import calibrate as run
+
+                res = run(m, meas, a.method, **kw)
             else:
                 from kinecal.calibration.serial.error_model import calibrate_error_model
 
-                res = calibrate_error_model(m, meas, error_model or "model", method=method,
-                                            harmonics=harmonics, **kw,
-                                            **({} if folds is None else {"folds": folds}))
+                res = calibrate_error_model(m, meas, a.error_model or "model", method=a.method,
+                                            harmonics=a.harmonics, **kw,
+                                            **({} if a.folds is None else {"folds": a.folds}))
         res.warnings = list(found)  # the readers' warnings as well as the calibration's
-        # the result dictionary (per-pose lists of Python floats: a kilobyte or two per
-        # pose) only when it is written
-        result = with_warnings(res.to_dict(), found) if out is not None or json_out else None
-        if out is not None:
-            write_json(out, result)
-        if model_out is not None:
-            res.save_model(model_out)
-        if report is not None:
-            from kinecal.report.html import calibration_report
-
-            calibration_report(res, report, provenance=record, validation=val)
-    if json_out:
+        result = (with_warnings(res.to_dict(), found) if a.out is not None or a.json_out
+                  else None)
+        write_outputs(out=a.out, result=result, model_out=a.model_out,
+                      save_model=res.save_model, report=a.report,
+                      write_report=lambda path: _report(res, path, record, val),
+                      quiet=a.quiet or a.json_out)
+    if a.json_out:
         echo_json(result)
-    elif not quiet:
+    elif not a.quiet:
         typer.echo(res.summary(shown))
+
+
+def _report(res, path: Path, record, validation) -> None:
+    from kinecal.report.html import calibration_report
+
+    calibration_report(res, path, provenance=record, validation=validation)
 
 
 @app.command("select-poses")

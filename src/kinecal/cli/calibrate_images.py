@@ -16,9 +16,9 @@ from kinecal.cli._common import (
     report_record,
     warnings_scope,
     with_warnings,
-    write_json,
 )
 from kinecal.cli._options import check_unit, load_model_arg
+from kinecal.cli._outputs import write_outputs
 from kinecal.errors import InputError
 
 __all__ = ["calibrate_images"]
@@ -166,15 +166,16 @@ def _run(*, model: str, base_link: str | None, tip_link: str | None, data: str,
         res.warnings = list(found)
         result = with_warnings({"images_dir": str(images), "stations": str(data),
                                 **res.to_dict()}, found)
-        if out is not None:
-            write_json(out, result)
-        if model_out is not None:
-            res.save_model(model_out)
-        if report is not None:
-            from kinecal.report.arm_images import arm_images_report
-
-            arm_images_report(res, report, provenance=prov)
+        write_outputs(out=out, result=result, model_out=model_out, save_model=res.save_model,
+                      report=report, write_report=lambda path: _report(res, path, prov),
+                      quiet=quiet or json_out)
     if json_out:
         echo_json(result)
     elif not quiet:
         typer.echo(res.summary(shown))
+
+
+def _report(res: Any, path: Path, prov: Any) -> None:
+    from kinecal.report.arm_images import arm_images_report
+
+    arm_images_report(res, path, provenance=prov)

@@ -26,9 +26,9 @@ from kinecal.cli._common import (
     resolve_data_path,
     warnings_scope,
     with_warnings,
-    write_json,
 )
 from kinecal.cli._options import load_model_arg
+from kinecal.cli._outputs import write_outputs
 from kinecal.errors import InputError
 
 __all__ = ["calibrate_files", "check_fixtures_used", "file_kind", "identifiability_files",
@@ -171,18 +171,19 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                         sigma=stated, validate_register=tracker.get("register"))
         res.warnings = list(found)
         result = with_warnings(res.to_dict(), found)
-        if out is not None:
-            write_json(out, result)
-        if model_out is not None:
-            res.save_model(model_out)
-        if report is not None:
-            from kinecal.report.html import calibration_report
-
-            calibration_report(res, report, provenance=provenance)
+        write_outputs(out=out, result=result, model_out=model_out, save_model=res.save_model,
+                      report=report, write_report=lambda path: _report(res, path, provenance),
+                      quiet=quiet or json_out)
     if json_out:
         echo_json(result)
     elif not quiet:
         typer.echo(res.summary(unit))
+
+
+def _report(res, path: Path, provenance) -> None:
+    from kinecal.report.html import calibration_report
+
+    calibration_report(res, path, provenance=provenance)
 
 
 def identifiability_files(model: str, files: list[str], *, base_link, tip_link, free,

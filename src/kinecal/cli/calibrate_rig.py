@@ -24,8 +24,8 @@ from kinecal.cli._common import (
     report_record,
     warnings_scope,
     with_warnings,
-    write_json,
 )
+from kinecal.cli._outputs import write_outputs
 from kinecal.errors import InputError
 
 __all__ = ["calibrate_rig_cli", "is_rig_call", "one_board"]
@@ -128,14 +128,10 @@ def calibrate_rig_cli(a: dict[str, Any]) -> None:
         res.warnings = list(found)
         result = with_warnings({"images_dir": str(a["images"]), "stations": str(stations),
                                 **res.to_dict()}, found)
-        if a["out"] is not None:
-            write_json(a["out"], result)
-        if a["model_out"] is not None:
-            res.fit.save_model(a["model_out"])
-        if a["report"] is not None:
-            from kinecal.report.html import calibration_report
-
-            calibration_report(res.fit, a["report"], provenance=prov)
+        write_outputs(out=a["out"], result=result, model_out=a["model_out"],
+                      save_model=res.fit.save_model, report=a["report"],
+                      write_report=lambda path: _report(res, path, prov),
+                      quiet=a["quiet"] or a["json_out"])
     if a["json_out"]:
         echo_json(result)
     elif not a["quiet"]:
@@ -222,6 +218,13 @@ def _run(a: dict[str, Any], cams: list[str], boards: list[str], stations: str,
                                     st.camera, q, st.board, free=a["free"], loss=a["loss"],
                                     validate=val, limits=limits, progress=update,
                                     others=sets, sigma=stated)
+
+
+def _report(res: Any, path: Path, prov: Any) -> None:
+    """The calibration's report (parameters, errors, every set's unknowns with the mounts)."""
+    from kinecal.report.html import calibration_report
+
+    calibration_report(res.fit, path, provenance=prov)
 
 
 def _all_listed(folder: Path, by_name: dict[str, Path], listed: set[str], path: Path,

@@ -3,6 +3,8 @@ into a folder (the files a docs walkthrough starts from)."""
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path
 
 import typer
@@ -49,12 +51,30 @@ def datasets(
             for n in dict.fromkeys(names) for src in files(n)]
     check_paths({}, {}, folders={"--out": (out, [dst.name for _, dst in plan])})
     for src, dst in plan:  # refuse before writing anything
-        if dst.exists() and dst.read_bytes() != src.read_bytes():
+        if os.path.lexists(dst) and not _same_file_bytes(dst, src):
             raise InputError(f"{dst} exists and differs from the bundled file: remove it or "
                              "write elsewhere", option="--out")
-    from kinecal._files import write_bytes_atomic
+    from kinecal._files import all_or_nothing, write_bytes_atomic
 
     out.mkdir(parents=True, exist_ok=True)
-    for src, dst in plan:
-        write_bytes_atomic(dst, src.read_bytes())
+    with all_or_nothing():
+        for src, dst in plan:
+            write_bytes_atomic(dst, src.read_bytes())
     typer.echo(f"wrote {', '.join(str(dst) for _, dst in plan)}", err=True)
+
+
+def _same_file_bytes(path: Path, bundled: Path) -> bool:
+    """Whether `path` is a regular file with the bundled file's bytes (read in blocks, and
+    no further than its size: a link to /dev/zero or /dev/full is not such a file)."""
+    try:
+        st = os.stat(path)
+    except OSError:  # a dangling link
+        return False
+    size = bundled.stat().st_size
+    if not stat.S_ISREG(st.st_mode) or st.st_size != size:
+        return False
+    with open(path, "rb") as a, open(bundled, "rb") as b:
+        while block := b.read(1 << 20):
+            if a.read(len(block)) != block:
+                return False
+    return True

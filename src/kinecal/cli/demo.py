@@ -71,7 +71,11 @@ def run_demo(out: Path, quiet: bool = False) -> tuple[object, list[Path], tuple,
         "result.json", f"{DEMO_MODEL}-calibrated.yaml", "report.html", "compensated.csv",
         "error-model.json", f"{DEMO_MODEL}-calibrated-auto.yaml", "report-error-model.html",
         *(f"{kind}.png" for kind in CALIBRATION_KINDS)])})
-    with progress("demo: calibrate ur5 on laser-tracker data", 4, quiet) as update:
+    from kinecal._files import all_or_nothing
+
+    # the demo's files all new or all as they were (kinecal.cli._outputs)
+    with all_or_nothing(), progress("demo: calibrate ur5 on laser-tracker data", 4,
+                                    quiet) as update:
         model = load_model(DEMO_MODEL)
         data = read_measurements(DEMO_DATA, model)
         val = read_measurements(DEMO_VALIDATION, model)

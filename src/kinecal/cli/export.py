@@ -174,18 +174,14 @@ def export(
     if fmt == "ros-tf":
         _export_ros_tf(source, out, unit, parent_frame, child_frame, strict)
         return
-    if _handeye_json(source):
-        raise InputError(f"{source} is a hand-eye calibration result, not an arm's (kinecal "
-                         "calibrate --out): export it with --format ros-tf, or as the camera of "
-                         f"a robot's URDF with kinecal export MODEL --camera {source} --format "
-                         "urdf", option="SOURCE")
-    if camera is not None and fmt != "urdf":
-        raise InputError("--camera adds a camera mount to a URDF: give --format urdf",
-                         option="--camera")
-    if chain_only and fmt != "urdf":
-        raise InputError("--chain-only applies to --format urdf", option="--chain-only")
-    if robot is not None and fmt != "ur-kinematics":
-        raise InputError("--robot applies to --format ur-kinematics", option="--robot")
+    _check_arm_source(source)
+    for opt, value, needs, words in (
+            ("--camera", camera, "urdf", "--camera adds a camera mount to a URDF: give "
+             "--format urdf"),
+            ("--chain-only", chain_only, "urdf", "--chain-only applies to --format urdf"),
+            ("--robot", robot, "ur-kinematics", "--robot applies to --format ur-kinematics")):
+        if value and fmt != needs:
+            raise InputError(words, option=opt)
     with warnings_scope(strict):
         model, params, urdf = model_and_params(source, nominal, base_link, tip_link)
         if chain_only and urdf is None:  # it would change nothing
@@ -193,14 +189,7 @@ def export(
                              f"of a copy of that URDF); {model.name!r} is a "
                              f"{model.convention} model, not read from a URDF",
                              option="--chain-only")
-        if fmt in ("urdf", "ur-kinematics") and model.joint_errors is not None:
-            from kinecal.diagnostics import warn
-
-            warn("joint-errors-not-exported",
-                 f"the model's {len(model.parameter_names) - model._n_geometric} joint-error "
-                 f"coefficients (compliance, harmonics, scale) have no {fmt} equivalent: the "
-                 "file carries the geometry only; use the model file (--format yaml) for fk, "
-                 "ik and compensate")
+        _warn_joint_errors(model, fmt)
         what = f"model {model.name}" if params is None else f"{source} (calibrated {model.name})"
         if fmt == "ur-kinematics":
             _export_ur(model, params, out, what, robot)
@@ -218,6 +207,44 @@ def export(
             unit_text = f"{model.length_unit}, {model.angle_unit}"
         typer.echo(f"wrote {out} ({fmt}, {model.n_joints} joints, {unit_text}) from {what}",
                    err=True)
+
+
+def _check_arm_source(source: str) -> None:
+    """Refuse, with what export takes, a SOURCE that is not a serial arm: a hand-eye result
+    (exported with ros-tf or --camera) or a Stewart-platform geometry."""
+    if _handeye_json(source):
+        raise InputError(f"{source} is a hand-eye calibration result, not an arm's (kinecal "
+                         "calibrate --out): export it with --format ros-tf, or as the camera of "
+                         f"a robot's URDF with kinecal export MODEL --camera {source} --format "
+                         "urdf", option="SOURCE")
+    from kinecal.io.bundled import bundled_index
+
+    if bundled_index().get(source) == "geometry" or (
+            source.lower().endswith((".yaml", ".yml")) and _is_geometry_file(source)):
+        raise InputError(f"{source} is a Stewart-platform geometry: export writes serial arms "
+                         "(a model: bundled name, YAML or URDF; or a calibration result JSON "
+                         "of kinecal calibrate --out) and hand-eye results (--format ros-tf, "
+                         "--camera); a calibrated Stewart geometry is written by kinecal "
+                         "stewart calibrate --geometry-out", option="SOURCE")
+
+
+def _is_geometry_file(path: str) -> bool:
+    from kinecal.io.bundled import machine_kind
+
+    return Path(path).is_file() and machine_kind(Path(path)) == "geometry"
+
+
+def _warn_joint_errors(model, fmt: str) -> None:
+    """``joint-errors-not-exported`` when a URDF or UR file cannot carry the model's
+    joint-error terms."""
+    if fmt in ("urdf", "ur-kinematics") and model.joint_errors is not None:
+        from kinecal.diagnostics import warn
+
+        warn("joint-errors-not-exported",
+             f"the model's {len(model.parameter_names) - model._n_geometric} joint-error "
+             f"coefficients (compliance, harmonics, scale) have no {fmt} equivalent: the "
+             "file carries the geometry only; use the model file (--format yaml) for fk, "
+             "ik and compensate")
 
 
 def _export_urdf(model, params, urdf: Path | None, out: Path, what: str, chain_only: bool,

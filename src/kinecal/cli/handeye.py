@@ -16,7 +16,6 @@ from kinecal.cli._common import (
     report_record,
     warnings_scope,
     with_warnings,
-    write_json,
 )
 from kinecal.cli._options import (
     choices,
@@ -28,6 +27,7 @@ from kinecal.cli._options import (
     seed_option,
     strict_option,
 )
+from kinecal.cli._outputs import write_outputs
 from kinecal.errors import InputError
 
 #: bundled recordings addressable by name, with the setup they were recorded in
@@ -223,12 +223,9 @@ def handeye(
                            and not Path(pairs).exists() else None) or "input unit"
     result = with_warnings({"file": source, **res.to_dict(), "seed": seed,
                             "length_unit": length_unit}, found)
-    if out is not None:
-        write_json(out, result)
-    if report is not None:
-        from kinecal.report.html import handeye_report
-
-        handeye_report(result, report, provenance=record)
+    write_outputs(out=out, result=result, report=report,
+                  write_report=lambda path: _report(result, path, record),
+                  quiet=quiet or json_out)
     if json_out:
         echo_json(result)
         return
@@ -260,6 +257,12 @@ def handeye(
     if res.noise is not None:  # how the lm refinement weighed the stations
         lines.append(res.noise.describe(u))
     typer.echo("\n".join(lines))
+
+
+def _report(result: dict, path: Path, record) -> None:
+    from kinecal.report.html import handeye_report
+
+    handeye_report(result, path, provenance=record)
 
 
 @app.command("handeye-poses")

@@ -16,7 +16,6 @@ from kinecal.cli._common import (
     report_record,
     warnings_scope,
     with_warnings,
-    write_json,
 )
 from kinecal.cli._options import (
     choices,
@@ -27,6 +26,7 @@ from kinecal.cli._options import (
     report_option,
     strict_option,
 )
+from kinecal.cli._outputs import write_outputs
 from kinecal.cli.handeye import (
     board_contact_option,
     camera_height_option,
@@ -191,19 +191,22 @@ def handeye_images(
                                            camera_height=camera_height, board_contact=contact)
         result = with_warnings({"images_dir": str(images_dir),
                                 "robot_poses": str(robot_poses), **res.to_dict()}, found)
-        if out is not None:
-            write_json(out, result)
-        if report is not None:
-            from kinecal.report.handeye_images import handeye_images_report
-
-            handeye_images_report(res, report, images=[by_name[n] for n in names],
-                                  result_dict=result, provenance=record)
+        write_outputs(out=out, result=result, report=report,
+                      write_report=lambda path: _report(res, path, [by_name[n] for n in names],
+                                                        result, record),
+                      quiet=quiet or json_out)
     if json_out:
         echo_json(result)
         return
     if quiet:
         return
     typer.echo(_summary(res))
+
+
+def _report(res: Any, path: Path, images: list, result: dict, record: Any) -> None:
+    from kinecal.report.handeye_images import handeye_images_report
+
+    handeye_images_report(res, path, images=images, result_dict=result, provenance=record)
 
 
 def _summary(res: Any) -> str:

@@ -24,8 +24,8 @@ from kinecal.cli._common import (
     progress,
     warnings_scope,
     with_warnings,
-    write_json,
 )
+from kinecal.cli._outputs import write_outputs
 from kinecal.errors import InputError
 
 __all__ = ["handeye_rig_cli"]
@@ -139,8 +139,7 @@ def handeye_rig_cli(a: dict[str, Any], list_images: Callable, limits_option: Cal
         res.warnings = list(found)
         result = with_warnings({"images_dir": str(a["images_dir"]), "robot_poses": str(path),
                                 **res.to_dict()}, found)
-        if a["out"] is not None:
-            write_json(a["out"], result)
+        write_outputs(out=a["out"], result=result, quiet=a["quiet"] or a["json_out"])
     if a["json_out"]:
         echo_json(result)
     elif not a["quiet"]:

@@ -32,6 +32,7 @@ from kinecal.cli._options import (
     strict_option,
     tip_link_option,
 )
+from kinecal.cli._outputs import write_outputs
 from kinecal.errors import InputError
 
 
@@ -50,6 +51,12 @@ def parse_pairs(text: str, labels: tuple[str, ...]) -> list[tuple[int, int]]:
                              f"(poses: {', '.join(labels[:8])}{more})", option="--pairs")
         pairs.append(found[0])
     return pairs
+
+
+def _report(res, path: Path, before, record, found: list) -> None:
+    from kinecal.report.iso9283 import iso9283_report
+
+    iso9283_report(res, path, before, provenance=record, warnings=found)
 
 
 def _text(res: Any, before: Any) -> str:
@@ -146,10 +153,8 @@ def iso9283_cmd(
                     k for k in ("APa", "APb", "APc") if k in e)}
                 for e in before.to_dict()["poses"]]}
         result = with_warnings({"file": str(path), **result}, found)
-        if report is not None:
-            from kinecal.report.iso9283 import iso9283_report
-
-            iso9283_report(res, report, before, provenance=record, warnings=list(found))
+        write_outputs(report=report, write_report=lambda path: _report(
+            res, path, before, record, list(found)), quiet=quiet or json_out)
     if json_out:
         echo_json(result)
     elif not quiet:

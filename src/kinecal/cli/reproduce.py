@@ -7,7 +7,13 @@ from pathlib import Path
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import check_paths, echo_json, quiet_requested, report_record, write_json
+from kinecal.cli._common import (
+    check_paths,
+    echo_json,
+    quiet_requested,
+    report_record,
+    without_times,
+)
 from kinecal.cli._options import (
     choices,
     instrument_option,
@@ -16,6 +22,7 @@ from kinecal.cli._options import (
     report_option,
     seed_option,
 )
+from kinecal.cli._outputs import write_outputs
 from kinecal.experiments import PAPERS, experiment_module
 
 
@@ -36,14 +43,18 @@ def reproduce(
     module = experiment_module(paper)
     check_paths({}, {"--report": report}, folders={"--out": (out, ["result.json"])})
     record = report_record(report, {}, instrument, operator, note)
-    result = module.run(quick=quick, seed=seed, out_dir=out, quiet=quiet_requested(quiet))
-    if out is not None:
-        write_json(out / "result.json", result)
-    if report is not None:
-        from kinecal.report.html import reproduce_report
-
-        reproduce_report(result, report, provenance=record)
+    result = without_times(module.run(quick=quick, seed=seed, out_dir=out,
+                                      quiet=quiet_requested(quiet)))
+    write_outputs(out=None if out is None else out / "result.json", result=result,
+                  report=report, write_report=lambda path: _report(result, path, record),
+                  quiet=quiet or json_out)
     if json_out:
         echo_json(result)
     else:
         typer.echo(module.render(result))
+
+
+def _report(result: dict, path: Path, record) -> None:
+    from kinecal.report.html import reproduce_report
+
+    reproduce_report(result, path, provenance=record)

@@ -23,6 +23,7 @@ from kinecal.cli._options import (
     strict_option,
     tip_links_option,
 )
+from kinecal.cli._outputs import write_outputs
 from kinecal.cli._serial_common import POSE_BYTES
 from kinecal.errors import InputError
 
@@ -177,9 +178,9 @@ def simulate(
                           f"{m.angle_unit}")  # in the unit given (simulate checks the rest)
         sim = run(m, poses, errors=err, noise=noise, rng=seed, orientation=orientation,
                   angle_noise=angle_noise * to_rad, q=q, marker=marker)
-        write_measurements(out, sim.data, m)
-        if truth_out is not None:
-            write_truth(truth_out, m, sim.true_params)
+        write_outputs(more=[(out, lambda path: write_measurements(path, sim.data, m)),
+                            (truth_out, lambda path: write_truth(path, m, sim.true_params))],
+                      quiet=quiet)
     if not quiet:
         typer.echo(f"wrote {poses} poses to {out}"
                    + (f", truth to {truth_out}" if truth_out else ""), err=True)

@@ -11,8 +11,9 @@ import numpy as np
 import typer
 
 from kinecal._limits import check_count, check_finite
-from kinecal.cli._common import check_paths, warnings_scope
+from kinecal.cli._common import check_paths, status, warnings_scope
 from kinecal.cli._options import load_model_arg
+from kinecal.cli._outputs import write_outputs
 from kinecal.errors import InputError
 
 __all__ = ["DEFAULT_CAMERA", "simulate_images"]
@@ -84,16 +85,17 @@ def simulate_images(args: dict[str, Any]) -> None:
             if not intr.size:
                 raise InputError("the camera file gives no image size", file=args["intrinsics"])
             cam = {"K": intr.K, "dist": intr.dist, "size": tuple(intr.size)}
-        scene = render_arm_stations(
-            m, board, np.asarray(cam["K"]), np.asarray(cam["dist"]), cam["size"], n,
-            setup=args["setup"], errors=err, q_home=_home(args["home"], m), seed=args["seed"],
-            conditions=ImageConditions(blur=args["blur"], noise=args["noise"]), supersample=2)
-        write_images(scene, images)
-        write_stations(scene, out)
-        if args["truth_out"] is not None:
-            write_scene_truth(scene, args["truth_out"])
-        if args["camera_out"] is not None:
-            write_intrinsics(args["camera_out"], CameraIntrinsics(scene.K, scene.dist,
-                                                                  scene.size, source="render"))
+        with status(f"rendering {n} stations", args["quiet"]):
+            scene = render_arm_stations(
+                m, board, np.asarray(cam["K"]), np.asarray(cam["dist"]), cam["size"], n,
+                setup=args["setup"], errors=err, q_home=_home(args["home"], m),
+                seed=args["seed"], supersample=2,
+                conditions=ImageConditions(blur=args["blur"], noise=args["noise"]))
+        camera = CameraIntrinsics(scene.K, scene.dist, scene.size, source="render")
+        write_outputs(more=[(images, lambda path: write_images(scene, path)),
+                            (out, lambda path: write_stations(scene, path)),
+                            (args["truth_out"], lambda path: write_scene_truth(scene, path)),
+                            (args["camera_out"], lambda path: write_intrinsics(path, camera))],
+                      quiet=args["quiet"])
     if not args["quiet"]:
         typer.echo(f"wrote {n} images to {images} and their joints to {out}", err=True)

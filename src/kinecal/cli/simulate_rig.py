@@ -17,7 +17,8 @@ import numpy as np
 import typer
 
 from kinecal._limits import check_count, check_finite
-from kinecal.cli._common import check_paths, warnings_scope
+from kinecal.cli._common import check_paths, status, warnings_scope
+from kinecal.cli._outputs import write_outputs
 from kinecal.errors import InputError
 
 __all__ = ["is_rig_simulation", "simulate_rig"]
@@ -110,16 +111,16 @@ def simulate_rig(a: dict[str, Any]) -> None:
                 raise InputError("the camera file gives no image size", file=c.intrinsics_file)
             else:
                 cam.append((c.intrinsics.K, c.intrinsics.dist, tuple(c.intrinsics.size)))
-        scene = render_rig_stations(
-            m, cams, [(mb, b.board) for mb, b in zip(boards, rig.boards, strict=True)], cam, n,
-            errors=err, q_home=_home(a["home"], m), seed=a["seed"],
-            conditions=ImageConditions(blur=a["blur"], noise=a["noise"]), supersample=2)
-        write_rig_images(scene, a["images"])
-        write_rig_stations_of(scene, out)
-        if a["truth_out"] is not None:
-            write_rig_truth(scene, a["truth_out"])
-        if a["camera_out"] is not None:
-            write_rig_cameras(scene, a["camera_out"])
+        with status(f"rendering {n} stations of {len(cams)} cameras", a["quiet"]):
+            scene = render_rig_stations(
+                m, cams, [(mb, b.board) for mb, b in zip(boards, rig.boards, strict=True)],
+                cam, n, errors=err, q_home=_home(a["home"], m), seed=a["seed"],
+                conditions=ImageConditions(blur=a["blur"], noise=a["noise"]), supersample=2)
+        write_outputs(more=[(a["images"], lambda path: write_rig_images(scene, path)),
+                            (out, lambda path: write_rig_stations_of(scene, path)),
+                            (a["truth_out"], lambda path: write_rig_truth(scene, path)),
+                            (a["camera_out"], lambda path: write_rig_cameras(scene, path))],
+                      quiet=a["quiet"])
     if not a["quiet"]:
         per = ", ".join(f"{c.name} {int(np.sum(scene.camera == k))}"
                         for k, c in enumerate(cams))

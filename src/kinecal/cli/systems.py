@@ -22,8 +22,8 @@ from kinecal.cli._common import (
     resolve_data_path,
     warnings_scope,
     with_warnings,
-    write_json,
 )
+from kinecal.cli._outputs import write_outputs
 from kinecal.errors import InputError
 
 __all__ = ["is_system_arg", "load_system_arg", "system_arms", "system_calibrate",
@@ -84,16 +84,19 @@ def system_calibrate(a: dict[str, Any]) -> None:
                                sigma=stated, rotation_weight=a["rotation_weight"])
         res.warnings = list(found)
         result = with_warnings(res.to_dict(), found)
-        if a["out"] is not None:
-            write_json(a["out"], result)
-        if a["report"] is not None:
-            from kinecal.report.html import calibration_report
-
-            calibration_report(res, a["report"], provenance=record)
+        write_outputs(out=a["out"], result=result, report=a["report"],
+                      write_report=lambda path: _report(res, path, record),
+                      quiet=a["quiet"] or a["json_out"])
     if a["json_out"]:
         echo_json(result)
     elif not a["quiet"]:
         typer.echo(res.summary(a["unit"]))
+
+
+def _report(res: Any, path: Path, record: Any) -> None:
+    from kinecal.report.html import calibration_report
+
+    calibration_report(res, path, provenance=record)
 
 
 def system_identifiability(a: dict[str, Any]) -> None:

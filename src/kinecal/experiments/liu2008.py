@@ -206,6 +206,11 @@ def _figure(result: dict, out: Path) -> None:
     plt.close(fig)
 
 
+def _ms(seconds: float | None, digits: int) -> str:
+    """A time in milliseconds; ``-`` when left out (``SOURCE_DATE_EPOCH``: no times)."""
+    return "- ms" if seconds is None else f"{seconds * 1e3:.{digits}f} ms"
+
+
 def render(result: dict) -> str:
     """Table 3 beside kinecal's newton and PSO, then the PSO statistics and the extras."""
     lines = [
@@ -221,13 +226,13 @@ def render(result: dict) -> str:
     nw, ps = result["newton"], result["pso"]
     lines += [
         f"newton: {nw['iterations']} iterations, residual {nw['residual_m']:.1e} m, "
-        f"{nw['seconds'] * 1e3:.2f} ms",
+        f"{_ms(nw['seconds'], 2)}",
         f"pso ({ps['seeds']} seeds, 80 particles, w 0.5->0.1, c1=c2=1.8): "
         f"{ps['success']}/{ps['seeds']} within 0.5 um (median tip error "
         f"{ps['position_error_median_m'] * 1e6:.2f} um, angles {ps['angle_error_median_deg']:.1e} "
         f"deg); generations median "
         f"{ps['iterations_median']:.0f} (min {ps['iterations_min']}, max {ps['iterations_max']}; "
-        f"paper ~55); {ps['seconds_mean'] * 1e3:.1f} ms per solve (paper ~3 s, Java on a P4)",
+        f"paper ~55); {_ms(ps['seconds_mean'], 1)} per solve (paper ~3 s, Java on a P4)",
     ]
     m = result["modes"]
     lines.append(

@@ -18,11 +18,14 @@ from pathlib import Path
 
 from kinecal.errors import InputError
 
-__all__ = ["bundled_index", "bundled_names", "input_file", "resolve_machine_file",
-           "robots_dir"]
+__all__ = ["bundled_index", "bundled_names", "input_file", "machine_kind",
+           "resolve_machine_file", "robots_dir"]
 
 #: kind -> what to call it in messages
 KINDS = {"model": "model", "geometry": "geometry", "system": "system"}
+#: kind -> the machine it describes, in messages that tell one kind from the other
+_WHAT = {"model": "serial-arm model", "geometry": "Stewart-platform geometry",
+         "system": "robot system"}
 
 _CONVENTION = re.compile(r"^convention[ \t]*:[ \t]*(?!null\b|~|#|$)\S", re.MULTILINE)
 _STEWART = re.compile(r"""^kind[ \t]*:[ \t]*["']?stewart["']?[ \t]*(#.*)?$""", re.MULTILINE)
@@ -59,6 +62,16 @@ def bundled_index() -> dict[str, str]:
     return out
 
 
+def machine_kind(path: str | Path) -> str | None:
+    """``model``, ``geometry`` or None (not a machine file, or unreadable: its reader says
+    why) of the file at `path`, from its top-level keys (the first megabyte)."""
+    try:
+        with open(path, "rb") as fh:
+            return _kind(fh.read(1 << 20).decode("utf-8", "replace"))
+    except OSError:
+        return None
+
+
 def bundled_names(kind: str) -> list[str]:
     """Sorted names of the bundled files of `kind` (``model``, ``geometry``, ``system``)."""
     if kind not in KINDS:
@@ -76,8 +89,13 @@ def resolve_machine_file(name_or_path: str | Path, kind: str, option: str | None
         if not path.is_file():
             raise InputError("file not found", file=path)
         return path
-    if bundled_index().get(str(name_or_path)) == kind:
+    found = bundled_index().get(str(name_or_path))
+    if found == kind:
         return robots_dir() / f"{name_or_path}.yaml"
+    if found is not None:  # the other kind: say which, not "unknown"
+        raise InputError(
+            f"{str(name_or_path)!r} is a bundled {_WHAT[found]}, not a {_WHAT[kind]} "
+            f"(bundled {_WHAT[kind]}s: {', '.join(bundled_names(kind))})", option=option)
     raise InputError(
         f"unknown {label} {str(name_or_path)!r}: not a file and not a bundled {label} "
         f"(bundled: {', '.join(bundled_names(kind))})",

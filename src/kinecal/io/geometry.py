@@ -32,7 +32,8 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, model_validator
 
-from kinecal._files import read_yaml_mapping, write_text_atomic
+from kinecal._files import write_text_atomic
+from kinecal._yaml import read_yaml_mapping
 from kinecal.errors import InputError
 from kinecal.io.bundled import bundled_names, resolve_machine_file
 from kinecal.kinematics.stewart.platform import StewartPlatform

@@ -13,7 +13,8 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from kinecal._files import load_yaml, read_text
+from kinecal._files import read_text
+from kinecal._yaml import load_yaml
 from kinecal.errors import InputError
 from kinecal.spatial import check_rotation
 

@@ -59,8 +59,11 @@ from kinecal.errors import InputError
 from kinecal.spatial import rpy_from_matrix
 
 __all__ = [
+    "MAX_DEFAULT_PAIRS",
+    "MAX_PAIRS",
     "POSE_KEYS",
     "Iso9283Result",
+    "default_pairs",
     "distance_figures",
     "iso9283",
     "orientation_accuracy",
@@ -74,6 +77,10 @@ Array = NDArray[np.float64]
 
 #: the number of cycles ISO 9283 prescribes for the AP, RP, AD and RD tests
 STANDARD_CYCLES = 30
+#: distance pairs of the default "every pair" (45 poses); more poses: consecutive pairs
+MAX_DEFAULT_PAIRS = 1000
+#: most distance pairs one test may name (beyond the consecutive pairs of its poses)
+MAX_PAIRS = 10_000
 #: per-pose figures, in the order of the tables (angles: the orientation ones)
 POSE_KEYS = ("AP", "APx", "APy", "APz", "RP")
 ORIENTATION_KEYS = ("APa", "APb", "APc", "RPa", "RPb", "RPc")
@@ -151,7 +158,9 @@ def orientation_repeatability(measured: Array, commanded: Array | None = None
     return {"RPa": rp[:, 0], "RPb": rp[:, 1], "RPc": rp[:, 2]}
 
 
-def distance_figures(data: RepeatedPoses, first: int, second: int) -> dict[str, float]:
+def distance_figures(data: RepeatedPoses, first: int, second: int,
+                     angles: tuple[Array | None, Array | None] | None = None
+                     ) -> dict[str, float]:
     """Distance accuracy and repeatability of clause 7.3 between two poses of `data`.
 
     Parameters
@@ -160,6 +169,9 @@ def distance_figures(data: RepeatedPoses, first: int, second: int) -> dict[str, 
         The test.
     first, second : int
         Indices of the two poses (P1 and P2 of the clause).
+    angles : (ndarray or None, ndarray or None), optional
+        `orientation_angles` of the measured and commanded rotations, when already
+        computed (`iso9283` computes them once for every pair).
 
     Returns
     -------
@@ -179,14 +191,29 @@ def distance_figures(data: RepeatedPoses, first: int, second: int) -> dict[str, 
     out["RD"] = float(3.0 * dj.std(ddof=1))
     out.update({f"RD{a}": float(3.0 * comp[:, k].std(ddof=1)) for k, a in enumerate("xyz")})
     if data.measured_rotations is not None:
-        ang = orientation_angles(np.asarray(data.measured_rotations, float))
+        ang, angc = _angles(data) if angles is None else angles
         da = np.abs(_wrap(ang[first] - ang[second]))
-        if data.commanded_rotations is not None:
-            angc = orientation_angles(np.asarray(data.commanded_rotations, float))
+        if angc is not None:
             dca = np.abs(_wrap(angc[first] - angc[second]))
             out.update({f"AD{a}": float(da[:, k].mean() - dca[k]) for k, a in enumerate("abc")})
         out.update({f"RD{a}": float(3.0 * da[:, k].std(ddof=1)) for k, a in enumerate("abc")})
     return out
+
+
+def _angles(data: RepeatedPoses) -> tuple[Array | None, Array | None]:
+    """`orientation_angles` of the measured and the commanded rotations (None: none)."""
+    mr, cr = data.measured_rotations, data.commanded_rotations
+    return (None if mr is None else orientation_angles(np.asarray(mr, float)),
+            None if cr is None else orientation_angles(np.asarray(cr, float)))
+
+
+def default_pairs(p: int) -> list[tuple[int, int]]:
+    """The distance pairs of a test of `p` poses when none are named: every pair while
+    there are at most `MAX_DEFAULT_PAIRS` (45 poses), else each pose with the next in test
+    order (every pair of 2 000 poses is 2 million figures, hours and gigabytes)."""
+    if p * (p - 1) // 2 <= MAX_DEFAULT_PAIRS:
+        return [(i, k) for i in range(p) for k in range(i + 1, p)]
+    return [(i, i + 1) for i in range(p - 1)]
 
 
 @dataclass(frozen=True, repr=False)
@@ -262,9 +289,10 @@ def iso9283(data: RepeatedPoses, pairs: Sequence[tuple[int, int]] | None = None,
     data : RepeatedPoses
         P poses measured in n >= 2 cycles.
     pairs : sequence of (int, int), optional
-        Pose pairs for the distance figures (indices into ``data.labels``); default every
-        pair ``(i, k)``, ``i < k``, in test order. The standard's distance test uses one
-        pair of its test poses; give that pair to report it alone.
+        Pose pairs for the distance figures (indices into ``data.labels``); default
+        `default_pairs` (every pair ``(i, k)``, ``i < k``, in test order up to 45 poses;
+        consecutive poses beyond), at most `MAX_PAIRS`. The standard's distance test uses
+        one pair of its test poses; give that pair to report it alone.
     check : bool
         Warn on an implausible test (`kinecal.metrology.iso_checks`: ``scale-mismatch``,
         ``far-from-commanded``, ``cycle-scatter``).
@@ -276,14 +304,17 @@ def iso9283(data: RepeatedPoses, pairs: Sequence[tuple[int, int]] | None = None,
     Raises
     ------
     InputError
-        Fewer than 2 cycles, a pair naming an unknown pose or one pose twice.
+        Fewer than 2 cycles, a pair naming an unknown pose or one pose twice, more than
+        `MAX_PAIRS` pairs.
     """
     n, p = data.n_cycles, len(data.labels)
     if n < 2:
         raise InputError(f"{n} cycle(s): the repeatabilities need at least 2 (ISO 9283 "
                          f"prescribes {STANDARD_CYCLES})")
-    if pairs is None:
-        pairs = [(i, k) for i in range(p) for k in range(i + 1, p)]
+    pairs = default_pairs(p) if pairs is None else list(pairs)
+    if len(pairs) > max(MAX_PAIRS, p - 1):
+        raise InputError(f"{len(pairs):,} pose pairs: expected at most {MAX_PAIRS:,} (the "
+                         "standard's distance test uses one pair)", option="--pairs")
     for i, k in pairs:
         if not (0 <= i < p and 0 <= k < p) or i == k:
             raise InputError(f"pose pair ({i}, {k}): expected two different poses of 0..{p - 1}")
@@ -297,7 +328,9 @@ def iso9283(data: RepeatedPoses, pairs: Sequence[tuple[int, int]] | None = None,
             figures.update(orientation_accuracy(mr, cr))
         figures.update(orientation_repeatability(mr, cr))
     pairs = [(int(i), int(k)) for i, k in pairs]
-    res = Iso9283Result(data, figures, pairs, [distance_figures(data, i, k) for i, k in pairs])
+    angles = _angles(data)
+    res = Iso9283Result(data, figures, pairs, [distance_figures(data, i, k, angles)
+                                               for i, k in pairs])
     if check:
         from kinecal.metrology.iso_checks import check_test
 

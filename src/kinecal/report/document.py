@@ -26,11 +26,18 @@ def is_pdf(path: str | Path) -> bool:
 
 
 def _weasyprint() -> Any:
+    from PIL import ImageFile
+
+    # WeasyPrint sets Pillow's process-wide LOAD_TRUNCATED_IMAGES when imported: every
+    # later check of an image file cut short (kinecal.vision.image_files) would pass it
+    truncated = ImageFile.LOAD_TRUNCATED_IMAGES
     try:
         import weasyprint
     except (ImportError, OSError) as exc:  # OSError: the Pango library is missing
         raise InputError(f"{_MISSING} ({type(exc).__name__}: {exc})".split("\n")[0],
                          option="--report") from None
+    finally:
+        ImageFile.LOAD_TRUNCATED_IMAGES = truncated
     return weasyprint
 
 

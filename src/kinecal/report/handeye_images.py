@@ -20,7 +20,7 @@ import numpy as np
 from kinecal.report.document import write_report
 from kinecal.report.figures import figure_png, new_figure
 from kinecal.report.markup import image_tag, page, section, table
-from kinecal.report.provenance import Provenance, collect, provenance_section
+from kinecal.report.provenance import Provenance, collect, provenance_section, time_rows
 from kinecal.report.summary import COVERAGE_K
 
 __all__ = ["handeye_images_report", "plot_image_errors", "thumbnail_jpeg"]
@@ -118,7 +118,7 @@ def handeye_images_report(result: Any, path: str | Path,
         ("reprojection RMS [px]", ref.rms_px), ("corner sigma [px]", ref.sigma_px),
         ("intrinsics", intr.source + (" (refined with X)" if result.intrinsics_refined else "")),
         ("intrinsics calibration RMS [px]", intr.rms_px),
-        ("time [s]", float(result.seconds)),
+        *time_rows(result.seconds),
     ])
     xsec = (_matrix_table(result.X)
             + "<p>Standard deviation (1 sigma, from the reprojection residuals): rotation "

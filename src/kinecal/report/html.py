@@ -34,7 +34,7 @@ from kinecal.report.markup import (
     section,
     table,
 )
-from kinecal.report.provenance import Provenance, collect, provenance_section
+from kinecal.report.provenance import Provenance, collect, provenance_section, time_rows
 from kinecal.report.summary import COVERAGE_K, calibration_summary, expanded_note
 from kinecal.report.warnings import warnings_section
 
@@ -65,7 +65,7 @@ def _model_and_data(result: Any) -> str:
         ("calibration poses", int(result.errors_before.size)), ("validation poses", n_val),
         *([("data", data_src)] if data_src else []),
         ("iterations", int(result.iterations)), ("evaluations", int(result.evaluations)),
-        ("time [s]", float(result.seconds)), ("solver message", result.message or "-"),
+        *time_rows(result.seconds), ("solver message", result.message or "-"),
     ])
 
 

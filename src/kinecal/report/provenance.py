@@ -1,18 +1,20 @@
 """Provenance of a report: when, with what, from which files, by whom.
 
 `collect` gathers the date and time (ISO 8601 with the UTC offset; ``SOURCE_DATE_EPOCH``,
-when set, fixes it for reproducible files), kinecal's, Python's and numpy's versions, the
-command line, the SHA-256 and size of every input file (a folder input: of every file
-directly in it, or of those with the suffixes the command reads) and the optional
-instrument, operator and note. `provenance_section` renders them as the report's record
+when set, fixes it for reproducible files: `kinecal._reproducible`), kinecal's, Python's and
+numpy's versions, the command line, the SHA-256 and size of every input file (a folder
+input: of every file directly in it, or of those with the suffixes the command reads) and
+the optional instrument, operator and note. `provenance_section` renders them as the report's record
 block; every report of `kinecal.report` takes a `Provenance` (made with no inputs when
 none is given, so that a report always carries its date and version).
+
+Under ``SOURCE_DATE_EPOCH`` the record carries that date, and a report's tables no time a
+run took (`time_rows`): the same inputs give the same report byte for byte.
 """
 
 from __future__ import annotations
 
 import hashlib
-import os
 import platform
 import shlex
 from collections.abc import Mapping, Sequence
@@ -20,9 +22,11 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
+from kinecal._reproducible import reproducible, shown_text, source_date_epoch
 from kinecal.report.markup import table
 
-__all__ = ["InputFile", "Provenance", "collect", "file_sha256", "provenance_section"]
+__all__ = ["InputFile", "Provenance", "collect", "file_sha256", "provenance_section",
+           "time_rows"]
 
 #: bytes read at a time while hashing
 _CHUNK = 1 << 20
@@ -84,10 +88,15 @@ def file_sha256(path: str | Path) -> str:
     return h.hexdigest()
 
 
+def time_rows(seconds: float) -> list[tuple[str, float]]:
+    """The ``time [s]`` row of a report's table: none under ``SOURCE_DATE_EPOCH``."""
+    return [] if reproducible() else [("time [s]", float(seconds))]
+
+
 def _now() -> str:
-    epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
-    if epoch.isdigit():
-        return datetime.fromtimestamp(int(epoch), UTC).isoformat(timespec="seconds")
+    epoch = source_date_epoch()
+    if epoch is not None:
+        return datetime.fromtimestamp(epoch, UTC).isoformat(timespec="seconds")
     return datetime.now(UTC).astimezone().isoformat(timespec="seconds")
 
 
@@ -99,7 +108,8 @@ def _files(name: str, path: Path, suffixes: Sequence[str] | None) -> list[InputF
         return [f for p in members for f in _files(name, p, None)]
     if not path.is_file():
         return []
-    return [InputFile(name, str(path), file_sha256(path), path.stat().st_size)]
+    return [InputFile(shown_text(name), shown_text(str(path)), file_sha256(path),
+                      path.stat().st_size)]
 
 
 def collect(inputs: Mapping[str, str | Path | None] | None = None, *,
@@ -135,6 +145,8 @@ def collect(inputs: Mapping[str, str | Path | None] | None = None, *,
             found += _files(name, Path(spec), (suffixes or {}).get(name))
     if command is not None and not isinstance(command, str):
         command = shlex.join(str(c) for c in command)
+    instrument, operator, note, command = (None if t is None else shown_text(t)
+                                           for t in (instrument, operator, note, command))
     env = (f"Python {platform.python_version()}, numpy {np.__version__}, "
            f"{platform.system()} {platform.machine()}")
     return Provenance(_now(), __version__, command, tuple(found), instrument or None,

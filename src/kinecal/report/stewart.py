@@ -12,7 +12,7 @@ from kinecal.errors import InputError
 from kinecal.report.document import write_report
 from kinecal.report.figures import _per_pose, figure_png, new_figure
 from kinecal.report.markup import image_tag, kv, page, section, table
-from kinecal.report.provenance import Provenance, collect, provenance_section
+from kinecal.report.provenance import Provenance, collect, provenance_section, time_rows
 from kinecal.report.summary import COVERAGE_K, expanded_note
 from kinecal.report.warnings import warnings_section
 
@@ -39,7 +39,7 @@ def stewart_report(result: Any, path: str | Path, provenance: Provenance | None 
         ("uncertainty bounded", bool(result.bounded)),
         ("outlier poses (0-based)", ", ".join(map(str, result.outliers)) or "none"),
         ("iterations", int(result.iterations)), ("evaluations", int(result.evaluations)),
-        ("time [s]", float(result.seconds)),
+        *time_rows(result.seconds),
     ])
     rows = []
     for label, part in (("calibration", cal), ("validation", result.validation)):

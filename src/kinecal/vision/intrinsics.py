@@ -26,7 +26,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kinecal._files import load_yaml, read_json, read_text, write_text_atomic
+from kinecal._files import read_json, read_text, write_text_atomic
+from kinecal._yaml import load_yaml
 from kinecal.calibration.handeye.camera import check_camera
 from kinecal.errors import InputError
 from kinecal.vision.image_files import MAX_IMAGE_PIXELS

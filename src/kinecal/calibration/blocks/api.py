@@ -18,7 +18,14 @@ import numpy as np
 from kinecal import diagnostics
 from kinecal.calibration.blocks.analysis import unseen_words
 from kinecal.calibration.blocks.base import ResidualBlock
-from kinecal.calibration.blocks.checks import check_block_data, check_blocks, check_fits
+from kinecal.calibration.blocks.checks import (
+    check_block_data,
+    check_blocks,
+    check_fits,
+    check_stack_rows,
+    check_stack_unknowns,
+    check_validation_overlap,
+)
 from kinecal.calibration.blocks.decide import solve_blocks, start_blocks
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
 from kinecal.calibration.blocks.result import KindsCalibrationResult, kind_entry
@@ -158,13 +165,17 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
     _check_arguments(method, loss, data, f_scale, rank_tol)
     t0 = time.perf_counter()
     model = model_for_markers(model, marker_names(list(data) + list(validate or [])))
+    check_stack_rows(data)
+    check_stack_rows(list(validate or []), "validation ")
     blocks = make_blocks(model, data, sigma, rotation_weight)
     val_blocks = make_blocks(model, validate or [], validate_sigma, rotation_weight)
     cand = candidate_names(model, free)
+    check_stack_unknowns(blocks, len(cand))
     vb: list[np.ndarray] = []
 
     def check(nuis0, before, ana0, names) -> None:  # before the fit
         check_blocks(model, blocks, nuis0, before, ana0, names)
+        check_validation_overlap(blocks, val_blocks)
         vb.extend(_check_validation(model, val_blocks, ana0.report.names))
 
     sol = solve_blocks(model, blocks, cand, free == "identifiable", rank_tol=rank_tol,

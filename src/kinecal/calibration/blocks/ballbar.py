@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.blocks.base import BlockRows, tool_points
-from kinecal.calibration.blocks.gauge import GaugeBlock
+from kinecal.calibration.blocks.gauge import GaugeBlock, check_distance_rows
 from kinecal.calibration.diagnostics.kinds import check_distance_units
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
@@ -69,8 +69,9 @@ class BallbarBlock(GaugeBlock):
 
     def start(self, model: SerialModel, params: Array) -> Array:
         """Each pivot by a sphere fit with the stated distances as radii."""
-        P = model.positions(self.q, params, self.marker)
         L = np.asarray(self.data.distance, dtype=float)
+        check_distance_rows(self, L, "distance")
+        P = model.positions(self.q, params, self.marker)
         out = []
         for g in self.live_groups:
             rows = self.groups[g]

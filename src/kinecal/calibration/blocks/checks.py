@@ -25,7 +25,45 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.chain import BASE_NAMES
 from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["check_block_data", "check_blocks", "check_fits"]
+__all__ = ["MAX_STACK_ROWS", "MAX_STACK_UNKNOWNS", "check_block_data", "check_blocks",
+           "check_fits", "check_stack_rows", "check_stack_unknowns",
+           "check_validation_overlap"]
+
+#: most file rows of one stacked calibration: every iteration evaluates every row (1e5
+#: pair rows: 4 s of CPU on consistent data; a ballbar test has tens to thousands)
+MAX_STACK_ROWS = 200_000
+#: most unknowns (arm and the gauges' own) of one stacked calibration: its normal
+#: equations are dense, each iteration solves them (2 430 unknowns, a ballbar and 200 files
+#: of 4 fixed points: 25 s of CPU)
+MAX_STACK_UNKNOWNS = 2_500
+
+
+def check_stack_rows(data: Sequence, what: str = "") -> None:
+    """Refuse, before any block is made, measurement sets of more than `MAX_STACK_ROWS`
+    file rows in all: every iteration of the fit evaluates every row. Blocks made by the
+    caller (a camera's) are bounded by their makers and not counted."""
+    data = [d for d in data if not isinstance(d, ResidualBlock)]
+    rows = [len(d) for d in data]
+    if sum(rows) > MAX_STACK_ROWS:
+        big = data[int(np.argmax(rows))]
+        name = getattr(big, "source", None) or getattr(big, "name", "a set")
+        raise InputError(f"{sum(rows):,} {what}rows in {plural(len(rows), 'set')} ({name}: "
+                         f"{max(rows):,}): more than the {MAX_STACK_ROWS:,} one calibration "
+                         "of several kinds takes (every iteration evaluates every row); keep "
+                         "the rows that identify the most (kinecal select-poses --kind KIND) "
+                         "or thin the files")
+
+
+def check_stack_unknowns(blocks: Sequence[ResidualBlock], n_arm: int) -> None:
+    """Refuse, before any fit, more than `MAX_STACK_UNKNOWNS` unknowns (`n_arm` of the arm
+    and the blocks' own): the normal equations are dense, their cost the cube of it."""
+    own = sum(b.n_nuisance for b in blocks)
+    if n_arm + own > MAX_STACK_UNKNOWNS:
+        raise InputError(f"{n_arm + own:,} unknowns ({n_arm} of the arm, {own:,} of the "
+                         f"gauges' own in {plural(len(blocks), 'set')}): more than the "
+                         f"{MAX_STACK_UNKNOWNS:,} one calibration of several kinds takes (its "
+                         "normal equations are dense); measure fewer pivots, points or planes "
+                         "per calibration, or merge the files of one gauge")
 
 
 def check_blocks(model: SerialModel, blocks: Sequence[ResidualBlock], nuisance, before,
@@ -69,6 +107,31 @@ def check_block_data(model: SerialModel, blocks: Sequence[ResidualBlock], nuisan
         if b.unit == "length" and e.size and not warned:
             check_initial_error(name, float(np.sqrt(np.mean(e**2))), ref.reach,
                                 ref.tolerance_error, model.length_unit)
+
+
+def check_validation_overlap(blocks: Sequence[ResidualBlock],
+                             validation: Sequence[ResidualBlock]) -> None:
+    """``validation-overlap``: rows of a validation set whose joint readings (and marker)
+    repeat rows of a calibration set of the same kind (one file given as both, or poses
+    measured for both): its statistics are then not independent of the fit. Another kind
+    at the same pose (a ballbar row where the tracker measured) is another measurement."""
+    for v in validation:
+        same = [b for b in blocks if b.kind == v.kind and np.shape(b.q)[1:] == np.shape(v.q)[1:]]
+        if not same or not len(v.q):
+            continue
+        q = np.concatenate([b.q for b in same] + [v.q])
+        marks = [np.zeros(len(b.q)) if b.marker is None else b.marker for b in [*same, v]]
+        groups, _ = repeat_groups(q, np.concatenate(marks)[:, None])
+        n_cal = len(q) - len(v.q)
+        n = int(np.isin(groups[n_cal:], groups[:n_cal]).sum())
+        if n:
+            names = ", ".join(b.name for b in same)
+            warn("validation-overlap",
+                 f"validation {v.name}: {n} of {plural(len(v.q), 'row')} repeat the joint "
+                 f"readings of {names}"
+                 + (" (the validation set is a calibration set)" if n == len(v.q) else "")
+                 + ": validation statistics are then not independent of the fit; validate "
+                 "on poses not used for calibration")
 
 
 def _check_same_sets(blocks: Sequence[ResidualBlock], what: str) -> None:

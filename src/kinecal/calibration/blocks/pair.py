@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.blocks.base import BlockRows, tool_points
-from kinecal.calibration.blocks.gauge import GaugeBlock
+from kinecal.calibration.blocks.gauge import GaugeBlock, check_distance_rows
 from kinecal.calibration.diagnostics.kinds import check_distance_units
 from kinecal.data import GaugeMeasurements
 from kinecal.errors import InputError
@@ -45,6 +45,7 @@ class PairBlock(GaugeBlock):
         self.a = np.array([self.groups[g][0] for g in live], dtype=np.intp)
         self.b = np.array([self.groups[g][-1] for g in live], dtype=np.intp)
         L = np.asarray(data.distance, dtype=float)
+        check_distance_rows(self, L, "pair distance")
         differ = np.abs(L[self.a] - L[self.b]) > 1e-9 * np.maximum(L[self.a], L[self.b])
         if differ.any():
             i = int(np.argmax(differ))
@@ -59,12 +60,14 @@ class PairBlock(GaugeBlock):
 
     def _check_groups(self) -> None:
         super()._check_groups()
-        for name, rows in zip(self.data.group_names, self.groups, strict=True):
-            if rows.size > 2:
-                raise InputError(f"{self.name}: pair {name!r} has {rows.size} rows: expected "
-                                 "2 (the two ends of one known distance); give each "
-                                 "measurement of a bar its own pair id", file=self.source,
-                                 row=int(rows[2]) + 1)
+        sizes = np.array([rows.size for rows in self.groups], dtype=np.intp)
+        if (sizes > 2).any():
+            g = int(np.argmax(sizes > 2))
+            name, rows = self.data.group_names[g], self.groups[g]
+            raise InputError(f"{self.name}: pair {name!r} has {rows.size} rows: expected "
+                             "2 (the two ends of one known distance); give each "
+                             "measurement of a bar its own pair id", file=self.source,
+                             row=int(rows[2]) + 1)
 
     def _obs_sigma(self, data: GaugeMeasurements) -> Array | None:
         return None  # set per pair in __init__

@@ -52,17 +52,24 @@ def initial_sigma(blocks: Sequence[ResidualBlock]) -> tuple[list[Array], list[bo
     return out, known
 
 
-def redundancies(problem: StackedProblem, x: Array, grams: list[Array] | None = None
-                 ) -> Array:
+def redundancies(problem: StackedProblem, x: Array) -> Array:
     """Redundancy ``r_b`` of each block at `x` (they sum to ``m - rank``; rows left out of
-    the fit count in neither)."""
-    grams = problem.block_grams(x) if grams is None else grams
-    A = np.sum(grams, axis=0)
+    the fit count in neither).
+
+    ``trace(A^-1 J_b^T J_b)`` is summed over the block's own columns only (the arm's and
+    its nuisance): the normal matrix ``A`` is formed once, never a matrix of the whole
+    problem per block (200 fixed-point files held 9 GB of such matrices).
+    """
+    _, A, _ = problem.normal_equations(x)
     d = np.sqrt(np.clip(np.diag(A), 0.0, None))
     d = np.where(d > 0, d, 1.0)
-    Ainv = np.linalg.pinv(A / np.outer(d, d), rcond=1e-12) / np.outer(d, d)
-    return np.array([m - float(np.sum(Ainv * G)) for m, G in
-                     zip(problem.used_rows, grams, strict=True)])
+    Ainv = np.linalg.pinv(A / np.outer(d, d), rcond=1e-12, hermitian=True) / np.outer(d, d)
+    out = []
+    for m, (_, Ja, Jn, s) in zip(problem.used_rows, problem._weighted_rows(x), strict=True):
+        cols = np.r_[np.arange(problem.k), np.arange(s.start, s.stop)]
+        Jb = np.hstack([Ja, Jn])
+        out.append(m - float(np.sum((Jb @ Ainv[np.ix_(cols, cols)]) * Jb)))
+    return np.array(out)
 
 
 def variance_factors(problem: StackedProblem, x: Array, residuals: list[Array]

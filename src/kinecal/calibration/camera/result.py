@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal._files import write_text_atomic
+from kinecal._reproducible import seconds_text
 from kinecal.calibration.camera.identify import CameraIdentifiability
 from kinecal.calibration.uncertainty import Uncertainty
 from kinecal.diagnostics import Diagnostic
@@ -264,8 +265,8 @@ class ArmCameraResult:
                      + f" {shown.name}")
         if "intrinsics_line" in self.extra:
             lines.append(str(self.extra["intrinsics_line"]).replace("with X", "with the arm"))
-        lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations, "
-                     f"{self.seconds:.3g} s")
+        lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations"
+                     + seconds_text(self.seconds))
         if self.outliers:
             lines.append("outlier stations: " + ", ".join(self.station_names[i]
                                                           for i in self.outliers))

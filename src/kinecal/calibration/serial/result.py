@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal._files import write_text_atomic
+from kinecal._reproducible import seconds_text
 from kinecal.calibration.identifiability import IdentifiabilityReport
 from kinecal.calibration.uncertainty import Uncertainty
 from kinecal.diagnostics import Diagnostic
@@ -21,6 +22,9 @@ from kinecal.metrology.units import DisplayUnit, display_unit
 __all__ = ["CalibrationResult"]
 
 Array = NDArray[np.float64]
+
+#: poses per block of `CalibrationResult.predicted_position_error`
+_PREDICT_BLOCK = 4096
 
 
 def _finite(obj: Any) -> Any:
@@ -170,11 +174,19 @@ class CalibrationResult:
         if self.lost:
             return np.full(q.shape[0], np.inf)
         idx = self.nominal_model.index(self.free)
-        J = self.nominal_model.identification_jacobian(q, self.params, marker=marker)[:, :, idx]
-        pred = np.sqrt(np.clip(np.trace(J @ self.covariance @ np.swapaxes(J, 1, 2),
-                                        axis1=1, axis2=2), 0, None))
-        if self.uncertainty is not None:
-            pred = np.where(self.uncertainty.bounded(J).all(axis=1), pred, np.inf)
+        pred = np.empty(q.shape[0])
+        # in blocks of poses: the Jacobian of all poses at once would add about 1.5 kB per
+        # pose to the peak memory of writing a result
+        for s in range(0, q.shape[0], _PREDICT_BLOCK):
+            rows = slice(s, s + _PREDICT_BLOCK)
+            J = self.nominal_model.identification_jacobian(
+                q[rows], self.params, marker=None if marker is None else marker[rows])[:, :, idx]
+            # trace(J C J^T) per pose, without the 3 x 3 products
+            p = np.sqrt(np.clip(np.einsum("nij,jk,nik->n", J, self.covariance, J,
+                                          optimize=True), 0, None))
+            if self.uncertainty is not None:
+                p = np.where(self.uncertainty.bounded(J).all(axis=1), p, np.inf)
+            pred[rows] = p
         return pred
 
     @property
@@ -347,8 +359,8 @@ class CalibrationResult:
             from kinecal.calibration.diagnostics.noise import noise_lines
 
             lines += noise_lines(self, shown)
-        lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations, "
-                     f"{self.seconds:.3g} s")
+        lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations"
+                     + seconds_text(self.seconds))
         if self.outliers:
             how = ("left out of the last fit" if self.extra.get("loss", "linear") !=
                    "linear" else "chi-square rule")
