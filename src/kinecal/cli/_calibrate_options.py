@@ -49,6 +49,13 @@ SIGMA = typer.Option(
     "unit): the residual is tested against it (chi-square) and the standard errors with "
     "it known are added. Several files: FILE=SIGMA (repeatable) or SIGMA,SIGMA,... in "
     "file order. See docs/diagnostics.md.")
+PRIOR = typer.Option(
+    None, "--prior", metavar="auto|GROUP=S,...|FILE", help="A prior on the free parameters "
+    "(a MAP fit): auto (strength by cross-validation), lengths=S,angles=S (1-sigma in model "
+    "units; also NAME=S, tool.*=S) or a CSV name,sigma[,mean]. See docs/priors.md.")
+PRIOR_FROM = typer.Option(
+    None, "--prior-from", help="Prior values from a previous result JSON instead of the "
+    "nominal ones (alone: --prior auto).")
 IMAGES = typer.Option(None, "--images", help="Folder of board images: DATA is then "
                       "STATIONS.csv (image,q1..qn). See docs/arm-from-images.md.")
 BOARD = typer.Option(None, "--board", help="With --images: the board, e.g. "

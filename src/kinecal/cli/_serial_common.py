@@ -43,20 +43,11 @@ def parameters_from_result(model, path: Path) -> np.ndarray:
 
 def _check_same_arm(model, p: np.ndarray, path: Path) -> None:
     """Refuse identified values that make another arm of `model` (``identified: 1e12``):
-    the lengths a chain accepts, and tool poses within what a calibration changes
-    (`kinecal.compensation.same_arm.check_same_arm`, as compensate checks them)."""
-    import dataclasses
-
-    from kinecal.compensation.same_arm import check_same_arm
-
-    def flange(m):  # markers: the arm up to its flange (the markers' points are lengths)
-        return m if not m.marker_names else dataclasses.replace(
-            m, markers=None, tool=None, joint_limits=np.array(m.joint_limits),
-            tolerances=dict(m.tolerances or {}),
-            fixed=tuple(f for f in m.fixed if not f.startswith("tool.")))
+    the one same-arm rule (`kinecal.kinematics.serial.same_arm`), which the calibration
+    itself warned about as ``implausible-change``."""
+    from kinecal.kinematics.serial.same_arm import check_same_arm
 
     try:
-        calibrated = model.with_params(p, name=f"{model.name}-calibrated")
-        check_same_arm(flange(model), flange(calibrated))
+        check_same_arm(model, model.with_params(p, name=f"{model.name}-calibrated"))
     except InputError as exc:
         raise InputError(exc.message, file=path) from None

@@ -199,6 +199,8 @@ def calibrate(
     harmonics: int | None = opt.HARMONICS,
     folds: int | None = opt.FOLDS,
     sigma: list[str] | None = opt.SIGMA,
+    prior: str | None = opt.PRIOR,
+    prior_from: Path | None = opt.PRIOR_FROM,
     instrument: str | None = instrument_option(),
     operator: str | None = operator_option(),
     note: str | None = note_option(),
@@ -222,6 +224,11 @@ def calibrate(
     check_angle_unit(angle_unit)
     from kinecal.cli.systems import is_system_arg
 
+    priors = {"prior": prior, "prior_from": prior_from}
+    if (prior is not None or prior_from is not None) and (
+            images is not None or is_system_arg(model, base_link, tip_link)):
+        raise InputError("applies to a serial arm's measurement files (not to --images or "
+                         "a robot system) yet", option="--prior")
     if images is not None:  # several cameras and boards, or images mixed: docs/rigs.md
         from kinecal.cli.calibrate_rig import calibrate_rig_cli, is_rig_call
 
@@ -268,7 +275,8 @@ def calibrate(
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
                            "--folds": folds}, record=(instrument, operator, note),
-            unit=shown, fixture=fixture, angle_unit=angle_unit, tracker=tracker)
+            unit=shown, fixture=fixture, angle_unit=angle_unit, tracker=tracker,
+            priors=priors)
     return _calibrate_tracker(SimpleNamespace(**locals()), shown)
 
 
@@ -276,12 +284,14 @@ def _calibrate_tracker(a: SimpleNamespace, shown: str | None) -> None:
     """``kinecal calibrate MODEL DATA.csv``: one tracker file (`a`: the command's
     arguments; `shown`: the summary's unit)."""
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
+    from kinecal.calibration.serial.prior import prior_file
     from kinecal.cli._common import progress
     from kinecal.io.measurements import read_measurements
 
     data, validate = a.data[0], (a.validate[0] if a.validate else None)
     sigma = parse_sigma(a.sigma, [data])[0]
-    check_paths({"MODEL": a.model, "DATA": data, "--validate": validate},
+    check_paths({"MODEL": a.model, "DATA": data, "--validate": validate,
+                 "--prior-from": a.prior_from, "--prior": prior_file(a.prior)},
                 {"--out": a.out, "--model-out": a.model_out, "--report": a.report})
     record = report_record(a.report, {"MODEL": a.model, "DATA": data, "--validate": validate},
                            a.instrument, a.operator, a.note)
@@ -319,7 +329,10 @@ def _calibrate_tracker(a: SimpleNamespace, shown: str | None) -> None:
             if a.error_model is None and m.joint_errors is None and a.harmonics is None:
                 from kinecal.calibration.serial.api import calibrate as run
 
-                res = run(m, meas, a.method, **kw)
+                res = run(m, meas, a.method, **kw, **a.priors)
+            elif a.prior is not None or a.prior_from is not None:
+                raise InputError("not with joint-error models (--error-model, a model's "
+                                 "joint_errors) yet", option="--prior")
             else:
                 from kinecal.calibration.serial.error_model import calibrate_error_model
 

@@ -127,12 +127,13 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                     sigma: list[str] | None, extra_options: dict[str, Any],
                     record: tuple = (None, None, None), unit: str | None = None,
                     fixture: list[Path] | None = None, angle_unit: str | None = None,
-                    tracker: dict | None = None) -> None:
+                    tracker: dict | None = None, priors: dict | None = None) -> None:
     """``kinecal calibrate MODEL A.csv B.csv ...`` (several files or another kind);
     `record`: ``--instrument``, ``--operator``, ``--note`` of the report; `unit`: the
     summary's length unit (None: the model's); `fixture`: ``--fixture`` files; `tracker`:
     ``--orientation-format``, ``--station-per-file``, ``--validate-register``
-    (`kinecal.cli.tracker_options`)."""
+    (`kinecal.cli.tracker_options`); `priors`: ``prior`` and ``prior_from`` of
+    `kinecal.calibrate`."""
     tracker = tracker or {}
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
     from kinecal.calibration.method_options import check_method_options
@@ -145,7 +146,12 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
     inputs = {"MODEL": model, **{f"DATA {f}": f for f in files},
               **{f"--validate {v}": v for v in validate},
               **{f"--fixture {f}": str(f) for f in fixture or []}}
-    check_paths(inputs, {"--out": out, "--model-out": model_out, "--report": report})
+    from kinecal.calibration.serial.prior import prior_file
+
+    priors = priors or {}
+    check_paths({**inputs, "--prior-from": priors.get("prior_from"),
+                 "--prior": prior_file(priors.get("prior"))},
+                {"--out": out, "--model-out": model_out, "--report": report})
     provenance = report_record(report, inputs, *record)
     if model_out is not None:
         from kinecal.io.models import check_model_file_name
@@ -168,7 +174,7 @@ def calibrate_files(model: str, files: list[str], *, base_link, tip_link, valida
                              option="--rotation-weight")
         res = calibrate(m, sets, method, free=free, validate=vsets, rng=seed, loss=loss,
                         maxiter=maxiter, target=target, rotation_weight=rotation_weight,
-                        sigma=stated, validate_register=tracker.get("register"))
+                        sigma=stated, validate_register=tracker.get("register"), **priors)
         res.warnings = list(found)
         result = with_warnings(res.to_dict(), found)
         write_outputs(out=out, result=result, model_out=model_out, save_model=res.save_model,

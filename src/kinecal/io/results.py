@@ -174,7 +174,7 @@ class StewartResultFile:
 
 
 def load_result(path: str | Path, model: Any = None, *, base_link: str | None = None,
-                tip_link: str | None = None
+                tip_link: str | None = None, check: bool = True
                 ) -> SerialResultFile | HandEyeResultFile | StewartResultFile:
     """Read a calibration result JSON written by kinecal.
 
@@ -190,6 +190,11 @@ def load_result(path: str | Path, model: Any = None, *, base_link: str | None = 
         of your own or a URDF (whose robot name is not a file). Not used for hand-eye.
     base_link, tip_link : str, optional
         The chain of a URDF `model` given as a path, as calibrated.
+    check : bool
+        Serial arm: refuse identified values that make another arm than the nominal one
+        (the same-arm rule of ``fk --params``, ``export`` and ``compensate``,
+        `kinecal.kinematics.serial.same_arm`; the calibration warned about such a result
+        as ``implausible-change``). False reads it anyway, to inspect it.
 
     Returns
     -------
@@ -199,7 +204,8 @@ def load_result(path: str | Path, model: Any = None, *, base_link: str | None = 
     Raises
     ------
     InputError
-        Not a result file, a result of another model than `model`, or no `model` where
+        Not a result file, a result of another model than `model` (other parameters or
+        nominal values, or identified values that make another arm), or no `model` where
         the result names none that is bundled.
     TypeError
         `model` of another type than those above.
@@ -216,7 +222,23 @@ def load_result(path: str | Path, model: Any = None, *, base_link: str | None = 
     serial_result_parameters(data, path)
     nominal = _serial_model(model, data, path, base_link, tip_link)
     full = model_for_data(nominal, data, path)
-    return SerialResultFile(path, data, full, parameters_from_data(full, data, path))
+    params = parameters_from_data(full, data, path)
+    if check:
+        _check_same_arm(full, params, path)
+    return SerialResultFile(path, data, full, params)
+
+
+def _check_same_arm(model: SerialModel, params: Array, path: Path) -> None:
+    """Refuse a result whose identified values make another arm than `model`: the rule of
+    ``fk --params``, ``export`` and ``compensate`` (and of the calibration's
+    ``implausible-change`` warning), `kinecal.kinematics.serial.same_arm.compare_arms`."""
+    from kinecal.kinematics.serial.same_arm import check_same_arm
+
+    try:
+        check_same_arm(model, model.with_params(params, name=f"{model.name}-calibrated"))
+    except InputError as exc:
+        raise InputError(exc.message + " (load_result(..., check=False) reads it anyway, "
+                         "to inspect it)", file=path) from None
 
 
 def _serial_model(model: Any, data: dict, path: Path, base_link: str | None,

@@ -28,14 +28,18 @@ from kinecal.calibration.blocks.checks import (
 )
 from kinecal.calibration.blocks.decide import solve_blocks, start_blocks
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
+from kinecal.calibration.blocks.prior import stack_prior
 from kinecal.calibration.blocks.result import KindsCalibrationResult, kind_entry
 from kinecal.calibration.blocks.system_ident import system_identifiability
 from kinecal.calibration.blocks.tips import by_tip
 from kinecal.calibration.blocks.uncertainty import stack_uncertainty
+from kinecal.calibration.diagnostics.change import check_change
 from kinecal.calibration.diagnostics.fit import (
     check_parameter_tolerance,
     check_unidentifiable_free,
 )
+from kinecal.calibration.serial.prior import prior_spec, prior_state
+from kinecal.calibration.serial.prior_fit import prior_entry
 from kinecal.calibration.serial.problem import candidate_names
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers
@@ -65,6 +69,8 @@ def calibrate_blocks(
     f_scale: float | None = None,
     rank_tol: float = RANK_TOL,
     rotation_weight: float | None = None,
+    prior: object = None,
+    prior_from: object = None,
 ) -> KindsCalibrationResult:
     """Identify `model`'s geometry from measurement sets of any kinds (one problem).
 
@@ -95,6 +101,9 @@ def calibrate_blocks(
         Relative rank threshold of the identifiability analysis.
     rotation_weight : float, optional
         Tracker poses: length units per rad of the rotation rows.
+    prior, prior_from
+        A prior on the arm's free parameters, as in `kinecal.calibrate` (its rows join the
+        stack: `kinecal.calibration.blocks.prior`).
 
     Returns
     -------
@@ -102,7 +111,7 @@ def calibrate_blocks(
     """
     with diagnostics.collect(python_warnings=True) as found:
         res = _calibrate(model, list(data), sigma, validate, validate_sigma, method, free,
-                         loss, f_scale, rank_tol, rotation_weight)
+                         loss, f_scale, rank_tol, rotation_weight, (prior, prior_from))
     res.warnings = list(found)
     return res
 
@@ -161,10 +170,11 @@ def _check_validation(model: SerialModel, blocks: Sequence[ResidualBlock],
 
 
 def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss, f_scale,
-               rank_tol, rotation_weight) -> KindsCalibrationResult:
+               rank_tol, rotation_weight, priors=(None, None)) -> KindsCalibrationResult:
     _check_arguments(method, loss, data, f_scale, rank_tol)
     t0 = time.perf_counter()
     model = model_for_markers(model, marker_names(list(data) + list(validate or [])))
+    spec = None if is_system(model) else prior_spec(model, *priors, method, loss)
     check_stack_rows(data)
     check_stack_rows(list(validate or []), "validation ")
     blocks = make_blocks(model, data, sigma, rotation_weight)
@@ -181,14 +191,27 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
     sol = solve_blocks(model, blocks, cand, free == "identifiable", rank_tol=rank_tol,
                        loss=loss, f_scale=f_scale, check=check)
     fit, ana, before = sol.fit, sol.analysis, sol.before
+    prior_used = pfit = None
+    if spec is not None:  # the MAP fit (docs/priors.md); the analysis stays the data's
+        prior_used, pfit = stack_prior(fit, spec, rank_tol)
+        if pfit is not None:
+            fit.result = pfit.result
     prob, x = fit.problem, np.asarray(fit.result.x, dtype=float)
     params, nuis = prob.params(x), prob.nuisance(x)
-    unc, nuis_std = stack_uncertainty(prob, x, ana, fit.outliers if loss != "linear" else [])
-    unc.estimable &= ~np.isin(prob.free, ana.report.unidentifiable)
+    if pfit is not None:  # the posterior: the prior decides the blind motions too
+        unc, nuis_std = pfit.uncertainty, pfit.nuisance_std
+    else:
+        unc, nuis_std = stack_uncertainty(prob, x, ana,
+                                          fit.outliers if loss != "linear" else [])
+        unc.estimable &= ~np.isin(prob.free, ana.report.unidentifiable)
     check_unidentifiable_free([n for n, e in zip(prob.free, unc.estimable, strict=True)
                                if not e], free)
     check_parameter_tolerance(model, params, np.where(unc.estimable, unc.std, np.inf),
                               prob.free, ana.report.confounded_with)
+    if not is_system(model):  # the same-arm rule of the commands that read results
+        check_change(model, params, _full_std(model, prob, unc), prob.free,
+                     kinds=[b.kind for b in blocks], prior=prior_state(spec, pfit),
+                     prior_decided=[] if pfit is None else pfit.split["decided_by_prior"])
     r1 = prob.block_residuals(x)
     after = [b.observation_errors(r) for b, r in zip(blocks, r1, strict=True)]
     check_fits(model, prob, x, r1, fit, loss)
@@ -212,8 +235,17 @@ def _calibrate(model, data, sigma, validate, validate_sigma, method, free, loss,
             more["by_tip"]["validation"] = by_tip(model.tips, val_blocks, vb, va)
         more["system"] = system_identifiability(sol.final, sol.final.pack(params, nuis),
                                                 rank_tol, ana)
+    if not is_system(model):
+        more["prior"] = prior_entry(model, spec, prior_used, pfit)
     return _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,
                    val_before, val_after, blocks, val_blocks, t0, loss, more)
+
+
+def _full_std(model, prob, unc) -> np.ndarray:
+    """Standard errors of every parameter ``(n_params,)``: 0 held, ``inf`` not estimable."""
+    std = np.zeros(model.n_params)
+    std[prob.index] = np.where(unc.estimable, unc.std, np.inf)
+    return std
 
 
 def _result(model, prob, fit, ana, unc, params, before, after, entries, val_entries,

@@ -27,7 +27,7 @@ from kinecal.optimize.lsq import levenberg_marquardt
 if TYPE_CHECKING:
     from scipy.optimize import OptimizeResult
 
-__all__ = ["StackFit", "fit_stack", "observation_outliers"]
+__all__ = ["StackFit", "estimate_noise", "fit_stack", "observation_outliers"]
 
 Array = NDArray[np.float64]
 
@@ -132,6 +132,10 @@ def _estimate(problem: StackedProblem, res: OptimizeResult, known: list[bool]
             return res, f, red, rounds
         res = _merge(res, _lm(problem, res.x))
         rounds += 1
+
+
+#: the alternation of fit and noise estimates, for a problem with further rows (a prior)
+estimate_noise = _estimate
 
 
 def _significant(rss0: float, rss1: float, k: int, dof: int) -> bool:

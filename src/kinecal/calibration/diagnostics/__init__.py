@@ -34,6 +34,8 @@ CODES: dict[str, str] = {
     "residual-below-noise": "the residual is far below the instrument's stated noise (--sigma)",
     "outliers": "poses whose error is far outside the others' spread",
     "optimizer-stalled": "a metaheuristic stopped far above what a least-squares polish reaches",
+    "implausible-change": "the calibrated arm is not a calibration of the same arm (fk, export "
+                          "and compensate refuse it)",
     # measurement kinds: ballbar and pair distances, fixed points, planes
     "pivot-moved": "a ballbar's distances fit no single pivot to the noise",
     "point-spread": "a fixed point's touches disagree by more than the noise",

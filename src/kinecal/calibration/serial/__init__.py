@@ -17,6 +17,9 @@ Public entry points
 `CalibrationProblem`, `resolve_free` (`problem`)
     Free parameters, scaling and residual rows (`rows`) of one calibration; solved by
     `solve` (chunked normal equations).
+`parse_prior`, `resolve_prior` (`prior`)
+    Priors on the free parameters (``calibrate(..., prior=...)``): the MAP rows and
+    posterior (`prior_fit`), the strength of ``auto`` by cross-validation (`prior_auto`).
 `simulate`, `random_configurations`, `random_errors` (`simulate`)
     Synthetic measurements of a perturbed arm.
 `select_poses` (`pose_selection`)
@@ -34,4 +37,6 @@ __getattr__, __dir__ = lazy_exports(__name__, {
     "CalibrationProblem": "kinecal.calibration.serial.problem",
     "resolve_free": "kinecal.calibration.serial.problem",
     "select_poses": "kinecal.calibration.serial.pose_selection",
+    "parse_prior": "kinecal.calibration.serial.prior",
+    "resolve_prior": "kinecal.calibration.serial.prior",
 })

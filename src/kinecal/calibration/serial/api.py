@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from kinecal import diagnostics
+from kinecal.calibration.diagnostics.change import check_change
 from kinecal.calibration.diagnostics.fit import check_serial_fit
 from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stated_sigma
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
@@ -29,6 +30,9 @@ from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
 from kinecal.calibration.serial.inputs import as_measurements, as_model, is_system
 from kinecal.calibration.serial.polish import check_local_polish
+from kinecal.calibration.serial.prior import prior_spec, prior_state
+from kinecal.calibration.serial.prior_auto import apply_prior
+from kinecal.calibration.serial.prior_fit import prior_entry
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
 from kinecal.calibration.serial.solve import solve_lm
@@ -128,6 +132,8 @@ def calibrate(
     rotation_weight: float | None = None,
     sigma: float | Sequence[float | None] | None = None,
     validate_register: str | None = None,
+    prior: Any = None,
+    prior_from: Any = None,
 ) -> CalibrationResult:
     """Identify the geometric parameters of `model` from `data`.
 
@@ -182,6 +188,11 @@ def calibrate(
     validate_register : {"all", "N%"}, optional
         Validation data from another tracker set-up: base and tool refitted on all (or N %,
         drawn with `rng`) of its rows first (`kinecal.calibration.serial.validation_frame`).
+    prior, prior_from : optional
+        A prior on the free parameters (a MAP fit; `kinecal.calibration.serial.prior`,
+        docs/priors.md): ``"auto"``, groups ``"lengths=0.5,angles=0.05"`` (or a dict;
+        model file units) or a CSV ``name,sigma[,mean]``; `prior_from` a previous result
+        (path or object) whose values replace the nominal ones. Default: no prior.
 
     Returns
     -------
@@ -202,9 +213,10 @@ def calibrate(
     if is_system(model):  # several chains: the stacked problem, whatever the data
         from kinecal.calibration.blocks.api import calibrate_system
 
-        if validate_register is not None:
-            raise InputError("applies to a serial arm's tracker rows, not to a system",
-                             option="--validate-register")
+        for option, value in (("--validate-register", validate_register),
+                              ("--prior", prior), ("--prior-from", prior_from)):
+            if value is not None:
+                raise InputError("applies to a serial arm, not to a system", option=option)
         return calibrate_system(model, data, method, validate=validate, free=free, loss=loss,
                                 f_scale=f_scale, rank_tol=rank_tol, sigma=sigma,
                                 rotation_weight=rotation_weight)
@@ -220,7 +232,7 @@ def calibrate(
                     validate=validate if validate_register is None else None,
                     f_scale=f_scale, maxiter=maxiter, target=target, options=options,
                     progress=progress, rank_tol=rank_tol, rotation_weight=rotation_weight,
-                    sigma=sigma)
+                    sigma=sigma, prior=prior, prior_from=prior_from)
     if validate is not None:  # re-registered, or checked for another frame
         from kinecal.calibration.serial.validation_frame import judge_validation
 
@@ -323,9 +335,11 @@ def _run_method(problem: CalibrationProblem, res, method, *, rng, maxiter, targe
 
 
 def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxiter, target,
-               options, progress, rank_tol, rotation_weight, sigma) -> CalibrationResult:
+               options, progress, rank_tol, rotation_weight, sigma, prior=None,
+               prior_from=None) -> CalibrationResult:
     _check_arguments(method, loss, f_scale, maxiter, target, options, model, sigma, data)
     model = model_for_markers(model, data.marker_names)  # one tool point per marker seen
+    spec = prior_spec(model, prior, prior_from, method, loss)
     data = _with_model_markers(data, model)
     validate = None if validate is None else _with_model_markers(validate, model)
     seed = int(rng) if isinstance(rng, int | np.integer) else None
@@ -334,19 +348,27 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         model, data, method, free, validate, rank_tol, rotation_weight, loss, f_scale)
     res, outliers = _run_method(problem, res, method, rng=rng, maxiter=maxiter, target=target,
                                 options=options, progress=progress)
+    pfit = prior_used = None
+    if spec is not None:  # the MAP fit (docs/priors.md)
+        prior_used, pfit = apply_prior(problem, res, spec, sigma=sigma, rank=report.rank,
+                                       rank_tol=rank_tol)
+        res = res if pfit is None else pfit.result
     x = np.asarray(res.x, dtype=float)
     if method not in ("lm", "householder"):  # did the metaheuristic reach a minimum?
         check_local_polish(problem, x, method, target)
     explicit = list(first_report.names) == list(names)
     normal = res.get("normal_matrix") if loss == "linear" else None
+    fit_normal = normal if pfit is None else pfit.normal  # with the prior's information
     # errors at the solution: from LM's last residual when it has one (no FK pass)
     e_after = (problem.errors_from_residuals(res.residual) if normal is not None
                else problem.errors(x))
     if explicit:  # what the poses identify at the identified values, not at nominal
         report = _solution_report(problem, x, report, normal, rank_tol)
-    unc = _uncertainty(problem, x, outliers, info.unique_rows, normal, 2.0 * float(res.fun),
-                       report.rank if explicit else len(names), e_after + problem.xyz)
-    unc.estimable &= ~np.isin(names, report.unidentifiable)  # the report has the last word
+    unc = pfit.uncertainty if pfit is not None else _uncertainty(  # the posterior, or
+        problem, x, outliers, info.unique_rows, normal, 2.0 * float(res.fun),
+        report.rank if explicit else len(names), e_after + problem.xyz)
+    if pfit is None:  # the report has the last word (a prior decides the rest)
+        unc.estimable &= ~np.isin(names, report.unidentifiable)
     params = problem.full(x)
     std = np.zeros(model.n_params)
     std[problem.index] = unc.std
@@ -355,14 +377,16 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         least_squares=method in ("lm", "householder"), robust=loss != "linear",
         groups=info.groups if info.n_distinct < len(data) else None,
         rank=int(unc.estimable.size - unc.null.shape[1]),
-        confounded_with=first_report.confounded_with, normal=normal,
+        confounded_with=first_report.confounded_with, normal=fit_normal,
         residual=res.residual if normal is not None else None, poses=info.poses)
     outliers = outliers or flagged
+    check_change(model, params, std, names, prior=prior_state(spec, pfit),
+                 prior_decided=[] if pfit is None else pfit.split["decided_by_prior"])
     e_before = problem.errors(problem.x0)
     axes = {"calibration": {"before": axis_stats(e_before), "after": axis_stats(e_after)}}
     val_before, val_after = validation_errors(model, validate, params, axes)
     noise = None if sigma is None else check_stated_noise(
-        problem, x, unc, sigma, unique_rows=info.unique_rows, normal=normal,
+        problem, x, unc, sigma, unique_rows=info.unique_rows, normal=fit_normal,
         excluded=outliers if loss != "linear" else (), method=method)
     return CalibrationResult(
         model=model.with_params(params, name=f"{model.name}-calibrated"),
@@ -386,7 +410,8 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         message=str(res.message),
         success=bool(res.success),
         sigma=unc.sigma,
-        extra=result_extra(res, names, model, data, validate, params, axes, noise, info, loss),
+        extra={**result_extra(res, names, model, data, validate, params, axes, noise, info,
+                              loss), "prior": prior_entry(model, spec, prior_used, pfit)},
         q_calibration=np.asarray(data.q),
         q_validation=None if validate is None else np.asarray(validate.q),
         marker_calibration=data.marker,

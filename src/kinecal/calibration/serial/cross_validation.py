@@ -167,18 +167,30 @@ class FoldedRows:
         self.grams = G
         self.total = G.sum(axis=0)
 
-    def scores(self, candidates: Sequence[Sequence[int]]) -> list[CVScore]:
+    def scores(self, candidates: Sequence[Sequence[int]],
+               penalties: Sequence[tuple[Array, Array] | None] | None = None
+               ) -> list[CVScore]:
         """Cross-validation score of each candidate (its columns as positions in
-        `columns`)."""
+        `columns`).
+
+        `penalties`: per candidate None or ``(d, h)`` (each ``(len(S),)``): a quadratic
+        penalty ``sum d (h + dx)^2`` on the training fits (a prior whose value is ``-h``
+        away from the linearisation point, `kinecal.calibration.serial.prior_auto`):
+        ``dx_f = -(A_f + diag(d))^-1 (b_f + d h)``.
+        """
         k, m = self.k, self.cols.size
         G, total = self.grams, self.total
         steps = []  # per candidate: (K, len(S)) training steps
-        for S in candidates:
+        for c, S in enumerate(candidates):
             S = np.asarray(S, dtype=np.intp)
             dx = np.zeros((k, S.size))
             if S.size:  # the training normal equations of every fold at once
                 A = total[np.ix_(S, S)] - G[:, S][:, :, S]
                 b = total[S, m] - G[:, S, m]
+                if penalties is not None and penalties[c] is not None:
+                    d, h = penalties[c]
+                    A = A + np.diag(d)
+                    b = b + d * h
                 try:
                     dx = -np.linalg.solve(A, b[..., None])[..., 0]
                 except np.linalg.LinAlgError:  # a fold leaves the set rank-deficient

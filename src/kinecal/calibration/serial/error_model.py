@@ -153,6 +153,8 @@ def calibrate_error_model(
         return calibrate(model, data, method, free=free, validate=validate, rank_tol=rank_tol,
                          rotation_weight=rotation_weight, **kwargs)
     _check_arguments(error_model, method, harmonics)
+    if kwargs.get("prior") is not None or kwargs.get("prior_from") is not None:
+        raise InputError("not with joint-error terms yet (docs/priors.md)", option="--prior")
     t0 = time.perf_counter()
     auto = error_model == "auto"
     order = harmonics or (AUTO_HARMONICS if auto else DEFAULT_HARMONICS)

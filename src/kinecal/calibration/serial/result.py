@@ -326,7 +326,7 @@ class CalibrationResult:
         ]
         free = set(self.free)
         held = [n for n in self.unidentifiable() if n not in free]
-        loose = [n for n in self.unidentifiable() if n in free]
+        loose = self.unidentifiable_free()  # a prior bounds the rest (its own lines)
         if held:
             lines.append("not identifiable (held at nominal): " + ", ".join(held))
         if loose:
@@ -359,6 +359,11 @@ class CalibrationResult:
             from kinecal.calibration.diagnostics.noise import noise_lines
 
             lines += noise_lines(self, shown)
+        if self.extra.get("prior"):
+            from kinecal.calibration.serial.prior_fit import prior_lines
+
+            lines += prior_lines(self.extra["prior"], [n for n in self.unidentifiable()
+                                                       if n in free and n not in loose])
         lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations"
                      + seconds_text(self.seconds))
         if self.outliers:

@@ -26,4 +26,5 @@ def several(dispatch, model, data, method, *, free, validate, loss, f_scale, ran
 
     return calibrate_blocks(model, sets, sigma=sig, validate=vsets, method=method, free=free,
                             loss=loss, f_scale=f_scale, rank_tol=rank_tol,
-                            rotation_weight=rotation_weight)
+                            rotation_weight=rotation_weight, prior=kw.get("prior"),
+                            prior_from=kw.get("prior_from"))
