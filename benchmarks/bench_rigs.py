@@ -66,14 +66,11 @@ from kinecal.calibration.camera.rig_block import RigBlock  # noqa: E402
 from kinecal.calibration.camera.rig_frames import LinkFrames  # noqa: E402
 from kinecal.calibration.camera.rig_pixels import Mount, RigPixels  # noqa: E402
 from kinecal.calibration.camera.rig_solve import calibrate_rig  # noqa: E402
-from kinecal.calibration.serial.simulate import random_configurations  # noqa: E402
 from kinecal.io.rig_stations import read_rig_stations  # noqa: E402
 from kinecal.io.systems import load_machine  # noqa: E402
 from kinecal.spatial import (  # noqa: E402
     axis_angle_from_matrix,
     invert_transform,
-    matrix_from_axis_angle,
-    transform_from,
 )
 from kinecal.vision.boards import parse_board  # noqa: E402
 from kinecal.vision.imaging import ImageConditions  # noqa: E402
@@ -166,6 +163,7 @@ def accuracy(name, n, seed, noise=0.3):
         out[f"tool_{what}_calibrated_mm"] = float(np.sqrt(np.mean(e1**2)))
         out[f"tool_{what}_ratio"] = out[f"tool_{what}_calibrated_mm"] / out[
             f"tool_{what}_nominal_mm"]
+        out[f"tool_{what}_predicted_mm"] = predicted_tool_rms(m, tip, q, r1)
     vh = scene_views(ho, noise, seed + 200)
     fr = LinkFrames(m, vh.q, [c.link for c in cams + boards])
     z = [0] * len(cams)
@@ -178,6 +176,22 @@ def accuracy(name, n, seed, noise=0.3):
     out["heldout_px_true"] = float(np.sqrt(np.nanmean(rt**2)))
     out["heldout_ratio"] = out["heldout_px_calibrated"] / out["heldout_px_true"]
     return out
+
+
+def predicted_tool_rms(m, tip, q, res, draws=40):
+    """The aligned tool error the fit's covariance predicts (RMS over `draws` parameter
+    sets drawn from it): what the calibrated error should be if the estimator reaches the
+    information in the pixels."""
+    idx = m.index(res.fit.free)
+    L = np.linalg.cholesky(res.fit.covariance + 1e-30 * np.eye(len(idx)))
+    rng = np.random.default_rng(7)
+    ref = frames(m, tip, q, res.params)
+    ms = []
+    for _ in range(draws):
+        p = res.params.copy()
+        p[idx] += L @ rng.standard_normal(len(idx))
+        ms.append(np.mean(aligned_frame_errors(frames(m, tip, q, p), ref) ** 2))
+    return float(np.sqrt(np.mean(ms)))
 
 
 def craig_fk(q, p):
@@ -299,15 +313,21 @@ def speed(stations, repeats, seed=1):
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--no-speed", action="store_true")
     args = ap.parse_args()
     seeds = 1 if args.quick else args.seeds
     counts = {"a": 30, "b": 20, "c": 20} if args.quick else {"a": 100, "b": 60, "c": 55}
-    rows = [accuracy(name, counts[name], seed) for name in ("a", "b", "c")
-            for seed in range(seeds)]
-    for r in rows:
-        print(json.dumps({k: (round(v, 5) if isinstance(v, float) else v)
-                          for k, v in r.items()}))
+    scales = (1,) if args.quick else (1, 2)  # ~100 images, and ~200
+    rows = []
+    for scale in scales:
+        for name in ("a", "b", "c"):
+            for seed in range(seeds):
+                rows.append(accuracy(name, scale * counts[name], seed))
+                print(json.dumps({k: (round(v, 5) if isinstance(v, float) else v)
+                                  for k, v in rows[-1].items()}), flush=True)
+    if args.no_speed:
+        return
     sp = speed(20 if args.quick else 60, 1 if args.quick else 3)
     print(json.dumps(sp))
     if not args.quick:

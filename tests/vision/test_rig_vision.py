@@ -136,3 +136,41 @@ def test_system_stations_blank_joints_the_images_do_not_need(tmp_path):
     st = read_rig_stations(p, cell, rig.camera_names, rig.board_names)
     with pytest.raises(InputError, match=r"joint head\.q1 is blank but moves its camera"):
         complete_joints(cell, rig, st.camera, st.board, st.q, st.names)
+
+
+@pytest.mark.parametrize("spec, share", [("chessboard:7x5:25", 0.7), ("circles:5x5:20", 0.6)])
+def test_turned_listings_told_from_the_robot_motions_alone(spec, share):
+    """A symmetric board listed turned in most stations (more than the half a hand-eye
+    RANSAC start tolerates), with both the camera and the board moving: the turns are told
+    up to the board frame's own choice from the pairs' rotation angles, without X or Y."""
+    from kinecal.spatial import invert_transform
+    from kinecal.vision.turns import _turn_labels
+
+    board = parse_board(spec)
+    sym = board.symmetries()
+    rng = np.random.default_rng(3)
+
+    def pose(deg, mm):
+        return transform_from(matrix_from_axis_angle(np.radians(deg) * _unit(rng)),
+                              rng.normal(0, mm, 3))
+
+    X, Y = pose(120, 300), pose(120, 300)
+    H = np.array([pose(rng.uniform(5, 60), 200) for _ in range(12)])
+    truth = np.where(rng.random(12) < share, rng.integers(1, len(sym) + 1, 12), 0)
+    C = np.array([invert_transform(X) @ h @ Y @ pose(0.02, 0.05) for h in H])
+    C = np.array([c if k == 0 else c @ sym[k - 1][0] for c, k in zip(C, truth, strict=True)])
+    got = _turn_labels(H, C, board)
+    m = len(sym) + 1
+
+    def phase(k):  # the turn's multiple of 2 pi / m
+        return 0 if k == 0 else round(np.arctan2(sym[k - 1][0][1, 0], sym[k - 1][0][0, 0])
+                                      / (2 * np.pi / m)) % m
+
+    rel = {(phase(g) - phase(t)) % m for g, t in zip(got, truth, strict=True)}
+    assert len(rel) == 1, (got, truth)  # every station put back by the same global turn
+    assert np.bincount(got).argmax() == 0  # the frame that leaves most stations as listed
+
+
+def _unit(rng):
+    v = rng.normal(size=3)
+    return v / np.linalg.norm(v)
