@@ -33,7 +33,7 @@ from kinecal.vision.detection import orientation_ambiguous
 from kinecal.vision.intrinsics import CameraIntrinsics
 from kinecal.vision.rig import Rig
 from kinecal.vision.stages import board_poses, camera_intrinsics, detect_all
-from kinecal.vision.turns import turn_flipped, warn_symmetric
+from kinecal.vision.turns import align_turns, turn_flipped, warn_symmetric
 
 Array = NDArray[np.float64]
 
@@ -137,7 +137,7 @@ def detect_rig(rig: Rig, images: Sequence[Any], names: Sequence[str],
     given = list(intrinsics) if intrinsics is not None else \
         [c.intrinsics for c in rig.cameras]
     intr_out: list[CameraIntrinsics | None] = [None] * len(rig.cameras)
-    per_cam = {}
+    per_cam, groups = {}, {}
     for c in range(len(rig.cameras)):
         for b in range(nb):
             rows = [i for i in range(n) if camera[i] == c and b in search[i]]
@@ -154,12 +154,16 @@ def detect_rig(rig: Rig, images: Sequence[Any], names: Sequence[str],
         for b, rows, recs, _ in items:
             if poses:
                 board_poses(recs, rig.boards[b].board, intr_out[c], limits)
-                _turn_back(recs, rows, rig.boards[b].board, c, b, relative)
+                group = _turn_back(recs, rows, rig.boards[b].board, c, b, relative)
+                if group is not None:
+                    groups.setdefault(b, []).append(group)
             for i, r in zip(rows, recs, strict=True):
                 if r.status == "used":
                     found[i][b] = r
                 else:
                     reasons[i].append(f"{rig.boards[b].name}: {r.reason}")
+    for b, per_camera in groups.items():  # one frame per board over its cameras
+        align_turns(per_camera, rig.boards[b].board)
     used = [i for i in range(n) if found[i]]
     skipped = [{"image": names[i], "reason": "; ".join(reasons[i]) or "no board searched"}
                for i in range(n) if not found[i]]
@@ -178,17 +182,19 @@ def detect_rig(rig: Rig, images: Sequence[Any], names: Sequence[str],
 
 
 def _turn_back(recs: list, rows: list[int], board, c: int, b: int,
-               relative: Callable[[int, int, list[int]], Array] | None) -> None:
+               relative: Callable[[int, int, list[int]], Array] | None) -> tuple | None:
     """Images of a symmetric board listed turned, put back from the model's motions (one
-    camera-board pair: ``C = X^-1 G Y``, `kinecal.vision.turns.turn_flipped` on ``G``)."""
+    camera-board pair: ``C = X^-1 G Y``, `kinecal.vision.turns.turn_flipped` on ``G``);
+    the pair's ``(records, used, G)`` for `kinecal.vision.turns.align_turns`."""
     if relative is None or not orientation_ambiguous(board):
-        return
+        return None
     used = [k for k, r in enumerate(recs) if r.status == "used" and r.pose is not None]
     if len(used) < 3:
-        return
+        return None
     G = relative(c, b, [rows[k] for k in used])
     C = np.array([recs[k].pose.target2cam for k in used])
-    turn_flipped(recs, used, board, G, C, "eye-to-hand", "park")
+    turn_flipped(recs, used, board, G, C, "eye-to-hand")
+    return recs, used, G
 
 
 def calibrate_rig_images(model, rig: Rig, images: Sequence[Any], names: Sequence[str],

@@ -9,12 +9,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal import diagnostics
+from kinecal.errors import InputError
 from kinecal.vision.boards import Board
 from kinecal.vision.results import ImageRecord
 
 Array = NDArray[np.float64]
 
-__all__ = ["turn_flipped", "warn_symmetric"]
+__all__ = ["align_turns", "turn_flipped", "warn_symmetric"]
 
 
 def warn_symmetric(board: Board) -> None:
@@ -54,21 +55,81 @@ def turn_flipped(records: list[ImageRecord], used: list[int], board: Board, F: A
     for j, k in enumerate(used):
         if labels[j] == 0:
             continue
-        turn, perm = sym[labels[j] - 1]
-        r = records[k]
-        fixed = np.empty_like(r.detection.corners)
-        fixed[perm] = r.detection.corners
-        r.detection.corners = fixed
-        r.pose.target2cam = r.pose.target2cam @ invert_transform(turn)
-        res = np.empty_like(r.pose.residuals)
-        res[perm] = r.pose.residuals
-        r.pose.residuals = res
+        _put_back(records[k], *sym[labels[j] - 1])
         turned += 1
     if turned:
         diagnostics.warn("board-turned",
                          f"{turned} image(s) of the symmetric board {board.spec} were listed "
                          "turned; their frame was turned back to agree with the robot poses "
                          "(use an asymmetric board to avoid the guess)")
+    return turned
+
+
+def _put_back(r: ImageRecord, turn: Array, perm: NDArray[np.intp]) -> None:
+    """One image's corners and board pose put back from a turned listing."""
+    from kinecal.spatial import invert_transform
+
+    fixed = np.empty_like(r.detection.corners)
+    fixed[perm] = r.detection.corners
+    r.detection.corners = fixed
+    r.pose.target2cam = r.pose.target2cam @ invert_transform(turn)
+    res = np.empty_like(r.pose.residuals)
+    res[perm] = r.pose.residuals
+    r.pose.residuals = res
+
+
+def align_turns(groups: list[tuple[list[ImageRecord], list[int], Array]],
+                board: Board) -> int:
+    """Several cameras on one symmetric board: each camera's images were put back among
+    themselves (`turn_flipped`), each in a board frame of its own choice; turn every
+    camera's to the frame of the camera with the most images.
+
+    Parameters
+    ----------
+    groups : list of (records, used, F)
+        Per camera: its records of the board, the used ones (indices), and ``F``
+        ``(len(used), 4, 4)``: the board's link in the camera's link at those images (the
+        nominal model), so that ``target2cam = X^-1 F Y``.
+    board : Board
+
+    Returns
+    -------
+    int
+        Images turned. Each camera's ``Y`` (the board in its link) from a closed form: two
+        cameras' differ by the turn between their frames.
+    """
+    from kinecal.calibration.handeye import robust_solve
+    from kinecal.spatial import invert_transform, rotation_angle
+
+    sym = board.symmetries()
+    Ys = []
+    for records, used, F in groups:
+        try:
+            C = np.array([records[k].pose.target2cam for k in used])
+            Ys.append(robust_solve(invert_transform(F), C, "park")[1] if len(used) >= 3
+                      else None)
+        except InputError:  # no motion between the camera and the board: no Y
+            Ys.append(None)
+    placed = [g for g, Y in enumerate(Ys) if Y is not None]
+    if not sym or len(placed) < 2:
+        return 0
+    ref = max(placed, key=lambda g: len(groups[g][1]))
+    step = min(rotation_angle(T[:3, :3]) for T, _ in sym)
+    turned = 0
+    for g in placed:
+        D = (invert_transform(Ys[ref]) @ Ys[g])[:3, :3]
+        errs = [rotation_angle(T[:3, :3].T @ D) for T, _ in sym]
+        best = int(np.argmin(errs))
+        if rotation_angle(D) > step / 2 and errs[best] < step / 4:
+            records, used, _ = groups[g]
+            for k in used:
+                _put_back(records[k], *sym[best])
+            turned += len(used)
+    if turned:
+        diagnostics.warn("board-turned",
+                         f"{turned} image(s) of the symmetric board {board.spec} were put "
+                         "back in the board frame another camera saw (its frame turned "
+                         "against that camera's)")
     return turned
 
 
