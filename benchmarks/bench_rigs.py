@@ -13,7 +13,8 @@ Set-ups (`kinecal.vision.rig_scene.render_rig_stations`, default mounts):
 Each camera 800 x 600 px, f 900 px, barrel distortion; the corners of every board an
 image sees whole, projected, plus Gaussian noise of 0.3 px per coordinate; PnP poses from
 those corners (`scene_views`). The true model: the nominal plus random errors within the
-tolerances (0.5 mm, 0.1 deg) on every calibratable parameter, seeds 0, 1, 2.
+tolerances (0.5 mm, 0.1 deg) on every calibratable parameter, seeds 0-4; each set-up at
+the stations above (~100 images) and at twice as many (~200).
 
 Figures per run:
 
