@@ -24,6 +24,7 @@ demo: $(STAMP_RUN)
 
 test: $(STAMP_DEV)
 	@command -v chromium >/dev/null 2>&1 || bash .ci/install-chromium || echo "chromium not installed: browser test will report it"
+	@ls /usr/lib/postgresql/*/bin/pg_ctl >/dev/null 2>&1 || command -v pg_ctl >/dev/null 2>&1 || bash .ci/install-postgres || echo "postgresql not installed: the registry's PostgreSQL tests will report it"
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/python -m pytest
 

@@ -17,7 +17,14 @@ run, the median the typical one):
 * ``kinecal compensate`` of a 10^6-row joint program: time and peak memory.
 
 ``kinecal`` is run as ``python -m kinecal`` with this interpreter (what the console script
-does: import ``kinecal.cli`` and call ``main``).
+does: import ``kinecal.cli`` and call ``main``). Every process runs with compiled bytecode,
+as an installed package does: ``PYTHONDONTWRITEBYTECODE`` is dropped and the ``.pyc`` files
+go to a temporary ``PYTHONPYCACHEPREFIX`` (written by the warm-up run, for the peers'
+modules too; the source tree is not touched). Without them, a checkout whose environment
+sets ``PYTHONDONTWRITEBYTECODE`` compiles kinecal's 40-odd modules on every command (about
+0.05-0.15 s, more than the work of ``kinecal fk``), while numpy's came compiled from pip.
+Times are the wall time and the CPU time (user + system, ``RUSAGE_CHILDREN``) of each
+process; the CPU time moves less with the other jobs' load.
 
 Run: ``python benchmarks/bench_cli.py [--quick] [--repeat R]``.
 """
@@ -26,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -34,28 +42,43 @@ import time
 from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# compiled bytecode for every child process, as an installed package has (module docstring)
+os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+os.environ.setdefault("PYTHONPYCACHEPREFIX", tempfile.mkdtemp(prefix="kinecal-bench-pyc-"))
 
 import numpy as np
 
 KINECAL = [sys.executable, "-m", "kinecal"]
 
 
-def wall(cmd: list[str], stdout=subprocess.DEVNULL) -> float:
+def timed(cmd: list[str], stdout=subprocess.DEVNULL) -> tuple[float, float]:
+    """Wall and CPU (user + system) seconds of one run of `cmd`."""
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run(cmd, stdout=stdout, stderr=subprocess.DEVNULL, check=True)
-    return time.perf_counter() - t0
+    t = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return t, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+
+
+def wall(cmd: list[str], stdout=subprocess.DEVNULL) -> float:
+    return timed(cmd, stdout)[0]
 
 
 def compare(label: str, cmd: list[str], ref_label: str, ref: list[str], repeat: int) -> None:
-    wall(cmd), wall(ref)  # warm the file cache
+    timed(cmd), timed(ref)  # warm the file cache and write the bytecode
     t, r = [], []
     for _ in range(repeat):
-        t.append(wall(cmd))
-        r.append(wall(ref))
-    print(f"{label}: min {min(t):.3f} s, median {statistics.median(t):.3f} s")
-    print(f"  {ref_label}: min {min(r):.3f} s, median {statistics.median(r):.3f} s")
-    print(f"  ratio: {min(t) / min(r):.2f}x (min/min), "
-          f"{statistics.median(t) / statistics.median(r):.2f}x (median/median)")
+        t.append(timed(cmd))
+        r.append(timed(ref))
+    tw, rw = [w for w, _ in t], [w for w, _ in r]
+    tc, rc = min(c for _, c in t), min(c for _, c in r)
+    print(f"{label}: min {min(tw):.3f} s, median {statistics.median(tw):.3f} s, CPU {tc:.3f} s")
+    print(f"  {ref_label}: min {min(rw):.3f} s, median {statistics.median(rw):.3f} s, "
+          f"CPU {rc:.3f} s")
+    print(f"  ratio: {min(tw) / min(rw):.2f}x (min/min), "
+          f"{statistics.median(tw) / statistics.median(rw):.2f}x (median/median), "
+          f"CPU {tc / rc:.2f}x (load {os.getloadavg()[0]:.1f})")
 
 
 #: the bundled ur5 model (D-H table, tool point; mm) at one pose: the peer of ``kinecal fk``
@@ -97,19 +120,24 @@ def stewart(n: int, repeat: int) -> None:
         geom.forward(L[:100])
         cmd = [*KINECAL, "stewart", "fk", "liu2008-cmm", str(path)]
         wall(cmd)
-        t_cli, t_api = [], []
+        t_cli, t_api, c_cli, c_api = [], [], [], []
         for _ in range(repeat):
-            t_cli.append(wall(cmd))
-            t0 = time.perf_counter()
+            w, c = timed(cmd)
+            t_cli.append(w)
+            c_cli.append(c)
+            t0, c0 = time.perf_counter(), time.process_time()
             geom.forward(L)
             t_api.append(time.perf_counter() - t0)
+            c_api.append(time.process_time() - c0)
     print(f"kinecal stewart fk, {n} rows end to end: min {min(t_cli):.3f} s, median "
-          f"{statistics.median(t_cli):.3f} s ({n / min(t_cli):.0f} rows/s at best)")
+          f"{statistics.median(t_cli):.3f} s ({n / min(t_cli):.0f} rows/s at best), "
+          f"CPU {min(c_cli):.3f} s")
     print(f"  API StewartPlatform.forward on the same readings: min {min(t_api):.3f} s, "
-          f"median {statistics.median(t_api):.3f} s ({n / min(t_api):.0f} rows/s)")
+          f"median {statistics.median(t_api):.3f} s ({n / min(t_api):.0f} rows/s), "
+          f"CPU {min(c_api):.3f} s")
     print(f"  command-line throughput / API throughput: {min(t_api) / min(t_cli):.0%} "
           f"(min/min), {statistics.median(t_api) / statistics.median(t_cli):.0%} "
-          "(median/median)")
+          f"(median/median), CPU {min(c_api) / min(c_cli):.0%} (load {os.getloadavg()[0]:.1f})")
 
 
 # VmHWM: the process's own peak resident set (getrusage's ru_maxrss keeps the parent's

@@ -13,7 +13,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "kinecal"
 
 #: modules of the ground floor: everything may import them
 GROUND = {"spatial", "errors", "diagnostics", "_files", "_temps", "_yaml", "_limits", "data",
-          "_lazy", "_special", "_reproducible"}
+          "_lazy", "_special", "_reproducible", "_blas"}
 #: shared helpers of every calibration kind (``kinecal.calibration.<module>``)
 CALIBRATION_SHARED = {"identifiability", "uncertainty", "covariance", "method_options"}
 
@@ -55,6 +55,7 @@ ALLOWED: dict[str, set[str]] = {
                     "calibration.stewart", "calibration.handeye", "calibration.diagnostics"},
     "batch": {"ground", "io", "metrology", "calibration", "calibration.serial",
               "calibration.diagnostics"},
+    "registry": {"ground", "kinematics.serial", "report"},
     "cli": {"ground", "calibration", "experiments"},
     "__main__": {"cli"},
     "kinecal": {"ground"},
@@ -69,11 +70,13 @@ LATE_ALLOWED: dict[str, set[str]] = {
     "batch": {"calibration.serial", "calibration.blocks", "io"},
     "report": {"calibration.diagnostics", "compensation", "experiments", "vision", "kinecal"},
     "experiments": {"cli"},
-    "cli": {"batch", "calibration.blocks", "calibration.camera", "calibration.diagnostics",
-            "calibration.handeye", "calibration.serial", "calibration.stewart",
-            "compensation", "datasets", "io", "kinematics.serial", "kinematics.stewart",
-            "kinematics.tree",
-            "report", "vision", "metrology", "kinecal"},
+    "registry": {"io", "kinecal", "optimize", "report", "metrology", "calibration",
+                 "calibration.serial", "calibration.blocks", "calibration.diagnostics"},
+    "cli": {"registry", "batch", "calibration.blocks", "calibration.camera",
+            "calibration.diagnostics", "calibration.handeye", "calibration.serial",
+            "calibration.stewart", "compensation", "datasets", "io", "kinematics.serial",
+            "kinematics.stewart", "kinematics.tree", "report", "vision", "metrology",
+            "kinecal"},
 }
 #: below no kind of machine: compensation is the apply step on top of calibration results
 NEVER = [("calibration", "compensation"), ("io", "calibration"), ("kinematics", "calibration"),

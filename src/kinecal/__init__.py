@@ -6,6 +6,7 @@ command line starts quickly.
 
 from __future__ import annotations
 
+from kinecal import _blas  # noqa: F401  (records the BLAS environment before numpy loads)
 from kinecal._lazy import lazy_exports
 from kinecal.errors import InputError
 

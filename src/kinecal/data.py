@@ -58,6 +58,11 @@ class Measurements:
         The unmodelled error added to `sigma` in the weights (position in the length unit,
         rotation in rad); None until a calibration estimates it (the rows are then
         weighted as if `sigma` were absent).
+    temperature : ndarray, shape (N,) or None
+        Temperature at each pose (deg C), carried into the report.
+    time : ndarray, shape (N,) or None
+        When each pose was measured (s; from ISO 8601 dates: s since 1970-01-01 UTC):
+        time-ordered data are cross-validated in blocks of time as well.
     """
 
     q: NDArray[np.float64]
@@ -71,6 +76,8 @@ class Measurements:
     station_names: tuple[str, ...] = ()
     sigma: NDArray[np.float64] | None = None
     sigma_floor: NDArray[np.float64] | None = None
+    temperature: NDArray[np.float64] | None = None
+    time: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         q = np.asarray(self.q, dtype=float)
@@ -99,6 +106,11 @@ class Measurements:
                                  f"(marker_names {list(self.marker_names)})")
         elif self.marker_names:
             raise InputError("marker_names without marker indices")
+        for name in ("temperature", "time"):
+            v = getattr(self, name)
+            if v is not None and (np.shape(v) != (q.shape[0],)
+                                  or not np.isfinite(np.asarray(v, dtype=float)).all()):
+                raise InputError(f"{name}: expected {q.shape[0]} finite values")
         self._check_stations_and_sigma(q.shape[0])
 
     def _check_stations_and_sigma(self, n: int) -> None:
@@ -139,10 +151,12 @@ class Measurements:
         m = None if self.marker is None else np.asarray(self.marker)[index]
         st = None if self.station is None else np.asarray(self.station)[index]
         sg = None if self.sigma is None else np.asarray(self.sigma)[index]
+        extra = {k: None if getattr(self, k) is None else np.asarray(getattr(self, k))[index]
+                 for k in ("temperature", "time")}
         return Measurements(np.asarray(self.q)[index], np.asarray(self.xyz)[index], w,
                             f"{self.source}[subset]", R, m, self.marker_names, st,
                             self.station_names if st is not None else (), sg,
-                            self.sigma_floor)
+                            self.sigma_floor, **extra)
 
 
 #: measurement kinds of `GaugeMeasurements` -> the CSV column naming each row's group

@@ -7,7 +7,8 @@ import sys
 
 import numpy as np
 
-HEAVY = ("scipy", "matplotlib", "pydantic", "rich", "yaml", "pandas")
+HEAVY = ("scipy", "matplotlib", "pydantic", "rich", "yaml", "pandas", "sqlalchemy", "alembic",
+         "psycopg")
 
 
 def _modules_after(code: str) -> set[str]:
@@ -105,3 +106,28 @@ def test_handeye_images_loads_no_solver_or_distribution(tmp_path):
                             f"    assert main({argv!r}) == 0")
     assert "kinecal.calibration.handeye.images" in loaded and (tmp_path / "x.json").exists()
     assert not loaded & set(LATE_SCIPY), sorted(loaded & set(LATE_SCIPY))
+
+
+def test_one_pose_fk_loads_no_solver():
+    """``kinecal fk`` of one pose: no metaheuristic, no identifiability, no result reader
+    (each a few to tens of ms of the command's start-up)."""
+    loaded = _modules_after("import io, contextlib, tempfile, pathlib\n"
+                            "from kinecal.cli import main\n"
+                            "d = pathlib.Path(tempfile.mkdtemp())\n"
+                            "(d / 'q.csv').write_text('q1,q2,q3,q4,q5,q6\\n0,10,20,30,40,50\\n')\n"
+                            "with contextlib.redirect_stdout(io.StringIO()):\n"
+                            "    assert main(['fk', 'ur5', str(d / 'q.csv')]) == 0")
+    assert "kinecal.cli.fk" in loaded
+    for module in ("kinecal.optimize.search", "kinecal.optimize.pso",
+                   "kinecal.calibration.identifiability", "kinecal.io.result_values", "scipy"):
+        assert module not in loaded, module
+
+
+def test_optimize_submodules_load_no_metaheuristic():
+    loaded = _modules_after("import kinecal.optimize.factor, kinecal.optimize.lm\n"
+                            "from kinecal.optimize import METHODS")
+    assert not {m for m in loaded if m.startswith("kinecal.optimize.")} - {
+        "kinecal.optimize.factor", "kinecal.optimize.lm"}
+    loaded = _modules_after("from kinecal.optimize import METHODS, _REGISTRY\n"
+                            "assert METHODS == tuple(_REGISTRY)")
+    assert "kinecal.optimize.search" in loaded

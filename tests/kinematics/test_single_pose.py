@@ -105,3 +105,25 @@ def test_one_target_inverse_kinematics_matches_the_batch():
         one = solve_ik(model, T[k], q0[k])
         np.testing.assert_allclose(one.q[0], batch.q[k], rtol=0, atol=1e-12)
         assert one.status[0] == batch.status[k] and one.converged[0]
+
+
+@pytest.mark.parametrize("model", _models(), ids=lambda m: f"{m.name}-{m.convention}")
+def test_one_target_on_floats_matches_the_batch_on_every_chain(model):
+    """`kinecal.kinematics.serial.ik_one`: prismatic joints (scaled columns), general URDF
+    axes, joints that clip at a limit and joints that wrap, pose and position targets."""
+    rng = np.random.default_rng(11)
+    lim = np.asarray(model.joint_limits)
+    mid, half = lim.mean(axis=1), 0.4 * (lim[:, 1] - lim[:, 0])
+    q = rng.uniform(mid - half, mid + half, (6, model.n_joints))
+    q0 = q + rng.normal(0, 0.05, q.shape) * (lim[:, 1] - lim[:, 0]) / (2 * np.pi)
+    q0[0] = lim[:, 1]  # a seed at the upper limits: steps outward are frozen there
+    T = model.fk(q)
+    for targets in (T, T[:, :3, 3]):
+        batch = solve_ik(model, targets, q0)
+        for k in range(len(q)):
+            one = solve_ik(model, targets[k], q0[k])
+            scale = max(1.0, float(np.abs(targets[k]).max()))
+            np.testing.assert_allclose(one.q[0], batch.q[k], rtol=0, atol=1e-11 * scale)
+            assert one.status[0] == batch.status[k]
+            assert one.converged[0] == batch.converged[k]
+            np.testing.assert_allclose(one.condition[0], batch.condition[k], rtol=1e-6)

@@ -13,6 +13,7 @@ import sys
 from collections.abc import Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 
+from kinecal import _blas
 from kinecal._temps import pid_alive
 from kinecal.errors import InputError
 
@@ -20,8 +21,8 @@ __all__ = ["BLAS_THREAD_VARS", "TRACKER_FILTER", "dask_executor", "local_executo
            "quiet_resource_tracker", "single_thread_blas"]
 
 #: kinecal's matrices are small: one BLAS thread per worker process is 10-50x faster than
-#: several threads competing for the same cores
-BLAS_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+#: several threads competing for the same cores (`kinecal._blas`)
+BLAS_THREAD_VARS = _blas.BLAS_THREAD_VARS
 
 #: how long to try to reach a Dask scheduler before giving up
 CONNECT_TIMEOUT = "10s"

@@ -35,7 +35,8 @@ __all__ = ["Job", "JobsFile", "Study", "expand_study", "load_jobs", "parse_jobs"
 _NAME = r"^[A-Za-z0-9_][A-Za-z0-9_.+-]*$"
 
 #: keys recorded in a job's specification only when given (see `Job.spec`)
-OPTIONAL_KEYS = ("error_model", "harmonics", "folds", "sigma", "base_link", "tip_link")
+OPTIONAL_KEYS = ("error_model", "harmonics", "folds", "sigma", "base_link", "tip_link",
+                 "serial")
 
 #: how the true geometry of a simulated job deviates from nominal
 ErrorsMode = Literal["random", "zero", "identifiable"]
@@ -130,9 +131,13 @@ class Job(_Common):
         (``tip_link`` may list several tips: a robot system of a URDF tree,
         docs/systems.md)
         URDF models: the chain's first and last link (``--base-link``, ``--tip-link``).
+    serial : str, optional
+        The robot's serial number in the registry (``kinecal batch --db``; default the
+        job's name).
     """
 
     name: str = Field(pattern=_NAME, max_length=200)
+    serial: str | None = Field(None, min_length=1, max_length=200)
     data: str | list[str] | None = None
     validation: str | list[str] | None = Field(None, alias="validate")
     poses: int | None = Field(None, ge=1)

@@ -19,7 +19,7 @@ from typing import Any
 
 from kinecal.errors import InputError
 
-__all__ = ["check_method_options", "uses"]
+__all__ = ["box_option", "check_method_options", "uses"]
 
 #: option -> predicate on the method name: does the method use it?
 _USED_BY = {
@@ -118,3 +118,14 @@ def check_refine_options(refine: str, *, robust: bool = True,
     if options and refine not in ("igwo", "dlh-gwo-de"):
         raise InputError(f"options apply to the metaheuristic refiners (igwo, dlh-gwo-de), "
                          f"not to refine {refine}", option="options")
+
+
+def box_option(method: str, box: str | None) -> dict[str, str] | None:
+    """The method options of ``--box`` (`kinecal.calibration.serial.box`): None when not
+    given; refused for ``lm`` and ``householder``, which search no box."""
+    if box is None:
+        return None
+    if method in ("lm", "householder"):
+        raise InputError(f"a search box applies to the metaheuristics only, not to method "
+                         f"{method}", option="--box")
+    return {"box": box}

@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import os
 
+from kinecal import _blas
+
 # kinecal's matrices are small (thousands x tens): a multi-threaded BLAS only adds
 # contention there (a 3000 x 33 QR: 3 ms on one thread, 45-185 ms on two busy cores).
-# Set before numpy loads; an explicit user setting wins.
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+# Set before numpy loads (then no thread limit is needed later); an explicit user setting
+# wins.
+_blas.pin_environment()
 # OpenCV's own warnings (an image file it reads in part) would land on stderr beside the
 # one-line contract; kinecal says what it rejects and why. Set before cv2 loads.
 os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
@@ -76,6 +78,8 @@ _COMMAND_MODULES = [
     "kinecal.cli.import_cmd",
     "kinecal.cli.iso9283",
     "kinecal.cli.datasets",
+    "kinecal.cli.registry",
+    "kinecal.cli.check",
 ]
 
 
@@ -103,6 +107,9 @@ _COMMANDS = {
     "import": "kinecal.cli.import_cmd",
     "iso9283": "kinecal.cli.iso9283",
     "datasets": "kinecal.cli.datasets",
+    "registry": "kinecal.cli.registry",
+    "check": "kinecal.cli.check",
+    "plan-check": "kinecal.cli.check",
 }
 
 

@@ -30,6 +30,10 @@ LOSS = typer.Option("linear", "--loss", metavar=choices(
 MAXITER = typer.Option(None, "--maxiter", help="Iteration budget.")
 TARGET = typer.Option(None, "--target", help="Stop at this mean distance error (model length "
                       "unit; metaheuristics).")
+BOX = typer.Option(None, "--box", metavar=choices("data", "tolerances"),
+                   help="Search box of a metaheuristic: around a Levenberg-Marquardt fit "
+                   "(data, the default) or the model file's tolerances around nominal (the "
+                   "papers'). See docs/optimizers.md.")
 OUT = typer.Option(None, "--out", help="Result JSON to write.")
 MODEL_OUT = typer.Option(None, "--model-out", help="Calibrated model YAML.")
 JSON = typer.Option(False, "--json", help="Print the result JSON.")
@@ -38,10 +42,11 @@ ROTATION_WEIGHT = typer.Option(
     "rotation error (default: the workspace's characteristic length).")
 ERROR_MODEL = typer.Option(
     None, "--error-model", metavar=choices(*ERROR_MODELS), help="auto: chosen by "
-    "cross-validation on the calibration poses; or families joined by '+' (default: the "
-    "model file's joint_errors, else geometric). See docs/error-models.md.")
+    "cross-validation on the calibration poses, within and beyond their joint ranges; or "
+    "families joined by '+' (default: the model file's joint_errors, else geometric). See "
+    "docs/error-models.md.")
 HARMONICS = typer.Option(None, "--harmonics", help="Harmonic order (default 2; auto tries "
-                         "1..3).")
+                         "1..4).")
 FOLDS = typer.Option(None, "--folds", help="Cross-validation folds (--error-model auto; "
                      "default 10).")
 SIGMA = typer.Option(

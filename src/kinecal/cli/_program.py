@@ -112,7 +112,7 @@ def stream(path: Path, out: Path, header: list[str], required: list[str],
     the output is committed (``--strict`` leaves no file). Joint columns in and out are in
     `angle_unit` (default the model's). Returns the `ProgramRows`."""
     from kinecal._files import atomic_open
-    from kinecal.calibration.diagnostics.serial import check_joint_units
+    from kinecal.calibration.diagnostics.units import check_joint_units
     from kinecal.compensation.api import BLOCK, compensate
     from kinecal.compensation.findings import RowFindings
     from kinecal.compensation.result import ProgramRows

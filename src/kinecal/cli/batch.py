@@ -65,15 +65,29 @@ def batch(
     workers: int | None = typer.Option(None, "--workers",
                                        help="Worker processes (default: CPU count)."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bar."),
+    register: bool = typer.Option(False, "--register", help="Record each measured job's "
+                                  "result in the registry, for its serial (the job's serial "
+                                  "key, else its name) as it finishes (docs/robot-life.md)."),
+    db: str | None = typer.Option(None, "--db", help="With --register: the registry "
+                                  "(default $KINECAL_DB, else kinecal.db)."),
 ) -> None:
     """Run many calibrations (a fleet or a study); resumable, one JSON per job."""
     from kinecal.batch import load_jobs
     from kinecal.batch.inputs import check_batch_paths
 
     _check_options(executor, scheduler, workers, jobs_file)
+    if db is not None and not register:
+        raise InputError("applies to --register only", option="--db")
     jobs = load_jobs(jobs_file)
     check_batch_paths(jobs, out, [jobs_file])
-    result = _run(jobs, jobs_file, out, executor, scheduler, workers, quiet)
+    recorder = None
+    if register:
+        from kinecal.cli._registry_batch import BatchRecorder
+
+        recorder = BatchRecorder(jobs, out, db)
+    result = _run(jobs, jobs_file, out, executor, scheduler, workers, quiet, recorder)
+    if recorder is not None:
+        recorder.say()
     records = result.records
     _print_results(records, out, quiet)
     _print_warnings(records)
@@ -110,7 +124,7 @@ def _check_options(executor: str, scheduler: str | None, workers: int | None,
 
 
 def _run(jobs, jobs_file: Path, out: Path, executor: str, scheduler: str | None,
-         workers: int | None, quiet: bool):
+         workers: int | None, quiet: bool, recorder=None):
     """`run_batch` with a progress bar; an interrupt says how to resume."""
     import contextlib
 
@@ -127,6 +141,8 @@ def _run(jobs, jobs_file: Path, out: Path, executor: str, scheduler: str | None,
 
         def on_result(rec) -> None:
             settled.append(rec.status)
+            if recorder is not None:
+                recorder(rec)
             update(1)
 
         try:

@@ -43,6 +43,13 @@ from kinecal.cli._options import (
     unit_option,
 )
 from kinecal.cli._outputs import write_outputs
+from kinecal.cli._programs import (
+    check_program_for,
+    program_option,
+    wait_option,
+    write_program_for,
+)
+from kinecal.cli._registry_common import db_option, register_option
 from kinecal.cli._serial_common import POSE_BYTES, free_option
 from kinecal.cli.calibrate_kinds import (
     calibrate_files,
@@ -187,6 +194,7 @@ def calibrate(
     loss: str = opt.LOSS,
     maxiter: int | None = opt.MAXITER,
     target: float | None = opt.TARGET,
+    box: str | None = opt.BOX,
     out: Path | None = opt.OUT,
     model_out: Path | None = opt.MODEL_OUT,
     report: Path | None = report_option(),
@@ -218,9 +226,18 @@ def calibrate(
     validate_images: Path | None = typer.Option(
         None, "--validate-images", help="With --images: folder of the --validate stations' "
         "images (default: the --images folder)."),
+    register: str | None = register_option(),
+    db: str | None = db_option(),
 ) -> None:
     """Calibrate a serial arm from measured tool positions (and orientations if given),
     or from board images with --images; a robot system from rows of its chains."""
+    if register is not None:  # the calibration, then its record: kinecal.cli.registry
+        args = dict(locals())
+        from kinecal.cli._registry_common import registering
+
+        return registering(args, calibrate)
+    if db is not None:
+        raise InputError("applies to --register only", option="--db")
     check_angle_unit(angle_unit)
     from kinecal.cli.systems import is_system_arg
 
@@ -274,7 +291,7 @@ def calibrate(
             target=target, out=out, model_out=model_out, report=report, json_out=json_out,
             quiet=quiet, strict=strict, rotation_weight=rotation_weight, sigma=sigma,
             extra_options={"--error-model": error_model, "--harmonics": harmonics,
-                           "--folds": folds}, record=(instrument, operator, note),
+                           "--folds": folds, "--box": box}, record=(instrument, operator, note),
             unit=shown, fixture=fixture, angle_unit=angle_unit, tracker=tracker,
             priors=priors)
     return _calibrate_tracker(SimpleNamespace(**locals()), shown)
@@ -284,6 +301,7 @@ def _calibrate_tracker(a: SimpleNamespace, shown: str | None) -> None:
     """``kinecal calibrate MODEL DATA.csv``: one tracker file (`a`: the command's
     arguments; `shown`: the summary's unit)."""
     from kinecal.calibration.diagnostics.noise import check_stated_sigma
+    from kinecal.calibration.method_options import box_option
     from kinecal.calibration.serial.prior import prior_file
     from kinecal.cli._common import progress
     from kinecal.io.measurements import read_measurements
@@ -305,6 +323,7 @@ def _calibrate_tracker(a: SimpleNamespace, shown: str | None) -> None:
     check_finite(a.target, "--target")
     check_finite(a.rotation_weight, "--rotation-weight", positive=True)
     check_finite(sigma, "--sigma", positive=True)
+    options = box_option(a.method, a.box)
     check_method_options(a.method, loss=a.loss, maxiter=a.maxiter, target=a.target)
     check_error_model_options(a.error_model, harmonics=a.harmonics, folds=a.folds)
     with warnings_scope(a.strict) as found:
@@ -324,7 +343,7 @@ def _calibrate_tracker(a: SimpleNamespace, shown: str | None) -> None:
                       a.quiet or a.json_out) as update:
             kw = dict(free=free_option(a.free), validate=val, rng=a.seed, loss=a.loss,
                       maxiter=a.maxiter, target=a.target, rotation_weight=a.rotation_weight,
-                      sigma=sigma, validate_register=a.validate_register,
+                      sigma=sigma, validate_register=a.validate_register, options=options,
                       progress=(lambda it, best: update(1, best)) if iterative else None)
             if a.error_model is None and m.joint_errors is None and a.harmonics is None:
                 from kinecal.calibration.serial.api import calibrate as run
@@ -379,6 +398,8 @@ def select_poses_cmd(
         "X,Y,Z,NX,NY,NZ (repeatable; default reachable ones)."),
     length: float | None = typer.Option(None, "--length", help="Ballbar or bar length."),
     angle_unit: str | None = angle_unit_option("the plan's joint columns"),
+    program: Path | None = program_option(),
+    wait: float = wait_option(),
 ) -> None:
     """Choose calibration poses maximising observability (O1, D-optimal); for a gauge kind
     the rows of its file (docs/measurement-kinds.md); for a robot system, which chain in
@@ -387,6 +408,9 @@ def select_poses_cmd(
     from kinecal.cli.systems import is_system_arg
 
     if is_system_arg(model, base_link, tip_link):
+        if program is not None:
+            raise InputError("writes one arm's program; a robot system's plan has rows of "
+                             "several chains", option="--program")
         from kinecal.cli.systems import system_select
 
         return system_select(dict(locals()))
@@ -398,7 +422,8 @@ def select_poses_cmd(
 
         return select_kind_file(model, kind, count=count, candidates=candidates, seed=seed,
                                 out=out, gauge=gauge, length=length, base_link=base_link,
-                                tip_link=tip_link, angle_unit=angle_unit)
+                                tip_link=tip_link, angle_unit=angle_unit,
+                                program=(program, wait))
     for option, value in (("--gauge", gauge), ("--length", length)):
         if value:
             raise InputError("applies to the gauge kinds (--kind ballbar, pair, point, plane)",
@@ -409,13 +434,21 @@ def select_poses_cmd(
     from kinecal.calibration.serial.simulate import random_configurations
     from kinecal.io.csvtable import write_table
 
-    check_paths({"MODEL": model}, {"--out": out})
+    check_paths({"MODEL": model}, {"--out": out, "--program": program})
     m = load_model_arg(model, base_link, tip_link)
+    check_program_for(program, m, wait)
     check_count(candidates, "--candidates", bytes_per_item=128 * m.n_params, what="candidates")
     q = random_configurations(m, candidates, np.random.default_rng(seed))
     ident, _ = resolve_free(m, candidate_measurements(m, q), "identifiable", tol=1e-4)
     idx, obs = select_poses(m, q, count, free=ident)
     scale = 1.0 / m.joint_scale(angle_unit)  # to the file's units per joint column
-    write_table(out, {f"q{i + 1}": q[idx, i] * scale[i] for i in range(m.n_joints)})
-    typer.echo(f"wrote {count} poses to {out}; O1 = {obs['O1']:.4g}, O2 = {obs['O2']:.4g} "
+    from kinecal._files import all_or_nothing
+
+    with all_or_nothing():  # the plan and its program both, or neither
+        write_table(out, {f"q{i + 1}": q[idx, i] * scale[i] for i in range(m.n_joints)})
+        if program is not None:
+            write_program_for(program, m, q[idx], wait, f"kinecal select-poses {m.name}: "
+                              "calibration poses")
+    also = f" and {program}" if program else ""
+    typer.echo(f"wrote {count} poses to {out}{also}; O1 = {obs['O1']:.4g}, O2 = {obs['O2']:.4g} "
                f"({len(ident)} identifiable parameters)", err=True)

@@ -312,7 +312,8 @@ def simulate_kind_file(m, kind: str, *, poses: int, noise: float, true_params, s
 
 def select_kind_file(model: str, kind: str, *, count: int, candidates: int | None, seed: int,
                      out: Path, gauge: list[str] | None, length: float | None, base_link,
-                     tip_link, angle_unit: str | None = None) -> None:
+                     tip_link, angle_unit: str | None = None,
+                     program: tuple = (None, 2.0)) -> None:
     """``kinecal select-poses MODEL --kind K --count N --out PLAN.csv``: D-optimal rows of a
     gauge kind (`kinecal.calibration.blocks.plan.select_kind_poses`)."""
     from kinecal.calibration.blocks.plan import select_kind_poses
@@ -322,7 +323,7 @@ def select_kind_file(model: str, kind: str, *, count: int, candidates: int | Non
     if kind not in GAUGE_KINDS:
         raise InputError(f"unknown kind {kind!r}; expected one of tracker, "
                          f"{', '.join(GAUGE_KINDS)}", option="--kind")
-    check_paths({"MODEL": model}, {"--out": out})
+    check_paths({"MODEL": model}, {"--out": out, "--program": program[0]})
     check_finite(length, "--length", positive=True)
     from kinecal._limits import check_count
 
@@ -337,8 +338,18 @@ def select_kind_file(model: str, kind: str, *, count: int, candidates: int | Non
     if length is not None and kind not in ("ballbar", "pair"):
         raise InputError(f"applies to --kind ballbar or pair, not {kind}", option="--length")
     m = load_model_arg(model, base_link, tip_link)
+    from kinecal.cli._programs import check_program_for
+
+    check_program_for(program[0], m, program[1])
     plan, info = select_kind_poses(m, kind, count, candidates=candidates, rng=seed, **geometry)
-    write_gauge(out, plan, m, angle_unit=angle_unit)
+    from kinecal._files import all_or_nothing
+    from kinecal.cli._programs import write_program_for
+
+    with all_or_nothing():  # the rows and their program both, or neither
+        write_gauge(out, plan, m, angle_unit=angle_unit)
+        if program[0] is not None:  # a robot program visiting the rows in order
+            write_program_for(program[0], m, plan.q, program[1], f"kinecal select-poses "
+                              f"{m.name} --kind {kind}: calibration poses")
     typer.echo(f"wrote {len(plan)} {kind} rows to {out}; O1 = {info['O1']:.4g}, O2 = "
                f"{info['O2']:.4g} ({info['rank']} identifiable parameters"
                + (f"; not seen: {', '.join(info['not_seen'])}" if info["not_seen"] else "")

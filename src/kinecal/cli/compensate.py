@@ -196,7 +196,12 @@ def compensate_cmd(
         path = resolve_data_path(program, "PROGRAM")
         header, required, optional = program_columns(path, nom)
         joints = joint_columns(header, nom, path, required=False)
-        arms = prepare_arms(cal, nom, base=base, tool=tool)
+        envelope = None  # the joint readings a result was calibrated on
+        if Path(calibrated).suffix.lower() == ".json":
+            from kinecal.io.result_values import read_result_envelope
+
+            envelope = read_result_envelope(nom, calibrated)
+        arms = prepare_arms(cal, nom, base=base, tool=tool, envelope=envelope)
         total = count_rows(path)
         with progress(f"compensate {total} rows", total, quiet or json_out) as bar:
             rows = stream(path, out, header, required, optional, joints, arms,

@@ -104,15 +104,15 @@ def fk(
     if tip is not None:
         raise InputError("applies to a robot system (docs/systems.md)", option="--tip")
     tip_link = single_tip(tip_link)
-    from kinecal.calibration.diagnostics.serial import check_joint_limits, check_joint_units
-    from kinecal.cli._serial_common import parameters_from_result
+    from kinecal.calibration.diagnostics.units import check_joint_limits, check_joint_units
     from kinecal.io.measurements import read_joints, read_markers
-    from kinecal.io.result_values import model_for_result
-    from kinecal.spatial import quaternion_from_matrix
 
     with warnings_scope(strict):
         m = load_model_arg(model, base_link, tip_link)
-        if params is not None:
+        if params is not None:  # imported here: a plain fk reads no result
+            from kinecal.cli._serial_common import parameters_from_result
+            from kinecal.io.result_values import model_for_result, read_result_envelope
+
             m = model_for_result(m, params)
         path = resolve_data_path(joints, "JOINTS")
         q = read_joints(path, m, angle_unit=angle_unit)
@@ -120,10 +120,20 @@ def fk(
         check_joint_limits(m, q, "joint readings")
         check_joint_units(m, q, "joint readings")
         p = None if params is None else parameters_from_result(m, params)
+        # the joint readings the calibration saw: the result's, or those of the terms of a
+        # calibrated model file
+        envelope = (read_result_envelope(m, params) if params is not None else
+                    None if m.joint_errors is None else m.joint_errors.envelope)
+        if envelope is not None:
+            from kinecal.calibration.diagnostics.envelope import check_calibrated_range
+
+            check_calibrated_range(q, envelope, m, "joint readings")
     T = m.fk(q, p, marker)
     header = ["x", "y", "z"] + (["qw", "qx", "qy", "qz"] if pose else [])
     out = T[:, :3, 3]
     if pose:
+        from kinecal.spatial import quaternion_from_matrix
+
         out = np.column_stack([out, quaternion_from_matrix(T[:, :3, :3])])
     # shortest round-trip digits (repr): what the API computes, bit for bit, in any unit
     lines = [",".join(header)] + [",".join(map(repr, row)) for row in out.tolist()]

@@ -1,10 +1,13 @@
-"""``kinecal import``: ROS bags and UR controller files into kinecal's formats.
+"""``kinecal import``: ROS bags, UR controller files and tracker exports into kinecal's
+formats.
 
 ``kinecal import BAG --model MODEL --joints TOPIC [--points T | --poses T | --tf P:C]
 [--images T --camera-info T] [--dwell S] --out FILE|DIR``: the rows where the robot dwells
 (`kinecal.io.ros.importer`); with a ``CaptureConfig`` topic or ``--per-message``, one row
 per message (a pose plan, `kinecal.io.ros.pose_plan`); ``kinecal import calibration.conf
---robot ur5 --out model.yaml``: the factory-calibrated model (`kinecal.io.ur`).
+--robot ur5 --out model.yaml``: the factory-calibrated model (`kinecal.io.ur`); ``kinecal
+import SERIES.csv --out FILE.csv``: a series of the IPA UR10 data set in kinecal's
+measurement CSV (`kinecal.io.ipa_export`).
 """
 
 from __future__ import annotations
@@ -37,7 +40,8 @@ def _is_bag(source: str) -> bool:
 @app.command("import")
 def import_(
     source: str = typer.Argument(..., help="A ROS 1 (.bag) or ROS 2 bag (folder, .db3, "
-                                 ".mcap), or a UR controller's calibration.conf."),
+                                 ".mcap), a UR controller's calibration.conf, or a series "
+                                 "of the IPA UR10 data set (.csv)."),
     out: Path = typer.Option(..., "--out", help="CSV file to write (a folder with --images; "
                              "a model YAML for calibration.conf)."),
     model: str | None = typer.Option(None, "--model", help=MODEL_HELP + " Joint order and "
@@ -70,13 +74,20 @@ def import_(
     tip_link: str | None = tip_link_option(),
     robot: str | None = typer.Option(None, "--robot", help="calibration.conf: the UR type "
                                      "(ur3, ur3e, ur5, ur5e, ur10, ur10e, ur16e, ur20, ur30)."),
+    orientation: bool = typer.Option(False, "--orientation", help="IPA UR10 series: also "
+                                     "the T-Mac's orientation (a, b, c, srx, sry, srz; read "
+                                     "with --orientation-format intrinsic-xyz:deg)."),
     quiet: bool = quiet_option(),
 ) -> None:
-    """Import a ROS bag (rows where the robot dwells) or a UR calibration.conf (model)."""
+    """Import a ROS bag (rows where the robot dwells), a UR calibration.conf (model) or an
+    IPA UR10 series (measurement CSV)."""
     bag_opts = {"--model": model, "--joints": joints, "--points": points, "--poses": poses,
                 "--tf": tf, "--images": images, "--camera-info": camera_info,
                 "--joint-names": joint_names, "--base-link": base_link,
                 "--tip-link": tip_link, "--per-message": per_message or None}
+    if orientation and (not source.lower().endswith(".csv") or _is_bag(source)):
+        raise InputError("applies to a series of the IPA UR10 data set (.csv)",
+                         option="--orientation")
     if robot is not None or (source.lower().endswith(".conf") and not _is_bag(source)):
         given = [k for k, v in bag_opts.items() if v is not None]
         if given:
@@ -87,8 +98,33 @@ def import_(
         with warnings_scope():
             _import_conf(Path(source), robot, out, quiet)
         return
+    if source.lower().endswith(".csv") and not _is_bag(source):
+        given = [k for k, v in bag_opts.items() if v is not None]
+        if given:
+            raise InputError(f"{given[0]} applies to bags, not to a measurement export",
+                             option=given[0])
+        with warnings_scope():
+            _import_ipa(Path(source), out, quiet, orientation)
+        return
     with warnings_scope():
         _import_bag(source, out, bag_opts, dwell, still, quiet)
+
+
+def _import_ipa(path: Path, out: Path, quiet: bool, orientation: bool) -> None:
+    """The IPA UR10 accuracy data set's export (`kinecal.io.ipa_export`) as kinecal CSV."""
+    from kinecal.io.ipa_export import convert_ipa_export, is_ipa_export
+
+    check_paths({"SOURCE": path}, {"--out": out})
+    if not is_ipa_export(path):
+        raise InputError("not a measurement export kinecal converts: expected the IPA UR10 "
+                         "export (';'-separated, shoulder_pan_joint .. wrist_3_joint and "
+                         "measurement_x, _y, _z columns); kinecal reads its own CSV as it is",
+                         file=path)
+    n = convert_ipa_export(path, out, orientation)
+    if not quiet:
+        what = ("poses in mm and deg: read them with --orientation-format intrinsic-xyz:deg"
+                if orientation else "positions in mm")
+        typer.echo(f"wrote {out}: {n} rows (joints in deg, T-Mac {what})", err=True)
 
 
 def _import_conf(path: Path, robot: str, out: Path, quiet: bool) -> None:

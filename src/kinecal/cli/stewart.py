@@ -18,6 +18,7 @@ from kinecal.cli._common import (
     warnings_scope,
     with_warnings,
 )
+from kinecal.cli._csv_out import format_rows, write_columns, write_csv
 from kinecal.cli._options import (
     choices,
     seed_option,
@@ -33,30 +34,6 @@ from kinecal.cli._stewart_common import (
 )
 from kinecal.diagnostics import expect
 from kinecal.errors import InputError
-
-
-def _write_csv(header: list[str], rows: list[list]) -> None:
-    out = [",".join(header)]
-    for row in rows:
-        out.append(",".join(v if isinstance(v, str) else f"{v:.15g}" for v in row))
-    sys.stdout.write("\n".join(out) + "\n")
-
-
-def _write_columns(header: list[str], columns: list) -> None:
-    """CSV on stdout from columns (float arrays, or lists of text), 15 significant digits;
-    one format string per row, written a block of rows at a time."""
-    sys.stdout.write(",".join(header) + "\n")
-    n = len(columns[0])
-    for s in range(0, n, 16384):
-        sys.stdout.write(_format_rows([c[s:s + 16384] for c in columns]))
-
-
-def _format_rows(columns: list) -> str:
-    """The CSV lines of columns (float arrays, or lists of text), 15 significant digits."""
-    fmt = ",".join("%s" if isinstance(c, list) else "%.15g" for c in columns)
-    cells = [c if isinstance(c, list) else np.asarray(c, dtype=float).tolist() for c in columns]
-    return "".join([fmt % r + "\n" for r in zip(*cells, strict=True)])
-
 
 #: rows per block of ``stewart fk``: one block solves while the one before is formatted
 FK_BLOCK = 16384
@@ -79,7 +56,7 @@ def ik(
     with warnings_scope(strict):
         if check_range:  # the row of the first pose whose legs leave the range
             geom.check_legs(legs, file=poses)
-        _write_columns(list(LEG_COLUMNS), list(legs.T))
+        write_columns(list(LEG_COLUMNS), list(legs.T))
 
 
 @stewart_app.command("fk")
@@ -140,7 +117,7 @@ def _fk_solve(geom, L: np.ndarray, path: str, method: str, seed: int, json_out: 
         echo_json(with_warnings({"method": method, "elapsed": res.elapsed, "poses": rows},
                                 found))
         return
-    _write_columns([*POSE_COLUMNS, "converged", "residual"],
+    write_columns([*POSE_COLUMNS, "converged", "residual"],
                    [*deg.T, np.where(res.converged, "true", "false").tolist(), res.residual])
 
 
@@ -180,7 +157,7 @@ def _fk_blocks(geom, L: np.ndarray, path: str) -> None:
                     f"assembly (closest residual {res.residual[i]:.3g})",
                     file=path, row=b.start + i + 1)
             deg = radians_to_degrees(res.poses)
-            text.append(_format_rows([*deg.T, ["true"] * len(deg), res.residual]))
+            text.append(format_rows([*deg.T, ["true"] * len(deg), res.residual]))
     sys.stdout.write(",".join([*POSE_COLUMNS, "converged", "residual"]) + "\n")
     sys.stdout.write("".join(text))
 
@@ -224,7 +201,7 @@ def _fk_all(geom, L: np.ndarray, path: str, seed: int, json_out: bool, found: li
             zip(radians_to_degrees(m.poses), m.above, m.residual, strict=True)
         ):
             rows.append([str(i + 1), str(k + 1), *d.tolist(), str(bool(a)).lower(), "true", r])
-    _write_csv(header, rows)
+    write_csv(header, rows)
 
 
 # simulate and calibrate: kinecal.cli.stewart_calibrate (registered on the same group)

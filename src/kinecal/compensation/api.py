@@ -37,6 +37,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal import diagnostics
+from kinecal.calibration.diagnostics.envelope import (
+    beyond_calibrated_range,
+    check_calibrated_range,
+)
 from kinecal.calibration.diagnostics.program import check_target_units
 from kinecal.compensation.findings import RowFindings
 from kinecal.compensation.inputs import (
@@ -52,6 +56,7 @@ from kinecal.compensation.result import CompensationResult
 from kinecal.compensation.same_arm import check_same_arm, with_registered_base
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.ik import IKResult, pose_error, solve_ik
+from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope
 from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = ["Arms", "CompensationResult", "RowFindings", "compensate", "prepare_arms"]
@@ -209,12 +214,16 @@ def compensate(
         nominal_converged=nominal_ok, ik=res, length_unit=nom.length_unit,
         prismatic=nom.is_prismatic())
     if findings is not None:
+        if arms.envelope is not None:  # rows beyond the calibrated joint range
+            findings.add_beyond(beyond_calibrated_range(res.q, arms.envelope, cal),
+                                arms.envelope, cal)
         findings.add("compensation-not-converged", ~out.converged, first_status=out.status)
         findings.add("nominal-ik-not-converged", ~out.nominal_converged)
         findings.add("near-singular", out.status == "near-singular")
         findings.rows += len(out)
     elif diagnose:
         _warn_rows(out)
+        check_calibrated_range(res.q, arms.envelope, cal, "compensated joints")
     return out
 
 
@@ -226,14 +235,16 @@ class Arms:
 
     nominal: SerialModel
     calibrated: SerialModel
+    envelope: JointEnvelope | None = None
 
 
 def prepare_arms(calibrated: Any, nominal: SerialModel | None = None, *,
                  base: str = "calibrated", tool: str = "calibrated",
-                 diagnose: bool = True) -> Arms:
+                 diagnose: bool = True, envelope: JointEnvelope | None = None) -> Arms:
     """The models of `compensate` (its `calibrated`, `nominal`, `base` and `tool`), checked
     once: the same arm, the tool point and the base frame (warnings unless `diagnose` is
-    False)."""
+    False). `envelope`: the joint readings the calibration saw (default: a result's
+    stored envelope, or that of a calibrated model's joint-error terms)."""
     warn = diagnostics.warn if diagnose else _silent
     if base not in ("calibrated", "nominal"):
         raise InputError(f"base: expected 'calibrated' or 'nominal', got {base!r}",
@@ -251,7 +262,11 @@ def prepare_arms(calibrated: Any, nominal: SerialModel | None = None, *,
         check_base(nom, reg, warn)
     else:
         cal = with_registered_base(cal, reg)
-    return Arms(nom, cal)
+    if envelope is None:
+        envelope = getattr(calibrated, "envelope", None)
+    if envelope is None and cal.joint_errors is not None:
+        envelope = cal.joint_errors.envelope
+    return Arms(nom, cal, envelope)
 
 
 def _outside(findings: RowFindings | None, model: SerialModel, q: Array, what: str) -> None:

@@ -43,6 +43,29 @@ class RowFindings:
     offset: int = 0
     rows: int = 0
     _found: dict[tuple[str, str], list] = field(default_factory=dict)
+    _beyond: list = field(default_factory=list)
+
+    def add_beyond(self, d: NDArray[np.float64], envelope, model) -> None:
+        """Count the rows of the current block that lie beyond the calibrated joint range:
+        `d` ``(rows, n_joints)`` from
+        `kinecal.calibration.diagnostics.envelope.beyond_calibrated_range`."""
+        from kinecal.calibration.diagnostics.envelope import extremes, significant
+
+        d = significant(d, envelope)
+        out = (d != 0).any(axis=1)
+        if not out.any():
+            return
+        rows = self.offset + np.flatnonzero(out) + 1
+        if not self._beyond:
+            self._beyond[:] = [0, np.zeros(0, dtype=int), np.zeros(d.shape[1]),
+                               np.zeros(d.shape[1], dtype=int), envelope, model]
+        entry = self._beyond
+        entry[0] += int(out.sum())
+        if entry[1].size < 5:
+            entry[1] = np.r_[entry[1], rows][:5]
+        ext = extremes(d)
+        entry[2] = np.where(np.abs(ext) > np.abs(entry[2]), ext, entry[2])
+        entry[3] += (d != 0).sum(axis=0)
 
     def add(self, code: str, mask: NDArray[np.bool_], what: str = "",
             first_status: NDArray[np.str_] | None = None) -> None:
@@ -88,4 +111,11 @@ class RowFindings:
                         "correction needs): their joint corrections are large and sensitive "
                         "to the calibration; move such points away from it if you can")
             out.append((code, text))
+        if self._beyond:
+            from kinecal.calibration.diagnostics.envelope import outside_message
+
+            total, rows, extreme, counts, envelope, model = self._beyond
+            out.append(("outside-calibrated-range",
+                        outside_message("compensated joints", total, rows, n, extreme, counts,
+                                        envelope, model)))
         return out

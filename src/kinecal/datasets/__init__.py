@@ -27,6 +27,22 @@ DATASETS: dict[str, dict] = {
         "model": "ur5",
         "parts": {"grid": "grid.csv", "random": "random.csv"},
     },
+    "ur10-ipa": {
+        "description": (
+            "Universal Robots UR10 carrying a Leica T-Mac measured by a Leica laser tracker "
+            "(Landgraf et al., CASE 2021): A, 11911 poses on a grid with temperature and "
+            "time; B, 1495 joint configurations in another tracker set-up, with per-axis "
+            "standard deviations. T-Mac positions in the tracker frame (mm), joints in deg; "
+            "B-tmac with the T-Mac's orientation (--orientation-format intrinsic-xyz:deg); "
+            "the model ur10-tmac.yaml and the T-Mac-to-flange transforms (docs/datasets.md)."
+        ),
+        "source": "C. Landgraf et al. (2021), github.com/christianlandgraf/ipa-robot-accuracy",
+        "license": "MIT",
+        "model": "ur10",
+        "parts": {"A": "A.csv", "B": "B.csv", "B-tmac": "B-tmac.csv", "model": "ur10-tmac.yaml",
+                  "A-trafo-init": "A-trafo-init.txt", "A-trafo-calib": "A-trafo-calib.txt",
+                  "B-trafo-init": "B-trafo-init.txt", "B-trafo-calib": "B-trafo-calib.txt"},
+    },
     "handeye-camodocal": {
         "description": (
             "Real hand-eye recording, 42 stations of (robot base->effector, camera->marker) "

@@ -14,6 +14,7 @@
       scale: [1, 2, 3]             # joints with an encoder-scale term s_j q_j
       values: {dq2.sin1: 0.0012, dq2.compliance.link3: 1.5e-07}   # coefficient values
       reference: {d1: 89.159, a2: -425.0}    # geometry the gravity forces are computed on
+      envelope: {low: [-170, -120, ...], high: [170, 10, ...]}   # readings fitted on
 
 Coefficients are named as in `kinecal.kinematics.serial.joint_errors`. Angle-valued coefficients
 (harmonics, compliance of revolute joints) and the angles in ``reference`` are in the
@@ -21,6 +22,10 @@ file's ``angle_unit``; compliance is an angle per (mass x length unit) of gravit
 scale coefficients are dimensionless. Absent values are 0. ``reference`` is written by
 ``kinecal calibrate --model-out`` so that the calibrated model computes the gravity forces
 on the geometry it was calibrated with (its own nominal geometry when omitted).
+``envelope`` (per joint the lowest and highest reading of the calibration poses, revolute
+joints in the file's angle unit, prismatic ones in its length unit) is written by the
+calibration too: beyond it the terms are held at the edge
+(`kinecal.kinematics.serial.joint_errors_envelope`); without it they apply everywhere.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError, fie
 
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.joint_errors import JointErrors, PointMass
+from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.kinematics.serial.motions import PRISMATIC
 
@@ -82,6 +88,7 @@ class JointErrorsSpec(BaseModel):
     scale: Joints = "none"
     values: dict[str, float] = {}
     reference: dict[str, float] | None = None
+    envelope: dict[str, list[float]] | None = None
 
     @field_validator("harmonics")
     @classmethod
@@ -152,7 +159,18 @@ def joint_errors_from_file(model: SerialModel, raw: object, angle_scale: float) 
                              f"this model")
         reference = {k: v * angle_scale if geo_angle[k] else v
                      for k, v in spec.reference.items()}
-    return dataclasses.replace(shape, values=values, reference=reference)
+    envelope = None
+    if spec.envelope is not None:
+        envelope = JointEnvelope.from_dict(
+            spec.envelope, _reading_scale(model, angle_scale),
+            [k != PRISMATIC for k in model.joint_kinds], "joint_errors.envelope")
+    return dataclasses.replace(shape, values=values, reference=reference, envelope=envelope)
+
+
+def _reading_scale(model: SerialModel, angle_scale: float) -> list[float]:
+    """Per joint, rad to the file's unit of a reading (revolute; `angle_scale` is file unit
+    to rad) or 1 (prismatic)."""
+    return [1.0 if k == PRISMATIC else 1.0 / angle_scale for k in model.joint_kinds]
 
 
 def joint_errors_to_file(model: SerialModel, angle_scale: float) -> dict:
@@ -189,4 +207,6 @@ def joint_errors_to_file(model: SerialModel, angle_scale: float) -> dict:
     if je.compliance and any(ref[k] != own[k] for k in ref):
         out["reference"] = {k: float(v * (angle_scale if angle[model.index([k])[0]] else 1.0))
                             for k, v in ref.items() if not k.startswith("base.")}
+    if je.envelope is not None:
+        out["envelope"] = je.envelope.to_dict(_reading_scale(model, 1.0 / angle_scale))
     return out

@@ -6,6 +6,9 @@ optional ``weight`` column; joint values in the model's angle unit, positions in
 The laser-tracker export of the bundled UR5 dataset (``joint_1..joint_n, x_t, y_t, z_t,
 x_dif, y_dif, z_dif``; degrees, mm) is read as well: measured = target + dif.
 
+Optional ``temperature`` (deg C) and ``time`` (seconds or ISO 8601) columns are carried
+into the report (`kinecal.io.conditions`).
+
 An optional ``marker`` column says which marker (tool point) each row measured: a name of
 the model's ``markers`` or its number 1..M in the model's order. A model without markers
 takes the names the file uses (`kinecal.kinematics.serial.markers.model_for_markers` then gives
@@ -37,6 +40,7 @@ from numpy.typing import NDArray
 from kinecal import diagnostics
 from kinecal.data import Measurements
 from kinecal.errors import InputError
+from kinecal.io.conditions import read_conditions
 from kinecal.io.csvtable import check_separator, read_column, read_table, write_table
 from kinecal.io.poses import PoseFormat
 from kinecal.io.tracker_columns import QUATERNION, read_orientation, read_sigma, read_stations
@@ -54,7 +58,7 @@ __all__ = ["Measurements", "csv_header", "joint_columns", "joint_names", "measur
 _RESERVED = frozenset(("x", "y", "z", "qw", "qx", "qy", "qz", "weight", "marker", "pose",
                        "pivot", "pair", "point", "plane", "distance", "sigma",
                        "px", "py", "pz", "nx", "ny", "nz", "station", "sx", "sy", "sz",
-                       "srx", "sry", "srz"))
+                       "srx", "sry", "srz", "temperature", "time"))
 
 
 def _q_column(name: str) -> bool:
@@ -347,7 +351,7 @@ def read_measurements(path: str | Path, model: SerialModel,
     marker, names = read_markers(path, model)
     station, stations = read_stations(path)
     return Measurements(q, xyz, weights, str(path), rotations, marker, names, station,
-                        stations, sigma)
+                        stations, sigma, **read_conditions(path))
 
 
 def write_measurements(path: str | Path, data: Measurements, model: SerialModel) -> None:
@@ -371,4 +375,7 @@ def write_measurements(path: str | Path, data: Measurements, model: SerialModel)
         columns.update({c: s[:, k] for k, c in enumerate(("sx", "sy", "sz"))})
         columns.update({c: np.degrees(s[:, 3 + k]) for k, c in
                         enumerate(("srx", "sry", "srz")) if s.shape[1] == 6})
+    for name in ("temperature", "time"):
+        if getattr(data, name) is not None:
+            columns[name] = np.asarray(getattr(data, name), dtype=float)
     write_table(path, columns)

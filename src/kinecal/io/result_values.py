@@ -18,11 +18,13 @@ from numpy.typing import NDArray
 
 from kinecal._files import read_json
 from kinecal.errors import InputError
+from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope, envelope_from_entry
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.spatial import matrix_from_rpy
 
 __all__ = ["STEWART_KEYS", "model_for_data", "model_for_result", "parameters_from_data",
-           "parameters_from_result", "result_markers", "serial_result_parameters"]
+           "parameters_from_result", "read_result_envelope", "result_envelope", "result_markers",
+           "serial_result_parameters"]
 
 Array = NDArray[np.float64]
 
@@ -71,8 +73,9 @@ def model_for_data(model: SerialModel, data: Any, path: Path) -> SerialModel:
     from kinecal.kinematics.serial.markers import model_for_markers
 
     params = serial_result_parameters(data, path)
-    model = _with_result_joint_errors(model, data, path)
-    return model_for_markers(model, result_markers(params))
+    # the markers first: the terms' reference geometry names the markers' tool points
+    model = model_for_markers(model, result_markers(params))
+    return _with_result_joint_errors(model, data, path)
 
 
 def parameters_from_result(model: SerialModel, path: str | Path) -> Array:
@@ -140,6 +143,27 @@ def parameters_from_data(model: SerialModel, data: Any, path: Path) -> Array:
                 ": it calibrated another chain; give the --base-link / --tip-link (or model) "
                 "it was calibrated with", file=path)
     return p
+
+
+def result_envelope(model: SerialModel, data: Any, path: str | Path) -> JointEnvelope | None:
+    """The joint envelope a result stores (``envelope``: per joint the lowest and highest
+    calibration reading, model units) for `model`; None when the result has none (written
+    before results stored it) or is a robot system's read for one of its chains."""
+    entry = data.get("envelope") if isinstance(data, dict) else None
+    if entry is None:
+        return None
+    low = entry.get("low") if isinstance(entry, dict) else None
+    if isinstance(low, list) and len(low) != model.n_joints and "system" in data:
+        return None  # a robot system's joints, read for one of its chains: not mapped
+    try:
+        return envelope_from_entry(model, entry)
+    except InputError as exc:
+        raise InputError(exc.message, file=path) from None
+
+
+def read_result_envelope(model: SerialModel, path: str | Path) -> JointEnvelope | None:
+    """`result_envelope` of a result file."""
+    return result_envelope(model, read_json(Path(path)), path)
 
 
 def _absolute_frames(model: SerialModel, params: dict, scale: float) -> dict:

@@ -23,8 +23,10 @@ from kinecal.io.result_values import (
     STEWART_KEYS,
     model_for_data,
     parameters_from_data,
+    result_envelope,
     serial_result_parameters,
 )
+from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.kinematics.stewart.platform import StewartPlatform
 
@@ -96,6 +98,12 @@ class SerialResultFile:
     @property
     def warnings(self) -> list[dict]:
         return list(self.data.get("warnings") or [])
+
+    @property
+    def envelope(self) -> JointEnvelope | None:
+        """The joint readings the calibration saw (the file's ``envelope``; None in a
+        result written before results stored it)."""
+        return result_envelope(self.nominal_model, self.data, self.path)
 
     def save_model(self, path: str | Path) -> None:
         """Write the calibrated model file (read back by `kinecal.load_model`)."""
@@ -225,7 +233,9 @@ def load_result(path: str | Path, model: Any = None, *, base_link: str | None = 
     params = parameters_from_data(full, data, path)
     if check:
         _check_same_arm(full, params, path)
-    return SerialResultFile(path, data, full, params)
+    out = SerialResultFile(path, data, full, params)
+    _ = out.envelope  # a malformed envelope is refused at once
+    return out
 
 
 def _check_same_arm(model: SerialModel, params: Array, path: Path) -> None:

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.errors import InputError
-from kinecal.optimize import METHODS, minimize
+from kinecal.optimize import METHODS
 from kinecal.optimize._common import make_result
 from kinecal.optimize.lsq import householder_gauss_newton, levenberg_marquardt
 
@@ -82,7 +82,8 @@ def hybrid_minimize(
     -------
     OptimizeResult
         The metaheuristic's result with ``history`` = least-squares stage followed by the
-        metaheuristic's, ``nit``/``nfev`` summed, plus ``ls_result`` and ``ls_iterations``.
+        metaheuristic's, ``nit``/``nfev`` summed, plus ``ls_result``, ``ls_iterations`` and
+        ``bounds`` (the second stage's box, ``(n, 2)``).
     """
     if method not in METHODS:
         raise InputError(
@@ -98,6 +99,8 @@ def hybrid_minimize(
         ls = levenberg_marquardt(residual, jacobian, x0, monitor=monitor)
     else:
         raise InputError(f"least_squares: expected householder or lm, got {least_squares!r}")
+    from kinecal.optimize import minimize  # the metaheuristics: imported when one runs
+
     center = ls.x
     bounds = np.column_stack([center - shrink * half_width, center + shrink * half_width])
     res = minimize(
@@ -132,5 +135,6 @@ def hybrid_minimize(
         ls_result=ls,
         ls_iterations=int(ls.nit),
         ls_history=list(ls.history),
+        bounds=bounds,
         **extra,
     )

@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal._blas import small_products
+
 __all__ = ["LMSolution", "NormalEquations", "solve_normal_equations"]
 
 Array = NDArray[np.float64]
@@ -177,6 +179,7 @@ class _State:
         self.history.append(self.monitor(r))
 
 
+@small_products
 def iterate(
     evaluate: Residual, linearize: Linearize, x: Array, *, max_nfev: int, ftol: float,
     xtol: float, gtol: float, monitor: Callable[[Array], float],

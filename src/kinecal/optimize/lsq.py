@@ -15,6 +15,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from kinecal._blas import small_products
 from kinecal.errors import InputError
 from kinecal.optimize._common import make_result
 from kinecal.optimize.lm import (
@@ -41,6 +42,7 @@ Jacobian = Callable[[Array], Array]
 LOSSES = ("linear", "huber", "soft_l1", "cauchy", "arctan")
 
 
+@small_products
 def householder_gauss_newton(
     residual: Residual,
     jacobian: Jacobian,

@@ -159,6 +159,7 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes],
                           provenance: Provenance | None = None,
                           validation: Any = None) -> list[str]:
     from kinecal.report.compensation import compensation_section
+    from kinecal.report.conditions import conditions_section
     from kinecal.report.iso9283 import validation_iso9283_section
     from kinecal.report.kinds import kinds_section
     from kinecal.report.residual_maps import error_model_section
@@ -182,6 +183,7 @@ def _calibration_sections(result: Any, pngs: dict[str, bytes],
         axis_section(result, table),
         correlation_section(result),
         *error_model_section(result),
+        *conditions_section(result),
     ]
 
 

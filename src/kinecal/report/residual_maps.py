@@ -151,14 +151,14 @@ def plot_residual_maps(maps: ResidualMaps) -> Any:
     return fig
 
 
-def _png_tag(fig: Any, alt: str, caption: str) -> str:
+def _png_tag(fig: Any, alt: str, caption: str, ident: str = "fig-residual-maps") -> str:
     import io
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=_DPI)
     w, h = (round(v * _DPI) for v in fig.get_size_inches())
     data = base64.b64encode(buf.getvalue()).decode("ascii")
-    return (f'<figure id="fig-residual-maps"><img class="fig" src="data:image/png;base64,'
+    return (f'<figure id="{ident}"><img class="fig" src="data:image/png;base64,'
             f'{data}" alt="{html.escape(alt)}" width="{w}" height="{h}">'
             f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
@@ -175,15 +175,23 @@ def error_model_section(result: Any) -> list[str]:
     body = (f"<p>Requested <code>{html.escape(str(info['requested']))}</code>; model used: "
             f"<strong>{html.escape(str(info['selected']))}</strong>.</p>")
     if info.get("candidates"):
-        rows = [(r["model"], r["parameters"], r["cv_mean"], r["cv_se"],
-                 ("chosen" if r["chosen"] else "") + (" best" if r["best"] else ""))
+        def beyond(r):
+            v = [x for x in (r.get("cv_blocked") or {}).values() if x is not None]
+            return sum(v) / len(v) if v else None
+
+        rows = [(r["model"], r["parameters"], r.get("score"), r["cv_mean"], beyond(r),
+                 r["cv_se"], ("chosen" if r["chosen"] else "") + (" best" if r["best"] else ""))
                 for r in info["candidates"]]
         body += (f"<p>{int(info['folds'])}-fold cross-validation on the calibration poses only "
-                 "(deterministic folds); the one-standard-error rule takes the candidate with "
-                 "the fewest parameters whose score is within one standard error of the "
-                 "best. The validation poses are never seen by the choice.</p>"
-                 + table(["candidate", "parameters", f"CV mean error [{unit}]",
-                          f"standard error [{unit}]", ""], rows, digits=5))
+                 "(deterministic folds): random folds score how a model does among the "
+                 "calibration poses (within), folds blocked by each joint's range (and by "
+                 "time, for time-ordered poses) how it does beyond them; the score is their "
+                 "average. The one-standard-error rule takes the candidate with the fewest "
+                 "parameters whose score is within one standard error of the best. The "
+                 "validation poses are never seen by the choice.</p>"
+                 + table(["candidate", "parameters", f"score [{unit}]", f"within [{unit}]",
+                          f"beyond [{unit}]", f"standard error [{unit}]", ""], rows,
+                         digits=5))
     geo = info.get("geometric") or {}
     after = result.validation_stats or result.calibration_stats
     where = "validation" if result.validation_stats else "calibration"

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from kinecal import diagnostics
+from kinecal._blas import small_products
 from kinecal.calibration.blocks.analysis import unseen_words
 from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.checks import (
@@ -56,6 +57,7 @@ BLOCK_METHODS = ("lm",)
 RANK_TOL = 1e-4
 
 
+@small_products
 def calibrate_blocks(
     model: SerialModel,
     data: Sequence[DataSet],

@@ -243,11 +243,17 @@ def fit_nuisance(block: ResidualBlock, model: SerialModel, params: Array, start:
         raise InputError(f"{block.name}: {block.n_rows} residual rows for {start.size} "
                          "unknowns of its own")
 
+    none = np.zeros(0, dtype=np.intp)
+    points = None
+    if block.shares_tool_points:  # the arm is held: its tool points once, not per step
+        q, marker = block.configurations()
+        points = (model.positions(q, params, marker), np.zeros((0, 3, len(q))))
+
     def residual(v: Array) -> Array:
-        return block.evaluate(model, params, v).r * w
+        return block.evaluate(model, params, v, points=points).r * w
 
     def jacobian(v: Array) -> Array:
-        rows = block.evaluate(model, params, v, np.zeros(0, dtype=np.intp), jacobian=True)
+        rows = block.evaluate(model, params, v, none, jacobian=True, points=points)
         return rows.nuisance * (w[:, None] if np.ndim(w) else w)
 
     normal = None
@@ -262,4 +268,4 @@ def fit_nuisance(block: ResidualBlock, model: SerialModel, params: Array, start:
     res = levenberg_marquardt(residual, jacobian, start, max_nfev=200,
                               normal_equations=normal)
     v = np.asarray(res.x, dtype=float)
-    return v, block.evaluate(model, params, v).r
+    return v, block.evaluate(model, params, v, points=points).r

@@ -23,6 +23,7 @@ CODES: dict[str, str] = {
     "mirrored-frame": "measured positions fit the model mirrored (an axis negated)",
     "initial-error": "the data are far from the nominal model: wrong model or frame",
     "validation-overlap": "validation poses repeat calibration poses",
+    "outside-calibrated-range": "joint readings beyond the joint range the calibration saw",
     "validation-frame": "validation data in another frame (a moved tracker): re-register them",
     "tool-orientation": "measured orientations far from the model's tool frame (stations)",
     "rank-deficient": "the poses identify fewer parameters than well-spread poses do",
@@ -36,6 +37,7 @@ CODES: dict[str, str] = {
     "optimizer-stalled": "a metaheuristic stopped far above what a least-squares polish reaches",
     "implausible-change": "the calibrated arm is not a calibration of the same arm (fk, export "
                           "and compensate refuse it)",
+    "at-bounds": "a metaheuristic's answer sits on a face of the box it searched",
     # measurement kinds: ballbar and pair distances, fixed points, planes
     "pivot-moved": "a ballbar's distances fit no single pivot to the noise",
     "point-spread": "a fixed point's touches disagree by more than the noise",
@@ -88,4 +90,5 @@ CODES: dict[str, str] = {
                            "names, not finite, time not increasing)",
     "ros-bad-values": "bag measurement messages whose values are no measurement (NaN, unset "
                       "quaternion) left out",
+    "check-base-moved": "kinecal check: today's change is mostly a move of the base frame",
 }

@@ -80,7 +80,8 @@ def check_unidentifiable_free(names: Sequence[str], free_choice: object) -> None
 
 def check_parameter_tolerance(model: SerialModel, params: Array, std: Array,
                               names: Sequence[str],
-                              confounded_with: dict[str, dict[str, float]] | None = None) -> None:
+                              confounded_with: dict[str, dict[str, float]] | None = None,
+                              q: Array | None = None) -> None:
     """``parameter-tolerance``: identified values far beyond the model's tolerances.
 
     Checks the free, identifiable parameters except the base frame and the tool points
@@ -94,6 +95,11 @@ def check_parameter_tolerance(model: SerialModel, params: Array, std: Array,
     base parameter is among them). Warns on a change larger than `TOLERANCE_MULTIPLE`
     allowances plus three standard errors. `params` is the full vector, `std` that of the
     free `names` (``inf`` where not identifiable).
+
+    A joint with joint-error terms is judged by its whole correction at the calibration
+    readings `q` (its offset's change plus the terms, `_joint_corrections`), not by its
+    offset and coefficients one by one: over a partial turn the terms are nearly collinear
+    with each other and with the offset, and large coefficients cancel.
     """
     def tol_of(n: str) -> float:
         a = model.is_angle()[model.index([n])[0]]
@@ -102,7 +108,16 @@ def check_parameter_tolerance(model: SerialModel, params: Array, std: Array,
     def setup(n: str) -> bool:
         return n in BASE_NAMES or n.startswith("tool.")
 
-    idx = model.index(list(names))
+    names = list(names)
+    std = np.asarray(std, dtype=float)
+    found: list[tuple[float, str]] = []
+    if model.joint_errors is not None and q is not None:
+        judged = _corrected_joints(model)
+        found = _joint_corrections(model, np.asarray(params, dtype=float), q,
+                                   dict(zip(names, std.tolist(), strict=True)))
+        keep = [i for i, n in enumerate(names) if n not in judged]
+        names, std = [names[i] for i in keep], std[keep]
+    idx = model.index(names)
     delta = np.asarray(params)[idx] - model.nominal[idx]
     tol = np.array([tol_of(n) for n in names])
     allow = tol.copy()
@@ -116,21 +131,64 @@ def check_parameter_tolerance(model: SerialModel, params: Array, std: Array,
                 # in for, e.g. a6 for tool.A.x) can be anywhere: so can its stand-in
                 allow[pos[n]] += (np.inf if setup(other) and abs(c) > 1e-3
                                   else abs(c) * tol_of(other))
-    std = np.asarray(std, dtype=float)
-    base = np.array([setup(n) for n in names])
+    base = np.array([setup(n) for n in names], dtype=bool)
     bad = (np.isfinite(std) & ~base
            & (np.abs(delta) > TOLERANCE_MULTIPLE * allow + 3.0 * std))
-    if not bad.any():
-        return
     k = np.flatnonzero(bad)
-    worst = k[np.argsort(-np.abs(delta[k]) / allow[k])][:4]
-    shown = _values(model, [names[i] for i in worst], delta[worst])
-    times = np.abs(delta[worst[0]]) / tol[worst[0]]
+    worst = k[np.argsort(-np.abs(delta[k]) / allow[k])]
+    items = [(float(np.abs(delta[i]) / tol[i]), _values(model, [names[i]], delta[i:i + 1]))
+             for i in worst] + found
+    if not items:
+        return
+    items.sort(key=lambda it: -it[0])
+    shown = ", ".join(text for _, text in items[:4])
     warn("parameter-tolerance",
-         f"{plural(int(bad.sum()), 'identified parameter')} moved far beyond the model's "
-         f"tolerances ({shown}; {times:.0f} tolerances for the first): probably the wrong "
-         "model, wrong units or frame, or outliers; check them (or widen the tolerances if "
-         "the nominal values are only rough)")
+         f"{plural(len(items), 'identified parameter')} moved far beyond the model's "
+         f"tolerances ({shown}; {items[0][0]:.0f} tolerances for the first): probably the "
+         "wrong model, wrong units or frame, or outliers; check them (or widen the "
+         "tolerances if the nominal values are only rough)")
+
+
+def _corrected_joints(model: SerialModel) -> set[str]:
+    """The parameters judged by their joints' whole corrections: the joint-error
+    coefficients and the offsets of the joints that have terms."""
+    terms = model._joint_terms
+    n_geo = model._n_geometric
+    offsets = {model.parameter_names[int(model._joint_columns[j])]
+               for j in set(terms.joint_of.tolist())}
+    return set(model.parameter_names[n_geo:]) | offsets
+
+
+def _joint_corrections(model: SerialModel, params: Array, q: Array,
+                       std: dict[str, float]) -> list[tuple[float, str]]:
+    """``(tolerances, text)`` of the joints whose whole correction at readings `q` (the
+    offset's change plus the joint-error terms, against the nominal model's) exceeds
+    `TOLERANCE_MULTIPLE` tolerances plus three times a bound of its standard error (the
+    free parameters' standard errors `std` by name, summed with the terms' weights: a
+    correction the poses barely see, such as a last joint's with the tool point near its
+    axis, is not judged by its value)."""
+    terms = model._joint_terms
+    n_geo = model._n_geometric
+    q = np.asarray(q, dtype=float)
+    W = terms.basis(q)
+    dq = terms.dq(q, params[n_geo:]) - terms.dq(q, model.nominal[n_geo:])
+    coef = np.array([std.get(n, 0.0) for n in terms.names])
+    out = []
+    for j in sorted(set(terms.joint_of.tolist())):
+        k = int(model._joint_columns[j])
+        total = dq[:, j] + (params[k] - model.nominal[k])
+        sel = terms.joint_of == j
+        with np.errstate(invalid="ignore"):  # 0 * inf: a free coefficient without a std
+            bound = std.get(model.parameter_names[k], 0.0) + np.abs(W[:, sel]) @ coef[sel]
+        bound = np.where(np.isfinite(bound), bound, np.inf)
+        tol = float(model.tolerances["angle" if model.is_angle()[k] else "length"])
+        excess = np.abs(total) - 3.0 * bound
+        worst = float(np.abs(total).max(initial=0.0))
+        if (excess > TOLERANCE_MULTIPLE * tol).any():
+            i = int(np.argmax(np.abs(total)))
+            value = _values(model, [model.parameter_names[k]], total[i:i + 1])
+            out.append((worst / tol, f"joint {j + 1} offset and terms {value.split(' ', 1)[1]}"))
+    return out
 
 
 def check_residual_offset(problem, x: Array) -> None:
@@ -308,7 +366,8 @@ def check_serial_fit(problem, x: Array, std: Array, estimable: Array, *, free_ch
     if free_choice != "identifiable":
         check_unidentifiable_free([n for n, e in zip(names, estimable, strict=True) if not e],
                                   free_choice)
-    check_parameter_tolerance(model, problem.full(x), std, names, confounded_with)
+    check_parameter_tolerance(model, problem.full(x), std, names, confounded_with,
+                              q=problem.data.q)
     check_residual_offset(problem, x)
     if not least_squares or robust:
         return []

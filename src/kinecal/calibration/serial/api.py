@@ -22,12 +22,15 @@ from typing import Any
 import numpy as np
 
 from kinecal import diagnostics
+from kinecal._blas import small_products
 from kinecal.calibration.diagnostics.change import check_change
+from kinecal.calibration.diagnostics.envelope import check_calibrated_range
 from kinecal.calibration.diagnostics.fit import check_serial_fit
 from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stated_sigma
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
 from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
+from kinecal.calibration.serial.box import check_at_bounds, run_metaheuristic
 from kinecal.calibration.serial.inputs import as_measurements, as_model, is_system
 from kinecal.calibration.serial.polish import check_local_polish
 from kinecal.calibration.serial.prior import prior_spec, prior_state
@@ -36,19 +39,23 @@ from kinecal.calibration.serial.prior_fit import prior_entry
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
 from kinecal.calibration.serial.solve import solve_lm
-from kinecal.calibration.serial.summaries import result_extra, validation_errors
+from kinecal.calibration.serial.summaries import (
+    conditions_of,
+    result_extra,
+    validation_errors,
+)
 from kinecal.calibration.uncertainty import Uncertainty, subspace_uncertainty
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers, remap_markers
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.metrology.stats import axis_stats
-from kinecal.optimize import METHODS, minimize
+from kinecal.optimize import METHODS
 from kinecal.optimize.factor import gram_root
-from kinecal.optimize.hybrid import HYBRID_PREFIX, hybrid_methods, hybrid_minimize
+from kinecal.optimize.hybrid import hybrid_methods
 from kinecal.optimize.lsq import LOSSES, householder_gauss_newton
 
-__all__ = ["CALIBRATION_METHODS", "calibrate"]
+__all__ = ["CALIBRATION_METHODS", "calibrate", "with_model_markers"]
 
 CALIBRATION_METHODS: tuple[str, ...] = ("lm", "householder", *METHODS, *hybrid_methods())
 
@@ -106,7 +113,7 @@ def _solution_report(problem: CalibrationProblem, x: np.ndarray, report, normal,
         singular_values=sub.singular_values, observability=sub.observability)
 
 
-def _with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
+def with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
     """`data` with its marker indices into `model`'s markers (matched by name)."""
     if data.marker is None or data.marker_names == model.marker_names:
         return data
@@ -114,6 +121,7 @@ def _with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
     return dataclasses.replace(data, marker=marker, marker_names=model.marker_names)
 
 
+@small_products
 def calibrate(
     model: SerialModel,
     data: Measurements | Sequence[Any],
@@ -237,6 +245,11 @@ def calibrate(
         from kinecal.calibration.serial.validation_frame import judge_validation
 
         judge_validation(res, validate, validate_register, rng)
+    if isinstance(validate, Measurements):  # validation poses beyond the calibrated range
+        with diagnostics.collect(python_warnings=True) as found:
+            check_calibrated_range(validate.q, res.envelope, res.nominal_model,
+                                   "validation poses")
+        res.warnings = list(dict.fromkeys([*res.warnings, *found]))
     return res
 
 
@@ -317,21 +330,11 @@ def _run_method(problem: CalibrationProblem, res, method, *, rng, maxiter, targe
     if method == "lm":
         return res.result, list(res.outliers)
     if method == "householder":
-        res = householder_gauss_newton(problem.residuals, problem.jacobian, problem.x0,
-                                       maxiter=maxiter or 100, monitor=monitor,
-                                       callback=callback)
-    elif method.startswith(HYBRID_PREFIX):
-        hopts = {k: options.pop(k) for k in ("shrink", "least_squares", "ls_maxiter", "seed_ls")
-                 if k in options}
-        res = hybrid_minimize(problem.population_cost, problem.residuals, problem.jacobian,
-                              problem.x0, problem.half_width, method[len(HYBRID_PREFIX):],
-                              rng=rng, maxiter=maxiter, target=target, callback=callback,
-                              options=options or None, monitor=monitor, **hopts)
-    else:
-        res = minimize(problem.population_cost, problem.bounds(), method, rng=rng,
-                       maxiter=maxiter, target=target, callback=callback,
-                       options=options or None)
-    return res, outliers
+        return householder_gauss_newton(problem.residuals, problem.jacobian, problem.x0,
+                                        maxiter=maxiter or 100, monitor=monitor,
+                                        callback=callback), outliers
+    return run_metaheuristic(problem, method, options, rng=rng, maxiter=maxiter,
+                             target=target, callback=callback, monitor=monitor), outliers
 
 
 def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxiter, target,
@@ -340,8 +343,8 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
     _check_arguments(method, loss, f_scale, maxiter, target, options, model, sigma, data)
     model = model_for_markers(model, data.marker_names)  # one tool point per marker seen
     spec = prior_spec(model, prior, prior_from, method, loss)
-    data = _with_model_markers(data, model)
-    validate = None if validate is None else _with_model_markers(validate, model)
+    data = with_model_markers(data, model)
+    validate = None if validate is None else with_model_markers(validate, model)
     seed = int(rng) if isinstance(rng, int | np.integer) else None
     t0 = time.perf_counter()
     problem, res, names, report, info, first_report = _setup(
@@ -355,6 +358,7 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         res = res if pfit is None else pfit.result
     x = np.asarray(res.x, dtype=float)
     if method not in ("lm", "householder"):  # did the metaheuristic reach a minimum?
+        check_at_bounds(problem, x, res.search_box, method)
         check_local_polish(problem, x, method, target)
     explicit = list(first_report.names) == list(names)
     normal = res.get("normal_matrix") if loss == "linear" else None
@@ -418,4 +422,5 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
         marker_validation=None if validate is None else validate.marker,
         uncertainty=unc,
         lost=list(info.lost),
+        conditions=conditions_of(data, validate),
     )

@@ -58,17 +58,21 @@ def error_model_text(result: CalibrationResult, unit: str | None = None) -> str:
     lines = ["", "", f"error model: {info['requested']} -> {info['selected']}"]
     if info.get("candidates"):
         lines[-1] += (f" ({info['folds']}-fold cross-validation on the calibration poses, "
-                      f"{info['rule']} rule)")
-        lines.append(f"{'candidate':34s} {'params':>6s} {'cv mean':>10s} {'cv se':>9s}")
+                      f"within and beyond their joint ranges, {info['rule']} rule)")
+        lines.append(f"{'candidate':34s} {'params':>6s} {'score':>9s} {'within':>9s} "
+                     f"{'beyond':>9s} {'se':>8s}")
         for row in info["candidates"]:
             mark = ("  <- chosen" if row["chosen"] else "") + ("  (best)" if row["best"] else "")
-            if row["cv_mean"] is None:  # more parameters than a fold's training rows
-                lines.append(f"{row['model']:34s} {row['parameters']:6d} {'-':>10s} "
-                             f"{'-':>9s}  (too many parameters for these poses)")
+            if row["score"] is None:  # more parameters than a fold's training rows
+                lines.append(f"{row['model']:34s} {row['parameters']:6d} {'-':>9s} {'-':>9s} "
+                             f"{'-':>9s} {'-':>8s}  (too many parameters for these poses)")
                 continue
-            lines.append(f"{row['model']:34s} {row['parameters']:6d} "
-                         f"{row['cv_mean'] * f:10.5g} {row['cv_se'] * f:9.2g}{mark}")
-        lines.append(f"(cv: mean held-out distance error [{unit}])")
+            beyond = list(row.get("cv_blocked", {}).values())
+            far = f"{np.mean(beyond) * f:9.5g}" if beyond else f"{'-':>9s}"
+            lines.append(f"{row['model']:34s} {row['parameters']:6d} {row['score'] * f:9.5g} "
+                         f"{row['cv_mean'] * f:9.5g} {far} {row['cv_se'] * f:8.2g}{mark}")
+        lines.append(f"(mean held-out distance error [{unit}]: within = random folds, beyond "
+                     "= folds blocked by joint range and time, score = their average)")
     geo = info.get("geometric", {})
     if "validation_mean" in geo and result.val_after is not None:
         lines.append(f"validation mean: geometric {geo['validation_mean'] * f:.4g} {unit} -> "

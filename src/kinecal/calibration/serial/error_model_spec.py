@@ -17,7 +17,7 @@ __all__ = ["AUTO_HARMONICS", "DEFAULT_FOLDS", "DEFAULT_HARMONICS", "ERROR_MODELS
 ERROR_MODELS = ("geometric", "compliance", "harmonic", "scale", "full", "auto", "model")
 #: default harmonic order of the fixed choices, and the largest order ``auto`` tries
 DEFAULT_HARMONICS = 2
-AUTO_HARMONICS = 3
+AUTO_HARMONICS = 4
 MAX_HARMONICS = 12
 #: default number of cross-validation folds
 DEFAULT_FOLDS = 10

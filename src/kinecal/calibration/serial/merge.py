@@ -57,10 +57,14 @@ def merge_tracker_sets(sets: Sequence[object], sigma: Sequence[float | None]
     rotations = (None if sets[0].rotations is None
                  else np.concatenate([s.rotations for s in sets]))
     marker = None if sets[0].marker is None else np.concatenate([s.marker for s in sets])
+    # the conditions of the rows (temperature, time) when every set has them
+    conditions = {k: np.concatenate([getattr(s, k) for s in sets])
+                  if all(getattr(s, k) is not None for s in sets) else None
+                  for k in ("temperature", "time")}
     merged = Measurements(np.concatenate([s.q for s in sets]),
                           np.concatenate([s.xyz for s in sets]), weights,
                           " + ".join(s.source for s in sets), rotations, marker,
-                          sets[0].marker_names)
+                          sets[0].marker_names, **conditions)
     return merged, ref
 
 

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal._blas import small_products
 from kinecal.calibration.identifiability import observability_indices
 from kinecal.data import Measurements
 from kinecal.errors import InputError
@@ -107,6 +108,7 @@ def d_optimal(B: Array, count: int, *, exchanges: int = 2, ridge: float = 1e-6) 
     return chosen
 
 
+@small_products
 def select_poses(
     model: SerialModel,
     candidates: Array,

@@ -183,15 +183,15 @@ def choose_strength(problem: CalibrationProblem, res: OptimizeResult, spec: Prio
         fr = FoldedRows(model, problem.data, problem.full(at), problem.index, k_folds,
                         problem.rotation_weight)
         pen = None if prior is None else [_penalty(prior, noise, at)]
-        return fr.scores(cols, pen)[0]
+        return fr.scores(cols, penalties=pen)[0]
 
     x = np.asarray(res.x, dtype=float)
     if not refit:  # a large set: first every candidate linearised at the plain fit
         fr = FoldedRows(model, problem.data, problem.full(x), problem.index, k_folds,
                         problem.rotation_weight)
         priors = [None] + [resolve_prior(model, spec, names, t) for t in GRID]
-        screen = fr.scores(cols * len(priors),
-                           [None if p is None else _penalty(p, noise, x) for p in priors])
+        pens = [None if p is None else _penalty(p, noise, x) for p in priors]
+        screen = fr.scores(cols * len(priors), penalties=pens)
         if cv_choice(screen) == 0:  # no prior helps: done in one pass
             out = resolve_prior(model, spec, names, None)
             out.choice = {"candidates": [{"strength": None if p is None else p.strength,

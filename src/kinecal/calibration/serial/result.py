@@ -11,12 +11,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal._files import write_text_atomic
-from kinecal._reproducible import seconds_text
 from kinecal.calibration.identifiability import IdentifiabilityReport
 from kinecal.calibration.uncertainty import Uncertainty
 from kinecal.diagnostics import Diagnostic
+from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope, envelope_entry
 from kinecal.kinematics.serial.model import SerialModel
-from kinecal.metrology.stats import error_stats, stat_rows
+from kinecal.metrology.stats import error_stats
 from kinecal.metrology.units import DisplayUnit, display_unit
 
 __all__ = ["CalibrationResult"]
@@ -87,6 +87,10 @@ class CalibrationResult:
     lost : list of str
         Parameters that well-spread poses identify but these poses do not
         (``rank-deficient``): the model's uncertainty away from the poses is unbounded.
+    conditions : dict of str to ndarray
+        The measurement conditions the files gave (``temperature`` deg C, ``time`` s) per
+        calibration pose, and ``validation_temperature``, ``validation_time`` per
+        validation pose: the report plots the residual against them.
     """
 
     model: SerialModel
@@ -118,8 +122,18 @@ class CalibrationResult:
     warnings: list[Diagnostic] = field(default_factory=list)
     uncertainty: Uncertainty | None = None
     lost: list[str] = field(default_factory=list)
+    conditions: dict[str, Array] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ numbers
+    @property
+    def envelope(self) -> JointEnvelope | None:
+        """The joint readings the calibration saw, per joint the lowest and highest
+        (`kinecal.kinematics.serial.joint_errors_envelope`); None without them."""
+        if self.q_calibration is None or len(self.q_calibration) == 0:
+            return None
+        return JointEnvelope.of(self.q_calibration, [k != "prismatic" for k in
+                                                     self.nominal_model.joint_kinds])
+
     @property
     def calibration_stats(self) -> dict[str, dict[str, float]]:
         """Before/after statistics on the calibration poses."""
@@ -240,6 +254,14 @@ class CalibrationResult:
             for k, n in enumerate(self.nominal_model.parameter_names)
         }
 
+    def covariance_table(self) -> dict[str, Any]:
+        """``{parameters, matrix}``: the covariance of the free parameters (in `free`'s
+        order) in the model file's units, angles in its angle unit; what ``kinecal check``
+        propagates to the poses it judges (docs/robot-life.md)."""
+        conv = self._unit_scale()[self.nominal_model.index(self.free)]
+        return {"parameters": list(self.free),
+                "matrix": (np.asarray(self.covariance) * np.outer(conv, conv)).tolist()}
+
     def to_dict(self) -> dict[str, Any]:
         """The calibration JSON of DESIGN section 4 (lengths in the model unit).
 
@@ -261,6 +283,7 @@ class CalibrationResult:
             "parameters": self.parameter_table(),
             "frames": frames_entry(self.nominal_model, self.params, self.extra),
             "free": list(self.free),
+            "covariance": self.covariance_table(),
             "unidentifiable": self.unidentifiable(),
             "confounded_with": rep.confounded_with,
             "rank": rep.rank,
@@ -283,6 +306,8 @@ class CalibrationResult:
         out["predicted_error"] = {**self.predicted_error_summary(), "bounded": self.bounded}
         if self.lost:
             out["not_determined"] = list(self.lost)
+        if self.envelope is not None:
+            out["envelope"] = envelope_entry(self.nominal_model, self.envelope)
         out.update(self.extra)
         if "noise" in self.extra:  # the stated noise: its test and known-noise uncertainty
             from kinecal.calibration.diagnostics.noise import noise_entry
@@ -314,66 +339,12 @@ class CalibrationResult:
         """Plain-text summary: identifiability, before/after table, largest corrections.
 
         `unit` (``mm``, ``um``, ``m``, or ``auto``/None: `display_unit`) is the length unit
-        of the text only; the result's numbers stay in the model's unit.
+        of the text only; the result's numbers stay in the model's unit
+        (`kinecal.calibration.serial.result_summary.summary_text`).
         """
-        shown = self.display_unit(unit)
-        unit, f = shown.name, shown.factor
-        rep = self.identifiability
-        lines = [
-            f"model {self.nominal_model.name} ({self.nominal_model.convention}), method "
-            f"{self.method}: {len(self.free)} free parameters, rank {rep.rank} of "
-            f"{len(rep.names)}, condition number {rep.condition_number:.3g}",
-        ]
-        free = set(self.free)
-        held = [n for n in self.unidentifiable() if n not in free]
-        loose = self.unidentifiable_free()  # a prior bounds the rest (its own lines)
-        if held:
-            lines.append("not identifiable (held at nominal): " + ", ".join(held))
-        if loose:
-            lines.append("not identifiable (free, value arbitrary, no standard error): "
-                         + ", ".join(loose))
-        head = f"{'':12s} {'n':>5s} {'mean':>10s} {'rms':>10s} {'std':>10s} {'max':>10s}"
-        tables = [(f"position error [{unit}]", self.position_groups())]
-        if self.rotation_groups():
-            tables.append(("orientation error [deg]", self.rotation_groups()))
-        for k, (title, groups) in enumerate(tables):
-            lines += ["", title, head]
-            g = f if k == 0 else 1.0  # orientation errors stay in degrees
-            for label, when, s in stat_rows(groups):
-                lines.append(f"{label[:3] + '. ' + when:12s} {s['n']:5d} {s['mean'] * g:10.4g} "
-                             f"{s['rms'] * g:10.4g} {s['std'] * g:10.4g} {s['max'] * g:10.4g}")
-        lines.append(f"improvement of the mean error: {self.improvement_percent:.2f} %")
-        pred = self.predicted_error_summary()
-        if not self.bounded:
-            lines.append("model uncertainty left: not bounded (these poses do not determine "
-                         + ", ".join(self.lost) + ")")
-        elif pred["calibration_mean"] is not None:
-            def size(v: float) -> str:
-                return f"{v * f:.3g} {unit}" if np.isfinite(v) else "not bounded"
+        from kinecal.calibration.serial.result_summary import summary_text
 
-            where = f"{size(pred['calibration_mean'])} on the calibration poses"
-            if pred["validation_mean"] is not None:
-                where += f", {size(pred['validation_mean'])} on the validation poses"
-            lines.append(f"model uncertainty left (1 sigma, first order): {where}")
-        if "noise" in self.extra:
-            from kinecal.calibration.diagnostics.noise import noise_lines
-
-            lines += noise_lines(self, shown)
-        if self.extra.get("prior"):
-            from kinecal.calibration.serial.prior_fit import prior_lines
-
-            lines += prior_lines(self.extra["prior"], [n for n in self.unidentifiable()
-                                                       if n in free and n not in loose])
-        lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations"
-                     + seconds_text(self.seconds))
-        if self.outliers:
-            how = ("left out of the last fit" if self.extra.get("loss", "linear") !=
-                   "linear" else "chi-square rule")
-            lines.append(f"outlier rows (0-based, {how}): {self.outliers}")
-        if self.warnings:
-            lines += ["", f"warnings ({len(self.warnings)}):"]
-            lines += [f"  [{d.code}] {d.message}" for d in self.warnings]
-        return "\n".join(lines)
+        return summary_text(self, unit)
 
     def __str__(self) -> str:
         return self.summary()

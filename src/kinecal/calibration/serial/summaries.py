@@ -63,7 +63,23 @@ def result_extra(res, names, model, data, validate, params, axes, noise, info, l
         extra["independent_poses"] = len(info.unique_rows)
     if loss != "linear":
         extra["loss"] = loss
+    if "search_box" in res:  # metaheuristics: the box searched (calibration.serial.box)
+        extra["search_box"] = {"box": res.search_box["box"]} | {
+            side: dict(zip(names, res.search_box[side], strict=True))
+            for side in ("lower", "upper")}
     if "ls_history" in res:  # hybrid: the least-squares stage before the metaheuristic
         extra["least_squares_history"] = [float(h) for h in res.ls_history]
         extra["least_squares_iterations"] = int(res.ls_iterations)
     return extra
+
+
+def conditions_of(data: Measurements, validate: Measurements | None) -> dict:
+    """The ``conditions`` of a result: the temperature and time columns of the calibration
+    poses, and of the validation poses (keys prefixed ``validation_``)."""
+    out = {}
+    for prefix, d in (("", data), ("validation_", validate)):
+        for name in ("temperature", "time"):
+            v = None if d is None else getattr(d, name, None)
+            if v is not None:
+                out[prefix + name] = np.asarray(v, dtype=float)
+    return out

@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal import diagnostics
+from kinecal._blas import small_products
 from kinecal.calibration.diagnostics.stewart import (
     DATA_RANK_TOL,
     check_stewart_data,
@@ -62,6 +63,7 @@ __all__ = [
 Array = NDArray[np.float64]
 
 
+@small_products
 def calibrate_stewart(
     nominal: StewartPlatform,
     data: StewartData,

@@ -43,6 +43,7 @@ joints are sensitive to the target.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -50,15 +51,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
+from kinecal.kinematics.serial.ik_checks import check_seed, check_targets
 from kinecal.kinematics.serial.ik_lm import (
     CONVERGED,
     Problem,
     condition_numbers,
     pose_error,
     run,
-    run_one,
 )
-from kinecal.spatial import check_transform
+from kinecal.kinematics.serial.ik_one import run_one
 
 if TYPE_CHECKING:
     from kinecal.kinematics.serial.model import SerialModel
@@ -176,8 +177,12 @@ def characteristic_length(model: SerialModel, params: ArrayLike | None = None) -
     round-off floor of the position tolerance. At least 1 length unit.
     """
     p = model.nominal if params is None else np.asarray(params, dtype=float)
-    names = model.parameter_names
-    length = ~model.is_angle() & np.array([not n.startswith("base.") for n in names])
+    length = getattr(model, "_chain_lengths", None)  # the mask, kept with the model
+    if length is None:
+        names = model.parameter_names
+        length = ~model.is_angle() & np.array([not n.startswith("base.") for n in names])
+        if isinstance(getattr(model, "__dict__", None), dict):
+            model.__dict__["_chain_lengths"] = length
     return float(max(np.abs(p[length]).sum(), 1.0))
 
 
@@ -189,38 +194,10 @@ def default_tol_position(model: SerialModel, params: ArrayLike | None = None) ->
 
 def _tol_of_length(model: SerialModel, length: float) -> float:
     nm = 1e-9 if model.length_unit == "mm" else 1e-12  # 1e-9 mm
-    return max(nm, 64.0 * np.finfo(float).eps * length)
+    return max(nm, 64.0 * _EPS * length)
 
 
-def _check_targets(targets: ArrayLike) -> Array:
-    t = np.asarray(targets, dtype=float)
-    if t.ndim == 1 and t.shape == (3,):
-        t = t[None]
-    elif t.shape == (4, 4):
-        t = t[None]
-    if not ((t.ndim == 2 and t.shape[1] == 3) or (t.ndim == 3 and t.shape[1:] == (4, 4))):
-        raise InputError(f"targets: expected positions (N, 3) or tool frames (N, 4, 4), "
-                         f"got shape {t.shape}")
-    if not np.isfinite(t).all():
-        raise InputError("targets contain NaN or infinite values")
-    if t.ndim == 3:
-        check_transform(t, name="target")
-    return t
-
-
-def _check_seed(model: SerialModel, q0: ArrayLike | None, n: int) -> Array:
-    lim = np.asarray(model.joint_limits, dtype=float)
-    if q0 is None:
-        return np.tile(0.5 * (lim[:, 0] + lim[:, 1]), (n, 1))
-    q = np.asarray(q0, dtype=float)
-    if q.ndim == 1:
-        q = np.tile(q, (n, 1))
-    if q.shape != (n, model.n_joints):
-        raise InputError(f"q0: expected ({n}, {model.n_joints}) or ({model.n_joints},) seed "
-                         f"joints, got {np.shape(q0)}")
-    if not np.isfinite(q).all():
-        raise InputError("q0 contains NaN or infinite values")
-    return q
+_EPS = float(np.finfo(float).eps)
 
 
 def solve_ik(
@@ -283,9 +260,9 @@ def solve_ik(
     InputError
         Bad shapes, non-finite values, non-rigid target frames, bad options.
     """
-    t = _check_targets(targets)
+    t = check_targets(targets)
     N = t.shape[0]
-    q = _check_seed(model, q0, N)
+    q = check_seed(model, q0, N)
     p = None
     if params is not None:
         p = np.asarray(params, dtype=float)
@@ -308,11 +285,17 @@ def solve_ik(
     pose = t.ndim == 3
     tol_r = float(tol_rotation) if pose else np.inf
     prob = Problem(model, p, t, w, length)
-    q = prob.project(q)
-    # one target: the same iterations on plain floats and the single-pose chain
-    got = run_one(prob, q, tol_p, tol_r, int(max_iterations)) if N == 1 else None
-    q, pos, rot, iters, status = got if got is not None else \
-        run(prob, q, tol_p, tol_r, int(max_iterations))
+    # one target: the same iterations on plain floats and the unrolled single-pose chain
+    chain = model._single(q[0], p, None) if N == 1 and hasattr(model, "_single") else None
+    if chain is not None:
+        one = run_one(prob, chain[0], chain[1], tol_p, tol_r, int(max_iterations))
+        if not restarts or (one[1] <= tol_p and one[2] <= tol_r):
+            return _finish_one(prob, one, tol_p, tol_r, singular_threshold)
+        q, pos, rot = np.array([one[0]]), np.array([one[1]]), np.array([one[2]])
+        iters, status = np.array([one[3]]), np.array([one[4]], dtype="<U14")
+    else:
+        q, pos, rot, iters, status = run(prob, prob.project(q), tol_p, tol_r,
+                                         int(max_iterations))
     tries = np.zeros(N, dtype=int)
     bad = np.flatnonzero(~np.isin(status, CONVERGED))
     R = int(restarts)
@@ -340,6 +323,35 @@ def solve_ik(
         iters[bad] += it2.reshape(bad.size, R).sum(axis=1)
         tries[bad] = R
     return _finish(prob, q, iters, tries, status, tol_p, tol_r, singular_threshold)
+
+
+def _finish_one(prob: Problem, one: tuple, tol_p: float, tol_r: float, threshold: float
+                ) -> IKResult:
+    """`_finish` of one target from `run_one`'s floats (its errors are the forward
+    kinematics at the returned joints)."""
+    q, pos, rot, it, status, G = one
+    converged = pos <= tol_p and rot <= tol_r
+    ev = np.linalg.eigvalsh(np.array(G)).tolist()  # `gram_condition` of one matrix
+    hi, lo = ev[-1], max(ev[0], 0.0)
+    cond = math.sqrt(hi / lo) if lo > 0.0 and hi > 0.0 else math.inf
+    if converged:
+        status = "near-singular" if cond > threshold else "converged"
+    elif status in CONVERGED:
+        status = "unreachable"
+    if status == "unreachable" and any(
+            (x <= lo + 1e-12 * c or x >= hi - 1e-12 * c) and not w for x, lo, hi, c, w in
+            zip(q, prob.lo.tolist(), prob.hi.tolist(), prob.col.tolist(), prob.wrap.tolist(),
+                strict=True)):
+        status = "joint-limit"
+    errors = np.array([[pos], [rot if prob.pose else np.nan], [cond]])
+    return IKResult(
+        q=np.array([q]), converged=np.array([converged]),
+        status=np.array([status], dtype="<U14"), position_error=errors[0],
+        rotation_error=errors[1], iterations=np.array([it]), condition=errors[2],
+        tol_position=tol_p,
+        tol_rotation=tol_r if prob.pose else np.nan,
+        outputs="pose" if prob.pose else "position", restarts=np.zeros(1, dtype=int),
+        length_unit=getattr(prob.model, "length_unit", ""))
 
 
 def _random_joints(model: SerialModel, n: int, gen: np.random.Generator) -> Array:

@@ -18,7 +18,7 @@ from kinecal.spatial import axis_angle_from_matrix
 if TYPE_CHECKING:
     from kinecal.kinematics.serial.model import SerialModel
 
-__all__ = ["CONVERGED", "Problem", "condition_numbers", "pose_error", "run", "run_one"]
+__all__ = ["CONVERGED", "Problem", "condition_numbers", "gram_condition", "pose_error", "run"]
 
 Array = NDArray[np.float64]
 
@@ -82,6 +82,23 @@ def _rotation_log(M: Array) -> Array:
     return out
 
 
+def joint_bounds(model: SerialModel) -> tuple[Array, Array, NDArray[np.bool_],
+                                              NDArray[np.bool_]]:
+    """Lower and upper joint limits, prismatic joints and the revolute joints whose range
+    spans a full turn (``q`` and ``q +- 2 pi`` are the same joint position, so a step across
+    a limit wraps into the range instead of stopping); kept with the model after the first
+    call (every `solve_ik` of one target asks)."""
+    got = getattr(model, "_ik_bounds", None)
+    if got is None:
+        lim = np.asarray(model.joint_limits, dtype=float)
+        prismatic = np.asarray(model.is_prismatic(), dtype=bool)
+        wrap = ~prismatic & (lim[:, 1] - lim[:, 0] >= 2.0 * np.pi - 1e-9)
+        got = (lim[:, 0].copy(), lim[:, 1].copy(), prismatic, wrap)
+        if isinstance(getattr(model, "__dict__", None), dict):
+            model.__dict__["_ik_bounds"] = got
+    return got
+
+
 class Problem:
     """The scaled least-squares problem of one `solve_ik` call (shared by its restarts)."""
 
@@ -94,15 +111,11 @@ class Problem:
         self.rows = 6 if self.pose else 3
         self.w = rotation_weight
         self.length = length
-        lim = np.asarray(model.joint_limits, dtype=float)
-        self.lo, self.hi = lim[:, 0], lim[:, 1]
+        self.lo, self.hi, prismatic, self.wrap = joint_bounds(model)
         # scaled joints: a prismatic joint in units of the arm's length, so that every
         # column of the scaled Jacobian is a length per (dimensionless) joint step
-        self.col = np.where(model.is_prismatic(), length, 1.0)
-        self.scaled = bool((self.col != 1.0).any())
-        # revolute joints whose range spans a full turn: q and q +- 2 pi are the same
-        # joint position, so a step across a limit wraps into the range instead of stopping
-        self.wrap = ~model.is_prismatic() & (self.hi - self.lo >= 2.0 * np.pi - 1e-9)
+        self.col = np.where(prismatic, length, 1.0)
+        self.scaled = bool(prismatic.any())
 
     def project(self, q: Array) -> Array:
         """Joints `q` ``(M, n)`` brought into the limits: full-turn revolute joints wrapped
@@ -266,78 +279,15 @@ def run(prob: Problem, q: Array, tol_p: float, tol_r: float, max_iter: int
     return q, pos, rot, iters, status
 
 
-def run_one(prob: Problem, q: Array, tol_p: float, tol_r: float, max_iter: int
-            ) -> tuple[Array, Array, Array, NDArray[np.int_], NDArray[np.str_]] | None:
-    """`run` for a problem of one target, without the batch's bookkeeping: the same
-    steps, damping, acceptance and stopping on plain floats and the model's single-pose
-    chain (`SerialModel.single_pose`). None when the model has no single-pose chain for
-    this call (then use `run`)."""
-    one = _evaluate_one(prob, q[0])
-    if one is None:
-        return None
-    e, pos, rot, J = one
-    q = q[0].copy()
-    cost = float(e @ e)
-    status, it = "max-iterations", 0
-    mu, nu, stall = np.float64(_MU0), 2.0, 0
-    if pos <= tol_p and rot <= tol_r:
-        status = "converged"
-        max_iter = 0
-    for _ in range(max_iter):
-        lam = mu * np.sqrt(cost) * prob.length
-        ds = _bounded_step(prob, J[None], e[None], np.array([lam]), q[None])[0]
-        qt = prob.project((q + ds * prob.col)[None])[0]
-        dsp = np.where(prob.wrap, ds, (qt - q) / prob.col)
-        lin = e - J @ dsp
-        pred = cost - float(lin @ lin)
-        et, post, rott, Jt = _evaluate_one(prob, qt)
-        ct = float(et @ et)
-        it += 1
-        gain = cost - ct
-        rho = np.float64(gain / pred) if pred > 0 else np.float64(-1.0)
-        accept = bool(gain > 0 and rho > 1e-4)
-        if accept:  # Nielsen's update, as in `run`
-            mu = np.maximum(mu * np.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), _MU_MIN)
-            nu = 2.0
-        else:
-            mu, nu = mu * nu, nu * 2.0
-        stall = 0 if accept and gain > _FTOL * cost else stall + 1
-        if accept:
-            q, e, cost, pos, rot, J = qt, et, ct, post, rott, Jt
-        if accept and post <= tol_p and rott <= tol_r:
-            status = "converged"
-            break
-        if stall >= _STALL or mu > _MU_MAX:
-            status = "unreachable"
-            break
-    return (q[None], np.array([pos]), np.array([rot]), np.array([it]),
-            np.array([status], dtype="<U14"))
-
-
-def _evaluate_one(prob: Problem, q: Array) -> tuple[Array, float, float, Array] | None:
-    """`Problem.evaluate` of the one target at joints `q` ``(n,)``: the weighted error
-    ``(rows,)``, position and rotation errors, the scaled joint Jacobian ``(rows, n)``."""
-    single = getattr(prob.model, "single_pose", None)
-    one = single(q, prob.params, "pose" if prob.pose else "position") if single else None
-    if one is None:
-        return None
-    T, J = one
-    if prob.pose:
-        J[3:] *= prob.w
-    if prob.scaled:
-        J *= prob.col
-    dp, dr = pose_error(prob.targets, T[None, :3, 3], T[None, :3, :3])
-    pos = float(np.sqrt(dp[0] @ dp[0]))
-    if dr is None:
-        return dp[0], pos, 0.0, J
-    return np.concatenate([dp[0], prob.w * dr[0]]), pos, float(np.sqrt(dr[0] @ dr[0])), J
-
-
 def condition_numbers(J: Array) -> Array:
     """Condition numbers ``(N,)`` of scaled Jacobians `J` ``(N, rows, n)`` (inf where
     singular)."""
     r, n = J.shape[1:]
-    G = J @ np.swapaxes(J, 1, 2) if r <= n else np.swapaxes(J, 1, 2) @ J
+    return gram_condition(J @ np.swapaxes(J, 1, 2) if r <= n else np.swapaxes(J, 1, 2) @ J)
+
+
+def gram_condition(G: Array) -> Array:
+    """`condition_numbers` from the Gram matrices ``(N, m, m)`` (``J J^T`` or ``J^T J``)."""
     ev = np.linalg.eigvalsh(G)
     hi = ev[:, -1]
     lo = np.maximum(ev[:, 0], 0.0)

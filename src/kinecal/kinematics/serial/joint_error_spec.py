@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from kinecal.errors import InputError
+from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope
 from kinecal.kinematics.serial.motions import PRISMATIC
 
 if TYPE_CHECKING:
@@ -74,6 +75,10 @@ class JointErrors:
         The geometry the gravity forces are computed on (parameter name -> value, rad);
         None: the model's own nominal geometry. A calibrated model keeps the reference of
         the model it was calibrated from, so that it reproduces the calibration exactly.
+    envelope : JointEnvelope or None
+        The joint readings the coefficients were fitted on: beyond them every term is held
+        at the edge (`kinecal.kinematics.serial.joint_errors_envelope`). None: the terms
+        apply as they are at any reading.
     """
 
     compliance: tuple[int, ...] = ()
@@ -85,6 +90,7 @@ class JointErrors:
     payload: PointMass | None = None
     values: Mapping[str, float] = field(default_factory=dict)
     reference: Mapping[str, float] | None = None
+    envelope: JointEnvelope | None = None
 
     def __post_init__(self) -> None:
         g = np.asarray(self.gravity, dtype=float)
@@ -118,6 +124,10 @@ class JointErrors:
         return replace(self, values=dict(values),
                        reference=self.reference if reference is None else dict(reference))
 
+    def within(self, envelope: JointEnvelope | None) -> JointErrors:
+        """A copy whose terms are held at the edges of `envelope` (None: nowhere)."""
+        return replace(self, envelope=envelope)
+
 
 def joint_errors_for(model: SerialModel, families: Iterable[str], harmonics: int = 2,
                      base: JointErrors | None = None) -> JointErrors | None:
@@ -146,7 +156,7 @@ def joint_errors_for(model: SerialModel, families: Iterable[str], harmonics: int
     use_h = "harmonic" in families and harmonics > 0
     kw = {} if base is None else {"gravity": base.gravity, "masses": base.masses,
                                   "payload": base.payload, "values": dict(base.values),
-                                  "reference": base.reference}
+                                  "reference": base.reference, "envelope": base.envelope}
     return JointErrors(
         compliance=joints if "compliance" in families else (),
         harmonics=int(harmonics) if use_h else 0,

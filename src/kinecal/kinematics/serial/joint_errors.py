@@ -32,6 +32,12 @@ derivatives of the sines, cosines and gravity forces.
 The coefficients are extra named parameters appended to the model's parameter vector
 (`kinecal.kinematics.serial.model.SerialModel`, field ``joint_errors``); a model without joint
 errors is unchanged.
+
+A model whose terms carry the joint envelope they were fitted on (``JointErrors.envelope``,
+every calibrated model) evaluates them on readings retracted onto it: held at its edges
+beyond it (`kinecal.kinematics.serial.joint_errors_envelope`); and a joint's own terms
+(harmonics, scale) are taken relative to their value at the middle of its range, so that
+they vanish there and the joint offset alone carries the constant.
 """
 
 from __future__ import annotations
@@ -53,6 +59,7 @@ from kinecal.kinematics.serial.joint_error_spec import (
     PointMass,
     joint_errors_for,
 )
+from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope, Retraction
 from kinecal.kinematics.serial.motions import PRISMATIC, TRANSLATION
 
 if TYPE_CHECKING:
@@ -81,6 +88,10 @@ class _Term:
     joint: int  # 0-based
     order: int = 0  # harmonics: h; sin (order > 0) or cos (order < 0)
     pair: int = -1  # compliance: column of the gravity-force table
+
+
+def _identity(x: Array) -> Array:
+    return x
 
 
 class JointErrorTerms:
@@ -143,6 +154,10 @@ class JointErrorTerms:
         for k, v in spec.values.items():
             self.nominal[index[k]] = float(v)
         self.joint_of = np.array([t.joint for t in terms], dtype=np.intp)
+        env = spec.envelope
+        #: where a joint's own terms vanish (the middle of its calibrated range)
+        self._anchor = (None if env is None else
+                        0.5 * (np.asarray(env.low) + np.asarray(env.high)))
         self.families = tuple(t.family for t in terms)
         self._cache: OrderedDict = OrderedDict()
 
@@ -155,6 +170,10 @@ class JointErrorTerms:
             if bad or len(set(joints)) != len(joints):
                 raise InputError(f"joint_errors.{key}: expected distinct joints 1..{n}, "
                                  f"got {list(joints)}")
+        env = spec.envelope
+        if env is not None and env.revolute != tuple(k != PRISMATIC for k in self.kinds):
+            raise InputError(f"joint_errors.envelope: expected {n} joints of kinds "
+                             f"{', '.join(self.kinds)}, got {env.n_joints}")
         prismatic = [j for j in spec.harmonic_joints if self.kinds[j - 1] == PRISMATIC]
         if prismatic:
             raise InputError(f"joint_errors: harmonic terms need revolute joints; joint(s) "
@@ -252,22 +271,54 @@ class JointErrorTerms:
             if hit is not None:
                 self._cache.move_to_end(key)
                 return hit
-        W = np.empty((q.shape[0], self.n))
-        tau, _ = self._forces(q, derivatives=False)
-        for k, t in enumerate(self._terms):
-            qj = q[:, t.joint]
-            if t.family == "compliance":
-                W[:, k] = tau[:, t.pair]
-            elif t.family == "harmonic":
-                W[:, k] = np.sin(t.order * qj) if t.order > 0 else np.cos(-t.order * qj)
-            else:
-                W[:, k] = qj
+        W = self.basis_within(q, self.spec.envelope)
         if key is not None:
             W.flags.writeable = False
             self._cache[key] = W
             if len(self._cache) > _CACHE_ENTRIES:
                 self._cache.popitem(last=False)
         return W
+
+    def basis_within(self, q: Array, envelope: JointEnvelope | None) -> Array:
+        """`basis` with the terms held at the edges of another `envelope` (None: nowhere),
+        as a fit on part of the poses would evaluate the others (cross-validation)."""
+        return self._evaluate(Retraction(envelope, q), derivatives=False)[0]
+
+    def basis_rows(self, q: Array, low: Array, high: Array) -> Array:
+        """`basis_within` with an envelope per row, `low` and `high` ``(N, n_joints)``."""
+        revolute = [k != PRISMATIC for k in self.kinds]
+        return self._evaluate(Retraction.rows(q, low, high, revolute), derivatives=False)[0]
+
+    def _evaluate(self, r: Retraction, derivatives: bool) -> tuple[Array, Array | None]:
+        """Basis ``(N, n)`` at the retracted readings `r` and, with `derivatives`, its
+        derivative with respect to the raw readings ``(N, n, n_joints)``."""
+        N = r.q.shape[0]
+        W = np.empty((N, self.n))
+        dW = np.zeros((N, self.n, self.n_joints)) if derivatives else None
+        tau, dtau = r.blended(self._forces, derivatives)
+        anchor = self._anchor
+        for k, t in enumerate(self._terms):
+            j = t.joint
+            if t.family == "compliance":
+                W[:, k] = tau[:, t.pair]
+                if derivatives:
+                    dW[:, k] = dtau[:, t.pair]
+                continue
+            if t.family == "harmonic":
+                h = abs(t.order)
+                f, df = ((lambda x, h=h: np.sin(h * x), lambda x, h=h: h * np.cos(h * x))
+                         if t.order > 0 else
+                         (lambda x, h=h: np.cos(h * x), lambda x, h=h: -h * np.sin(h * x)))
+                value, slope = r.one_joint(j, f, df, periodic=True)
+            else:
+                f = _identity
+                value, slope = r.one_joint(j, f, np.ones_like, periodic=False)
+            # with an envelope, a joint's own terms vanish at the middle of its range: the
+            # joint offset (or what stands in for it) alone carries the constant
+            W[:, k] = value if anchor is None else value - f(anchor[j:j + 1])[0]
+            if derivatives:
+                dW[:, k, j] = slope
+        return W, dW
 
     def dq(self, q: Array, c: Array) -> Array:
         """Joint corrections ``(N, n_joints)``, or ``(P, N, n_joints)`` for ``c`` ``(P, n)``."""
@@ -284,18 +335,12 @@ class JointErrorTerms:
         """``d dq_j / d q_i`` ``(N, n_joints, n_joints)`` at one coefficient vector ``c``."""
         q = np.asarray(q, dtype=float)
         c = np.asarray(c, dtype=float)
+        _, dW = self._evaluate(Retraction(self.spec.envelope, q), derivatives=True)
         D = np.zeros((q.shape[0], self.n_joints, self.n_joints))
-        _, dtau = self._forces(q, derivatives=True)
-        for k, t in enumerate(self._terms):
-            j = t.joint
-            if t.family == "compliance":
-                D[:, j, :] += c[k] * dtau[:, t.pair]
-            elif t.family == "harmonic":
-                h = abs(t.order)
-                qj = q[:, j]
-                D[:, j, j] += c[k] * h * (np.cos(h * qj) if t.order > 0 else -np.sin(h * qj))
-            else:
-                D[:, j, j] += c[k]
+        for j in range(self.n_joints):
+            sel = np.flatnonzero(self.joint_of == j)
+            if sel.size:
+                D[:, j, :] = np.einsum("nki,k->ni", dW[:, sel], c[sel])
         return D
 
     def through_corrections(self, Jt: Array, q: Array, c: Array) -> Array:

@@ -15,6 +15,8 @@ indirection.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -105,7 +107,7 @@ class SerialKinematics:
         """
         one = self._single(q, params, marker)
         if one is not None:
-            return one[0].transform(one[1])[None, :3, 3].copy()
+            return one[0].position(one[1])[None]
         q, p = self._check_q(q), self._check_params(params)
         if self._joint_terms is not None and p.ndim == 2:  # corrections differ per vector
             return np.stack([self.positions(q, row, marker) for row in p])
@@ -195,11 +197,12 @@ class SerialKinematics:
         return one[0].transform_and_jacobian(one[1], outputs)
 
     def _single(self, q: ArrayLike, params: ArrayLike | None, marker: ArrayLike | None
-                ) -> tuple[SingleChain, Array] | None:
+                ) -> tuple[SingleChain, list[float]] | None:
         """The folded chain (`kinecal.kinematics.serial.single`) and the checked joint
-        values when `q` is one configuration ``(n_joints,)`` (a 1-D vector: a batch of one,
-        ``(1, n_joints)``, stays on the batch path and gives the batch's bits) of a model
-        without markers or joint errors, and the parameter vector is the nominal one or one
+        values as floats when `q` is one configuration ``(n_joints,)`` (a 1-D vector: a
+        batch of one, ``(1, n_joints)``, stays on the batch path and gives the batch's
+        bits) of a model without markers or joint errors, and the parameter vector is the
+        nominal one or one
         seen before (its chain is then cached; a vector seen once takes the batch path, so a
         loop over changing vectors builds nothing); None otherwise."""
         if marker is not None or self._joint_terms is not None or self._marker_set is not None:
@@ -224,9 +227,10 @@ class SerialKinematics:
                 return None
             chain = cache[key] = SingleChain(self.motions, self._motion_index, self.n_joints,
                                              self._nominal if not key else p)
-        if not np.isfinite(q).all():
+        values = q.tolist()
+        if not all(map(math.isfinite, values)):
             raise InputError("joint values contain NaN or infinite entries")
-        return chain, q
+        return chain, values
 
     def _corrected(self, q: Array, p: Array) -> Array:
         """The joint values the chain composes: ``q + dq(q, c)`` with joint errors

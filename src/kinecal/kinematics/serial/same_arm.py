@@ -169,12 +169,13 @@ class ArmComparison:
 
 def flange_model(model: SerialModel) -> SerialModel:
     """`model` up to its flange when it has several markers (their points are where
-    reflectors sit, not the arm); otherwise `model` itself."""
+    reflectors sit, not the arm; the joint-error terms go too, their reference geometry
+    names the markers); otherwise `model` itself."""
     if not model.marker_names:
         return model
     return dataclasses.replace(
-        model, markers=None, tool=None, joint_limits=np.array(model.joint_limits),
-        tolerances=dict(model.tolerances or {}),
+        model, markers=None, tool=None, joint_errors=None,
+        joint_limits=np.array(model.joint_limits), tolerances=dict(model.tolerances or {}),
         fixed=tuple(f for f in model.fixed if not f.startswith("tool.")))
 
 

@@ -1,0 +1,1 @@
+"""The registry's schema versions, one Alembic revision each."""
