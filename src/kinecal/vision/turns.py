@@ -1,6 +1,8 @@
 """Boards that look the same turned (a chessboard with two even or two odd counts, square
 circle grids): their corners can be listed in a turned order, and the board frame is then
-put back from the robot poses (`turn_flipped`); `warn_symmetric` says so up front.
+put back from the robot's motions (`turn_flipped`: one camera's images, from the rotation
+angles of their pairs, synchronised over the board's turns); several cameras on one board
+agree on its frame (`align_turns`); `warn_symmetric` says so up front.
 """
 
 from __future__ import annotations
@@ -146,6 +148,7 @@ def _turn_labels(H: Array, T: Array, board: Board) -> NDArray[np.intp]:
     turns = [np.eye(4)] * m
     for t, (turn, _) in zip(phase, sym, strict=True):
         turns[t] = turn
+
     def angles(A: Array, B: Array) -> Array:
         """Rotation angles of every ``A_i B_j^T`` ``(n, n)`` (rad)."""
         return np.arccos(np.clip((np.einsum("iab,jab->ij", A, B) - 1.0) / 2.0, -1.0, 1.0))
@@ -160,7 +163,8 @@ def _turn_labels(H: Array, T: Array, board: Board) -> NDArray[np.intp]:
     votes += votes.conj().T
     z = np.linalg.eigh(votes)[1][:, -1]
     k = np.round(np.angle(z) / (2 * np.pi / m)).astype(np.intp) % m
-    k[np.abs(votes).sum(axis=1) == 0] = -1  # no pair tells: as listed
+    # no pair tells, or only pairs of another group of stations: as listed
+    k[(np.abs(votes).sum(axis=1) == 0) | (np.abs(z) < 1e-6 * np.abs(z).max())] = -1
     known = k[k >= 0]
     if len(known) == 0:
         return np.zeros(n, np.intp)
