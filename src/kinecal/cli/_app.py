@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import typer
 
+from kinecal.cli._coercion import install
+
+install()  # plain option values without pydantic (kinecal.cli._coercion)
+
 app = typer.Typer(
     name="kinecal",
     help="Kinematic calibration of serial robots, hand-eye setups and parallel-link CMMs.",
