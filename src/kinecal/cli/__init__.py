@@ -65,6 +65,7 @@ __all__ = ["app", "main"]
 _COMMAND_MODULES = [
     "kinecal.cli.fk",
     "kinecal.cli.simulate",
+    "kinecal.cli.identifiability",
     "kinecal.cli.calibrate",
     "kinecal.cli.reproduce",
     "kinecal.cli.handeye",
@@ -92,7 +93,7 @@ _COMMANDS = {
     "fk": "kinecal.cli.fk",
     "simulate": "kinecal.cli.simulate",
     "select-poses": "kinecal.cli.calibrate",
-    "identifiability": "kinecal.cli.calibrate",
+    "identifiability": "kinecal.cli.identifiability",
     "calibrate": "kinecal.cli.calibrate",
     "reproduce": "kinecal.cli.reproduce",
     "handeye": "kinecal.cli.handeye",
