@@ -244,6 +244,6 @@ def fit_nuisance(block: ResidualBlock, model: SerialModel, params: Array, start:
         rows = block.evaluate(model, params, v, none, jacobian=True, points=points)
         return rows.nuisance * (w[:, None] if np.ndim(w) else w)
 
-    res = levenberg_marquardt(residual, jacobian, start, max_nfev=200)
+    res = levenberg_marquardt.fit(residual, jacobian, start, max_nfev=200)
     v = np.asarray(res.x, dtype=float)
     return v, block.evaluate(model, params, v, points=points).r
