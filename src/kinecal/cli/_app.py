@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import typer
 
+from kinecal.cli._typer_light import install
+
+install()  # plain values converted without pydantic (kinecal.cli._typer_light)
+
 app = typer.Typer(
     name="kinecal",
     help="Kinematic calibration of serial robots, hand-eye setups and parallel-link CMMs.",
