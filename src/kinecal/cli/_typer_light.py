@@ -32,21 +32,25 @@ def _plain_leaf(annotation: Any, info: Any, value: Any, path: Any) -> Any:
     path conversion (typer's checks of an existing path included)."""
     if annotation is bool:  # a flag's value (a typed-in "yes" goes to the adapter)
         return value if isinstance(value, bool) else DEFER
-    if not isinstance(value, str):
-        return DEFER
     if annotation is str:
-        return value
+        return value if type(value) is str else DEFER
     if annotation is Path:
-        return path(value) if value and "\0" not in value else DEFER
-    if getattr(info, "clamp", False):
+        if type(value) is str:
+            return path(value) if value and "\0" not in value else DEFER
+        return path(value) if isinstance(value, Path) else DEFER
+    if getattr(info, "clamp", False) or annotation not in (int, float):
         return DEFER
-    if annotation is int and _INT.fullmatch(value):
-        out: Any = int(value)
-    elif annotation is float and _FLOAT.fullmatch(value):
-        out = float(value)
-        if out - out != 0.0:  # inf: the adapter decides
+    if type(value) is str:  # typed in
+        if not (_INT if annotation is int else _FLOAT).fullmatch(value):
             return DEFER
+        out: Any = annotation(value)
+    elif type(value) is int and abs(value) < 2**53:  # a default
+        out = annotation(value)
+    elif type(value) is float and annotation is float:
+        out = value
     else:
+        return DEFER
+    if out - out != 0:  # inf or nan: the adapter decides
         return DEFER
     lo, hi = getattr(info, "min", None), getattr(info, "max", None)
     if (lo is not None and out < lo) or (hi is not None and out > hi):
