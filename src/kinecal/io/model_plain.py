@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["ENTRY_FIELDS", "FILE_FIELDS", "plain_model_file"]
+__all__ = ["ENTRY_FIELDS", "FILE_FIELDS", "plain_entry", "plain_model_file", "plain_number"]
 
 _REQUIRED = object()
 #: no plain answer: validate with the schema
@@ -55,12 +55,18 @@ _STRUCTURED = ("joints", "base", "tool", "markers", "joint_limits", "tolerances"
                "joint_errors")
 
 
-def _number(v: Any) -> Any:
+def plain_number(v: Any) -> float | None:
+    """`v` as the schemas' float when it is an int or a finite float, else None."""
     if type(v) is float:
-        return v if math.isfinite(v) else _NO
+        return v if math.isfinite(v) else None
     if type(v) is int:
         return float(v)
-    return _NO
+    return None
+
+
+def _number(v: Any) -> Any:
+    out = plain_number(v)
+    return _NO if out is None else out
 
 
 def _value(kind: Any, v: Any) -> Any:
