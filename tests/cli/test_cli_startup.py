@@ -106,6 +106,10 @@ def test_handeye_images_loads_no_solver_or_distribution(tmp_path):
                             f"    assert main({argv!r}) == 0")
     assert "kinecal.calibration.handeye.images" in loaded and (tmp_path / "x.json").exists()
     assert not loaded & set(LATE_SCIPY), sorted(loaded & set(LATE_SCIPY))
+    # plain option values (kinecal.cli._coercion) and plain PNG files
+    # (kinecal.vision.image_files) need neither pydantic nor Pillow
+    late = sorted(m for m in loaded if m.split(".")[0] in ("pydantic", "PIL"))
+    assert not late, late
 
 
 def test_one_pose_fk_loads_no_solver():

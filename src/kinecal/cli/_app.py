@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import typer
 
-from kinecal.cli._typer_light import install
+from kinecal.cli._coercion import install
 
-install()  # plain values converted without pydantic (kinecal.cli._typer_light)
+install()  # plain option values without pydantic (kinecal.cli._coercion)
 
 app = typer.Typer(
     name="kinecal",

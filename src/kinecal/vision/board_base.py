@@ -52,8 +52,21 @@ class Board:
         return len(self.object_points)
 
     @property
-    def object_points(self) -> Array:  # pragma: no cover - overridden
-        """Board coordinates ``(n_corners, 3)`` of every corner id (z = 0)."""
+    def object_points(self) -> Array:
+        """Board coordinates ``(n_corners, 3)`` of every corner id (z = 0), read-only.
+
+        Computed once per board (`_object_points`): every image's detection, board pose and
+        refinement asks for them, and a ChArUco board's come from building OpenCV's board.
+        """
+        cached = self.__dict__.get("_points")
+        if cached is None:
+            cached = np.asarray(self._object_points(), dtype=float)
+            cached.setflags(write=False)
+            object.__setattr__(self, "_points", cached)  # the boards are frozen dataclasses
+        return cached
+
+    def _object_points(self) -> Array:  # pragma: no cover - overridden
+        """The board coordinates `object_points` returns, computed."""
         raise NotImplementedError
 
     @property

@@ -75,8 +75,7 @@ class Chessboard(Board):
         """The half turn when the board is `symmetric` (its colours do not tell the ends)."""
         return self._turns(quarter=False) if self.symmetric else []
 
-    @property
-    def object_points(self) -> Array:
+    def _object_points(self) -> Array:
         c, r = np.meshgrid(np.arange(self.cols), np.arange(self.rows))
         return np.column_stack([c.ravel() * self.square, r.ravel() * self.square,
                                 np.zeros(c.size)])
@@ -146,8 +145,7 @@ class Charuco(Board):
         d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
         return cv2.aruco.CharucoBoard((self.cols, self.rows), self.square, self.marker, d)
 
-    @property
-    def object_points(self) -> Array:
+    def _object_points(self) -> Array:
         return np.asarray(self.cv_board().getChessboardCorners(), dtype=float).reshape(-1, 3)
 
     def extent(self) -> tuple[float, float, float, float]:

@@ -136,8 +136,7 @@ class AsymmetricCircleGrid(CircleGrid):
     def pitch(self) -> float:
         return self.spacing
 
-    @property
-    def object_points(self) -> Array:
+    def _object_points(self) -> Array:
         c, r = np.meshgrid(np.arange(self.cols), np.arange(self.rows))
         c, r = c.ravel(), r.ravel()
         return np.column_stack([(2 * c + r % 2) * self.spacing, r * self.spacing,
@@ -176,8 +175,7 @@ class SymmetricCircleGrid(CircleGrid):
     def pitch(self) -> float:
         return self.spacing
 
-    @property
-    def object_points(self) -> Array:
+    def _object_points(self) -> Array:
         c, r = np.meshgrid(np.arange(self.cols), np.arange(self.rows))
         return np.column_stack([c.ravel() * self.spacing, r.ravel() * self.spacing,
                                 np.zeros(c.size)])
@@ -208,8 +206,7 @@ class ModifiedCircleGrid(SymmetricCircleGrid):
         """Id of the origin (large) dot: ``(rows - 1) * cols``."""
         return (self.rows - 1) * self.cols
 
-    @property
-    def object_points(self) -> Array:
+    def _object_points(self) -> Array:
         c, r = np.meshgrid(np.arange(self.cols), np.arange(self.rows))
         return np.column_stack([c.ravel() * self.spacing,
                                 (self.rows - 1 - r.ravel()) * self.spacing,

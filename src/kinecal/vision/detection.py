@@ -135,15 +135,15 @@ def edge_width(gray: NDArray[np.uint8], mask: NDArray[np.bool_] | None = None) -
         lo, hi = np.percentile(g[mask] if mask is not None else g, [2.0, 98.0])
     if hi - lo < 10.0:
         return float("nan")
-    # the 3x3 Sobel / 8 (an exact scaling), its magnitude where the mask is
+    # the 3x3 Sobel / 8 (an exact scaling), its magnitude where the mask is (the squares
+    # summed in place over the region, then one selection: the same float32 values)
     gx = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
     gy = cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
-    if mask is not None:
-        gx, gy = gx[mask], gy[mask]
-    gx *= gx
-    gy *= gy
+    np.multiply(gx, gx, out=gx)
+    np.multiply(gy, gy, out=gy)
     gx += gy
-    peak = upper_percentile(np.sqrt(gx, out=gx).ravel(), 99.5)
+    m2 = gx[mask] if mask is not None else gx.ravel()
+    peak = upper_percentile(np.sqrt(m2, out=m2), 99.5)
     if peak <= 0:
         return float("nan")
     return float(0.78 * (hi - lo) / peak)

@@ -13,12 +13,21 @@ while writing): a PNG's chunks are walked and checked without inflating them, a 
 entropy-coded data is decoded at 1/8 scale (in the DCT domain, a few milliseconds). OpenCV
 would decode such files in part, print libpng's or libjpeg's complaint on stderr and, for a
 JPEG, hand back an image whose lower part is grey.
+
+A PNG of the plain layout that OpenCV and most camera tools write (``IHDR``, then ``IDAT``
+chunks, optional chunks after the first ``IDAT``, ``IEND``) is sized and checked here
+without Pillow (`_plain_png_size`: every chunk's CRC, as Pillow's ``verify``; 0.3 instead
+of 1.1 ms an image, and no Pillow import at start-up); any other file, or a PNG with
+anything unusual (a bad CRC, a chunk cut short, ancillary chunks before the image data),
+goes through Pillow as before, which gives the verdict and its message.
 """
 
 from __future__ import annotations
 
 import re
+import struct
 import warnings
+import zlib
 from pathlib import Path
 
 from kinecal._limits import available_memory
@@ -72,15 +81,16 @@ def check_image_size(path: str | Path) -> tuple[int, int] | None:
         (`DETECT_BYTES_PER_PIXEL` per pixel).
     """
     size = header_size(path)
-    if size is None:
-        return None
-    w, h = size
+    return None if size is None else _refuse_too_large(path, *size)
+
+
+def _refuse_too_large(path: str | Path, w: int, h: int) -> tuple[int, int]:
     most = min(MAX_IMAGE_PIXELS, available_memory() // DETECT_BYTES_PER_PIXEL)
     if w * h > most:
         raise InputError(f"{w}x{h} pixels ({w * h / 1e6:.0f} MP) in its header, more than the "
                          f"{most / 1e6:.0f} MP a camera image may have here (never decoded)",
                          file=path)
-    return size
+    return w, h
 
 
 def check_image_file(path: str | Path) -> tuple[int, int] | None:
@@ -96,6 +106,14 @@ def check_image_file(path: str | Path) -> tuple[int, int] | None:
     InputError
         Too large (`check_image_size`), or a PNG / JPEG that is truncated or corrupt.
     """
+    plain = _plain_png_size(path)
+    if plain is not None:
+        return _refuse_too_large(path, *plain)
+    return _check_with_pillow(path)
+
+
+def _check_with_pillow(path: str | Path) -> tuple[int, int] | None:
+    """`check_image_file` by Pillow (any format it knows)."""
     size = check_image_size(path)
     if size is None:
         return None
@@ -120,3 +138,51 @@ def check_image_file(path: str | Path) -> tuple[int, int] | None:
     finally:
         ImageFile.LOAD_TRUNCATED_IMAGES = lenient
     return size
+
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: (bit depth, colour type) pairs of the PNG standard (all of which Pillow reads)
+_PNG_MODES = {(1, 0), (2, 0), (4, 0), (8, 0), (16, 0), (8, 2), (16, 2), (1, 3), (2, 3),
+              (4, 3), (8, 3), (8, 4), (16, 4), (8, 6), (16, 6)}
+#: Pillow's decompression-bomb error threshold (twice its default MAX_IMAGE_PIXELS): beyond
+#: it Pillow's own message is the one given
+_PILLOW_BOMB = 2 * (1024 * 1024 * 1024 // 4 // 3)
+_CHUNK_TYPE = re.compile(rb"\w\w\w\w")
+
+
+def _plain_png_size(path: str | Path) -> tuple[int, int] | None:
+    """``(width, height)`` of a PNG file of the plain layout whose every chunk is whole and
+    matches its CRC (what Pillow's ``verify`` accepts, with the same size); None for any
+    other file, which Pillow then judges."""
+    try:
+        with open(path, "rb") as f:
+            if f.read(8) != _PNG_SIGNATURE:
+                return None
+            data = f.read()
+    except OSError:
+        return None
+    end = len(data)
+    if end < 25 or data[4:8] != b"IHDR" or struct.unpack_from(">I", data, 0)[0] != 13:
+        return None
+    w, h, depth, colour, _, filt, _ = struct.unpack_from(">IIBBBBB", data, 8)
+    if (depth, colour) not in _PNG_MODES or filt != 0 or not 0 < w * h <= _PILLOW_BOMB:
+        return None
+    pos, seen_data = 0, False
+    while True:
+        if pos + 8 > end:
+            return None  # cut short
+        length = struct.unpack_from(">I", data, pos)[0]
+        kind = data[pos + 4:pos + 8]
+        if not _CHUNK_TYPE.fullmatch(kind):
+            return None
+        if kind == b"IEND":
+            return (w, h) if seen_data else None
+        if kind == b"IDAT":
+            seen_data = True
+        elif pos and not seen_data:
+            return None  # ancillary chunks before the image data: Pillow parses them
+        stop = pos + 8 + length
+        if stop + 4 > end or zlib.crc32(memoryview(data)[pos + 4:stop]) != \
+                struct.unpack_from(">I", data, stop)[0]:
+            return None
+        pos = stop + 4

@@ -313,7 +313,7 @@ def estimate_intrinsics(
     InputError
         Fewer than 3 images, or OpenCV fails.
     """
-    from kinecal.vision import require_cv2
+    from kinecal.vision import opencv_one_thread, require_cv2
 
     cv2 = require_cv2()
     n = len(object_points)
@@ -328,9 +328,10 @@ def estimate_intrinsics(
     obj = [np.asarray(p, np.float32).reshape(-1, 1, 3) for p in object_points]
     img = [np.asarray(p, np.float32).reshape(-1, 1, 2) for p in image_points]
     crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-    try:
-        out = cv2.calibrateCameraExtended(obj, img, (int(size[0]), int(size[1])), None, None,
-                                          flags=flags, criteria=crit)
+    try:  # on one thread: on OpenCV's threads the last digits change from call to call
+        with opencv_one_thread():
+            out = cv2.calibrateCameraExtended(obj, img, (int(size[0]), int(size[1])), None,
+                                              None, flags=flags, criteria=crit)
     except cv2.error as exc:
         raise InputError(f"camera calibration failed: {' '.join(str(exc).split())}") from None
     rms, K, d = out[0], out[1], out[2]

@@ -62,14 +62,17 @@ def pose_residuals(K: Array, dist8: Array, T: Array, obj: Array, img: Array) -> 
     return img - project_jacobian(K, dist8, P, jacobians=False)[0]
 
 
-def _jacobian(K: Array, dist8: Array, T: Array, obj: Array) -> Array:
+def _residuals_jacobian(K: Array, dist8: Array, T: Array, obj: Array, img: Array
+                        ) -> tuple[Array, Array]:
+    """`pose_residuals` ``(N, 2)`` and their pose Jacobian ``(2N, 6)`` from one projection
+    (no intrinsic Jacobian: the intrinsics are held here)."""
     R = T[:3, :3]
     P = obj @ R.T + T[:3, 3]
-    _, Jp, _ = project_jacobian(K, dist8, P)
+    uv, Jp, _ = project_jacobian(K, dist8, P, intrinsics=False)
     # P = R Exp(w) X + t + v: dP/dw = -R [X]x, dP/dv = I
     dP = np.concatenate([-R @ skew(obj), np.broadcast_to(np.eye(3), (len(obj), 3, 3))],
                         axis=2)
-    return (Jp @ dP).reshape(-1, 6)
+    return img - uv, (Jp @ dP).reshape(-1, 6)
 
 
 def board_pose(obj: Array, img: Array, K: Array, dist: Array | None,
@@ -113,9 +116,9 @@ def board_pose(obj: Array, img: Array, K: Array, dist: Array | None,
     crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, iterations, 1e-12)
     rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, d8, rvec, tvec, criteria=crit)
     T = transform_from(cv2.Rodrigues(rvec)[0], tvec.ravel())
-    r = pose_residuals(K, d8, T, obj, img).ravel()
+    r, J = _residuals_jacobian(K, d8, T, obj, img)
+    r = r.ravel()
     cost = float(r @ r)
-    J = _jacobian(K, d8, T, obj)
     dof = max(r.size - 6, 1)
     s2 = float(cost) / dof
     try:

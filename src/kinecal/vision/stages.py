@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from kinecal import diagnostics
 from kinecal.errors import InputError
-from kinecal.vision import require_cv2
+from kinecal.vision import opencv_one_thread, require_cv2
 from kinecal.vision.boards import Board
 from kinecal.vision.detect import QualityLimits, Survey, as_gray, detect
 from kinecal.vision.image_files import check_image_file
@@ -146,10 +146,11 @@ def detect_all(images: Sequence[Any], names: Sequence[str], board: Board,
     records: list[ImageRecord] = []
     sizes: list[tuple[int, int] | None] = []
     # images in parallel: OpenCV's detectors, blurs and numpy's large-array work release
-    # the GIL; results come back in input order
+    # the GIL; results come back in input order. Each image on one thread (OpenCV's own
+    # threads off, `kinecal.vision.opencv_one_thread`): no result depends on the threads
     workers = min(len(images), cpu_count())
     items = zip(names, images, pre, strict=True)
-    with ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
+    with opencv_one_thread(), ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
         done = pool.map(one, items) if workers > 1 else map(one, items)
         for record, z in done:
             records.append(record)

@@ -210,3 +210,29 @@ def test_nuisance_standard_errors_are_those_of_the_stacked_normal_matrix(kr6):
     expected = np.sqrt(np.diag(cov))[len(res.free):]
     assert np.allclose(res.nuisance_std, expected, rtol=3e-3)  # increments about the start
     assert 1e-5 < np.degrees(expected[:3]).max() < 1e-2  # deg: a plausible size
+
+
+def test_residuals_at_a_point_already_predicted_are_not_recomputed(kr6):
+    """The stacked fit asks for the residuals where it just took a Jacobian (the solver's
+    last point, for the noise estimate and the analysis), for other arm columns or none: the
+    kept rows answer, the same residuals bit for bit."""
+    from kinecal.calibration.camera.residual_block import CameraBlock
+
+    truth = kr6.nominal + random_errors(kr6, np.random.default_rng(3))
+    st, X, Y = _stations(kr6, "eye-in-hand", truth, n=6)
+    blk = CameraBlock(st, K, DIST, "eye-in-hand")
+    blk.set_references(kr6, X, Y)
+    calls = []
+    predict = blk.pixels.predict
+    blk.pixels.predict = lambda *a, **k: calls.append(a[2:]) or predict(*a, **k)
+    nu = np.zeros(blk.n_nuisance)
+    cols = np.arange(5)
+    rows = blk.evaluate(kr6, truth, nu, cols, jacobian=True)
+    for c in (None, np.arange(3), cols):
+        assert np.array_equal(blk.evaluate(kr6, truth, nu, c).r, rows.r)
+    assert len(calls) == 1
+    fresh = CameraBlock(st, K, DIST, "eye-in-hand")
+    fresh.set_references(kr6, X, Y)
+    assert fresh.evaluate(kr6, truth, nu).r.tobytes() == rows.r.tobytes()
+    blk.evaluate(kr6, truth, nu, np.arange(3), jacobian=True)  # other columns: computed
+    assert len(calls) == 2

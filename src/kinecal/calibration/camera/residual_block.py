@@ -127,6 +127,8 @@ class CameraBlock(ResidualBlock):
         for k, jac, rows in self._recent:
             if k == key and (jac or not jacobian):
                 return rows if jacobian or rows.arm is None else BlockRows(rows.r)
+            if not jacobian and k[:3] == key[:3]:  # the residuals: the same for any columns
+                return BlockRows(rows.r)
         uv, Ja, Jn = self.pixels.predict(params, nuisance, cols, jacobian)
         r = (uv - self.pixels.uv).ravel()
         if not jacobian:

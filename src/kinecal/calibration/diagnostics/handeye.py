@@ -19,8 +19,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal.calibration.diagnostics._common import repeat_groups, unit_factor_name
+from kinecal.calibration.diagnostics.counts import check_pose_count
 from kinecal.calibration.diagnostics.handeye_consistency import TRANSLATION_LIMIT
-from kinecal.calibration.diagnostics.serial import check_pose_count
 from kinecal.diagnostics import warn
 from kinecal.spatial import invert_transform, skew
 

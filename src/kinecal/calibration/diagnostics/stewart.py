@@ -22,7 +22,7 @@ from kinecal.calibration.diagnostics._common import (
     plural,
     repeat_groups,
 )
-from kinecal.calibration.diagnostics.serial import check_pose_count
+from kinecal.calibration.diagnostics.counts import check_pose_count
 from kinecal.calibration.diagnostics.units import EXPLAINS_BETTER, REACH_FRACTION
 from kinecal.calibration.stewart.identification import identification_jacobian
 from kinecal.diagnostics import warn

@@ -172,7 +172,8 @@ def _predict(pr: ReprojectionProblem, p: Array, blocks: bool = False) -> tuple[A
         pc = np.where(behind[:, None], np.nan, pc)
     if not blocks:
         return project_jacobian(K, d, pc, rational=pr.n_int == 12, jacobians=False)[0], ()
-    uv, Jp, Jint = project_jacobian(K, d, pc, rational=pr.n_int == 12)
+    uv, Jp, Jint = project_jacobian(K, d, pc, rational=pr.n_int == 12,
+                                    intrinsics=pr.n_int > 0)  # none when held
     return uv, (X, Y, E, pc, q, w, RE, dq_dw, Jp, Jint)
 
 

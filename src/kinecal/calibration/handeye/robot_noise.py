@@ -131,14 +131,22 @@ def _station_poses(P: Array, uv: Array, sid: Array, starts: Array, counts: Array
     squares ``(n,)``."""
     T = T0.copy()
     n = len(T)
+    SP = skew(P)  # (M, 3, 3), the same every iteration
+
+    def pose_jacobian(R: Array, t: Array) -> tuple[Array, Array]:
+        Rs = R[sid]
+        pc = np.einsum("mij,mj->mi", Rs, P) + t[sid]
+        pred, Jp, _ = project_jacobian(K, d8, pc, intrinsics=False)
+        JpR = Jp @ Rs
+        Jpose = np.empty((len(P), 2, 6))
+        Jpose[:, :, :3] = -JpR @ SP
+        Jpose[:, :, 3:] = JpR
+        return pred, Jpose
+
     for _ in range(iterations):
         R, t = T[:, :3, :3], T[:, :3, 3]
-        pc = np.einsum("mij,mj->mi", R[sid], P) + t[sid]
-        pred, Jp, _ = project_jacobian(K, d8, pc)
+        pred, Jpose = pose_jacobian(R, t)
         r = pred - uv
-        Jpose = np.empty((len(P), 2, 6))
-        Jpose[:, :, :3] = -(Jp @ R[sid]) @ skew(P)
-        Jpose[:, :, 3:] = Jp @ R[sid]
         N = np.add.reduceat(np.einsum("mci,mcj->mij", Jpose, Jpose), starts, axis=0)
         b = np.add.reduceat(np.einsum("mci,mc->mi", Jpose, r), starts, axis=0)
         try:
@@ -148,12 +156,7 @@ def _station_poses(P: Array, uv: Array, sid: Array, starts: Array, counts: Array
         T = T @ transform_from(matrix_from_axis_angle(h[:, :3]), h[:, 3:])
         if np.abs(h).max() < 1e-12 * max(1.0, float(np.abs(t).max())):
             break
-    R, t = T[:, :3, :3], T[:, :3, 3]
-    pc = np.einsum("mij,mj->mi", R[sid], P) + t[sid]
-    pred, Jp, _ = project_jacobian(K, d8, pc)
-    Jpose = np.empty((len(P), 2, 6))
-    Jpose[:, :, :3] = -(Jp @ R[sid]) @ skew(P)
-    Jpose[:, :, 3:] = Jp @ R[sid]
+    pred, Jpose = pose_jacobian(T[:, :3, :3], T[:, :3, 3])
     N = np.add.reduceat(np.einsum("mci,mcj->mij", Jpose, Jpose), starts, axis=0)
     rss = np.bincount(sid, weights=np.sum((pred - uv) ** 2, axis=1), minlength=n)
     return T, N, rss
