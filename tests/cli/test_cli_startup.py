@@ -139,7 +139,7 @@ def test_optimize_submodules_load_no_metaheuristic():
 
 def test_one_pose_fk_loads_no_pydantic(tmp_path):
     """``kinecal fk`` of a bundled model: its values converted and its model file checked
-    without pydantic (`kinecal.cli._typer_light`, `kinecal.io.model_plain`): importing it
+    without pydantic (`kinecal.cli._direct`, `kinecal.io.model_plain`): importing it
     costs more than the command's work."""
     q = tmp_path / "q.csv"
     q.write_text("q1,q2,q3,q4,q5,q6\n0,10,20,30,40,50\n")
