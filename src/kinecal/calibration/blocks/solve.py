@@ -77,7 +77,7 @@ class StackFit:
 
 def _lm(problem: StackedProblem, x: Array, **kw) -> OptimizeResult:
     kw.setdefault("max_nfev", max(200, 10 * (problem.n + 1)))
-    return levenberg_marquardt(problem.residuals, problem.jacobian, x, monitor=problem.monitor,
+    return levenberg_marquardt.fit(problem.residuals, problem.jacobian, x, monitor=problem.monitor,
                                normal_equations=problem.normal_equations, **kw)
 
 
@@ -287,13 +287,13 @@ def fit_stack(model: SerialModel, blocks: Sequence[ResidualBlock], names: list[s
         r = problem.residuals(res.x)
         scale = f_scale if f_scale is not None else 3.0 * max(float(np.median(np.abs(r))),
                                                              1e-12)
-        robust = levenberg_marquardt(problem.residuals, problem.jacobian, res.x, loss=loss,
+        robust = levenberg_marquardt.fit(problem.residuals, problem.jacobian, res.x, loss=loss,
                                      f_scale=scale, monitor=problem.monitor)
         res = _merge(res, robust)
         outliers = observation_outliers(problem, problem.block_residuals(res.x))
         if outliers and _enough(problem, outliers):  # down-weighted they still pull
             problem.exclude(outliers)
-            res = _merge(res, levenberg_marquardt(
+            res = _merge(res, levenberg_marquardt.fit(
                 problem.residuals, problem.jacobian, res.x, loss=loss, f_scale=scale,
                 monitor=problem.monitor))
     return StackFit(problem, res, list(known), f, red, rounds, outliers)

@@ -265,7 +265,7 @@ def fit_nuisance(block: ResidualBlock, model: SerialModel, params: Array, start:
             r, _, _, A, _, g = block.normal_parts(model, params, v, cols, wr)
             return r, A, g
 
-    res = levenberg_marquardt(residual, jacobian, start, max_nfev=200,
+    res = levenberg_marquardt.fit(residual, jacobian, start, max_nfev=200,
                               normal_equations=normal)
     v = np.asarray(res.x, dtype=float)
     return v, block.evaluate(model, params, v, points=points).r
