@@ -26,7 +26,9 @@ sets ``PYTHONDONTWRITEBYTECODE`` compiles kinecal's 40-odd modules on every comm
 Times are the wall time and the CPU time (user + system, ``RUSAGE_CHILDREN``) of each
 process; the CPU time moves less with the other jobs' load.
 
-Run: ``python benchmarks/bench_cli.py [--quick] [--repeat R]``.
+Run: ``python benchmarks/bench_cli.py [--quick] [--repeat R] [--parts help,fk,calibrate,
+stewart,memory,compensate]``. ``PYTHONPATH=OTHER/src`` runs another checkout's kinecal
+(a before-and-after pair in one session).
 """
 
 from __future__ import annotations
@@ -213,20 +215,33 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=None)
     ap.add_argument("--compensate-rows", type=int, default=None,
                     help="rows of the compensated program (default 10^6, quick 2 x 10^4)")
+    ap.add_argument("--parts", default="help,fk,calibrate,stewart,memory,compensate",
+                    help="comma-separated parts to run")
     args = ap.parse_args()
+    parts = set(args.parts.split(","))
     repeat = args.repeat or (3 if args.quick else 9)
     py = [sys.executable, "-c"]
-    compare("kinecal --help", [*KINECAL, "--help"], 'python -c "import numpy"',
-            [*py, "import numpy"], repeat)
-    one_pose_fk(repeat)
-    compare("kinecal calibrate ur5 ur5-laser-tracker:grid --validate ur5-laser-tracker:random",
-            [*KINECAL, "calibrate", "ur5", "ur5-laser-tracker:grid", "--validate",
-             "ur5-laser-tracker:random"],
-            'python -c "import numpy, scipy.linalg"', [*py, "import numpy, scipy.linalg"],
-            repeat)
-    stewart(10_000 if args.quick else 100_000, max(3, repeat // 2))
-    calibrate_memory((10_000, 100_000) if not args.quick else (2_000, 20_000), 2)
-    compensate_big(args.compensate_rows or (20_000 if args.quick else 1_000_000))
+    import kinecal
+
+    print(f"kinecal from {Path(kinecal.__file__).parent}")
+    if "help" in parts:
+        compare("kinecal --help", [*KINECAL, "--help"], 'python -c "import numpy"',
+                [*py, "import numpy"], repeat)
+    if "fk" in parts:
+        one_pose_fk(repeat)
+    if "calibrate" in parts:
+        compare("kinecal calibrate ur5 ur5-laser-tracker:grid --validate "
+                "ur5-laser-tracker:random",
+                [*KINECAL, "calibrate", "ur5", "ur5-laser-tracker:grid", "--validate",
+                 "ur5-laser-tracker:random"],
+                'python -c "import numpy, scipy.linalg"', [*py, "import numpy, scipy.linalg"],
+                repeat)
+    if "stewart" in parts:
+        stewart(10_000 if args.quick else 100_000, max(3, repeat // 2))
+    if "memory" in parts:
+        calibrate_memory((10_000, 100_000) if not args.quick else (2_000, 20_000), 2)
+    if "compensate" in parts:
+        compensate_big(args.compensate_rows or (20_000 if args.quick else 1_000_000))
 
 
 if __name__ == "__main__":

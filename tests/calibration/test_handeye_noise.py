@@ -199,3 +199,21 @@ def test_pixel_refinement_keeps_exact_robot_poses_exact():
     assert res.robot_noise.source == "estimated-negligible" and not res.robot_noise.modelled
     assert exact.robot_noise.source == "exact"
     assert np.array_equal(res.X, exact.X) and res.corrections is None
+
+
+def test_noise_components_beyond_bounds_stop_instead_of_failing():
+    """A head camera's pairs whose symmetric board was listed turned in some images (a
+    rig's start, `kinecal.vision.turns`): the components' Fisher scoring stepped to
+    infinity and numpy's SVD failed (LinAlgError). The scoring now stops at the last
+    finite components and the robust solve returns a finite X."""
+    import warnings
+    from pathlib import Path
+
+    from kinecal.calibration.handeye import robust_solve
+    from kinecal.spatial import invert_transform
+
+    data = np.load(Path(__file__).parents[1] / "data" / "handeye_turned_board.npz")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        X, Y = robust_solve(invert_transform(data["flange2base"]), data["target2cam"], "park")
+    assert np.all(np.isfinite(X)) and np.all(np.isfinite(Y))

@@ -13,7 +13,7 @@ import typer._coercion as typer_coercion
 from typer._click.exceptions import BadParameter
 from typer.models import ArgumentInfo, OptionInfo
 
-import kinecal.cli  # noqa: F401  (installs the plain converter on typer)
+import kinecal.cli._app  # noqa: F401  (the typer app installs the plain converter)
 from kinecal.cli._coercion import _UNSET, plain_value
 
 INTS = ["0", "3", "-3", "+3", "007", "-0", "123456789012345678", "1234567890123456789",
@@ -144,3 +144,33 @@ def test_command_runs_without_pydantic(tmp_path):
                          capture_output=True, text=True, env=env)
     assert out.returncode == 2
     assert "Invalid value for '--min-corners'" in out.stderr and "integer" in out.stderr
+
+
+@pytest.mark.parametrize("annotation", [int, float])
+def test_typed_defaults_and_ranges_equal_typers(annotation):
+    """A command's default arrives typed (``--seed`` 0 with ``min=0``); a number outside
+    an option's range goes to typer's adapter and its refusal."""
+    from typer import core
+
+    values = [0, -0, 1, -7, 2**53 - 1, 2**53, 2**80, 0.0, -0.0, 1.5, 1e-300, 5e-324,
+              1.7976931348623157e308, float("inf"), float("nan"), True, False, "-1", "3",
+              "11", "0.5", "-0.0"]
+    infos = [OptionInfo(), OptionInfo(min=0), OptionInfo(max=10), OptionInfo(min=-5, max=5),
+             OptionInfo(min=1, clamp=True)]
+    taken = 0
+    for info in infos:
+        desc = typer_coercion.resolve_type_descriptor(annotation, info)
+        ours, ref = core.build_runtime_param(desc), typer_coercion.build_runtime_param(desc)
+        for v in values:
+            if annotation is int and isinstance(v, float):
+                continue
+            try:
+                want = ref._coerce_value(v, param=None, ctx=None)
+            except BadParameter as exc:
+                with pytest.raises(BadParameter) as got:
+                    ours._coerce_value(v, param=None, ctx=None)
+                assert got.value.message == exc.message, (annotation, info.min, v)
+                continue
+            assert _same(ours._coerce_value(v, param=None, ctx=None), want), (info.min, v)
+            taken += plain_value(annotation, v) is not _UNSET
+    assert taken > 20

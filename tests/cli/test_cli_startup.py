@@ -121,7 +121,7 @@ def test_one_pose_fk_loads_no_solver():
                             "(d / 'q.csv').write_text('q1,q2,q3,q4,q5,q6\\n0,10,20,30,40,50\\n')\n"
                             "with contextlib.redirect_stdout(io.StringIO()):\n"
                             "    assert main(['fk', 'ur5', str(d / 'q.csv')]) == 0")
-    assert "kinecal.cli.fk" in loaded
+    assert "kinecal.cli._fk_run" in loaded  # run without typer (kinecal.cli._direct)
     for module in ("kinecal.optimize.search", "kinecal.optimize.pso",
                    "kinecal.calibration.identifiability", "kinecal.io.result_values", "scipy"):
         assert module not in loaded, module
@@ -135,3 +135,29 @@ def test_optimize_submodules_load_no_metaheuristic():
     loaded = _modules_after("from kinecal.optimize import METHODS, _REGISTRY\n"
                             "assert METHODS == tuple(_REGISTRY)")
     assert "kinecal.optimize.search" in loaded
+
+
+def test_one_pose_fk_loads_no_pydantic(tmp_path):
+    """``kinecal fk`` of a bundled model: its values converted and its model file checked
+    without pydantic (`kinecal.cli._direct`, `kinecal.io.model_plain`): importing it
+    costs more than the command's work."""
+    q = tmp_path / "q.csv"
+    q.write_text("q1,q2,q3,q4,q5,q6\n0,10,20,30,40,50\n")
+    loaded = _modules_after("import io, contextlib\nfrom kinecal.cli import main\n"
+                            "with contextlib.redirect_stdout(io.StringIO()):\n"
+                            f"    assert main(['fk', 'ur5', {str(q)!r}, '--angle-unit', "
+                            "'deg']) == 0")
+    assert "kinecal.kinematics.serial.model" in loaded
+    assert not {m for m in loaded if m.split(".")[0] == "pydantic"}
+
+
+def test_calibrate_loads_no_scipy_optimize():
+    """The LM path of ``kinecal calibrate`` carries a `FitResult`, not scipy's
+    OptimizeResult: no scipy.optimize import (0.13-0.17 s, a quarter of the command)."""
+    loaded = _modules_after("import io, contextlib\nfrom kinecal.cli import main\n"
+                            "with contextlib.redirect_stdout(io.StringIO()):\n"
+                            "    assert main(['calibrate', 'ur5', 'ur5-laser-tracker:grid', "
+                            "'--validate', 'ur5-laser-tracker:random']) == 0")
+    assert "kinecal.calibration.serial.solve" in loaded
+    assert "scipy.optimize" not in loaded
+    assert not {m for m in loaded if m.split(".")[0] == "pydantic"}

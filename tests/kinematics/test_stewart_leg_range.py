@@ -47,7 +47,7 @@ def _write(path, L):
 
 def test_cli_warns_once_over_every_block_and_strict_refuses(cmm, tmp_path, capsys,
                                                             monkeypatch):
-    import kinecal.cli.stewart as cli_stewart
+    import kinecal.cli._stewart_fk as cli_stewart
 
     monkeypatch.setattr(cli_stewart, "FK_BLOCK", 2)  # 3 blocks, two of them with a row outside
     legs = tmp_path / "legs.csv"

@@ -28,7 +28,6 @@ import importlib  # noqa: E402
 import sys  # noqa: E402
 import warnings  # noqa: E402
 
-from kinecal.cli._app import app  # noqa: E402
 from kinecal.cli._signals import Terminated, terminate_like_interrupt  # noqa: E402
 from kinecal.errors import InputError  # noqa: E402
 
@@ -53,11 +52,27 @@ def _exception_types(name: str) -> tuple[type[BaseException], ...]:
     return tuple(found)
 
 
-_NO_ARGS = _exception_types("NoArgsIsHelpError")
-_USAGE = _exception_types("UsageError")
-_EXIT = _exception_types("Exit")
-_ABORT = _exception_types("Abort")
-_CLICK = _exception_types("ClickException")
+def _types(name: str) -> tuple[type[BaseException], ...]:
+    """`_exception_types` of `name`, looked up once an exception is being matched (a
+    command run without typer never imports it: `kinecal.cli._direct`)."""
+    found = _TYPES.get(name)
+    if found is None:
+        import typer  # noqa: F401  (its exception modules)
+
+        found = _TYPES[name] = _exception_types(name)
+    return found
+
+
+_TYPES: dict[str, tuple[type[BaseException], ...]] = {}
+
+
+def __getattr__(name: str):
+    if name == "app":  # the typer application, built on first use
+        from kinecal.cli._app import app
+
+        return app
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = ["app", "main"]
 
@@ -65,6 +80,7 @@ __all__ = ["app", "main"]
 _COMMAND_MODULES = [
     "kinecal.cli.fk",
     "kinecal.cli.simulate",
+    "kinecal.cli.identifiability",
     "kinecal.cli.calibrate",
     "kinecal.cli.reproduce",
     "kinecal.cli.handeye",
@@ -93,7 +109,7 @@ _COMMANDS = {
     "fk": "kinecal.cli.fk",
     "simulate": "kinecal.cli.simulate",
     "select-poses": "kinecal.cli.calibrate",
-    "identifiability": "kinecal.cli.calibrate",
+    "identifiability": "kinecal.cli.identifiability",
     "calibrate": "kinecal.cli.calibrate",
     "reproduce": "kinecal.cli.reproduce",
     "handeye": "kinecal.cli.handeye",
@@ -124,12 +140,20 @@ def _load_commands(args: list[str] | None = None) -> None:
         importlib.import_module(name)
 
 
-def _run(args: list[str]) -> int:
+def _run(args: list[str], direct: tuple | None = None) -> int:
+    """Run the command of `args`: by typer, or `direct` (`kinecal.cli._direct.parse`)."""
     # numpy's floating-point RuntimeWarnings (overflow in absurd inputs) would print
     # source lines on stderr: kinecal checks its inputs and results itself
     with warnings.catch_warnings(), terminate_like_interrupt():
         warnings.simplefilter("ignore", RuntimeWarning)
-        rv = app(args=args, prog_name="kinecal", standalone_mode=False)
+        if direct is not None:
+            from kinecal.cli._direct import run
+
+            rv = run(*direct)
+        else:
+            from kinecal.cli._app import app
+
+            rv = app(args=args, prog_name="kinecal", standalone_mode=False)
     return rv if isinstance(rv, int) else 0
 
 
@@ -176,12 +200,16 @@ def main(argv: list[str] | None = None) -> int:
     from kinecal.cli import _common
 
     _common.COMMAND_LINE = ["kinecal", *args]  # for the record of a report
-    _load_commands(args)
+    from kinecal.cli._direct import parse
+
+    direct = parse(args)  # plain arguments of a command run without typer, or None
+    if direct is None:
+        _load_commands(args)
     try:
         if "SOURCE_DATE_EPOCH" in os.environ:
             # checked first: numpy's f2py (imported by scipy.linalg) reads it with int()
             _check_source_date_epoch()
-        code = _run(args)
+        code = _run(args, direct)
         sys.stdout.flush()  # a full disk or a closed pipe on stdout shows here, not at exit
         if code == 130:  # typer turns Ctrl-C into Exit(130), returned without a word
             sys.stderr.write("kinecal: interrupted\n")
@@ -190,18 +218,18 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         sys.stderr.write(f"kinecal: error: {exc.one_line()}\n")
         code = 2
-    except _NO_ARGS:
+    except _types("NoArgsIsHelpError"):
         code = 0
-    except _USAGE as exc:
+    except _types("UsageError") as exc:
         where = f"{exc.ctx.command_path}: " if exc.ctx is not None else ""
         sys.stderr.write(f"kinecal: error: {where}{' '.join(exc.format_message().split())}\n")
         code = 2
-    except _EXIT as exc:
+    except _types("Exit") as exc:
         code = exc.exit_code
-    except _ABORT:
+    except _types("Abort"):
         sys.stderr.write("kinecal: aborted\n")
         code = 130
-    except _CLICK as exc:
+    except _types("ClickException") as exc:
         sys.stderr.write(f"kinecal: error: {' '.join(exc.format_message().split())}\n")
         code = 2
     except Terminated:

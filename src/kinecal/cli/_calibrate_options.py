@@ -64,7 +64,10 @@ PRIOR_FROM = typer.Option(
 IMAGES = typer.Option(None, "--images", help="Folder of board images: DATA is then "
                       "STATIONS.csv (image,q1..qn). See docs/arm-from-images.md.")
 BOARD = typer.Option(None, "--board", help="With --images: the board, e.g. "
-                     "chessboard:9x6:25.")
+                     "chessboard:9x6:25; a rig's NAME:LINK:SPEC (repeatable; docs/rigs.md).")
+CAMERA = typer.Option(None, "--camera", help="With --images: a rig's camera "
+                      "NAME:LINK[:intrinsics.yaml] (repeatable; LINK world, flange or a "
+                      "system's link).")
 INTRINSICS = typer.Option(None, "--intrinsics", help="With --images: camera YAML (default: "
                           "from the images).")
 SETUP = typer.Option("eye-in-hand", "--setup", help="With --images: eye-in-hand or "

@@ -17,6 +17,7 @@ A typer without this machinery (older releases convert through click) is left al
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,8 +38,9 @@ def plain_value(annotation: Any, value: Any) -> Any:
 
     Plain cases: a ``str`` for a ``str`` option; a bool for a ``bool`` one; a decimal
     literal (``[+-]digits`` up to 18 digits, or ``[+-]digits.digits[e[+-]digits]``) for
-    an ``int`` or ``float`` one. Paths are converted by `install`'s converter, which runs
-    typer's own checks on them.
+    an ``int`` or ``float`` one, or a typed default (an int, a finite float). Paths are
+    converted by `install`'s converter, which runs typer's own checks on them; numbers
+    outside an option's ``min`` / ``max`` go to typer's adapter, which refuses them.
     """
     if annotation is str and type(value) is str:
         return value
@@ -49,14 +51,26 @@ def plain_value(annotation: Any, value: Any) -> Any:
             return int(value)
         if annotation is float and _FLOAT.fullmatch(value):
             return float(value)
+    # a command's own default arrives typed (``--seed`` 0, a tolerance 1e-6)
+    if type(value) is int and annotation in (int, float) and abs(value) < 2**53:
+        return annotation(value)
+    if type(value) is float and annotation is float and math.isfinite(value):
+        return value
     return _UNSET
 
 
+def _in_range(value: Any, info: Any) -> bool:
+    """Whether a number lies within the option's ``min`` / ``max`` (typer refuses it
+    otherwise, in its own words)."""
+    lo, hi = info.min, info.max
+    return not ((lo is not None and value < lo) or (hi is not None and value > hi))
+
+
 def _list_item(annotation: Any) -> Any:
-    """``X`` of a ``list[X]`` annotation with a plain ``X`` (not a path), else None."""
+    """``X`` of a ``list[X]`` annotation with a plain ``X``, else None."""
     if get_origin(annotation) is list:
         args = get_args(annotation)
-        if len(args) == 1 and args[0] in (str, bool, int, float):
+        if len(args) == 1 and args[0] in (str, bool, int, float, Path):
             return args[0]
     return None
 
@@ -80,17 +94,23 @@ def install() -> None:
         descriptor: Any = None
 
         def _coerce_value(self, value: Any, param: Any, ctx: Any) -> Any:
-            if self.annotation is Path and type(value) is str and value:
+            def path(v: Any) -> Any:
                 # typer's own path checks (exists, file_okay...) on the Path pydantic gives
-                return coerce_cli_path(Path(value), self.parameter_info, path_type=Path,
+                if type(v) is not str or not v:
+                    return _UNSET
+                return coerce_cli_path(Path(v), self.parameter_info, path_type=Path,
                                        param=param, ctx=ctx)
+
+            if self.annotation is Path and type(value) is str and value:
+                return path(value)
             item = _list_item(self.annotation)
             if item is None:
                 out = plain_value(self.annotation, value)
-                if out is not _UNSET:
+                if out is not _UNSET and (self.annotation not in (int, float)
+                                          or _in_range(out, self.parameter_info)):
                     return out
             elif isinstance(value, list | tuple):  # a repeated option: typer gives a list
-                items = [plain_value(item, v) for v in value]
+                items = [path(v) if item is Path else plain_value(item, v) for v in value]
                 if all(v is not _UNSET for v in items):
                     return items
             return full(self.descriptor)._coerce_value(value, param=param, ctx=ctx)
@@ -101,7 +121,8 @@ def install() -> None:
         plain = ((descriptor.annotation in (str, bool, int, float, Path) or item is not None)
                  and descriptor.file_annotation is None and info.parser is None
                  and getattr(info, "click_type", None) is None
-                 and info.min is None and info.max is None
+                 and (item is None or (info.min is None and info.max is None))
+                 and not getattr(info, "clamp", False)
                  and (descriptor.annotation is not Path or info.path_type in (None, Path)))
         if not plain:
             return full(descriptor)

@@ -4,11 +4,16 @@ poses and legs CSV files and their readers (`kinecal.cli.stewart`: ik, fk;
 
 from __future__ import annotations
 
-import numpy as np
 import typer
 
 from kinecal.cli._app import app
-from kinecal.cli._common import resolve_data_path
+from kinecal.cli._stewart_io import (
+    LEG_COLUMNS,
+    POSE_COLUMNS,
+    load_geometry_arg,
+    poses_rad,
+    read_columns,
+)
 
 __all__ = ["LEG_COLUMNS", "POSE_COLUMNS", "load_geometry_arg", "poses_rad", "read_columns",
            "stewart_app"]
@@ -19,29 +24,3 @@ stewart_app = typer.Typer(
     no_args_is_help=True,
 )
 app.add_typer(stewart_app, name="stewart")
-
-POSE_COLUMNS = ("x", "y", "z", "alpha", "beta", "gamma")
-LEG_COLUMNS = tuple(f"l{i}" for i in range(1, 7))
-
-
-def load_geometry_arg(spec: str):
-    """The geometry of a GEOMETRY argument (bundled name or YAML path)."""
-    from kinecal.io.geometry import load_geometry
-
-    return load_geometry(spec)
-
-
-def read_columns(path: str, columns: tuple[str, ...], option: str) -> np.ndarray:
-    """The `columns` of a CSV argument as an array ``(N, len(columns))``."""
-    from kinecal.io.csvtable import read_table
-
-    p = resolve_data_path(path, option)
-    table = read_table(p, columns)
-    return np.column_stack([table[c] for c in columns])
-
-
-def poses_rad(deg: np.ndarray) -> np.ndarray:
-    """Poses ``(N, 6)`` with the angles of a poses CSV (degrees) in radians."""
-    from kinecal.kinematics.stewart.platform import degrees_to_radians
-
-    return degrees_to_radians(deg)

@@ -133,8 +133,15 @@ def handeye_images(
     instrument: str | None = instrument_option(),
     operator: str | None = operator_option(),
     note: str | None = note_option(),
+    camera: list[str] | None = typer.Option(
+        None, "--camera", help="Several cameras: NAME[:intrinsics.yaml] (repeatable); "
+        "ROBOT_POSES then has a camera column (docs/rigs.md)."),
 ) -> None:
     """Hand-eye calibration from images of a calibration board and the robot poses."""
+    if camera:  # several cameras: X per camera and camera-to-camera, its own module
+        from kinecal.cli.handeye_rig import handeye_rig_cli
+
+        return handeye_rig_cli(dict(locals()), list_images, limits_option, IMAGE_SUFFIXES)
     check_paths({"IMAGES_DIR": images_dir, "ROBOT_POSES": robot_poses,
                  "--intrinsics": intrinsics}, {"--out": out, "--report": report},
                 reads={"IMAGES_DIR": IMAGE_SUFFIXES})

@@ -83,7 +83,12 @@ def simulate(
                                        "poses into this folder (--out is then STATIONS.csv; "
                                        "--noise is image noise in grey levels). See "
                                        "docs/arm-from-images.md."),
-    board: str | None = typer.Option(None, "--board", help="With --images: the board."),
+    board: list[str] | None = typer.Option(None, "--board", help="With --images: the board; "
+                                           "a rig's NAME:LINK:SPEC (repeatable; "
+                                           "docs/rigs.md)."),
+    camera: list[str] | None = typer.Option(None, "--camera", help="With --images: a rig's "
+                                            "camera NAME:LINK[:intrinsics.yaml] "
+                                            "(repeatable)."),
     setup: str = typer.Option("eye-in-hand", "--setup", help="With --images: eye-in-hand "
                               "or eye-to-hand."),
     home: str | None = typer.Option(None, "--home", help="With --images: joints q1,..,qn "
@@ -100,6 +105,16 @@ def simulate(
     with --images, rendered board images of its stations)."""
     from kinecal.cli.systems import is_system_arg
 
+    if images is not None:  # a rig's cameras and boards: docs/rigs.md
+        from kinecal.cli.simulate_rig import is_rig_simulation, simulate_rig
+
+        if is_rig_simulation(camera, board, is_system_arg(model, base_link, tip_link)):
+            return simulate_rig(dict(locals()))
+    elif camera:
+        raise InputError("applies to --images only", option="--camera")
+    from kinecal.cli.calibrate_rig import one_board
+
+    board = one_board(board)
     if is_system_arg(model, base_link, tip_link):
         from kinecal.cli.systems import system_simulate
 

@@ -26,20 +26,17 @@ loaded by name. Writes are atomic.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
-import yaml
-from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, model_validator
 
 from kinecal._files import write_text_atomic
 from kinecal._yaml import read_yaml_mapping
 from kinecal.errors import InputError
 from kinecal.io.bundled import bundled_names, resolve_machine_file
+from kinecal.io.geometry_plain import plain_geometry
 from kinecal.kinematics.stewart.platform import StewartPlatform
 
 __all__ = [
-    "GeometrySpec",
     "bundled_geometries",
     "geometry_path",
     "geometry_to_dict",
@@ -47,105 +44,46 @@ __all__ = [
     "save_geometry",
 ]
 
-_CIRCLE_KEYS = (
-    "base_radius",
-    "platform_radius",
-    "base_short_edge_angle",
-    "platform_short_edge_angle",
-)
+def _platform(spec) -> StewartPlatform:
+    """The `StewartPlatform` of checked geometry fields `spec` (angles in radians)."""
+    to_rad = np.deg2rad if spec.angle_unit == "deg" else float
+    rng = (float(spec.leg_range[0]), float(spec.leg_range[1]))
+    if spec.base_joints is None:
+        geom = StewartPlatform.from_circles(
+            float(spec.base_radius),
+            float(spec.platform_radius),
+            float(to_rad(spec.base_short_edge_angle)),
+            float(to_rad(spec.platform_short_edge_angle)),
+            spec.probe_offset,
+            rng,
+            spec.name,
+        )
+    else:
+        geom = StewartPlatform(
+            np.array(spec.base_joints), np.array(spec.platform_joints),
+            spec.probe_offset, rng, np.zeros(6), spec.name,
+        )  # fmt: skip
+    if spec.leg_offsets is not None:
+        geom = geom.with_parameters(
+            np.concatenate([geom.parameters[:36], np.asarray(spec.leg_offsets, float)])
+        )
+    return geom
 
 
-class GeometrySpec(BaseModel):
-    """Schema of a Stewart geometry file (lengths in `length_unit`, angles in `angle_unit`)."""
+def _checked(data: dict, path: Path):
+    """The fields of a geometry file that is not plainly valid (`plain_geometry`), checked
+    by the pydantic schema, which words the error."""
+    from pydantic import ValidationError
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    from kinecal.io.geometry_schema import GeometrySpec
 
-    name: str | None = None
-    kind: Literal["stewart"] = "stewart"
-    source: str | None = None
-    length_unit: Literal["m", "mm"] = "m"
-    angle_unit: Literal["deg", "rad"] = "deg"
-    base_radius: float | None = None
-    platform_radius: float | None = None
-    base_short_edge_angle: float | None = None
-    platform_short_edge_angle: float | None = None
-    base_joints: list[list[float]] | None = None
-    platform_joints: list[list[float]] | None = None
-    leg_offsets: list[float] | None = None
-    probe_offset: float = 0.0
-    leg_range: list[float]
-
-    @field_validator("base_joints", "platform_joints")
-    @classmethod
-    def _six_points(cls, v: list[list[float]] | None) -> list[list[float]] | None:
-        if v is not None and (len(v) != 6 or any(len(p) != 3 for p in v)):
-            raise ValueError("expected 6 points [x, y, z]")
-        return v
-
-    @field_validator("leg_offsets")
-    @classmethod
-    def _six_offsets(cls, v: list[float] | None) -> list[float] | None:
-        if v is not None and len(v) != 6:
-            raise ValueError("expected 6 leg offsets")
-        return v
-
-    @field_validator("base_radius", "platform_radius")
-    @classmethod
-    def _radius(cls, v: float | None) -> float | None:
-        if v is not None and not v > 0:
-            raise ValueError(f"expected a radius > 0, got {v:g}")
-        return v
-
-    @field_validator("leg_range")
-    @classmethod
-    def _range(cls, v: list[float]) -> list[float]:
-        if len(v) != 2 or not (0.0 <= v[0] < v[1]):
-            raise ValueError("expected [l_min, l_max] with 0 <= l_min < l_max")
-        return v
-
-    @model_validator(mode="after")
-    def _one_description(self) -> GeometrySpec:
-        circles = [getattr(self, k) is not None for k in _CIRCLE_KEYS]
-        joints = [self.base_joints is not None, self.platform_joints is not None]
-        if any(circles) and any(joints):
-            raise ValueError("give either the circle parameters or explicit joints, not both")
-        if any(joints) and not all(joints):
-            raise ValueError("base_joints and platform_joints go together")
-        if not any(joints) and not all(circles):
-            missing = [k for k, c in zip(_CIRCLE_KEYS, circles, strict=True) if not c]
-            raise ValueError(f"missing {', '.join(missing)} (or give explicit joints)")
-        most = 120.0 if self.angle_unit == "deg" else 2.0 * np.pi / 3.0
-        for key in _CIRCLE_KEYS[2:]:  # a joint pair's short edge spans less than 120 deg
-            v = getattr(self, key)
-            if v is not None and not 0.0 <= v < most:
-                raise ValueError(f"{key}: expected an angle in [0, {most:.4g}) "
-                                 f"{self.angle_unit}, got {v:g}")
-        return self
-
-    def to_platform(self) -> StewartPlatform:
-        """Build the `StewartPlatform` (angles converted to radians)."""
-        to_rad = np.deg2rad if self.angle_unit == "deg" else float
-        rng = (float(self.leg_range[0]), float(self.leg_range[1]))
-        if self.base_joints is None:
-            geom = StewartPlatform.from_circles(
-                float(self.base_radius),
-                float(self.platform_radius),
-                float(to_rad(self.base_short_edge_angle)),
-                float(to_rad(self.platform_short_edge_angle)),
-                self.probe_offset,
-                rng,
-                self.name,
-            )
-        else:
-            geom = StewartPlatform(
-                np.array(self.base_joints), np.array(self.platform_joints),
-                self.probe_offset, rng, np.zeros(6), self.name,
-            )  # fmt: skip
-        if self.leg_offsets is not None:
-            geom = geom.with_parameters(
-                np.concatenate([geom.parameters[:36], np.asarray(self.leg_offsets, float)])
-            )
-        return geom
+    try:
+        return GeometrySpec.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        loc = ".".join(str(x) for x in err["loc"])
+        msg = err["msg"].removeprefix("Value error, ")
+        raise InputError(f"{loc + ': ' if loc else ''}{msg}", file=path) from None
 
 
 def bundled_geometries() -> list[str]:
@@ -168,14 +106,9 @@ def load_geometry(name_or_path: str | Path) -> StewartPlatform:
     """
     path = geometry_path(name_or_path)
     data = read_yaml_mapping(path)
+    spec = plain_geometry(data)
     try:
-        spec = GeometrySpec.model_validate(data)
-        return spec.to_platform()
-    except ValidationError as exc:
-        err = exc.errors()[0]
-        loc = ".".join(str(x) for x in err["loc"])
-        msg = err["msg"].removeprefix("Value error, ")
-        raise InputError(f"{loc + ': ' if loc else ''}{msg}", file=path) from None
+        return _platform(spec if spec is not None else _checked(data, path))
     except InputError as exc:
         raise InputError(exc.message, file=path) from None
 
@@ -197,5 +130,7 @@ def geometry_to_dict(geom: StewartPlatform, length_unit: str = "m") -> dict:
 
 def save_geometry(geom: StewartPlatform, path: str | Path, length_unit: str = "m") -> None:
     """Write `geom` as an explicit-joint geometry YAML, atomically (full float precision)."""
+    import yaml
+
     text = yaml.safe_dump(geometry_to_dict(geom, length_unit), sort_keys=False)
     write_text_atomic(path, text)

@@ -38,16 +38,16 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
-import yaml
-from pydantic import ValidationError
 
 from kinecal._files import write_text_atomic
 from kinecal._yaml import read_yaml_mapping
 from kinecal.errors import InputError
 from kinecal.io.bundled import bundled_names, resolve_machine_file
-from kinecal.io.model_schema import ModelFile, entry_spec
+from kinecal.io.model_plain import plain_entry, plain_model_file
 from kinecal.kinematics.serial.model import SerialModel
 
 __all__ = ["bundled_models", "check_model_file_name", "is_urdf_path", "load_model",
@@ -88,7 +88,7 @@ def read_yaml(path: Path) -> dict:
     return read_yaml_mapping(path)
 
 
-def _validation_message(exc: ValidationError) -> str:
+def _validation_message(exc: Any) -> str:
     err = exc.errors()[0]
     loc = ".".join(str(x) for x in err["loc"])
     return f"{loc}: {err['msg']}"
@@ -148,19 +148,13 @@ def model_from_mapping(data: dict, path: str | Path) -> SerialModel:
     messages); `InputError` on a schema violation."""
     if isinstance(data.get("markers"), dict):  # YAML reads marker names 1, 2, 3 as numbers
         data["markers"] = {str(k): v for k, v in data["markers"].items()}
-    try:
-        spec = ModelFile.model_validate(data)
-    except ValidationError as exc:
-        raise InputError(f"invalid model file: {_validation_message(exc)}", file=path) from None
+    spec = _checked_file(data, path)
     scale = np.pi / 180.0 if spec.angle_unit == "deg" else 1.0
     joints = []
     for k, raw in enumerate(spec.joints):
-        try:
-            entry = entry_spec(spec.convention, raw).model_validate(raw)
-        except ValidationError as exc:
-            raise InputError(f"invalid model file: joints.{k}.{_validation_message(exc)}",
-                             file=path) from None
-        values = entry.model_dump(exclude_none=True)
+        values = plain_entry(spec.convention, raw) if isinstance(raw, dict) else None
+        if values is None:
+            values = _checked_entry(spec.convention, raw, k, path)
         if "beta" in values and spec.convention != "hayati":
             raise InputError(
                 "invalid model file: beta is only allowed with convention hayati", file=path
@@ -191,7 +185,8 @@ def model_from_mapping(data: dict, path: str | Path) -> SerialModel:
         model = SerialModel(
             name=spec.name, convention=spec.convention, joints=joints, base=base, tool=tool,
             length_unit=spec.length_unit, angle_unit=spec.angle_unit, joint_limits=limits,
-            tolerances={"length": spec.tolerances.length, "angle": spec.tolerances.angle * scale},
+            tolerances={"length": spec.tolerances["length"],
+                        "angle": spec.tolerances["angle"] * scale},
             fixed=tuple(spec.fixed) if spec.joint_errors is None else (),
             description=spec.description, markers=spec.markers,
         )
@@ -203,6 +198,39 @@ def model_from_mapping(data: dict, path: str | Path) -> SerialModel:
         return model
     except InputError as exc:
         raise InputError(f"invalid model file: {exc.message}", file=path) from None
+
+
+def _checked_file(data: dict, path: str | Path) -> SimpleNamespace:
+    """The checked top-level fields of a model file (`kinecal.io.model_plain`, else the
+    pydantic schema, which words the error)."""
+    plain = plain_model_file(data)
+    if plain is not None:
+        return SimpleNamespace(**plain)
+    from pydantic import ValidationError
+
+    from kinecal.io.model_schema import ModelFile
+
+    try:
+        spec = ModelFile.model_validate(data)
+    except ValidationError as exc:
+        raise InputError(f"invalid model file: {_validation_message(exc)}", file=path) from None
+    fields = dict(spec)
+    fields["tolerances"] = dict(spec.tolerances)
+    return SimpleNamespace(**fields)
+
+
+def _checked_entry(convention: str, raw: Any, k: int, path: str | Path) -> dict:
+    """Chain entry `k` checked by the pydantic schema (`model_dump(exclude_none=True)`)."""
+    from pydantic import ValidationError
+
+    from kinecal.io.model_schema import entry_spec
+
+    try:
+        entry = entry_spec(convention, raw).model_validate(raw)
+    except ValidationError as exc:
+        raise InputError(f"invalid model file: joints.{k}.{_validation_message(exc)}",
+                         file=path) from None
+    return entry.model_dump(exclude_none=True)
 
 
 def model_to_dict(model: SerialModel, angle_unit: str = "deg") -> dict:
@@ -269,5 +297,7 @@ def save_model(model: SerialModel, path: str | Path, angle_unit: str | None = No
     """
     check_model_file_name(path)
     angle_unit = angle_unit or model.angle_unit
+    import yaml
+
     text = yaml.safe_dump(model_to_dict(model, angle_unit), sort_keys=False, width=100)
     write_text_atomic(path, text)

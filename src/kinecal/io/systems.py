@@ -14,12 +14,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from kinecal.errors import InputError
 from kinecal.io.bundled import bundled_index, resolve_machine_file
 from kinecal.io.models import is_urdf_path, load_model
 from kinecal.kinematics.serial.model import SerialModel
-from kinecal.kinematics.tree.system import SystemModel
+
+if TYPE_CHECKING:  # loaded by the readers of systems only
+    from kinecal.kinematics.tree.system import SystemModel
 
 __all__ = ["is_system_file", "is_system_spec", "load_machine", "load_system"]
 

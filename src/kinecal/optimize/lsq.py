@@ -7,6 +7,7 @@ holding a monitored cost after each iteration (``monitor(r)``, default the RMS r
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
@@ -17,7 +18,7 @@ from numpy.typing import NDArray
 
 from kinecal._blas import small_products
 from kinecal.errors import InputError
-from kinecal.optimize._common import make_result
+from kinecal.optimize._common import FitResult, fit_result, make_result
 from kinecal.optimize.lm import (
     LinearSolver,
     LMSolution,
@@ -143,6 +144,22 @@ def householder_gauss_newton(
     )
 
 
+def _scipy_result(fit: Callable[..., FitResult]) -> Callable[..., OptimizeResult]:
+    """The public form of the solver `fit`: its result as scipy's `OptimizeResult`. `fit`
+    itself stays reachable as ``.fit`` for kinecal's own paths, which then never import
+    scipy.optimize (`kinecal.optimize._common.FitResult`)."""
+
+    @functools.wraps(fit)
+    def solver(*args, **kwargs) -> OptimizeResult:
+        from scipy.optimize import OptimizeResult
+
+        return OptimizeResult(fit(*args, **kwargs))
+
+    solver.fit = fit  # type: ignore[attr-defined]
+    return solver
+
+
+@_scipy_result
 def levenberg_marquardt(
     residual: Residual,
     jacobian: Jacobian,
@@ -204,6 +221,7 @@ def levenberg_marquardt(
     Returns
     -------
     OptimizeResult
+        (``levenberg_marquardt.fit``: the same fields in a `FitResult`)
         ``x, fun (0.5 sum rho(r^2)), nit, nfev, njev, history, residual, jac, success,
         status, message``; the kinecal solver also returns ``normal_matrix`` (``J^T J``)
         and ``gradient`` (``J^T r``) at ``x`` and its last ``damping``, and ``jac`` only
@@ -255,17 +273,17 @@ def levenberg_marquardt(
                         ftol=ftol, xtol=xtol, gtol=gtol, x_scale="jac")
     elapsed = time.perf_counter() - t0
     njev = int(out.njev) if out.njev is not None else 0
-    return make_result(
+    return fit_result(
         out.x, float(out.cost), nit=njev, nfev=int(out.nfev), success=bool(out.success),
         status=int(out.status), message=str(out.message), history=history, elapsed=elapsed,
         njev=njev, residual=out.fun, jac=out.jac,
     )
 
 
-def _as_result(sol: LMSolution) -> OptimizeResult:
-    """The `OptimizeResult` of a kinecal LM solution (``jac`` only when it was formed)."""
+def _as_result(sol: LMSolution) -> FitResult:
+    """The `FitResult` of a kinecal LM solution (``jac`` only when it was formed)."""
     extra = {} if sol.jac is None else {"jac": sol.jac}
-    return make_result(
+    return fit_result(
         sol.x, sol.fun, nit=sol.nit, nfev=sol.nfev, success=sol.success, status=sol.status,
         message=sol.message, history=sol.history, elapsed=sol.elapsed, njev=sol.njev,
         residual=sol.residual, normal_matrix=sol.normal_matrix, gradient=sol.gradient,

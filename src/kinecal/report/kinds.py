@@ -30,7 +30,16 @@ def _unknowns(entries: list[dict]) -> list[tuple]:
     rows = []
     for e in entries:
         for u in e.get("unknowns") or []:
-            name = next(f"{k} {u[k]}" for k in ("pivot", "point", "plane") if k in u)
+            if "matrix" in u:  # a camera's or board's mount (camera images, rigs)
+                t = [row[3] for row in u["matrix"][:3]]
+                rows.append((Path(str(e["file"])).name, f"{u['name']} ({u.get('frame', '')})",
+                             "t = " + ", ".join(f"{v:.6g}" for v in t),
+                             ", ".join(f"{v:.3g}" for v in u["std_translation"]) + "; "
+                             + ", ".join(f"{v:.3g}" for v in u["std_rotation_deg"]) + " deg"))
+                continue
+            name = next((f"{k} {u[k]}" for k in ("pivot", "point", "plane") if k in u), None)
+            if name is None:  # intrinsics and other unknowns without a place
+                continue
             if "xyz" in u:
                 where = ", ".join(f"{v:.6g}" for v in u["xyz"])
                 std = ", ".join(f"{v:.3g}" for v in u["std"])
@@ -56,8 +65,8 @@ def kinds_section(result: Any) -> str:
             "own unknowns fitted to it.</p>" + table(head, _rows(entries, unit), left=2))
     unknowns = _unknowns(entries)
     if unknowns:
-        body += ("<p>Unknowns of the gauges, solved with the arm (measurement frame, "
-                 f"{html.escape(unit)}; standard errors):</p>"
+        body += ("<p>Unknowns of the gauges and mounts, solved with the arm (measurement "
+                 f"frame or the mount's link, {html.escape(unit)}; standard errors):</p>"
                  + table(["file", "gauge", "value", "std. error"], unknowns, left=4))
     if extra.get("validation_kinds"):
         body += ("<p>Validation sets (their own unknowns fitted with the arm held at the "

@@ -13,7 +13,12 @@ The image side of hand-eye calibration from pictures (`kinecal.vision.pipeline`)
 - `render`: synthetic hand-eye scenes: planned views, rendered images, truth (tests,
   docs, planning);
 - `pipeline`: images + robot poses -> X, refined on the reprojection error;
-- `results`: what the pipeline returns, per image and as a whole (JSON).
+- `results`: what the pipeline returns, per image and as a whole (JSON);
+- camera rigs (docs/rigs.md): `rig` (``--camera NAME:LINK[:I.yaml]``, ``--board
+  NAME:LINK:SPEC``), `rig_mounts` and `rig_scene` (a rig's default mounts and rendered
+  stations of a perturbed arm or system; `scene_views` without rendering), `rig_files`
+  (images, STATIONS.csv, truth), `rig_images` (detection per camera and board, ChArUco
+  boards told apart by their ids, and `calibrate_rig_images`).
 
 OpenCV (``opencv-python-headless``, the ``vision`` extra) is imported lazily: importing
 this package works on the core install, and the first function that needs OpenCV raises

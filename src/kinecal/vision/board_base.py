@@ -22,7 +22,8 @@ Array = NDArray[np.float64]
 __all__ = ["MAX_GRID", "SYNTAX", "Board", "grid_size", "positive_length"]
 
 SYNTAX = ("chessboard:COLSxROWS:SQUARE (inner corners, e.g. chessboard:9x6:30), "
-          "charuco:COLSxROWS:SQUARE:MARKER:DICT (squares, e.g. charuco:7x5:40:30:DICT_5X5_100), "
+          "charuco:COLSxROWS:SQUARE:MARKER:DICT[:FIRST] (squares, e.g. "
+          "charuco:7x5:40:30:DICT_5X5_100; FIRST: the first marker id), "
           "acircles:COLSxROWS:SPACING (e.g. acircles:4x11:20), "
           "circles:COLSxROWS:PITCH[:DIAMETER] (e.g. circles:7x6:20) "
           "or modcircles:COLSxROWS:PITCH[:DIAMETER] (e.g. modcircles:10x10:25.4)")

@@ -13,10 +13,13 @@ Specs (``kinecal handeye-images --board``):
   ``(c, r)`` has id ``r * COLS + c`` and sits at ``(c * SQUARE, r * SQUARE, 0)``; the
   square diagonally outside corner 0 is black. Boards with COLS + ROWS odd (one count even,
   one odd, as 9x6) have a unique orientation; others look the same turned by 180 deg.
-- ``charuco:COLSxROWS:SQUARE:MARKER:DICT``: ChArUco board of COLS x ROWS *squares*, square
-  and marker sides in the length unit, an OpenCV ArUco dictionary name, e.g.
+- ``charuco:COLSxROWS:SQUARE:MARKER:DICT[:FIRST]``: ChArUco board of COLS x ROWS *squares*,
+  square and marker sides in the length unit, an OpenCV ArUco dictionary name, e.g.
   ``charuco:7x5:40:30:DICT_5X5_100`` (OpenCV's layout and corner ids; origin at the outer
-  corner of the board).
+  corner of the board). ``FIRST``: the id of its first marker (default 0; its markers are
+  FIRST, FIRST + 1, ...): several boards of one dictionary with disjoint id ranges are told
+  apart in one image (``charuco:7x5:40:30:DICT_5X5_100:20`` is a second board after a
+  first one's 17 markers).
 - ``acircles:COLSxROWS:SPACING``, ``circles:COLSxROWS:PITCH[:DIAMETER]`` and
   ``modcircles:COLSxROWS:PITCH[:DIAMETER]``: circle grids (`kinecal.vision.circle_grids`).
 """
@@ -105,6 +108,7 @@ class Charuco(Board):
     square: float
     marker: float
     dictionary: str
+    first: int = 0
     kind = "charuco"
 
     def __post_init__(self) -> None:
@@ -123,15 +127,29 @@ class Charuco(Board):
                              f"{', '.join(names)}", option="--board")
         size = int(re.search(r"_(\d+)$", self.dictionary).group(1)) \
             if re.search(r"_(\d+)$", self.dictionary) else 10**9
-        needed = (self.cols * self.rows) // 2
-        if needed > size:
-            raise InputError(f"charuco {self.cols}x{self.rows} needs {needed} markers but "
+        needed = self.n_markers
+        if self.first < 0:
+            raise InputError(f"charuco first marker id {self.first}: expected 0 or more",
+                             option="--board")
+        if self.first + needed > size:
+            at = f" from id {self.first}" if self.first else ""
+            raise InputError(f"charuco {self.cols}x{self.rows} needs {needed} markers{at} but "
                              f"{self.dictionary} has {size}", option="--board")
 
     @property
     def spec(self) -> str:
         return (f"charuco:{self.cols}x{self.rows}:{self.square:g}:{self.marker:g}:"
-                f"{self.dictionary}")
+                f"{self.dictionary}" + (f":{self.first}" if self.first else ""))
+
+    @property
+    def n_markers(self) -> int:
+        """Number of ArUco markers on the board (every other square)."""
+        return (self.cols * self.rows) // 2
+
+    @property
+    def marker_ids(self) -> range:
+        """The ids of its markers: ``first .. first + n_markers - 1``."""
+        return range(self.first, self.first + self.n_markers)
 
     @property
     def pitch(self) -> float:
@@ -143,7 +161,10 @@ class Charuco(Board):
 
         cv2 = require_cv2()
         d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
-        return cv2.aruco.CharucoBoard((self.cols, self.rows), self.square, self.marker, d)
+        if not self.first:
+            return cv2.aruco.CharucoBoard((self.cols, self.rows), self.square, self.marker, d)
+        ids = np.arange(self.first, self.first + self.n_markers, dtype=np.int32)
+        return cv2.aruco.CharucoBoard((self.cols, self.rows), self.square, self.marker, d, ids)
 
     def _object_points(self) -> Array:
         return np.asarray(self.cv_board().getChessboardCorners(), dtype=float).reshape(-1, 3)
@@ -183,10 +204,11 @@ def parse_board(spec: str) -> Board:
     if kind == "chessboard" and len(parts) == 3:
         c, r = grid_size(parts[1])
         return Chessboard(c, r, positive_length(parts[2], "square"))
-    if kind == "charuco" and len(parts) == 5:
+    if kind == "charuco" and len(parts) in (5, 6):
         c, r = grid_size(parts[1])
+        first = _first_id(parts[5]) if len(parts) == 6 else 0
         return Charuco(c, r, positive_length(parts[2], "square"),
-                       positive_length(parts[3], "marker"), parts[4].upper())
+                       positive_length(parts[3], "marker"), parts[4].upper(), first)
     if kind == "acircles" and len(parts) == 3:
         c, r = grid_size(parts[1])
         return AsymmetricCircleGrid(c, r, positive_length(parts[2], "spacing"))
@@ -196,3 +218,11 @@ def parse_board(spec: str) -> Board:
         dot = positive_length(parts[3], "dot diameter") if len(parts) == 4 else None
         return grids[kind](c, r, positive_length(parts[2], "pitch"), dot)
     raise InputError(f"board {spec!r}: expected {SYNTAX}", option="--board")
+
+
+def _first_id(text: str) -> int:
+    """The first marker id of a ChArUco spec: an integer 0 .. 100000."""
+    if not text.isdigit() or int(text) > 100_000:
+        raise InputError(f"charuco first marker id {text!r}: expected an integer 0 or more "
+                         "(the id of the board's first marker)", option="--board")
+    return int(text)

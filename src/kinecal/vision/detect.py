@@ -163,7 +163,9 @@ def _detect_charuco(gray: NDArray[np.uint8], board: Charuco, det: Detection,
                                          cv2.aruco.DetectorParameters())
     corners, ids, _, marker_ids = detector.detectBoard(gray)
     n = 0 if ids is None else len(ids)
-    nm = 0 if marker_ids is None else len(marker_ids)
+    # the markers of this board (another board's in the same image have other ids)
+    own = board.marker_ids
+    nm = 0 if marker_ids is None else sum(int(m) in own for m in np.ravel(marker_ids))
     need = limits.corners_needed(board)
     det.seen = (f"{nm} of {board.cols * board.rows // 2} markers found, {n} of "
                 f"{board.n_corners} corners interpolated")

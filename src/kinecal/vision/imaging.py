@@ -16,6 +16,7 @@ at the projection of its board point to about 0.01 px (tests).
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,7 +30,7 @@ from kinecal.vision.boards import Board
 
 Array = NDArray[np.float64]
 
-__all__ = ["ImageConditions", "render_board", "undistort_normalized"]
+__all__ = ["ImageConditions", "render_board", "render_boards", "undistort_normalized"]
 
 _BLACK, _WHITE = 20.0, 235.0
 
@@ -139,6 +140,24 @@ def render_board(
     -------
     ndarray, shape (height, width), uint8
     """
+    return render_boards([board], K, dist, [target2cam], size, conditions,
+                         supersample=supersample, rng=rng)
+
+
+def render_boards(
+    boards: Sequence[Board],
+    K: Array,
+    dist: Array | None,
+    target2cam: Sequence[Array],
+    size: tuple[int, int],
+    conditions: ImageConditions | None = None,
+    *,
+    supersample: int = 3,
+    rng: int | np.random.Generator | None = None,
+) -> NDArray[np.uint8]:
+    """One 8-bit grey image of several boards at their poses `target2cam` (a rig's image:
+    two boards on two arms, boards of one cell); where they overlap the nearer one hides
+    the other. Parameters as `render_board`, one pose ``(4, 4)`` per board."""
     cv2 = require_cv2()
     K, d8 = check_camera(K, dist)
     cond = conditions or ImageConditions()
@@ -147,7 +166,22 @@ def render_board(
     ss = int(supersample)
     if W < 8 or H < 8 or ss < 1:
         raise InputError(f"image size {W}x{H} / supersample {ss}: expected >= 8 px and >= 1")
-    T = np.asarray(target2cam, dtype=float)
+    if len(boards) != len(target2cam):
+        raise InputError(f"{len(boards)} boards but {len(target2cam)} poses")
+    fine = np.full((H * ss, W * ss), float(cond.background), np.float32)
+    depth = np.full((H * ss, W * ss), np.inf)
+    for board, T in zip(boards, target2cam, strict=True):
+        _paint(fine, depth, board, K, d8, np.asarray(T, dtype=float), W, H, ss,
+               float(cond.background))
+    img = cv2.resize(fine, (W, H), interpolation=cv2.INTER_AREA) if ss > 1 else fine
+    return _finish(img.astype(np.float64), cond, W, H, rng)
+
+
+def _paint(fine: NDArray[np.float32], depth: Array, board: Board, K: Array, d8: Array,
+           T: Array, W: int, H: int, ss: int, background: float) -> None:
+    """Draw `board` at pose `T` into the supersampled image `fine` where it is nearer than
+    `depth` (the ray parameter of what is drawn there), updating `depth`."""
+    cv2 = require_cv2()
     R, t = T[:3, :3], T[:3, 3]
     # texture resolution: ~1.2 texels per fine pixel at the nearest corner
     z_near = float(np.min((board.object_points @ R.T + t)[:, 2]))
@@ -157,35 +191,50 @@ def render_board(
     # texels per pitch, rounded up to a quarter octave (a few cached textures per board)
     per_pitch = round(float(2.0 ** (np.ceil(4.0 * np.log2(max(board.pitch * ppu, 4.0))) / 4.0)))
     albedo_tex, A = _albedo_texture(board, per_pitch)
-    fine = np.full((H * ss, W * ss), float(cond.background), np.float32)
     win = _board_window(board, A, albedo_tex.shape, K, d8, R, t, W, H)
-    if win is not None:
-        i0, i1, j0, j1 = (w * ss for w in win)
-        # fine pixel centres of the window (final image coordinates)
-        us = (np.arange(j0, j1) + 0.5) / ss - 0.5
-        vs = (np.arange(i0, i1) + 0.5) / ss - 0.5
-        x, y = _ray_grid(us, vs, ss, K, d8)
-        # the ray (x, y, 1) meets the board plane n . p = n . t at lambda = n.t / n.(x, y, 1);
-        # that point's board coordinates are R^T (lambda (x, y, 1) - t)
-        n = R[:, 2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            lam = (n @ t) / (n[0] * x + n[1] * y + n[2])
-        front = np.isfinite(lam) & (lam > 0)
-        lam = np.where(front, lam, 0.0)
-        bt = R.T @ t
-        mx = A[0, 0] * (lam * (R[0, 0] * x + R[1, 0] * y + R[2, 0]) - bt[0]) + A[0, 2]
-        my = A[1, 1] * (lam * (R[0, 1] * x + R[1, 1] * y + R[2, 1]) - bt[1]) + A[1, 2]
-        mx = np.where(front, mx, -1e6).astype(np.float32)
-        my = np.where(front, my, -1e6).astype(np.float32)
-        if board.faces * (n @ t) <= 0:  # the printed side faces away: the plain back
-            tex = np.full_like(albedo_tex, 200.0)
-        else:
-            tex = albedo_tex
-        fine[i0:i1, j0:j1] = cv2.remap(tex, mx, my, interpolation=cv2.INTER_LINEAR,
-                                       borderMode=cv2.BORDER_CONSTANT,
-                                       borderValue=float(cond.background))
-    img = cv2.resize(fine, (W, H), interpolation=cv2.INTER_AREA) if ss > 1 else fine
-    img = img.astype(np.float64)
+    if win is None:
+        return
+    i0, i1, j0, j1 = (w * ss for w in win)
+    # fine pixel centres of the window (final image coordinates)
+    us = (np.arange(j0, j1) + 0.5) / ss - 0.5
+    vs = (np.arange(i0, i1) + 0.5) / ss - 0.5
+    x, y = _ray_grid(us, vs, ss, K, d8)
+    # the ray (x, y, 1) meets the board plane n . p = n . t at lambda = n.t / n.(x, y, 1);
+    # that point's board coordinates are R^T (lambda (x, y, 1) - t)
+    n = R[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = (n @ t) / (n[0] * x + n[1] * y + n[2])
+    front = np.isfinite(lam) & (lam > 0)
+    lam = np.where(front, lam, 0.0)
+    bt = R.T @ t
+    mx = A[0, 0] * (lam * (R[0, 0] * x + R[1, 0] * y + R[2, 0]) - bt[0]) + A[0, 2]
+    my = A[1, 1] * (lam * (R[0, 1] * x + R[1, 1] * y + R[2, 1]) - bt[1]) + A[1, 2]
+    h, w = albedo_tex.shape[:2]
+    on = front & (mx > -0.5) & (mx < w - 0.5) & (my > -0.5) & (my < h - 0.5)
+    mx = np.where(front, mx, -1e6).astype(np.float32)
+    my = np.where(front, my, -1e6).astype(np.float32)
+    if board.faces * (n @ t) <= 0:  # the printed side faces away: the plain back
+        tex = np.full_like(albedo_tex, 200.0)
+    else:
+        tex = albedo_tex
+    drawn = cv2.remap(tex, mx, my, interpolation=cv2.INTER_LINEAR,
+                      borderMode=cv2.BORDER_CONSTANT, borderValue=background)
+    view = fine[i0:i1, j0:j1]
+    near = depth[i0:i1, j0:j1]
+    if np.isinf(near).all():  # nothing drawn here yet: the whole window, as one board
+        view[...] = drawn
+        near[on] = lam[on]
+        return
+    take = on & (lam < near)
+    view[take] = drawn[take]
+    near[take] = lam[take]
+
+
+def _finish(img: Array, cond: ImageConditions, W: int, H: int,
+            rng: np.random.Generator) -> NDArray[np.uint8]:
+    """Illumination, blur, noise and quantisation of the integrated image (module
+    docstring)."""
+    cv2 = require_cv2()
     # illumination
     u = (np.arange(W) - 0.5 * (W - 1)) / W
     v = (np.arange(H) - 0.5 * (H - 1)) / H

@@ -33,6 +33,8 @@ What a block provides (each method's docstring has the shapes and units):
                           sweep for all such blocks)
 ``observation_errors(r)`` per-observation error sizes from the residual (before / after
                           statistics, outliers)
+``normal_parts(...)``     optional: the block's share of the normal equations without its
+                          dense rows (a block-sparse nuisance Jacobian)
 ``observation_poses()``   the pose of each observation (rows of one configuration at
                           several markers: one pose of the outlier test)
 ``check_data``, ``check_fit``  plausibility hooks (`kinecal.diagnostics.warn` with a stable
@@ -283,6 +285,17 @@ class ResidualBlock(ABC):
     @abstractmethod
     def observation_errors(self, r: Array) -> Array:
         """Error size per observation ``(n_obs,)`` (block unit) from residuals ``(m,)``."""
+
+    def normal_parts(self, model: SerialModel, params: Array, nuisance: Array,
+                     columns: NDArray[np.intp], weights: Array) -> tuple | None:
+        """The block's share of the normal equations summed without its dense rows, for a
+        block whose nuisance Jacobian is mostly zeros (a camera rig's: each row reaches one
+        camera and one board): ``(r_w, A_aa, A_an, A_nn, g_a, g_n)`` with the rows weighted
+        by `weights` ``(m,)`` (``r_w`` the weighted residual ``(m,)``; ``A_aa`` ``(k, k)``,
+        ``A_an`` ``(k, n_b)``, ``A_nn`` ``(n_b, n_b)``, ``g_a`` ``(k,)``, ``g_n`` ``(n_b,)``
+        for the arm `columns`). None (the default): the stack forms them from
+        `evaluate`."""
+        return None
 
     # ------------------------------------------------------------------ hooks
     def check_data(self, model: SerialModel, params: Array, nuisance: Array) -> None:

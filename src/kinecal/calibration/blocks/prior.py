@@ -22,10 +22,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import pairwise
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import OptimizeResult
 
 from kinecal.calibration.blocks.analysis import stack_scale
 from kinecal.calibration.blocks.solve import StackFit, estimate_noise
@@ -36,7 +36,11 @@ from kinecal.calibration.serial.prior import Prior, PriorSpec, resolve_prior, to
 from kinecal.calibration.serial.prior_auto import DEFAULT_FOLDS, negligible, scan_strengths
 from kinecal.calibration.serial.prior_fit import posterior_uncertainty, prior_split
 from kinecal.calibration.uncertainty import Uncertainty
+from kinecal.optimize._common import FitResult
 from kinecal.optimize.lsq import levenberg_marquardt
+
+if TYPE_CHECKING:
+    from scipy.optimize import OptimizeResult
 
 __all__ = ["PriorStack", "StackPriorFit", "stack_prior"]
 
@@ -114,7 +118,7 @@ class StackPriorFit:
 
 
 def _solve(ps: PriorStack, x: Array) -> OptimizeResult:
-    return levenberg_marquardt(ps.residuals, ps.jacobian, x, monitor=ps.monitor,
+    return levenberg_marquardt.fit(ps.residuals, ps.jacobian, x, monitor=ps.monitor,
                                normal_equations=ps.normal_equations,
                                max_nfev=max(200, 10 * (ps.n + 1)))
 
@@ -143,7 +147,7 @@ def _fold_score(problem: StackedProblem, prior: Prior | None, noise: float, at: 
         problem.set_sigma(sig)
         try:
             if prior is None:
-                fit = levenberg_marquardt(problem.residuals, problem.jacobian, at,
+                fit = levenberg_marquardt.fit(problem.residuals, problem.jacobian, at,
                                           monitor=problem.monitor,
                                           normal_equations=problem.normal_equations,
                                           max_nfev=max(200, 10 * (problem.n + 1)))
@@ -238,7 +242,7 @@ def stack_prior(fit: StackFit, spec: PriorSpec, rank_tol: float
     problem.set_sigma(ps.sigma)
     fit.rounds += rounds
     r = np.asarray(res.residual)[:ps.m]
-    out = OptimizeResult(res)
+    out = FitResult(res)
     out.x, out.residual, out.fun = xm, r, 0.5 * float(r @ r)
     out.nfev += int(fit.result.nfev)
     out.nit += int(fit.result.nit)

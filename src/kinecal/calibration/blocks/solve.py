@@ -77,7 +77,7 @@ class StackFit:
 
 def _lm(problem: StackedProblem, x: Array, **kw) -> OptimizeResult:
     kw.setdefault("max_nfev", max(200, 10 * (problem.n + 1)))
-    return levenberg_marquardt(problem.residuals, problem.jacobian, x, monitor=problem.monitor,
+    return levenberg_marquardt.fit(problem.residuals, problem.jacobian, x, monitor=problem.monitor,
                                normal_equations=problem.normal_equations, **kw)
 
 
@@ -195,13 +195,14 @@ def observation_outliers(problem: StackedProblem, residuals: Sequence[Array]
     """Observations far outside their block's spread (`chi_outliers` of the errors in
     units of the noise, per block, the observations of one pose at several markers pooled:
     `ResidualBlock.observation_poses`); none in a block whose errors are all at round-off
-    (below `ROUND_OFF` of the workspace's size). Every observation of a flagged pose is
-    returned."""
+    (below `ROUND_OFF` of the workspace's size, or the block's ``round_off`` in its own
+    unit). Every observation of a flagged pose is returned."""
     floor = _round_off(problem)
     out = []
     for i, (b, r, s) in enumerate(zip(problem.blocks, residuals, problem.sigma, strict=True)):
         e = b.observation_errors(r)
-        if b.unit == "length" and e.size and e.max() <= floor:
+        # (other units: the block's own round-off, e.g. a camera's pixels)
+        if e.size and e.max() <= (floor if b.unit == "length" else getattr(b, "round_off", 0.0)):
             continue
         group, n = b.observation_poses()
         out += [(i, j) for j in pose_outliers(e / s, group, n, b.obs_dof)]
@@ -286,13 +287,13 @@ def fit_stack(model: SerialModel, blocks: Sequence[ResidualBlock], names: list[s
         r = problem.residuals(res.x)
         scale = f_scale if f_scale is not None else 3.0 * max(float(np.median(np.abs(r))),
                                                              1e-12)
-        robust = levenberg_marquardt(problem.residuals, problem.jacobian, res.x, loss=loss,
+        robust = levenberg_marquardt.fit(problem.residuals, problem.jacobian, res.x, loss=loss,
                                      f_scale=scale, monitor=problem.monitor)
         res = _merge(res, robust)
         outliers = observation_outliers(problem, problem.block_residuals(res.x))
         if outliers and _enough(problem, outliers):  # down-weighted they still pull
             problem.exclude(outliers)
-            res = _merge(res, levenberg_marquardt(
+            res = _merge(res, levenberg_marquardt.fit(
                 problem.residuals, problem.jacobian, res.x, loss=loss, f_scale=scale,
                 monitor=problem.monitor))
     return StackFit(problem, res, list(known), f, red, rounds, outliers)

@@ -180,19 +180,31 @@ class StackedProblem:
         return G
 
     def normal_equations(self, x: Array) -> tuple[Array, Array, Array]:
-        """``(residuals, J^T J, J^T r)`` at `x`, assembled block by block."""
+        """``(residuals, J^T J, J^T r)`` at `x`, assembled block by block (a block with
+        `ResidualBlock.normal_parts` sums its own share without its dense rows)."""
         A = np.zeros((self.n, self.n))
         g = np.zeros(self.n)
         parts = []
         k = self.k
-        for i, (r, Ja, Jn, s) in enumerate(self._weighted_rows(x)):
+        p = self.params(x)
+        pts = self._points(p, True)
+        for i, (b, v, w, s) in enumerate(zip(self.blocks, self.nuisance(x), self.row_weight,
+                                             self.slices, strict=True)):
+            own = b.normal_parts(self.model, p, v, self.index, w) \
+                if self.groups[i] is None else None
+            if own is None:
+                rows = b.evaluate(self.model, p, v, self.index, jacobian=True,
+                                  points=pts.get(i))
+                r, Ja, Jn = rows.r * w, rows.arm * w[:, None], rows.nuisance * w[:, None]
+                own = (r, self.arm_gram(i, Ja), Ja.T @ Jn, Jn.T @ Jn, Ja.T @ r, Jn.T @ r)
+            r, Gaa, Gan, Gnn, ga, gn = own
             parts.append(r)
-            A[:k, :k] += self.arm_gram(i, Ja)
-            A[:k, s] = Ja.T @ Jn
-            A[s, :k] = A[:k, s].T
-            A[s, s] = Jn.T @ Jn
-            g[:k] += Ja.T @ r
-            g[s] = Jn.T @ r
+            A[:k, :k] += Gaa
+            A[:k, s] = Gan
+            A[s, :k] = Gan.T
+            A[s, s] = Gnn
+            g[:k] += ga
+            g[s] = gn
         return (np.concatenate(parts) if parts else np.zeros(0)), A, g
 
     def block_grams(self, x: Array) -> list[Array]:
@@ -244,6 +256,16 @@ def fit_nuisance(block: ResidualBlock, model: SerialModel, params: Array, start:
         rows = block.evaluate(model, params, v, none, jacobian=True, points=points)
         return rows.nuisance * (w[:, None] if np.ndim(w) else w)
 
-    res = levenberg_marquardt(residual, jacobian, start, max_nfev=200)
+    normal = None
+    cols = np.zeros(0, dtype=np.intp)
+    wr = np.broadcast_to(np.asarray(w, dtype=float), (block.n_rows,))
+    if block.normal_parts(model, params, start, cols, wr) is not None:
+
+        def normal(v: Array) -> tuple[Array, Array, Array]:  # block-sparse, no dense rows
+            r, _, _, A, _, g = block.normal_parts(model, params, v, cols, wr)
+            return r, A, g
+
+    res = levenberg_marquardt.fit(residual, jacobian, start, max_nfev=200,
+                              normal_equations=normal)
     v = np.asarray(res.x, dtype=float)
     return v, block.evaluate(model, params, v, points=points).r

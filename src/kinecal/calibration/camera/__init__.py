@@ -31,17 +31,30 @@ Entry points:
 
 The images are read and the board detected by `kinecal.vision.arm_images`; stations of a
 perturbed arm are rendered by `kinecal.vision.stations`.
+
+Camera rigs (docs/rigs.md): several cameras and boards, each on a link of an arm or a
+robot system (`kinecal.calibration.camera.rig_frames`), their corner pixels one residual
+block (`RigBlock`, `kinecal.calibration.camera.rig_block`; the model and Jacobian in
+`rig_pixels` and `rig_jacobian`, block-sparse normal equations), started without a guess
+by a closed form per camera-board pair (`rig_start`); `calibrate_rig`
+(`kinecal.calibration.camera.rig_solve`) with the mounts' covariance, camera-to-camera
+extrinsics and what each mount takes up (`rig_identify`); `calibrate_rig_handeye`
+(`rig_handeye`): several cameras' hand-eye from given robot poses.
 """
 
 from kinecal._lazy import lazy_exports
 
-__all__ = ["ArmCameraResult", "CameraBlock", "PixelBlock", "Stations", "calibrate_arm_camera",
+__all__ = ["ArmCameraResult", "CameraBlock", "PixelBlock", "RigBlock", "Stations",
+           "calibrate_arm_camera", "calibrate_rig", "calibrate_rig_handeye",
            "camera_identifiability", "closed_form_start"]
 
 __getattr__, __dir__ = lazy_exports(__name__, {
     "ArmCameraResult": "kinecal.calibration.camera.result",
     "CameraBlock": "kinecal.calibration.camera.residual_block",
     "PixelBlock": "kinecal.calibration.camera.block",
+    "RigBlock": "kinecal.calibration.camera.rig_block",
+    "calibrate_rig": "kinecal.calibration.camera.rig_solve",
+    "calibrate_rig_handeye": "kinecal.calibration.camera.rig_handeye",
     "Stations": "kinecal.calibration.camera.result",
     "calibrate_arm_camera": "kinecal.calibration.camera.solve",
     "camera_identifiability": "kinecal.calibration.camera.identify",

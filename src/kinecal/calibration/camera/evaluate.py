@@ -19,7 +19,7 @@ from kinecal.spatial import matrix_from_axis_angle, transform_from
 
 Array = NDArray[np.float64]
 
-__all__ = ["aligned_tool_errors"]
+__all__ = ["aligned_frame_errors", "aligned_tool_errors"]
 
 
 def aligned_tool_errors(model: SerialModel, params: Array, true_params: Array, q: Array,
@@ -43,8 +43,15 @@ def aligned_tool_errors(model: SerialModel, params: Array, true_params: Array, q
     ndarray, shape (N,)
         Distances (length unit).
     """
-    Te = model.fk(q, params)
-    Tt = model.fk(q, true_params)
+    return aligned_frame_errors(model.fk(q, params), model.fk(q, true_params), tool, reach)
+
+
+def aligned_frame_errors(Te: Array, Tt: Array, tool: Array = (0.0, 0.0, 150.0),
+                         reach: float = 100.0) -> Array:
+    """Tool-point errors ``(N,)`` of estimated end frames `Te` ``(N, 4, 4)`` against true
+    ones `Tt` after the rigid alignment at both ends (module docstring): what
+    `aligned_tool_errors` computes from a model, for frames of any chain (a robot system's
+    tip, `kinecal.kinematics.tree.SystemModel.tip_model`)."""
     pts = np.vstack([np.zeros(3), np.eye(3) * reach, np.asarray(tool, float)])
 
     def place(T: Array, x: Array) -> tuple[Array, Array, Array]:

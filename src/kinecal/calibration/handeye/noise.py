@@ -197,11 +197,16 @@ def estimate_components(y: Array, J: Array, V: Array, theta: Array, floor: Array
         idx = np.flatnonzero(free)
         Fs = F[np.ix_(idx, idx)]
         d = np.sqrt(np.clip(np.diag(Fs), 1e-300, None))
+        if not (np.all(np.isfinite(Fs)) and np.all(np.isfinite(g))):
+            return theta  # components gone beyond what the stations can bound: keep the last
         try:
-            step[idx] = np.linalg.solve(Fs / np.outer(d, d), g[idx] / d) / d
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                step[idx] = np.linalg.solve(Fs / np.outer(d, d), g[idx] / d) / d
         except np.linalg.LinAlgError:
             return theta
         new = np.maximum(theta + step, 0.1 * theta)
+        if not np.all(np.isfinite(new)):  # a step the information cannot bound: stop here
+            return theta
         scale = np.where(rot_like, max(new[rot_like].max(), 1e-300), max(new[1], 1e-300))
         done = np.all(np.abs(new - theta) <= tol * scale)
         theta = new

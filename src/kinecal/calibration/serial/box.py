@@ -83,7 +83,7 @@ def search_box(problem: CalibrationProblem, box: str) -> tuple[Array, dict[str, 
     if box == "tolerances":
         bounds = problem.bounds()
         return bounds, {"box": box, "center": problem.x0.copy(), "half_width": tol.copy()}
-    res = levenberg_marquardt(problem.residuals, problem.jacobian, problem.x0,
+    res = levenberg_marquardt.fit(problem.residuals, problem.jacobian, problem.x0,
                               normal_equations=problem.normal_equations)
     x = np.asarray(res.x, dtype=float)
     n_rows = problem.rows * len(problem.data)

@@ -140,7 +140,7 @@ def robust_start(problem: CalibrationProblem, res: OptimizeResult,
         if problem.rows * keep.size <= 2 * problem.n_free:  # too few left to judge by
             break
         sub = _subset(problem, keep)
-        fit = merge_runs(fit, levenberg_marquardt(
+        fit = merge_runs(fit, levenberg_marquardt.fit(
             sub.residuals, sub.jacobian, fit.x, monitor=sub.mean_distance_from_residuals,
             normal_equations=sub.normal_equations, ftol=ftol))
         done = flagged
@@ -169,7 +169,7 @@ def robust_fit(problem: CalibrationProblem, x: NDArray[np.float64],
     """
     d = problem.distances(x)
     scale = f_scale if f_scale is not None else 3.0 * max(float(np.median(d)), 1e-12)
-    res = merge_runs(first, levenberg_marquardt(
+    res = merge_runs(first, levenberg_marquardt.fit(
         problem.residuals, problem.jacobian, x, loss=loss, f_scale=scale,
         monitor=problem.mean_distance_from_residuals))
     d = problem.distances(res.x)
@@ -181,7 +181,7 @@ def robust_fit(problem: CalibrationProblem, x: NDArray[np.float64],
     if not flagged or problem.rows * keep.size <= 2 * problem.n_free:
         return res, flagged
     sub = _subset(problem, keep)
-    res = merge_runs(res, levenberg_marquardt(
+    res = merge_runs(res, levenberg_marquardt.fit(
         sub.residuals, sub.jacobian, res.x, loss=loss, f_scale=scale,
         monitor=sub.mean_distance_from_residuals))
     return res, flagged

@@ -57,7 +57,7 @@ def check_local_polish(problem, x: Array, method: str, target: float | None = No
     if target is not None and mean <= target:
         return None
     try:
-        res = levenberg_marquardt(problem.residuals, problem.jacobian, np.asarray(x, float),
+        res = levenberg_marquardt.fit(problem.residuals, problem.jacobian, np.asarray(x, float),
                                   max_nfev=POLISH_EVALUATIONS)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError):  # no verdict, no noise
         return None

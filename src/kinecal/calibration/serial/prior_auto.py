@@ -23,9 +23,10 @@ result is the plain fit's, bit for bit.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import OptimizeResult
 
 from kinecal.calibration.serial.cross_validation import (
     CVScore,
@@ -46,6 +47,9 @@ from kinecal.calibration.serial.prior_fit import (
 from kinecal.calibration.serial.problem import CalibrationProblem
 from kinecal.errors import InputError
 from kinecal.optimize.lsq import levenberg_marquardt
+
+if TYPE_CHECKING:
+    from scipy.optimize import OptimizeResult
 
 __all__ = ["DEFAULT_FOLDS", "GRID", "REFIT_FOLDS", "REFIT_ROWS", "apply_prior",
            "choose_strength", "cv_choice", "negligible", "scan_strengths"]
@@ -118,7 +122,7 @@ def _refit_score(problem: CalibrationProblem, folds: NDArray[np.intp], k_folds: 
         except InputError:  # a fold leaves fewer equations than parameters: no score
             continue
         if prior is None:
-            fit = levenberg_marquardt(sub.residuals, sub.jacobian, x,
+            fit = levenberg_marquardt.fit(sub.residuals, sub.jacobian, x,
                                       monitor=sub.mean_distance_from_residuals,
                                       normal_equations=sub.normal_equations)
         else:

@@ -20,16 +20,20 @@ say; a parameter with a share below one half was decided by the prior.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import OptimizeResult
 
 from kinecal.calibration.serial.prior import Prior, prior_text
 from kinecal.calibration.serial.problem import CalibrationProblem, column_scale
 from kinecal.calibration.uncertainty import Uncertainty, estimable_rows
 from kinecal.errors import InputError
+from kinecal.optimize._common import FitResult
 from kinecal.optimize.lsq import levenberg_marquardt
+
+if TYPE_CHECKING:
+    from scipy.optimize import OptimizeResult
 
 __all__ = [
     "PriorFit",
@@ -138,7 +142,7 @@ class PriorFit:
 
 def solve_map(pp: PriorProblem, x0: Array) -> OptimizeResult:
     """Levenberg-Marquardt on the data and prior rows of `pp` from `x0`."""
-    return levenberg_marquardt(pp.residuals, pp.jacobian, x0, monitor=pp.monitor,
+    return levenberg_marquardt.fit(pp.residuals, pp.jacobian, x0, monitor=pp.monitor,
                                normal_equations=pp.normal_equations)
 
 
@@ -181,7 +185,7 @@ def fit_with_prior(problem: CalibrationProblem, res: OptimizeResult, prior: Prio
     r_data = r_all[:pp.m]
     A_post = np.asarray(fit.normal_matrix)
     A_data = A_post - np.diag(pp.w**2)
-    out = OptimizeResult(fit)
+    out = FitResult(fit)
     out.x = x
     out.residual = r_data
     out.fun = 0.5 * float(r_data @ r_data)

@@ -129,7 +129,7 @@ def solve_lm(model: SerialModel, data: Measurements, free: str | Sequence[str], 
         pos = [cand.index(n) for n in names] + [len(cand)]
         Gs = G[np.ix_(pos, pos)]
         start = (r0, Gs[:-1, :-1], Gs[:-1, -1])
-    res = levenberg_marquardt(problem.residuals, problem.jacobian, problem.x0,
+    res = levenberg_marquardt.fit(problem.residuals, problem.jacobian, problem.x0,
                               monitor=problem.mean_distance_from_residuals,
                               normal_equations=problem.normal_equations, start=start,
                               ftol=GROWTH_FTOL if growing else None)
@@ -145,7 +145,7 @@ def solve_lm(model: SerialModel, data: Measurements, free: str | Sequence[str], 
     if loss != "linear":  # from the inliers' solution, outliers left out of the last fit
         res, outliers = robust_fit(problem, res.x, poses, loss, f_scale, res)
     elif found.outliers:  # least squares of every pose, from the inliers' solution
-        res = merge_runs(res, levenberg_marquardt(
+        res = merge_runs(res, levenberg_marquardt.fit(
             problem.residuals, problem.jacobian, res.x,
             monitor=problem.mean_distance_from_residuals,
             normal_equations=problem.normal_equations))
@@ -156,7 +156,7 @@ def _converge(problem: CalibrationProblem, res: OptimizeResult) -> OptimizeResul
     """Continue a fit stopped at the loose `GROWTH_FTOL` to full convergence."""
     if res.status != 3:  # stopped for another reason than the relative reduction
         return res
-    more = levenberg_marquardt(problem.residuals, problem.jacobian, res.x,
+    more = levenberg_marquardt.fit(problem.residuals, problem.jacobian, res.x,
                                monitor=problem.mean_distance_from_residuals,
                                normal_equations=problem.normal_equations,
                                start=(res.residual, res.normal_matrix, res.gradient),
@@ -232,7 +232,7 @@ def grow_identifiable(model, data, problem, res, report, tol):
     if not _significant(rss0, rss - g @ np.linalg.lstsq(A, g, rcond=None)[0], k, dof):
         return problem, _converge(problem, res), names, report
     bigger = CalibrationProblem(model, data, grown, problem.rotation_weight or None)
-    res2 = levenberg_marquardt(bigger.residuals, bigger.jacobian, params[bigger.index],
+    res2 = levenberg_marquardt.fit(bigger.residuals, bigger.jacobian, params[bigger.index],
                                monitor=bigger.mean_distance_from_residuals,
                                normal_equations=bigger.normal_equations,
                                start=(res.residual, A, g), damping=(1e-9, res.damping))

@@ -95,7 +95,7 @@ def register_frames(model: SerialModel, params: Array, data: Measurements) -> Ar
     if not names:
         return p
     problem = CalibrationProblem(at, dataclasses.replace(data, sigma=None), names)
-    res = levenberg_marquardt(problem.residuals, problem.jacobian, problem.x0)
+    res = levenberg_marquardt.fit(problem.residuals, problem.jacobian, problem.x0)
     return problem.full(res.x)
 
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -40,7 +41,6 @@ from kinecal.kinematics.serial.chain import (
     chain_entries,
     frame_list,
 )
-from kinecal.kinematics.serial.joint_errors import JointErrors, JointErrorTerms
 from kinecal.kinematics.serial.kinematics import SerialKinematics
 from kinecal.kinematics.serial.markers import (
     MarkerSet,
@@ -59,6 +59,9 @@ from kinecal.kinematics.serial.motions import (
     urdf_motions,
 )
 from kinecal.kinematics.serial.sweep import Sweep
+
+if TYPE_CHECKING:  # loaded with a model's joint errors only
+    from kinecal.kinematics.serial.joint_errors import JointErrors
 
 __all__ = [
     "BASE_NAMES",
@@ -173,6 +176,9 @@ class SerialModel(SerialKinematics):
         self._n_geometric = len(self._names)
         self._joint_terms: JointErrorTerms | None = None
         if self.joint_errors is not None:  # coefficients appended after base and tool
+            # imported here: a model without joint errors (most) never loads their terms
+            from kinecal.kinematics.serial.joint_errors import JointErrorTerms
+
             terms = self._joint_terms = JointErrorTerms(self, self.joint_errors)
             self._names = self._names + terms.names
             self._index = {n: k for k, n in enumerate(self._names)}
