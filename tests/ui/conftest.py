@@ -77,11 +77,17 @@ class Page:
         self.el(handle).click()
         self.page.get_by_role("option", name=option, exact=True).click()
 
-    def set_slider(self, handle, value) -> None:
-        """Type `value` into a viser slider's number box."""
+    def set_slider(self, handle, value, again: bool = False) -> None:
+        """Type `value` into a viser slider's number box (`again`: the box may show the
+        value already while the workbench missed it; it is emptied and typed key by key,
+        so that the page sends it once more)."""
         box = self.page.locator(f'[id="{handle._impl.uuid}"]').locator(
             "xpath=ancestor::div[contains(@class,'mantine-Flex-root')][1]//input").last
-        box.fill(str(value))
+        if again:
+            box.fill("")
+            box.press_sequentially(str(value))
+        else:
+            box.fill(str(value))
         box.press("Enter")
 
     def set_sliders(self, handles, values, timeout: float = 10.0) -> None:
@@ -92,9 +98,9 @@ class Page:
 
         pairs = list(zip(handles, values, strict=True))
         pending = pairs
-        for _ in range(3):
+        for attempt in range(3):
             for h, v in pending:
-                self.set_slider(h, v)
+                self.set_slider(h, v, again=attempt > 0)
             end = time.monotonic() + timeout / 3
             while time.monotonic() < end:
                 pending = [(h, v) for h, v in pairs if abs(float(h.value) - float(v)) > 1e-9]

@@ -74,7 +74,9 @@ def test_a_bad_file_dropped_gets_the_cli_error(page, bench, workdir, name, text)
     saved = f"kinecal-ui/dropped/{name}"
     assert (workdir / saved).read_text() == text  # kept as dropped
     assert shown == cli_error(["calibrate", "ur5", saved])
-    assert page.text("kc-status") == shown
+    # the status line comes over viser's websocket, after the drop's own answer
+    page.page.wait_for_function("(t) => document.getElementById('kc-status').innerText === t",
+                                arg=shown, timeout=10_000)
     page.page.locator("#kc-drop-message").click()
 
 
@@ -101,6 +103,7 @@ def test_plan_by_hand_is_saved_as_select_poses_writes(page, bench, workdir):
         page.el(bench.plan.add).click()
         page.wait_text("kc-plan", f"plan: {k + 1} poses")
     text = page.text("kc-plan")
+    page.page.locator("#kc-plan").scroll_into_view_if_needed()  # the figures in the shot
     page.shot(DOCS_IMG / "workbench-plan.png")
     assert np.allclose(bench.session.plan / bench.session.model.joint_scale(), wanted,
                        atol=1e-9)
