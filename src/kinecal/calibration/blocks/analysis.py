@@ -34,7 +34,7 @@ from kinecal.calibration.identifiability import IdentifiabilityReport, analyse_f
 from kinecal.calibration.serial.problem import column_scale
 from kinecal.data import Measurements
 from kinecal.errors import InputError
-from kinecal.optimize.factor import qr_update
+from kinecal.optimize.factor import gram_root, qr_update
 
 __all__ = ["MOTIONS", "StackAnalysis", "analyse_stack", "blind_basis", "blind_motions",
            "fixture_visibility", "fixture_words", "motion_names", "report_for", "stack_scale",
@@ -51,6 +51,10 @@ MOTIONS = {"translation": ("translation x", "translation y", "translation z"),
 PRODUCIBLE = 1e-6
 #: a block's own unknowns count as undetermined below this relative singular value
 NUISANCE_TOL = 1e-9
+#: smallest rank threshold decided on a root of the Gram matrix of the blocks without
+#: unknowns (it loses the directions below sqrt(eps) of the largest singular value; below,
+#: their rows are folded exactly): the serial calibration's `GRAM_TOL`
+GRAM_TOL = 1e-6
 
 
 @dataclass
@@ -121,22 +125,44 @@ def stack_scale(problem: StackedProblem, params: Array, names=None) -> tuple[Arr
 
 
 def _arm_factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bool,
-                keep: list[Array] | None = None, rows: list | None = None) -> Array:
+                keep: list[Array] | None = None, rows: list | None = None,
+                tol: float = GRAM_TOL) -> Array:
     """``R_aa`` ``(k, k)`` of the scaled, weighted ``[J_n | J_a]`` (module docstring); with
     `check`, refuses a block whose rows do not determine its own unknowns; `keep`: per
     block, the residual rows to use (the others left out); `rows`: the blocks' weighted
-    rows at `x` when already evaluated (`StackedProblem._weighted_rows`).
+    rows at `x` when already evaluated (`StackedProblem._weighted_rows`; None for the
+    blocks without unknowns); `tol`: the rank threshold the factor is for.
 
     Each block's nuisance columns are its own, so its unknowns are eliminated from its
     rows alone: the trailing ``(k, k)`` of the R factor of ``[J_nb | J_ab]`` carries
     ``J_ab^T (I - P_nb) J_ab``, and those of all blocks fold into ``R_aa`` (the factor of
     the whole stack would cost the cube of every unknown per block: 84 s for 100 files of
-    fixed points).
+    fixed points). The blocks without unknowns that accumulate their normal equations
+    (`ResidualBlock.arm_normal`: tracker rows, chunk by chunk and chain by chain) enter
+    through a root of their summed Gram matrix (`kinecal.optimize.factor.gram_root`)
+    when `tol` is at least `GRAM_TOL`, as the serial calibration's analysis does.
     """
     k = problem.k
-    R = None
-    rows = problem._weighted_rows(x) if rows is None else rows
-    for i, (b, (_, Ja, Jn, _s)) in enumerate(zip(problem.blocks, rows, strict=True)):
+    p = problem.params(x)
+    G = np.zeros((k, k))
+    folded = [False] * len(problem.blocks)
+    if tol >= GRAM_TOL:
+        for i, (b, w) in enumerate(zip(problem.blocks, problem.row_weight, strict=True)):
+            got = (b.arm_normal(problem.model, p, problem.index,
+                                w if keep is None else w * keep[i], problem.groups[i])
+                   if b.n_nuisance == 0 else None)
+            if got is not None:
+                G += got[1]
+                folded[i] = True
+    R = qr_update(None, gram_root(G * D[:, None] * D[None, :])) if any(folded) else None
+    if all(folded):
+        return np.zeros((k, k)) if R is None else R
+    if rows is None or any(r is None for r, f in zip(rows, folded, strict=True) if not f):
+        rows = problem._weighted_rows(x, only=[not f for f in folded])
+    for i, (b, part) in enumerate(zip(problem.blocks, rows, strict=True)):
+        if folded[i]:
+            continue
+        _, Ja, Jn, _s = part
         if keep is not None:
             Ja, Jn = Ja[keep[i]], Jn[keep[i]]
         if b.n_nuisance and check:
@@ -356,7 +382,7 @@ def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = F
     """
     params = problem.params(x)
     D, L, q, P = stack_scale(problem, params)
-    Raa = _arm_factor(problem, x, D, L, check, keep, rows)
+    Raa = _arm_factor(problem, x, D, L, check, keep, rows, tol)
     nn = problem.n - problem.k
     used = None if keep is None else [bool(k.any()) for k in keep]
     Q, unseen = blind_basis(problem, params, q, P, D, used=used, configs=configs)
@@ -386,13 +412,14 @@ def report_for(analysis: StackAnalysis, free: list[str], tol: float) -> Identifi
     if kept and held:
         coef = np.linalg.lstsq(B[:, kept], B[:, held], rcond=None)[0]
         coef = coef * D[kept][:, None] / D[held][None, :]
+        whole = np.linalg.norm(B, 2)
         for j, col in enumerate(held):
             if names[col] in confounded:
                 continue
             c = coef[:, j]
             big = np.abs(c) > 1e-6 * max(np.abs(c).max(), 1e-300)
             norm = np.linalg.norm(B[:, col])
-            confounded[names[col]] = ({} if norm <= tol * np.linalg.norm(B, 2) else
+            confounded[names[col]] = ({} if norm <= tol * whole else
                                       {names[kept[i]]: float(c[i]) for i in np.flatnonzero(big)})
     return IdentifiabilityReport(
         names=list(names), rank=sub.rank, identifiable=list(sub.identifiable),

@@ -74,8 +74,8 @@ class PriorStack(StackedProblem):
         P[:, :self.k] = np.diag(self.w)
         return np.vstack([super().jacobian(x), P])
 
-    def normal_equations(self, x: Array) -> tuple[Array, Array, Array]:
-        r, A, g = super().normal_equations(x)
+    def assemble(self, parts, x: Array) -> tuple[Array, Array, Array]:
+        r, A, g = super().assemble(parts, x)
         rp = self.prior_rows(x)
         k = self.k
         A[:k, :k] += np.diag(self.w**2)

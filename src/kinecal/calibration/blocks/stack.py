@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from itertools import pairwise
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,9 +22,22 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.optimize.lsq import levenberg_marquardt
 
-__all__ = ["StackedProblem", "fit_nuisance"]
+__all__ = ["NormalPart", "StackedProblem", "fit_nuisance"]
 
 Array = NDArray[np.float64]
+
+
+class NormalPart(NamedTuple):
+    """One block's weighted residual rows and share of the normal equations
+    (`StackedProblem.normal_parts`)."""
+
+    r: Array  #: weighted residual rows (m_b,)
+    aa: Array  #: J_a^T J_a (k, k)
+    an: Array  #: J_a^T J_n (k, n_b)
+    nn: Array  #: J_n^T J_n (n_b, n_b)
+    ga: Array  #: J_a^T r (k,)
+    gn: Array  #: J_n^T r (n_b,)
+    dense: bool = False  #: formed from the block's dense rows (not `arm_normal`)
 
 
 class StackedProblem:
@@ -151,11 +165,16 @@ class StackedProblem:
         return np.concatenate([ri * w for ri, w in zip(r, self.row_weight, strict=True)]
                               ) if r else np.zeros(0)
 
-    def _weighted_rows(self, x: Array):
+    def _weighted_rows(self, x: Array, only: Sequence[bool] | None = None):
+        """Each block's weighted ``(r, J_arm, J_nuisance, columns)`` at `x` (dense rows;
+        `only`: the blocks wanted, None yielded for the others)."""
         p = self.params(x)
         pts = self._points(p, True)
         for i, (b, v, w, s) in enumerate(zip(self.blocks, self.nuisance(x), self.row_weight,
                                              self.slices, strict=True)):
+            if only is not None and not only[i]:
+                yield None
+                continue
             rows = b.evaluate(self.model, p, v, self.index, jacobian=True, points=pts.get(i))
             yield rows.r * w, rows.arm * w[:, None], rows.nuisance * w[:, None], s
 
@@ -179,32 +198,68 @@ class StackedProblem:
             G[np.ix_(cols, cols)] += Jg.T @ Jg
         return G
 
-    def normal_equations(self, x: Array) -> tuple[Array, Array, Array]:
-        """``(residuals, J^T J, J^T r)`` at `x`, assembled block by block."""
+    def normal_parts(self, x: Array, weights: Sequence[Array] | None = None
+                     ) -> list[NormalPart]:
+        """Each block's weighted residual and share of the normal equations at `x`.
+
+        A block without unknowns of its own that accumulates them itself
+        (`ResidualBlock.arm_normal`: a tracker's rows, chunk by chunk and chain by chain)
+        never forms its rows; the others' are formed from `ResidualBlock.evaluate`.
+        `weights`: per block, row weights replacing `row_weight` (zero leaves a row out).
+        """
+        weights = self.row_weight if weights is None else weights
+        p = self.params(x)
+        out: list[NormalPart] = []
+        dense = []
+        for i, (b, w) in enumerate(zip(self.blocks, weights, strict=True)):
+            got = (b.arm_normal(self.model, p, self.index, w, self.groups[i])
+                   if b.n_nuisance == 0 else None)
+            out.append(None if got is None else NormalPart(
+                got[0], got[1], np.zeros((self.k, 0)), np.zeros((0, 0)), got[2], np.zeros(0)))
+            dense.append(got is None)
+        if any(dense):
+            pts = self._points(p, True)
+            for i, (b, v, w) in enumerate(zip(self.blocks, self.nuisance(x), weights,
+                                              strict=True)):
+                if not dense[i]:
+                    continue
+                rows = b.evaluate(self.model, p, v, self.index, jacobian=True,
+                                  points=pts.get(i))
+                r, Ja, Jn = rows.r * w, rows.arm * w[:, None], rows.nuisance * w[:, None]
+                out[i] = NormalPart(r, self.arm_gram(i, Ja), Ja.T @ Jn, Jn.T @ Jn, Ja.T @ r,
+                                    Jn.T @ r, True)
+        return out
+
+    def assemble(self, parts: Sequence[NormalPart], x: Array) -> tuple[Array, Array, Array]:
+        """``(residuals, J^T J, J^T r)`` at `x` from the blocks' `normal_parts` there (a
+        subclass adds further rows: a prior's)."""
         A = np.zeros((self.n, self.n))
         g = np.zeros(self.n)
-        parts = []
         k = self.k
-        for i, (r, Ja, Jn, s) in enumerate(self._weighted_rows(x)):
-            parts.append(r)
-            A[:k, :k] += self.arm_gram(i, Ja)
-            A[:k, s] = Ja.T @ Jn
-            A[s, :k] = A[:k, s].T
-            A[s, s] = Jn.T @ Jn
-            g[:k] += Ja.T @ r
-            g[s] = Jn.T @ r
-        return (np.concatenate(parts) if parts else np.zeros(0)), A, g
+        for part, s in zip(parts, self.slices, strict=True):
+            A[:k, :k] += part.aa
+            A[:k, s] = part.an
+            A[s, :k] = part.an.T
+            A[s, s] = part.nn
+            g[:k] += part.ga
+            g[s] = part.gn
+        r = np.concatenate([p.r for p in parts]) if parts else np.zeros(0)
+        return r, A, g
+
+    def normal_equations(self, x: Array) -> tuple[Array, Array, Array]:
+        """``(residuals, J^T J, J^T r)`` at `x`, assembled block by block."""
+        return self.assemble(self.normal_parts(x), x)
 
     def block_grams(self, x: Array) -> list[Array]:
         """Each block's share ``J_b^T J_b`` ``(n, n)`` of the normal matrix (weighted)."""
         out = []
         k = self.k
-        for i, (_, Ja, Jn, s) in enumerate(self._weighted_rows(x)):
+        for part, s in zip(self.normal_parts(x), self.slices, strict=True):
             G = np.zeros((self.n, self.n))
-            G[:k, :k] = self.arm_gram(i, Ja)
-            G[:k, s] = Ja.T @ Jn
-            G[s, :k] = G[:k, s].T
-            G[s, s] = Jn.T @ Jn
+            G[:k, :k] = part.aa
+            G[:k, s] = part.an
+            G[s, :k] = part.an.T
+            G[s, s] = part.nn
             out.append(G)
         return out
 

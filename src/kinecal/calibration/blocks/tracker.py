@@ -4,8 +4,9 @@ whitened by their per-axis standard deviations when the file gives them
 (`kinecal.calibration.serial.row_weights`). Several set-ups: `kinecal.calibration.blocks.
 stations`.
 
-Used in mixes with gauges; a tracker file alone is calibrated on the chunked fast path of
-`kinecal.calibration.serial` (the same residual rows, `PoseRows`).
+Its share of the normal equations (`arm_normal`) is accumulated over cache-sized chunks of
+rows (`PoseRows`), and for a robot system chain by chain on the columns each chain reaches:
+one Jacobian sweep per chain, the shared columns added, never the dense rows.
 """
 
 from __future__ import annotations
@@ -93,6 +94,46 @@ class TrackerBlock(ResidualBlock):
             return BlockRows(e.ravel())
         arm = Jt.transpose(2, 1, 0).reshape(e.size, Jt.shape[0])
         return BlockRows(e.ravel(), arm, np.zeros((arm.shape[0], 0)))
+
+    def arm_normal(self, model: SerialModel, params: Array, columns: NDArray[np.intp],
+                   weight: Array, groups: list | None = None
+                   ) -> tuple[Array, Array, Array]:
+        """Weighted residual ``(m,)``, ``J^T J`` ``(k, k)`` and ``J^T r`` ``(k,)`` of the
+        rows (`ResidualBlock.arm_normal`), chunk by chunk and group by group; the rows of
+        weight zero are not evaluated (their residual is zero)."""
+        if self._pose_rows is None:
+            self.start(model, params)
+        k, rows = len(columns), self.rows
+        W = np.asarray(weight, dtype=float).reshape(-1, rows)
+        if self._scale is not None:
+            W = W * self._scale
+        live = W.any(axis=1)
+        r = np.zeros((self.n_obs, rows))
+        A, g = np.zeros((k, k)), np.zeros(k)
+        if groups is None:
+            parts = [(None if live.all() else np.flatnonzero(live), None)]
+        else:
+            parts = [(obs[live[obs]], pos) for obs, pos in
+                     ((np.unique(self._obs[rw]), pos) for rw, pos in groups)]
+        for obs, pos in parts:
+            cols = columns if pos is None else columns[pos]
+            for sel in self._pose_rows.chunks(len(cols), obs):
+                e, Jt, _ = self._pose_rows.evaluate(params, sel, cols if len(cols) else None)
+                ws = W[sel]
+                e = e * ws
+                r[sel] = e
+                if Jt is None:  # no free column reaches these rows
+                    continue
+                Jt *= ws.T
+                J2 = Jt.reshape(len(cols), -1)
+                Ag, gg = J2 @ J2.T, J2 @ np.ascontiguousarray(e.T).ravel()
+                if pos is None:
+                    A += Ag
+                    g += gg
+                else:
+                    A[np.ix_(pos, pos)] += Ag
+                    g[pos] += gg
+        return r.ravel(), A, g
 
     def observation_errors(self, r: Array) -> Array:
         """Distance error per measured point (length unit; the position rows, unweighted)."""
