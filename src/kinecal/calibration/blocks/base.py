@@ -175,7 +175,7 @@ class ResidualBlock(ABC):
     shares_tool_points: ClassVar[bool] = False
     #: similarity motions of the whole arm (and the block's unknowns with it) that leave
     #: the residuals unchanged: any of ``translation``, ``rotation``, ``scale``
-    #: (`kinecal.calibration.blocks.analysis`)
+    #: (`kinecal.calibration.blocks.motions`)
     blind_to: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, source: str, q: Array, marker: NDArray[np.intp] | None = None,

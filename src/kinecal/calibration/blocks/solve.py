@@ -11,7 +11,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import NDArray
 
 from kinecal._special import fdtri
@@ -20,6 +19,7 @@ from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.blocks.weights import MAX_ROUNDS, SETTLED, variance_factors
 from kinecal.calibration.diagnostics.observations import pose_outliers
+from kinecal.calibration.identifiability import separated_columns
 from kinecal.diagnostics import warn
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.optimize.lsq import levenberg_marquardt
@@ -33,9 +33,6 @@ Array = NDArray[np.float64]
 
 #: significance level of freeing parameters that became identifiable at the solution
 GROWTH_LEVEL = 0.01
-#: a held parameter is freed only when well separated from the free set (as the serial
-#: path's growth: a second-order effect must not make the problem ill-conditioned)
-GROWTH_TOL = 1e-4
 #: largest change of a noise estimate per round, and over all rounds from the first
 STEP = 10.0
 SPAN = 1e3
@@ -149,11 +146,11 @@ def _grow(problem: StackedProblem, res: OptimizeResult, candidates: list[str],
           tol: float) -> tuple[StackedProblem, OptimizeResult]:
     """Free the held candidates that became identifiable at the solution, when that pays.
 
-    As the serial path's growth (`kinecal.calibration.serial.solve.grow_identifiable`):
-    a held parameter is added when its (scaled, blind motions removed) column keeps a
-    pivot above ``max(tol, GROWTH_TOL)`` of the free set's largest after projecting out
-    the free set's columns (the free set only grows, a confounded pair is never swapped),
-    and the larger fit lowers the residual significantly (F-test).
+    As the serial path's growth (`kinecal.calibration.serial.solve.grow_identifiable`), by
+    the same test (`kinecal.calibration.identifiability.separated_columns`): a held
+    parameter is added when its (scaled, blind motions removed) column keeps a pivot above
+    ``max(tol, GROWTH_TOL)`` of the free set's largest after projecting out the free set's
+    columns, and the larger fit lowers the residual significantly (F-test).
     """
     model, blocks = problem.model, problem.blocks
     params, nuis = problem.params(res.x), problem.nuisance(res.x)
@@ -165,12 +162,7 @@ def _grow(problem: StackedProblem, res: OptimizeResult, candidates: list[str],
     B = analyse_stack(cand, cand.pack(params, nuis), tol).reduced
     free_pos = [candidates.index(n) for n in problem.free]
     held_pos = [candidates.index(n) for n in held]
-    Q, Rf = np.linalg.qr(B[:, free_pos])
-    rest = B[:, held_pos] - Q @ (Q.T @ B[:, held_pos])
-    _, R, piv = scipy.linalg.qr(rest, mode="economic", pivoting=True)
-    ref = np.abs(np.diag(Rf)).max() if Rf.size else 1.0
-    diag = np.abs(np.diag(R))
-    added = [held[j] for j in np.sort(piv[: int((diag > max(tol, GROWTH_TOL) * ref).sum())])]
+    added = [held[j] for j in separated_columns(B, free_pos, held_pos, tol)]
     if not added:
         return problem, res
     names = [n for n in candidates if n in problem.free or n in added]
