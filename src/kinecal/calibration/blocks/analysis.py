@@ -163,7 +163,7 @@ def _arm_factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bo
 
 def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = False,
                   keep: list[Array] | None = None, configs: Array | None = None,
-                  rows: list | None = None) -> StackAnalysis:
+                  rows: list | None = None, scaled: tuple | None = None) -> StackAnalysis:
     """Identifiability of `problem`'s arm parameters at `x` (module docstring).
 
     Parameters
@@ -184,9 +184,11 @@ def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = F
     rows : list, optional
         The blocks' weighted rows at `x` (`StackedProblem._weighted_rows`), when several
         analyses of one point share them.
+    scaled : tuple, optional
+        `stack_scale` of `problem` at `x`, when several analyses of one point share it.
     """
     params = problem.params(x)
-    D, L, q, P = stack_scale(problem, params)
+    D, L, q, P = stack_scale(problem, params) if scaled is None else scaled
     Raa = _arm_factor(problem, x, D, L, check, keep, rows, tol)
     nn = problem.n - problem.k
     used = None if keep is None else [bool(k.any()) for k in keep]

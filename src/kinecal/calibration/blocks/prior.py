@@ -56,6 +56,8 @@ class PriorStack(StackedProblem):
         The standard deviation of unit weight the prior rows are scaled with.
     """
 
+    scale_free = False  # the prior's rows weigh against the blocks'
+
     def __init__(self, problem: StackedProblem, prior: Prior, noise: float) -> None:
         super().__init__(problem.model, problem.blocks, problem.free, problem.sigma,
                          problem.base_params)

@@ -90,10 +90,12 @@ def _estimate(problem: StackedProblem, res: OptimizeResult, known: list[bool]
               ) -> tuple[OptimizeResult, Array, Array, int]:
     """Alternate fit and noise estimates (`kinecal.calibration.blocks.weights`).
 
-    Each round may change a noise by at most `STEP` and all rounds together by at most
-    `SPAN` from the first estimate: sets that contradict each other (a file of another
-    robot) otherwise drive one noise to zero and the arm to a degenerate fit that explains
-    that set alone. Rounds that do not settle end with ``noise-estimate``.
+    Each round may change a noise by at most `STEP` against the others and all rounds
+    together by at most `SPAN` from the first estimate: sets that contradict each other (a
+    file of another robot) otherwise drive one noise to zero and the arm to a degenerate
+    fit that explains that set alone. A scale common to every set is taken at once when
+    every set's noise is estimated (it changes no fit: `StackedProblem.scale_free`). Rounds
+    that do not settle end with ``noise-estimate``.
     """
     rounds, first = 1, None
     known = np.asarray(known, dtype=bool)
@@ -116,7 +118,12 @@ def _estimate(problem: StackedProblem, res: OptimizeResult, known: list[bool]
             new = [np.clip(s, f0 / SPAN, f0 * SPAN) for s, f0 in zip(new, first, strict=True)]
         change = max(float(np.max(np.abs(n / s - 1.0))) for n, s in
                      zip(new, problem.sigma, strict=True))
-        problem.set_sigma([np.clip(n, s / STEP, s * STEP) for n, s in
+        # a scale common to the noise of every set changes no fit (when every set's is
+        # estimated and no other rows weigh in): only the ratios are held to `STEP`
+        free = ~(known | exact) & np.isfinite(f) & (f > 0)
+        common = (float(np.exp(np.mean(np.log(step)))) if free.all() and problem.scale_free
+                  else 1.0)
+        problem.set_sigma([np.clip(n, s * common / STEP, s * common * STEP) for n, s in
                            zip(new, problem.sigma, strict=True)])
         if change < SETTLED:
             return res, np.where(known, f, 1.0), red, rounds

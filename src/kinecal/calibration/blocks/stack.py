@@ -57,6 +57,10 @@ class StackedProblem:
         Values of the held parameters (default nominal).
     """
 
+    #: the solution does not change when every block's noise is scaled by one factor (no
+    #: rows of other weight, such as a prior's)
+    scale_free: bool = True
+
     def __init__(self, model: SerialModel, blocks: Sequence[ResidualBlock],
                  free: Sequence[str], sigma: Sequence[Array],
                  params: Array | None = None) -> None:
