@@ -54,8 +54,9 @@ class StackAnalysis:
 
     Attributes
     ----------
-    report : IdentifiabilityReport
-        The arm's candidate parameters, nuisance marginalised, blind motions removed.
+    report : IdentifiabilityReport or None
+        The arm's candidate parameters, nuisance marginalised, blind motions removed (None
+        for the factors only).
     unseen : list of str
         Motions of the whole arm the mix does not see (``translation x`` ... ``scale``)
         that the candidate parameters can make.
@@ -76,7 +77,7 @@ class StackAnalysis:
         (`fixture_visibility`).
     """
 
-    report: IdentifiabilityReport
+    report: IdentifiabilityReport | None
     unseen: list[str]
     factor: Array
     reduced: Array
@@ -163,7 +164,8 @@ def _arm_factor(problem: StackedProblem, x: Array, D: Array, L: float, check: bo
 
 def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = False,
                   keep: list[Array] | None = None, configs: Array | None = None,
-                  rows: list | None = None, scaled: tuple | None = None) -> StackAnalysis:
+                  rows: list | None = None, scaled: tuple | None = None,
+                  report: bool = True) -> StackAnalysis:
     """Identifiability of `problem`'s arm parameters at `x` (module docstring).
 
     Parameters
@@ -186,6 +188,9 @@ def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = F
         analyses of one point share them.
     scaled : tuple, optional
         `stack_scale` of `problem` at `x`, when several analyses of one point share it.
+    report : bool
+        Analyse the factor (the pivoted QR, singular values and confounding of the
+        report); False: the factors only (``report`` None, no fixtures' visibility).
     """
     params = problem.params(x)
     D, L, q, P = stack_scale(problem, params) if scaled is None else scaled
@@ -196,8 +201,10 @@ def analyse_stack(problem: StackedProblem, x: Array, tol: float, check: bool = F
     B = Raa - (Raa @ Q) @ Q.T if Q.size else Raa
     m = problem.m_used if keep is None else int(sum(int(k.sum()) for k in keep))
     n_rows = max(m - nn, 1)
-    report = analyse_factor(B / D, problem.free, n_rows, tol=tol, scale=D)
-    return StackAnalysis(report, unseen, Raa / D, B, D, L, n_rows,
+    if not report:  # the factors only (a growth step, an analysis per chain)
+        return StackAnalysis(None, unseen, Raa / D, B, D, L, n_rows)
+    found = analyse_factor(B / D, problem.free, n_rows, tol=tol, scale=D)
+    return StackAnalysis(found, unseen, Raa / D, B, D, L, n_rows,
                          fixture_visibility(problem, params, q, P, D))
 
 

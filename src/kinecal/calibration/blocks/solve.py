@@ -166,7 +166,7 @@ def _grow(problem: StackedProblem, res: OptimizeResult, candidates: list[str],
         return problem, res
     cand = StackedProblem(model, blocks, candidates, problem.sigma)
     cand.exclude(problem.excluded)
-    B = analyse_stack(cand, cand.pack(params, nuis), tol).reduced
+    B = analyse_stack(cand, cand.pack(params, nuis), tol, report=False).reduced
     free_pos = [candidates.index(n) for n in problem.free]
     held_pos = [candidates.index(n) for n in held]
     added = [held[j] for j in separated_columns(B, free_pos, held_pos, tol)]

@@ -133,7 +133,7 @@ def system_identifiability(problem: StackedProblem, x: np.ndarray, tol: float,
         ident: list[str] = []
         if rows:
             ana = analyse_stack(problem, x, tol, keep=keep, configs=cfg == t, rows=weighted,
-                                scaled=scaled)
+                                scaled=scaled, report=False)
             ident = [n for n in _estimable(ana.reduced, names, free, tol) if tip in reach[n]]
         alone |= set(ident)
         tips[tip] = {"rows": rows, "parameters": len(model.chain_parameters(tip)),

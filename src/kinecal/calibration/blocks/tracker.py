@@ -113,8 +113,9 @@ class TrackerBlock(ResidualBlock):
         if groups is None:
             parts = [(None if live.all() else np.flatnonzero(live), None)]
         else:
+            # a group holds every row of its observations, in order (`column_groups`)
             parts = [(obs[live[obs]], pos) for obs, pos in
-                     ((np.unique(self._obs[rw]), pos) for rw, pos in groups)]
+                     ((rw[::rows] // rows, pos) for rw, pos in groups)]
         for obs, pos in parts:
             cols = columns if pos is None else columns[pos]
             for sel in self._pose_rows.chunks(len(cols), obs):
