@@ -43,7 +43,8 @@ def is_system_file(spec: str | Path) -> bool:
 def _urdf_coupled(path: str | Path, base_link: str | None, tip: str | None) -> bool:
     """Whether the chain `base_link` -> `tip` of a URDF holds a mimic joint (a file
     without any ``<mimic`` tag is not parsed)."""
-    from kinecal.io.urdf import chain_path, read_urdf
+    from kinecal.io.urdf import read_urdf
+    from kinecal.io.urdf_chain import chain_path
 
     try:
         if b"<mimic" not in Path(path).read_bytes():

@@ -26,14 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from kinecal.errors import InputError
-from kinecal.io.urdf import (
-    MOVING,
-    URDF_TOLERANCES,
-    _tree,
-    chain_path,
-    joint_entry,
-    read_urdf,
-)
+from kinecal.io.urdf import MOVING, URDF_TOLERANCES, joint_entry, read_urdf
+from kinecal.io.urdf_chain import _tree, chain_path
 from kinecal.kinematics.serial.motions import FRAME_KEYS, frame_motions, pose_motions, urdf_motions
 from kinecal.kinematics.tree.elements import FIXED, Element, Mimic, Tip
 from kinecal.kinematics.tree.system import SystemModel

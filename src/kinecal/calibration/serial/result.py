@@ -11,13 +11,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinecal._files import write_text_atomic
-from kinecal._reproducible import seconds_text
 from kinecal.calibration.identifiability import IdentifiabilityReport
 from kinecal.calibration.uncertainty import Uncertainty
 from kinecal.diagnostics import Diagnostic
 from kinecal.kinematics.serial.joint_errors_envelope import JointEnvelope, envelope_entry
 from kinecal.kinematics.serial.model import SerialModel
-from kinecal.metrology.stats import error_stats, stat_rows
+from kinecal.metrology.stats import error_stats
 from kinecal.metrology.units import DisplayUnit, display_unit
 
 __all__ = ["CalibrationResult"]
@@ -340,66 +339,12 @@ class CalibrationResult:
         """Plain-text summary: identifiability, before/after table, largest corrections.
 
         `unit` (``mm``, ``um``, ``m``, or ``auto``/None: `display_unit`) is the length unit
-        of the text only; the result's numbers stay in the model's unit.
+        of the text only; the result's numbers stay in the model's unit
+        (`kinecal.calibration.serial.result_summary.summary_text`).
         """
-        shown = self.display_unit(unit)
-        unit, f = shown.name, shown.factor
-        rep = self.identifiability
-        lines = [
-            f"model {self.nominal_model.name} ({self.nominal_model.convention}), method "
-            f"{self.method}: {len(self.free)} free parameters, rank {rep.rank} of "
-            f"{len(rep.names)}, condition number {rep.condition_number:.3g}",
-        ]
-        free = set(self.free)
-        held = [n for n in self.unidentifiable() if n not in free]
-        loose = self.unidentifiable_free()  # a prior bounds the rest (its own lines)
-        if held:
-            lines.append("not identifiable (held at nominal): " + ", ".join(held))
-        if loose:
-            lines.append("not identifiable (free, value arbitrary, no standard error): "
-                         + ", ".join(loose))
-        head = f"{'':12s} {'n':>5s} {'mean':>10s} {'rms':>10s} {'std':>10s} {'max':>10s}"
-        tables = [(f"position error [{unit}]", self.position_groups())]
-        if self.rotation_groups():
-            tables.append(("orientation error [deg]", self.rotation_groups()))
-        for k, (title, groups) in enumerate(tables):
-            lines += ["", title, head]
-            g = f if k == 0 else 1.0  # orientation errors stay in degrees
-            for label, when, s in stat_rows(groups):
-                lines.append(f"{label[:3] + '. ' + when:12s} {s['n']:5d} {s['mean'] * g:10.4g} "
-                             f"{s['rms'] * g:10.4g} {s['std'] * g:10.4g} {s['max'] * g:10.4g}")
-        lines.append(f"improvement of the mean error: {self.improvement_percent:.2f} %")
-        pred = self.predicted_error_summary()
-        if not self.bounded:
-            lines.append("model uncertainty left: not bounded (these poses do not determine "
-                         + ", ".join(self.lost) + ")")
-        elif pred["calibration_mean"] is not None:
-            def size(v: float) -> str:
-                return f"{v * f:.3g} {unit}" if np.isfinite(v) else "not bounded"
+        from kinecal.calibration.serial.result_summary import summary_text
 
-            where = f"{size(pred['calibration_mean'])} on the calibration poses"
-            if pred["validation_mean"] is not None:
-                where += f", {size(pred['validation_mean'])} on the validation poses"
-            lines.append(f"model uncertainty left (1 sigma, first order): {where}")
-        if "noise" in self.extra:
-            from kinecal.calibration.diagnostics.noise import noise_lines
-
-            lines += noise_lines(self, shown)
-        if self.extra.get("prior"):
-            from kinecal.calibration.serial.prior_fit import prior_lines
-
-            lines += prior_lines(self.extra["prior"], [n for n in self.unidentifiable()
-                                                       if n in free and n not in loose])
-        lines.append(f"{self.iterations} iterations, {self.evaluations} evaluations"
-                     + seconds_text(self.seconds))
-        if self.outliers:
-            how = ("left out of the last fit" if self.extra.get("loss", "linear") !=
-                   "linear" else "chi-square rule")
-            lines.append(f"outlier rows (0-based, {how}): {self.outliers}")
-        if self.warnings:
-            lines += ["", f"warnings ({len(self.warnings)}):"]
-            lines += [f"  [{d.code}] {d.message}" for d in self.warnings]
-        return "\n".join(lines)
+        return summary_text(self, unit)
 
     def __str__(self) -> str:
         return self.summary()
