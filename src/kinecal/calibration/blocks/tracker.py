@@ -99,42 +99,18 @@ class TrackerBlock(ResidualBlock):
                    weight: Array, groups: list | None = None
                    ) -> tuple[Array, Array, Array]:
         """Weighted residual ``(m,)``, ``J^T J`` ``(k, k)`` and ``J^T r`` ``(k,)`` of the
-        rows (`ResidualBlock.arm_normal`), chunk by chunk and group by group; the rows of
-        weight zero are not evaluated (their residual is zero)."""
+        rows (`ResidualBlock.arm_normal`): the serial calibration's chunked pass
+        (`PoseRows.normal_equations`), group by group; the rows of weight zero are not
+        evaluated (their residual is zero)."""
         if self._pose_rows is None:
             self.start(model, params)
-        k, rows = len(columns), self.rows
+        rows = self.rows
         W = np.asarray(weight, dtype=float).reshape(-1, rows)
         if self._scale is not None:
             W = W * self._scale
-        live = W.any(axis=1)
-        r = np.zeros((self.n_obs, rows))
-        A, g = np.zeros((k, k)), np.zeros(k)
-        if groups is None:
-            parts = [(None if live.all() else np.flatnonzero(live), None)]
-        else:
-            # a group holds every row of its observations, in order (`column_groups`)
-            parts = [(obs[live[obs]], pos) for obs, pos in
-                     ((rw[::rows] // rows, pos) for rw, pos in groups)]
-        for obs, pos in parts:
-            cols = columns if pos is None else columns[pos]
-            for sel in self._pose_rows.chunks(len(cols), obs):
-                e, Jt, _ = self._pose_rows.evaluate(params, sel, cols if len(cols) else None)
-                ws = W[sel]
-                e = e * ws
-                r[sel] = e
-                if Jt is None:  # no free column reaches these rows
-                    continue
-                Jt *= ws.T
-                J2 = Jt.reshape(len(cols), -1)
-                Ag, gg = J2 @ J2.T, J2 @ np.ascontiguousarray(e.T).ravel()
-                if pos is None:
-                    A += Ag
-                    g += gg
-                else:
-                    A[np.ix_(pos, pos)] += Ag
-                    g[pos] += gg
-        return r.ravel(), A, g
+        # a group holds every row of its observations, in order (`column_groups`)
+        parts = None if groups is None else [(rw[::rows] // rows, pos) for rw, pos in groups]
+        return self._pose_rows.normal_equations(params, columns, W, parts)
 
     def observation_errors(self, r: Array) -> Array:
         """Distance error per measured point (length unit; the position rows, unweighted)."""
