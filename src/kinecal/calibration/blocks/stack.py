@@ -26,6 +26,10 @@ __all__ = ["NormalPart", "StackedProblem", "fit_nuisance"]
 
 Array = NDArray[np.float64]
 
+#: points whose `StackedProblem.normal_parts` are kept (a solver's last accepted point and
+#: the trial points after it)
+PARTS_KEPT = 3
+
 
 class NormalPart(NamedTuple):
     """One block's weighted residual rows and share of the normal equations
@@ -79,6 +83,8 @@ class StackedProblem:
         self.m = int(rows[-1])
         #: observations left out of the fit (weight zero): ``(block, observation)``
         self.excluded: list[tuple[int, int]] = []
+        #: the last `normal_parts` at the problem's own weights: ``(x, weights, parts)``
+        self._parts_cache: list[tuple] = []
         self.set_sigma(sigma)
         # a robot system's rows reach their chains' columns only (`tips.column_groups`)
         self.groups = [column_groups(model, b, self.index) for b in self.blocks]
@@ -210,8 +216,17 @@ class StackedProblem:
         (`ResidualBlock.arm_normal`: a tracker's rows, chunk by chunk and chain by chain)
         never forms its rows; the others' are formed from `ResidualBlock.evaluate`.
         `weights`: per block, row weights replacing `row_weight` (zero leaves a row out).
+        The parts at the problem's own weights are kept for the last `PARTS_KEPT` points
+        (the blocks must not change meanwhile: a block changed is a new problem).
         """
-        weights = self.row_weight if weights is None else weights
+        own = weights is None
+        weights = self.row_weight if own else weights
+        x = np.asarray(x, dtype=float)
+        if own:  # the solver's last points: the noise estimate asks again where it stopped
+            for cx, cw, parts in self._parts_cache:
+                if np.array_equal(cx, x) and all(np.array_equal(a, b) for a, b in
+                                                 zip(cw, weights, strict=True)):
+                    return list(parts)
         p = self.params(x)
         out: list[NormalPart] = []
         dense = []
@@ -232,7 +247,10 @@ class StackedProblem:
                 r, Ja, Jn = rows.r * w, rows.arm * w[:, None], rows.nuisance * w[:, None]
                 out[i] = NormalPart(r, self.arm_gram(i, Ja), Ja.T @ Jn, Jn.T @ Jn, Ja.T @ r,
                                     Jn.T @ r, True)
-        return out
+        if own:
+            self._parts_cache = [(x.copy(), [w.copy() for w in weights], out),
+                                 *self._parts_cache][:PARTS_KEPT]
+        return list(out)
 
     def assemble(self, parts: Sequence[NormalPart], x: Array) -> tuple[Array, Array, Array]:
         """``(residuals, J^T J, J^T r)`` at `x` from the blocks' `normal_parts` there (a
