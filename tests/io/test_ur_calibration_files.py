@@ -2,8 +2,9 @@
 ur_calibration tests (tests/data/ur_calibration, Apache-2.0) and files made here the way a
 controller makes them (the exact standard D-H table of a slightly imperfect arm, whose
 nearly parallel axes put the common normals hundreds of metres out), imported, checked
-against the D-H sum, the source's expected flange positions and ur_description's chain,
-and judged by the geometry they give (a wrong --robot warns)."""
+against the D-H sum, the source's expected flange positions and, exported, through
+ur_description's own xacro (the ``ur_description`` fixture of tests/io/conftest.py), and
+judged by the geometry they give (a wrong --robot warns)."""
 
 from __future__ import annotations
 
@@ -19,7 +20,6 @@ from kinecal.io.models import load_model
 from kinecal.io.ur.conf import read_calibration_conf
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "ur_calibration"
-SEGMENTS = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
 #: d1, a2, a3, d4, d5, d6 (m), Universal Robots' published D-H tables, written here
 NOMINAL = {"ur3": (0.1519, -0.24365, -0.21325, 0.11235, 0.08535, 0.0819),
            "ur5": (0.089159, -0.425, -0.39225, 0.10915, 0.09465, 0.0823),
@@ -62,25 +62,6 @@ def dh_flange(table, q) -> np.ndarray:
         for (theta, a, d, alpha), angle in zip(table, qi, strict=True):
             T = T @ dh_link(theta + angle, a, d, alpha)
         out.append(T)
-    return np.array(out)
-
-
-def _rpy(r, p, y):
-    return _R(2, y) @ _R(1, p) @ _R(0, r)
-
-
-def ur_description_tool0(kin: dict, q) -> np.ndarray:
-    """tool0 in base_link_inertia as ur_description's ur_macro.xacro chains it (each joint:
-    origin xyz, rpy = Rz(yaw) Ry(pitch) Rx(roll), then the turn about z; wrist_3 -> flange
-    rpy(0, -pi/2, -pi/2) -> tool0 rpy(pi/2, 0, pi/2))."""
-    out = []
-    for qi in np.atleast_2d(q):
-        T = np.eye(4)
-        for seg, angle in zip(SEGMENTS, qi, strict=True):
-            k = kin[seg]
-            T = T @ _T(_rpy(k["roll"], k["pitch"], k["yaw"]), (k["x"], k["y"], k["z"]))
-            T = T @ _T(_R(2, angle))
-        out.append(T @ _T(_rpy(0, -np.pi / 2, -np.pi / 2)) @ _T(_rpy(np.pi / 2, 0, np.pi / 2)))
     return np.array(out)
 
 
@@ -200,8 +181,11 @@ def test_real_controller_sets_import_exactly_and_cleanly(tmp_path, capsys, name,
 
 
 @pytest.mark.parametrize(("name", "robot"), SETS)
-def test_export_of_a_real_set_is_exact_through_ur_descriptions_chain(tmp_path, capsys, name,
+def test_export_of_a_real_set_is_exact_through_ur_descriptions_xacro(tmp_path, capsys,
+                                                                      ur_description, name,
                                                                       robot):
+    """ur_description's xacro of the exported file gives the imported model's flange to
+    1e-9 mm, and the D-H sum's, although d2..d4 are hundreds of metres."""
     model = tmp_path / "model.yaml"
     assert main(["import", str(DATA / name), "--robot", robot, "--out", str(model)]) == 0
     kin_file = tmp_path / "kin.yaml"
@@ -212,7 +196,10 @@ def test_export_of_a_real_set_is_exact_through_ur_descriptions_chain(tmp_path, c
     kin = yaml.safe_load(kin_file.read_text())["kinematics"]
     q = np.random.default_rng(3).uniform(-2 * np.pi, 2 * np.pi, (300, 6))
     truth = dh_flange(nominal(robot) + read_calibration_conf(DATA / name), q)
-    got = ur_description_tool0(kin, q)
+    got = ur_description.tool0(robot, q, kin_file)  # m
+    ours = load_model(model).fk(q)  # mm
+    assert np.abs(got[:, :3, 3] * 1000.0 - ours[:, :3, 3]).max() < 1e-9  # mm
+    assert np.abs(got[:, :3, :3] - ours[:, :3, :3]).max() < 1e-12
     assert np.abs(got[:, :3, 3] - truth[:, :3, 3]).max() < 1e-12  # m: 1e-9 mm
     assert np.abs(got[:, :3, :3] - truth[:, :3, :3]).max() < 1e-12
     # the link frames next to the nominal arm's although d2..d4 are hundreds of metres
@@ -268,10 +255,11 @@ def test_flange_positions_of_urs_own_test(tmp_path, capsys):
 
 @pytest.mark.parametrize(("robot", "seed", "turns"), [("ur5", 4, 0), ("ur10e", 5, 1),
                                                       ("ur3", 6, -2)])
-def test_made_files_with_cancelling_offsets_and_whole_turns(tmp_path, capsys, robot, seed,
-                                                            turns):
+def test_made_files_with_cancelling_offsets_and_whole_turns(tmp_path, capsys, ur_description,
+                                                            robot, seed, turns):
     """Any controller-like file imports without a warning and reproduces the arm; whole
-    turns added to delta_theta (beyond 2 pi) change nothing."""
+    turns added to delta_theta (beyond 2 pi) change nothing; its export through
+    ur_description's xacro is the model to 1e-9 mm."""
     arm = ImperfectArm(robot, seed)
     deltas = arm.dh() - nominal(robot)
     deltas[1:4, 0] += 2 * np.pi * turns * np.array([1, -1, 1])
@@ -286,8 +274,9 @@ def test_made_files_with_cancelling_offsets_and_whole_turns(tmp_path, capsys, ro
     assert np.abs(got[:, :3, 3] - want[:, :3, 3] * 1000.0).max() < 1e-6  # mm
     kin = tmp_path / "kin.yaml"
     assert main(["export", str(out), "--format", "ur-kinematics", "--out", str(kin)]) == 0
-    back = ur_description_tool0(yaml.safe_load(kin.read_text())["kinematics"], q)
-    assert np.abs(back[:, :3, 3] - want[:, :3, 3]).max() < 1e-9  # m
+    back = ur_description.tool0(robot, q, kin)  # m
+    assert np.abs(back[:, :3, 3] * 1000.0 - got[:, :3, 3]).max() < 1e-9  # mm
+    assert np.abs(back[:, :3, :3] - got[:, :3, :3]).max() < 1e-12
 
 
 def test_a_ur5_file_as_ur10_warns_and_names_the_type(tmp_path, capsys):

@@ -1,8 +1,11 @@
-"""Universal Robots files: ``export --format ur-kinematics`` checked against
-ur_description's chain (implemented here on its own), ``import calibration.conf`` against
-the nominal D-H plus the deltas, bad files refused."""
+"""Universal Robots files: ``export --format ur-kinematics`` checked through
+ur_description's own xacro (the ``ur_description`` fixture of tests/io/conftest.py),
+``import calibration.conf`` against the nominal D-H plus the deltas, bad files refused."""
 
 from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,51 +19,14 @@ SEGMENTS = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
 UR5 = (0.089159, -0.425, -0.39225, 0.10915, 0.09465, 0.0823)
 
 
-def _R(axis, a):
-    c, s = np.cos(a), np.sin(a)
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    R = np.eye(3)
-    R[i, i] = R[j, j] = c
-    R[i, j], R[j, i] = -s, s
-    return R
+def _load(name):
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(f"{name}.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
-def _T(R=np.eye(3), p=(0.0, 0.0, 0.0)):
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, p
-    return T
-
-
-def _rpy(r, p, y):
-    return _R(2, y) @ _R(1, p) @ _R(0, r)
-
-
-def ur_description_tool0(kin: dict, q: np.ndarray) -> np.ndarray:
-    """tool0 in base_link_inertia as ur_description's xacro builds it: per joint the
-    origin (x, y, z, rpy) then the rotation about z, then wrist_3 -> flange rpy(0, -pi/2,
-    -pi/2) -> tool0 rpy(pi/2, 0, pi/2)."""
-    out = []
-    for qi in q:
-        T = np.eye(4)
-        for seg, angle in zip(SEGMENTS, qi, strict=True):
-            k = kin[seg]
-            T = T @ _T(_rpy(k["roll"], k["pitch"], k["yaw"]), (k["x"], k["y"], k["z"]))
-            T = T @ _T(_R(2, angle))
-        T = T @ _T(_rpy(0, -np.pi / 2, -np.pi / 2)) @ _T(_rpy(np.pi / 2, 0, np.pi / 2))
-        out.append(T)
-    return np.array(out)
-
-
-def dh_flange(table: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Standard D-H flange, table rows (theta, a, d, alpha), any length unit."""
-    out = []
-    for qi in q:
-        T = np.eye(4)
-        for (theta, a, d, alpha), angle in zip(table, qi, strict=True):
-            T = T @ _T(_R(2, theta + angle)) @ _T(p=(0, 0, d)) @ _T(p=(a, 0, 0)) \
-                @ _T(_R(0, alpha))
-        out.append(T)
-    return np.array(out)
+dh_flange = _load("test_ur_calibration_files").dh_flange  # the standard D-H chain, on its own
 
 
 def _flange_params(model):
@@ -84,7 +50,10 @@ def _perturbed_ur5(rng, big=False):
 
 
 @pytest.mark.parametrize("big", [False, True])
-def test_ur_kinematics_gives_the_flange_on_300_configurations(tmp_path, capsys, big):
+def test_ur_kinematics_gives_the_flange_on_300_configurations(tmp_path, capsys,
+                                                             ur_description, big):
+    """The exported file through ur_description's xacro: tool0 in base is the model's
+    flange to 1e-9 mm, also when d2..d4 moved metres."""
     model = _perturbed_ur5(np.random.default_rng(11), big)
     path = tmp_path / "m.yaml"
     save_model(model, path)
@@ -95,8 +64,8 @@ def test_ur_kinematics_gives_the_flange_on_300_configurations(tmp_path, capsys, 
     assert set(kin) == {*SEGMENTS, "hash"} and str(kin["hash"]).startswith("kinecal_")
     q = np.random.default_rng(5).uniform(-2 * np.pi, 2 * np.pi, (300, 6))
     ours = model.fk(q, _flange_params(model))  # mm
-    theirs = ur_description_tool0(kin, q)  # m
-    assert np.abs(theirs[:, :3, 3] * 1000.0 - ours[:, :3, 3]).max() < 1e-6  # mm
+    theirs = ur_description.tool0("ur5", q, out)  # m
+    assert np.abs(theirs[:, :3, 3] * 1000.0 - ours[:, :3, 3]).max() < 1e-9  # mm
     assert np.abs(theirs[:, :3, :3] - ours[:, :3, :3]).max() < 1e-12
     # the link frames stay next to ur_description's nominal ones (meshes land on the links)
     nominal = {"shoulder": (0, 0, UR5[0]), "upper_arm": (0, 0, 0), "forearm": (UR5[1], 0, 0),
@@ -147,7 +116,8 @@ def _conf(deltas, n=6):
     return CONF.format(**cols)
 
 
-def test_import_calibration_conf_then_fk_is_nominal_plus_deltas(tmp_path, capsys):
+def test_import_calibration_conf_then_fk_is_nominal_plus_deltas(tmp_path, capsys,
+                                                                 ur_description):
     rng = np.random.default_rng(4)
     # like a controller's: d2..d4 metres along the parallel axes (their sum small),
     # theta2..theta4 compensating, a6 and alpha6 zero
@@ -174,11 +144,14 @@ def test_import_calibration_conf_then_fk_is_nominal_plus_deltas(tmp_path, capsys
     # fk prints 6 decimals (mm)
     np.testing.assert_allclose(fk[:, :3], truth[:, :3, 3] * 1000.0, rtol=0, atol=1e-6)
     # and the export of that model reproduces the controller's kinematics through
-    # ur_description, although d2..d4 moved metres
+    # ur_description's xacro, although d2..d4 moved metres
     kin = tmp_path / "dk.yaml"
     assert main(["export", str(out), "--format", "ur-kinematics", "--out", str(kin)]) == 0
-    got = ur_description_tool0(yaml.safe_load(kin.read_text())["kinematics"], q)
-    assert np.abs(got[:, :3, 3] - truth[:, :3, 3]).max() < 1e-9
+    got = ur_description.tool0("ur5", q, kin)  # m
+    ours = load_model(out).fk(q)  # mm
+    assert np.abs(got[:, :3, 3] * 1000.0 - ours[:, :3, 3]).max() < 1e-9  # mm
+    assert np.abs(got[:, :3, :3] - ours[:, :3, :3]).max() < 1e-12
+    assert np.abs(got[:, :3, 3] - truth[:, :3, 3]).max() < 1e-12  # m
 
 
 @pytest.mark.parametrize(("text", "robot", "expected"), [

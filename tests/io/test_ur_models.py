@@ -1,38 +1,23 @@
 """The bundled UR models (``ur3`` ... ``ur30``): `kinecal models` lists them; their flange
 is ur_description's ``tool0`` in the controller's ``base`` frame, checked against two
-sources kinecal does not share code with: ur_description's own kinematics files of every
-type (tests/data/ur_description, chained as its xacro does) and, for the UR3, UR5 and UR10,
-the ROS-Industrial URDFs of example-robot-data through pinocchio."""
+sources kinecal does not share code with: ur_description's own xacro with its kinematics
+file of every type (tests/data/ur_description, expanded by the xacro package) and, for the
+UR3, UR5 and UR10, the ROS-Industrial URDFs of example-robot-data through pinocchio."""
 
 from __future__ import annotations
 
 import importlib.metadata
 import json
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
-import yaml
 
 from kinecal.cli import main
 from kinecal.io.models import load_model
 from kinecal.io.ur.robots import UR_TYPES, ur_model
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "ur_description"
 Q = np.random.default_rng(21).uniform(-2 * np.pi, 2 * np.pi, (200, 6))
-
-
-def _load(name):
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(f"{name}.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-chain = _load("test_ur_calibration_files")
 
 
 def _flange(name: str) -> np.ndarray:
@@ -56,11 +41,10 @@ def test_every_ur_type_is_a_bundled_model(capsys):
 
 
 @pytest.mark.parametrize("name", list(UR_TYPES))
-def test_flange_is_ur_descriptions_tool0(name):
-    """ur_description's default_kinematics.yaml (its pi/2 written 1.570796327) chained as
-    ur_macro.xacro does: the bundled model's flange to 1e-6 mm."""
-    kin = yaml.safe_load((DATA / "default_kinematics.yaml").read_text())[name]["kinematics"]
-    theirs = chain.ur_description_tool0(kin, Q)
+def test_flange_is_ur_descriptions_tool0(ur_description, name):
+    """``xacro ur.urdf.xacro ur_type:=NAME`` with its default_kinematics.yaml (its pi/2
+    written 1.570796327): tool0 in base is the bundled model's flange to 1e-6 mm."""
+    theirs = ur_description.tool0(name, Q)
     ours = _flange(name)
     assert np.abs(theirs[:, :3, 3] - ours[:, :3, 3]).max() < 1e-9  # m
     assert np.abs(theirs[:, :3, :3] - ours[:, :3, :3]).max() < 1e-9
