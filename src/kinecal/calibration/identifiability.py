@@ -35,12 +35,17 @@ __all__ = [
     "conditioning",
     "observability_indices",
     "pivoted_qr_diagonal",
+    "separated_columns",
 ]
 
 #: relative threshold on |R_kk| / |R_00| below which a pivoted column counts as dependent
 RANK_TOL = 1e-8
 #: relative difference of remaining column norms below which pivoting sees a tie
 TIE_TOL = 1e-9
+#: rank threshold for parameters that become identifiable at the identified geometry: they
+#: are freed only when well separated (pivot above 1e-4 of the largest), so that a
+#: second-order effect never makes the problem ill-conditioned (`separated_columns`)
+GROWTH_TOL = 1e-4
 
 
 @dataclass(repr=False)
@@ -302,3 +307,27 @@ def conditioning(R: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
     s = np.linalg.svd(R, compute_uv=False) if R.size else np.zeros(0)
     cond = float(s[0] / s[-1]) if s.size and s[-1] > 0 else float("inf")
     return cond, s
+
+
+def separated_columns(B: NDArray[np.float64], free: Sequence[int], held: Sequence[int],
+                      tol: float) -> NDArray[np.intp]:
+    """The held columns that a fit could free: those of the (scaled) factor `B` ``(r, k)``
+    keeping a pivot above ``max(tol, GROWTH_TOL)`` of the free set's largest after the
+    free columns are projected out (pivoted QR of the rest; the free set only grows, a
+    confounded pair is never swapped). The growth step of every calibration of an arm,
+    the serial one's (`kinecal.calibration.serial.solve.grow_identifiable`) as the
+    stack's (`kinecal.calibration.blocks.solve`).
+
+    Returns
+    -------
+    ndarray of int
+        Positions into `held`, sorted.
+    """
+    from scipy.linalg import qr
+
+    Q, Rf = np.linalg.qr(B[:, list(free)])
+    rest = B[:, list(held)] - Q @ (Q.T @ B[:, list(held)])
+    _, R, piv = qr(rest, mode="economic", pivoting=True)
+    ref = np.abs(np.diag(Rf)).max() if Rf.size else 1.0
+    diag = np.abs(np.diag(R))
+    return np.sort(piv[: int((diag > max(tol, GROWTH_TOL) * ref).sum())])

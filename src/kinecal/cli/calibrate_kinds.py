@@ -217,7 +217,7 @@ def identifiability_files(model: str, files: list[str], *, base_link, tip_link, 
         return
     if quiet:
         return
-    from kinecal.calibration.blocks.analysis import fixture_words, unseen_words
+    from kinecal.calibration.blocks.motions import fixture_words, unseen_words
 
     typer.echo(ana.report.explain())
     typer.echo("identifiable: " + ", ".join(ana.report.identifiable))

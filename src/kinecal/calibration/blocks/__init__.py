@@ -21,9 +21,11 @@ for its own unknowns, ``observation_errors``, the ``check_data`` / ``check_fit``
 ``nuisance_report``), check its Jacobian against central differences in a test (as
 ``tests/calibration/test_blocks.py`` does for every kind), and pass instances to
 `calibrate_blocks` (or `kinecal.calibrate` with a list). Nothing else changes: the stack
-(`stack`), the identifiability with the nuisance marginalised and the blind motions named
-(`analysis`), the noise per block (`weights`), the fit (`solve`), the uncertainty
-(`uncertainty`) and the result (`result`) are shared.
+(`stack`), the identifiability with the nuisance marginalised (`analysis`) and the blind
+motions named (`motions`), the noise per block (`weights`), the fit (`solve`), the
+uncertainty (`uncertainty`) and the result (`result`) are shared. A block without unknowns
+of its own may accumulate its normal equations itself (``arm_normal``, as the tracker rows
+do chunk by chunk and chain by chain) instead of handing the stack dense rows.
 
 Public entry points
 -------------------

@@ -17,7 +17,6 @@ import numpy as np
 
 from kinecal import diagnostics
 from kinecal._blas import small_products
-from kinecal.calibration.blocks.analysis import unseen_words
 from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.checks import (
     check_block_data,
@@ -29,6 +28,7 @@ from kinecal.calibration.blocks.checks import (
 )
 from kinecal.calibration.blocks.decide import solve_blocks, start_blocks
 from kinecal.calibration.blocks.make import DataSet, make_blocks, marker_names
+from kinecal.calibration.blocks.motions import unseen_words
 from kinecal.calibration.blocks.prior import stack_prior
 from kinecal.calibration.blocks.result import KindsCalibrationResult, kind_entry
 from kinecal.calibration.blocks.system_ident import system_identifiability

@@ -31,6 +31,10 @@ What a block provides (each method's docstring has the shapes and units):
                           `SerialModel`'s identification Jacobian (`tool_points`; a block
                           that sets ``shares_tool_points`` gets them from the stack, one
                           sweep for all such blocks)
+``arm_normal(...)``       optional, blocks without unknowns of their own: their share of
+                          the normal equations accumulated chunk by chunk and chain by
+                          chain, never the dense rows (default: None, the stack forms the
+                          rows from ``evaluate``)
 ``observation_errors(r)`` per-observation error sizes from the residual (before / after
                           statistics, outliers)
 ``normal_parts(...)``     optional: the block's share of the normal equations without its
@@ -173,7 +177,7 @@ class ResidualBlock(ABC):
     shares_tool_points: ClassVar[bool] = False
     #: similarity motions of the whole arm (and the block's unknowns with it) that leave
     #: the residuals unchanged: any of ``translation``, ``rotation``, ``scale``
-    #: (`kinecal.calibration.blocks.analysis`)
+    #: (`kinecal.calibration.blocks.motions`)
     blind_to: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, source: str, q: Array, marker: NDArray[np.intp] | None = None,
@@ -281,6 +285,32 @@ class ResidualBlock(ABC):
         points ``(N, 3)`` and, with `jacobian`, their Jacobian ``(k, 3, N)`` for `columns`,
         as `tool_points` gives them; None: the block computes them.
         """
+
+    def arm_normal(self, model: SerialModel, params: Array, columns: NDArray[np.intp],
+                   weight: Array, groups: list | None = None
+                   ) -> tuple[Array, Array, Array] | None:
+        """The share of a block without unknowns of its own in the normal equations.
+
+        Parameters
+        ----------
+        model, params
+            As in `evaluate`.
+        columns : ndarray of int, shape (k,)
+            Parameter indices of the arm's columns.
+        weight : ndarray, shape (m,)
+            Weight of each residual row (``1 / sigma``; zero: the row is left out).
+        groups : list of (ndarray, ndarray), optional
+            The residual rows grouped by the chains they reach, with the positions in
+            `columns` of those chains' columns (`kinecal.calibration.blocks.tips.
+            column_groups`); None: every row reaches every column.
+
+        Returns
+        -------
+        tuple of (r (m,), J^T J (k, k), J^T r (k,)) or None
+            Weighted residual rows and their normal equations; None (the default): the
+            stack forms them from `evaluate`'s rows.
+        """
+        return None
 
     @abstractmethod
     def observation_errors(self, r: Array) -> Array:

@@ -60,6 +60,8 @@ class PriorStack(StackedProblem):
         The standard deviation of unit weight the prior rows are scaled with.
     """
 
+    scale_free = False  # the prior's rows weigh against the blocks'
+
     def __init__(self, problem: StackedProblem, prior: Prior, noise: float) -> None:
         super().__init__(problem.model, problem.blocks, problem.free, problem.sigma,
                          problem.base_params)
@@ -78,8 +80,8 @@ class PriorStack(StackedProblem):
         P[:, :self.k] = np.diag(self.w)
         return np.vstack([super().jacobian(x), P])
 
-    def normal_equations(self, x: Array) -> tuple[Array, Array, Array]:
-        r, A, g = super().normal_equations(x)
+    def assemble(self, parts, x: Array) -> tuple[Array, Array, Array]:
+        r, A, g = super().assemble(parts, x)
         rp = self.prior_rows(x)
         k = self.k
         A[:k, :k] += np.diag(self.w**2)

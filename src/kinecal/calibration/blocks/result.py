@@ -123,7 +123,7 @@ class KindsCalibrationResult(CalibrationResult):
             extra += ["", f"not seen by this mix of measurements: {unseen}; the parameters "
                       "that only move those are held at nominal"]
         if self.extra.get("fixtures_show"):
-            from kinecal.calibration.blocks.analysis import fixture_words
+            from kinecal.calibration.blocks.motions import fixture_words
 
             extra += [f"known fixtures make visible: {fixture_words(self.extra['fixtures_show'])}"]
         # after the identifiability lines, before the error tables

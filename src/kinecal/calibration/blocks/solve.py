@@ -11,7 +11,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import NDArray
 
 from kinecal._special import fdtri
@@ -20,6 +19,7 @@ from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.blocks.weights import MAX_ROUNDS, SETTLED, variance_factors
 from kinecal.calibration.diagnostics.observations import pose_outliers
+from kinecal.calibration.identifiability import separated_columns
 from kinecal.diagnostics import warn
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.optimize.lsq import levenberg_marquardt
@@ -33,9 +33,6 @@ Array = NDArray[np.float64]
 
 #: significance level of freeing parameters that became identifiable at the solution
 GROWTH_LEVEL = 0.01
-#: a held parameter is freed only when well separated from the free set (as the serial
-#: path's growth: a second-order effect must not make the problem ill-conditioned)
-GROWTH_TOL = 1e-4
 #: largest change of a noise estimate per round, and over all rounds from the first
 STEP = 10.0
 SPAN = 1e3
@@ -93,10 +90,12 @@ def _estimate(problem: StackedProblem, res: OptimizeResult, known: list[bool]
               ) -> tuple[OptimizeResult, Array, Array, int]:
     """Alternate fit and noise estimates (`kinecal.calibration.blocks.weights`).
 
-    Each round may change a noise by at most `STEP` and all rounds together by at most
-    `SPAN` from the first estimate: sets that contradict each other (a file of another
-    robot) otherwise drive one noise to zero and the arm to a degenerate fit that explains
-    that set alone. Rounds that do not settle end with ``noise-estimate``.
+    Each round may change a noise by at most `STEP` against the others and all rounds
+    together by at most `SPAN` from the first estimate: sets that contradict each other (a
+    file of another robot) otherwise drive one noise to zero and the arm to a degenerate
+    fit that explains that set alone. A scale common to every set is taken at once when
+    every set's noise is estimated (it changes no fit: `StackedProblem.scale_free`). Rounds
+    that do not settle end with ``noise-estimate``.
     """
     rounds, first = 1, None
     known = np.asarray(known, dtype=bool)
@@ -119,7 +118,12 @@ def _estimate(problem: StackedProblem, res: OptimizeResult, known: list[bool]
             new = [np.clip(s, f0 / SPAN, f0 * SPAN) for s, f0 in zip(new, first, strict=True)]
         change = max(float(np.max(np.abs(n / s - 1.0))) for n, s in
                      zip(new, problem.sigma, strict=True))
-        problem.set_sigma([np.clip(n, s / STEP, s * STEP) for n, s in
+        # a scale common to the noise of every set changes no fit (when every set's is
+        # estimated and no other rows weigh in): only the ratios are held to `STEP`
+        free = ~(known | exact) & np.isfinite(f) & (f > 0)
+        common = (float(np.exp(np.mean(np.log(step)))) if free.all() and problem.scale_free
+                  else 1.0)
+        problem.set_sigma([np.clip(n, s * common / STEP, s * common * STEP) for n, s in
                            zip(new, problem.sigma, strict=True)])
         if change < SETTLED:
             return res, np.where(known, f, 1.0), red, rounds
@@ -149,11 +153,11 @@ def _grow(problem: StackedProblem, res: OptimizeResult, candidates: list[str],
           tol: float) -> tuple[StackedProblem, OptimizeResult]:
     """Free the held candidates that became identifiable at the solution, when that pays.
 
-    As the serial path's growth (`kinecal.calibration.serial.solve.grow_identifiable`):
-    a held parameter is added when its (scaled, blind motions removed) column keeps a
-    pivot above ``max(tol, GROWTH_TOL)`` of the free set's largest after projecting out
-    the free set's columns (the free set only grows, a confounded pair is never swapped),
-    and the larger fit lowers the residual significantly (F-test).
+    As the serial path's growth (`kinecal.calibration.serial.solve.grow_identifiable`), by
+    the same test (`kinecal.calibration.identifiability.separated_columns`): a held
+    parameter is added when its (scaled, blind motions removed) column keeps a pivot above
+    ``max(tol, GROWTH_TOL)`` of the free set's largest after projecting out the free set's
+    columns, and the larger fit lowers the residual significantly (F-test).
     """
     model, blocks = problem.model, problem.blocks
     params, nuis = problem.params(res.x), problem.nuisance(res.x)
@@ -162,15 +166,10 @@ def _grow(problem: StackedProblem, res: OptimizeResult, candidates: list[str],
         return problem, res
     cand = StackedProblem(model, blocks, candidates, problem.sigma)
     cand.exclude(problem.excluded)
-    B = analyse_stack(cand, cand.pack(params, nuis), tol).reduced
+    B = analyse_stack(cand, cand.pack(params, nuis), tol, report=False).reduced
     free_pos = [candidates.index(n) for n in problem.free]
     held_pos = [candidates.index(n) for n in held]
-    Q, Rf = np.linalg.qr(B[:, free_pos])
-    rest = B[:, held_pos] - Q @ (Q.T @ B[:, held_pos])
-    _, R, piv = scipy.linalg.qr(rest, mode="economic", pivoting=True)
-    ref = np.abs(np.diag(Rf)).max() if Rf.size else 1.0
-    diag = np.abs(np.diag(R))
-    added = [held[j] for j in np.sort(piv[: int((diag > max(tol, GROWTH_TOL) * ref).sum())])]
+    added = [held[j] for j in separated_columns(B, free_pos, held_pos, tol)]
     if not added:
         return problem, res
     names = [n for n in candidates if n in problem.free or n in added]

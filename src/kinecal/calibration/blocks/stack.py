@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from itertools import pairwise
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,9 +22,26 @@ from kinecal.errors import InputError
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.optimize.lsq import levenberg_marquardt
 
-__all__ = ["StackedProblem", "fit_nuisance"]
+__all__ = ["NormalPart", "StackedProblem", "fit_nuisance"]
 
 Array = NDArray[np.float64]
+
+#: points whose `StackedProblem.normal_parts` are kept (a solver's last accepted point and
+#: the trial points after it)
+PARTS_KEPT = 3
+
+
+class NormalPart(NamedTuple):
+    """One block's weighted residual rows and share of the normal equations
+    (`StackedProblem.normal_parts`)."""
+
+    r: Array  #: weighted residual rows (m_b,)
+    aa: Array  #: J_a^T J_a (k, k)
+    an: Array  #: J_a^T J_n (k, n_b)
+    nn: Array  #: J_n^T J_n (n_b, n_b)
+    ga: Array  #: J_a^T r (k,)
+    gn: Array  #: J_n^T r (n_b,)
+    dense: bool = False  #: formed from the block's dense rows (not `arm_normal`)
 
 
 class StackedProblem:
@@ -43,6 +61,10 @@ class StackedProblem:
         Values of the held parameters (default nominal).
     """
 
+    #: the solution does not change when every block's noise is scaled by one factor (no
+    #: rows of other weight, such as a prior's)
+    scale_free: bool = True
+
     def __init__(self, model: SerialModel, blocks: Sequence[ResidualBlock],
                  free: Sequence[str], sigma: Sequence[Array],
                  params: Array | None = None) -> None:
@@ -61,6 +83,8 @@ class StackedProblem:
         self.m = int(rows[-1])
         #: observations left out of the fit (weight zero): ``(block, observation)``
         self.excluded: list[tuple[int, int]] = []
+        #: the last `normal_parts` at the problem's own weights: ``(x, weights, parts)``
+        self._parts_cache: list[tuple] = []
         self.set_sigma(sigma)
         # a robot system's rows reach their chains' columns only (`tips.column_groups`)
         self.groups = [column_groups(model, b, self.index) for b in self.blocks]
@@ -151,11 +175,16 @@ class StackedProblem:
         return np.concatenate([ri * w for ri, w in zip(r, self.row_weight, strict=True)]
                               ) if r else np.zeros(0)
 
-    def _weighted_rows(self, x: Array):
+    def _weighted_rows(self, x: Array, only: Sequence[bool] | None = None):
+        """Each block's weighted ``(r, J_arm, J_nuisance, columns)`` at `x` (dense rows;
+        `only`: the blocks wanted, None yielded for the others)."""
         p = self.params(x)
         pts = self._points(p, True)
         for i, (b, v, w, s) in enumerate(zip(self.blocks, self.nuisance(x), self.row_weight,
                                              self.slices, strict=True)):
+            if only is not None and not only[i]:
+                yield None
+                continue
             rows = b.evaluate(self.model, p, v, self.index, jacobian=True, points=pts.get(i))
             yield rows.r * w, rows.arm * w[:, None], rows.nuisance * w[:, None], s
 
@@ -179,44 +208,85 @@ class StackedProblem:
             G[np.ix_(cols, cols)] += Jg.T @ Jg
         return G
 
-    def normal_equations(self, x: Array) -> tuple[Array, Array, Array]:
-        """``(residuals, J^T J, J^T r)`` at `x`, assembled block by block (a block with
-        `ResidualBlock.normal_parts` sums its own share without its dense rows)."""
-        A = np.zeros((self.n, self.n))
-        g = np.zeros(self.n)
-        parts = []
-        k = self.k
+    def normal_parts(self, x: Array, weights: Sequence[Array] | None = None
+                     ) -> list[NormalPart]:
+        """Each block's weighted residual and share of the normal equations at `x`.
+
+        A block without unknowns of its own that accumulates them itself
+        (`ResidualBlock.arm_normal`: a tracker's rows, chunk by chunk and chain by chain)
+        never forms its rows; the others' are formed from `ResidualBlock.evaluate`.
+        `weights`: per block, row weights replacing `row_weight` (zero leaves a row out).
+        The parts at the problem's own weights are kept for the last `PARTS_KEPT` points
+        (the blocks must not change meanwhile: a block changed is a new problem).
+        """
+        own = weights is None
+        weights = self.row_weight if own else weights
+        x = np.asarray(x, dtype=float)
+        if own:  # the solver's last points: the noise estimate asks again where it stopped
+            for cx, cw, parts in self._parts_cache:
+                if np.array_equal(cx, x) and all(np.array_equal(a, b) for a, b in
+                                                 zip(cw, weights, strict=True)):
+                    return list(parts)
         p = self.params(x)
-        pts = self._points(p, True)
-        for i, (b, v, w, s) in enumerate(zip(self.blocks, self.nuisance(x), self.row_weight,
-                                             self.slices, strict=True)):
-            own = b.normal_parts(self.model, p, v, self.index, w) \
-                if self.groups[i] is None else None
-            if own is None:
+        out: list[NormalPart] = []
+        dense = []
+        for i, (b, w) in enumerate(zip(self.blocks, weights, strict=True)):
+            got = (b.arm_normal(self.model, p, self.index, w, self.groups[i])
+                   if b.n_nuisance == 0 else None)
+            out.append(None if got is None else NormalPart(
+                got[0], got[1], np.zeros((self.k, 0)), np.zeros((0, 0)), got[2], np.zeros(0)))
+            dense.append(got is None)
+        if any(dense):
+            pts = self._points(p, True)
+            for i, (b, v, w) in enumerate(zip(self.blocks, self.nuisance(x), weights,
+                                              strict=True)):
+                if not dense[i]:
+                    continue
+                share = (b.normal_parts(self.model, p, v, self.index, w)
+                         if self.groups[i] is None else None)
+                if share is not None:  # block-sparse: the block sums its own share
+                    out[i] = NormalPart(*share)
+                    continue
                 rows = b.evaluate(self.model, p, v, self.index, jacobian=True,
                                   points=pts.get(i))
                 r, Ja, Jn = rows.r * w, rows.arm * w[:, None], rows.nuisance * w[:, None]
-                own = (r, self.arm_gram(i, Ja), Ja.T @ Jn, Jn.T @ Jn, Ja.T @ r, Jn.T @ r)
-            r, Gaa, Gan, Gnn, ga, gn = own
-            parts.append(r)
-            A[:k, :k] += Gaa
-            A[:k, s] = Gan
-            A[s, :k] = Gan.T
-            A[s, s] = Gnn
-            g[:k] += ga
-            g[s] = gn
-        return (np.concatenate(parts) if parts else np.zeros(0)), A, g
+                out[i] = NormalPart(r, self.arm_gram(i, Ja), Ja.T @ Jn, Jn.T @ Jn, Ja.T @ r,
+                                    Jn.T @ r, True)
+        if own:
+            self._parts_cache = [(x.copy(), [w.copy() for w in weights], out),
+                                 *self._parts_cache][:PARTS_KEPT]
+        return list(out)
+
+    def assemble(self, parts: Sequence[NormalPart], x: Array) -> tuple[Array, Array, Array]:
+        """``(residuals, J^T J, J^T r)`` at `x` from the blocks' `normal_parts` there (a
+        subclass adds further rows: a prior's)."""
+        A = np.zeros((self.n, self.n))
+        g = np.zeros(self.n)
+        k = self.k
+        for part, s in zip(parts, self.slices, strict=True):
+            A[:k, :k] += part.aa
+            A[:k, s] = part.an
+            A[s, :k] = part.an.T
+            A[s, s] = part.nn
+            g[:k] += part.ga
+            g[s] = part.gn
+        r = np.concatenate([p.r for p in parts]) if parts else np.zeros(0)
+        return r, A, g
+
+    def normal_equations(self, x: Array) -> tuple[Array, Array, Array]:
+        """``(residuals, J^T J, J^T r)`` at `x`, assembled block by block."""
+        return self.assemble(self.normal_parts(x), x)
 
     def block_grams(self, x: Array) -> list[Array]:
         """Each block's share ``J_b^T J_b`` ``(n, n)`` of the normal matrix (weighted)."""
         out = []
         k = self.k
-        for i, (_, Ja, Jn, s) in enumerate(self._weighted_rows(x)):
+        for part, s in zip(self.normal_parts(x), self.slices, strict=True):
             G = np.zeros((self.n, self.n))
-            G[:k, :k] = self.arm_gram(i, Ja)
-            G[:k, s] = Ja.T @ Jn
-            G[s, :k] = G[:k, s].T
-            G[s, s] = Jn.T @ Jn
+            G[:k, :k] = part.aa
+            G[:k, s] = part.an
+            G[s, :k] = part.an.T
+            G[s, s] = part.nn
             out.append(G)
         return out
 

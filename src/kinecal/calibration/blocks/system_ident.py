@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from kinecal.calibration.blocks.analysis import StackAnalysis, analyse_stack
+from kinecal.calibration.blocks.analysis import StackAnalysis, analyse_stack, stack_scale
 from kinecal.calibration.blocks.stack import StackedProblem
 from kinecal.calibration.blocks.tips import row_tips
 
@@ -71,15 +71,14 @@ def _across(analysis: StackAnalysis, names: list[str], free: list[str], reach: d
     out: dict[str, dict[str, float]] = {}
     if not kept:
         return out
-    for j, n in enumerate(names):
-        if n in free:
-            continue
-        col = B[:, j]
-        norm = float(np.linalg.norm(col))
-        if norm == 0.0:
-            continue
-        c, *_ = np.linalg.lstsq(B[:, kept], col, rcond=None)
-        if np.linalg.norm(B[:, kept] @ c - col) > EXPLAINED * norm:
+    held = [j for j, n in enumerate(names) if n not in free
+            and float(np.linalg.norm(B[:, j])) > 0.0]
+    if not held:
+        return out
+    coef, *_ = np.linalg.lstsq(B[:, kept], B[:, held], rcond=None)  # one factorisation
+    for c, j in zip(coef.T, held, strict=True):
+        n, col = names[j], B[:, j]
+        if np.linalg.norm(B[:, kept] @ c - col) > EXPLAINED * float(np.linalg.norm(col)):
             continue  # weak rather than confounded: no partners to name
         c = c * D[kept] / D[j]
         big = np.abs(c) > 1e-6 * max(float(np.abs(c).max()), 1e-300)
@@ -120,18 +119,21 @@ def system_identifiability(problem: StackedProblem, x: np.ndarray, tol: float,
     report = analysis.report
     names = list(report.names)
     free = list(report.identifiable)
-    reach = {n: frozenset(t for t in model.tips if n in set(model.chain_parameters(t)))
-             for n in names}
+    chain = {t: set(model.chain_parameters(t)) for t in model.tips}
+    reach = {n: frozenset(t for t in model.tips if n in chain[t]) for n in names}
     cfg = _config_tips(problem)
     tips: dict[str, Any] = {}
     alone: set[str] = set()
-    weighted = list(problem._weighted_rows(x))  # once for every tip
+    # the rows of the blocks with unknowns once for every tip (the others: `arm_normal`)
+    weighted = list(problem._weighted_rows(x, only=[b.n_nuisance > 0 for b in problem.blocks]))
+    scaled = stack_scale(problem, problem.params(x))  # one scale for every tip's analysis
     for t, tip in enumerate(model.tips):
         keep = [row_tips(b, model, t) for b in problem.blocks]
         rows = int(sum(int(k.sum()) for k in keep))
         ident: list[str] = []
         if rows:
-            ana = analyse_stack(problem, x, tol, keep=keep, configs=cfg == t, rows=weighted)
+            ana = analyse_stack(problem, x, tol, keep=keep, configs=cfg == t, rows=weighted,
+                                scaled=scaled, report=False)
             ident = [n for n in _estimable(ana.reduced, names, free, tol) if tip in reach[n]]
         alone |= set(ident)
         tips[tip] = {"rows": rows, "parameters": len(model.chain_parameters(tip)),

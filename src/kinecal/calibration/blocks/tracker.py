@@ -4,8 +4,9 @@ whitened by their per-axis standard deviations when the file gives them
 (`kinecal.calibration.serial.row_weights`). Several set-ups: `kinecal.calibration.blocks.
 stations`.
 
-Used in mixes with gauges; a tracker file alone is calibrated on the chunked fast path of
-`kinecal.calibration.serial` (the same residual rows, `PoseRows`).
+Its share of the normal equations (`arm_normal`) is accumulated over cache-sized chunks of
+rows (`PoseRows`), and for a robot system chain by chain on the columns each chain reaches:
+one Jacobian sweep per chain, the shared columns added, never the dense rows.
 """
 
 from __future__ import annotations
@@ -93,6 +94,23 @@ class TrackerBlock(ResidualBlock):
             return BlockRows(e.ravel())
         arm = Jt.transpose(2, 1, 0).reshape(e.size, Jt.shape[0])
         return BlockRows(e.ravel(), arm, np.zeros((arm.shape[0], 0)))
+
+    def arm_normal(self, model: SerialModel, params: Array, columns: NDArray[np.intp],
+                   weight: Array, groups: list | None = None
+                   ) -> tuple[Array, Array, Array]:
+        """Weighted residual ``(m,)``, ``J^T J`` ``(k, k)`` and ``J^T r`` ``(k,)`` of the
+        rows (`ResidualBlock.arm_normal`): the serial calibration's chunked pass
+        (`PoseRows.normal_equations`), group by group; the rows of weight zero are not
+        evaluated (their residual is zero)."""
+        if self._pose_rows is None:
+            self.start(model, params)
+        rows = self.rows
+        W = np.asarray(weight, dtype=float).reshape(-1, rows)
+        if self._scale is not None:
+            W = W * self._scale
+        # a group holds every row of its observations, in order (`column_groups`)
+        parts = None if groups is None else [(rw[::rows] // rows, pos) for rw, pos in groups]
+        return self._pose_rows.normal_equations(params, columns, W, parts)
 
     def observation_errors(self, r: Array) -> Array:
         """Distance error per measured point (length unit; the position rows, unweighted)."""

@@ -1,39 +1,23 @@
 """Uncertainty of a stacked fit: the arm's covariance with every block's unknowns
-marginalised, on the identifiable subspace (`kinecal.calibration.uncertainty`), and the
-standard errors of the unknowns themselves."""
+marginalised, on the identifiable subspace (`kinecal.calibration.uncertainty.
+arm_uncertainty`, the serial calibration's too), and the standard errors of the unknowns
+themselves."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import NDArray
 
-from kinecal.calibration.blocks.analysis import StackAnalysis, blind_basis, stack_scale
+from kinecal.calibration.blocks.analysis import StackAnalysis, stack_scale
+from kinecal.calibration.blocks.motions import blind_basis
 from kinecal.calibration.blocks.stack import StackedProblem
-from kinecal.calibration.uncertainty import Uncertainty, subspace_uncertainty
+from kinecal.calibration.uncertainty import Uncertainty, arm_uncertainty, marginal_normal
 
 __all__ = ["marginal_normal", "stack_uncertainty"]
 
 Array = NDArray[np.float64]
-
-
-def marginal_normal(A: Array, k: int, scale: Array) -> Array:
-    """The arm's information ``(k, k)`` with the unknowns after column `k` marginalised:
-    the Schur complement ``A_aa - A_an A_nn^-1 A_na`` (computed on the columns scaled by
-    `scale` ``(n,)``, returned in parameter units)."""
-    As = A * scale[:, None] * scale[None, :]
-    Aaa, Aan, Ann = As[:k, :k], As[:k, k:], As[k:, k:]
-    if Ann.size:
-        try:
-            S = Aaa - Aan @ scipy.linalg.cho_solve(scipy.linalg.cho_factor(Ann), Aan.T)
-        except np.linalg.LinAlgError:
-            S = Aaa - Aan @ np.linalg.pinv(Ann) @ Aan.T
-    else:
-        S = Aaa
-    d = scale[:k]
-    return 0.5 * (S + S.T) / d[:, None] / d[None, :]
 
 
 def stack_uncertainty(problem: StackedProblem, x: Array, analysis: StackAnalysis,
@@ -74,17 +58,11 @@ def stack_uncertainty(problem: StackedProblem, x: Array, analysis: StackAnalysis
     D, L, q, P = stack_scale(problem, params)
     Dn = np.concatenate([b.nuisance_scale(L) for b in problem.blocks] or [np.zeros(0)])
     Df = np.r_[D, Dn]
-    S = marginal_normal(A, k, Df)
-    # the blind motions the free parameters can make are exact null directions (at a noisy
-    # solution they show at the noise's level and would blur the fitted subspace)
     Q, _ = blind_basis(problem, params, q, P, D)
-    if Q.size:
-        Pr = np.eye(k) - Q @ Q.T
-        S = (Pr @ (S * D[:, None] * D[None, :]) @ Pr) / D[:, None] / D[None, :]
     rank = k - int(np.isin(problem.free, analysis.report.unidentifiable).sum())
     used = int(sum(int(np.isfinite(s[b.obs_index]).sum()) for s, b in
                    zip(sigma, problem.blocks, strict=True)))
-    unc = subspace_uncertainty(S, float(r @ r), used - (problem.n - k), rank, D)
+    unc = arm_uncertainty(A, float(r @ r), used - (problem.n - k), k, rank, Df, Q)
     As = A * Df[:, None] * Df[None, :]
     cov = np.linalg.pinv(As, rcond=1e-12, hermitian=True) * Df[:, None] * Df[None, :]
     s2 = unc.sigma ** 2 if np.isfinite(unc.sigma) else np.nan

@@ -60,15 +60,26 @@ def redundancies(problem: StackedProblem, x: Array) -> Array:
     its nuisance): the normal matrix ``A`` is formed once, never a matrix of the whole
     problem per block (200 fixed-point files held 9 GB of such matrices).
     """
-    _, A, _ = problem.normal_equations(x)
+    parts = problem.normal_parts(x)  # the normal matrix and the trackers' shares in one pass
+    _, A, _ = problem.assemble(parts, x)
     d = np.sqrt(np.clip(np.diag(A), 0.0, None))
     d = np.where(d > 0, d, 1.0)
     Ainv = np.linalg.pinv(A / np.outer(d, d), rcond=1e-12, hermitian=True) / np.outer(d, d)
+    dense = [part.dense for part in parts]
+    rows = problem._weighted_rows(x, only=dense) if any(dense) else iter([None] * len(parts))
     out = []
-    for m, (_, Ja, Jn, s) in zip(problem.used_rows, problem._weighted_rows(x), strict=True):
-        cols = np.r_[np.arange(problem.k), np.arange(s.start, s.stop)]
-        Jb = np.hstack([Ja, Jn])
-        out.append(m - float(np.sum((Jb @ Ainv[np.ix_(cols, cols)]) * Jb)))
+    k = problem.k
+    for m, part, s, row in zip(problem.used_rows, parts, problem.slices, rows, strict=True):
+        cols = np.r_[np.arange(k), np.arange(s.start, s.stop)]
+        if row is not None:  # from the rows, as exact as they are
+            Jb = np.hstack([row[1], row[2]])
+            t = np.sum((Jb @ Ainv[np.ix_(cols, cols)]) * Jb)
+        elif part.nn.size:  # a block that sums its own share (`normal_parts`)
+            G = np.block([[part.aa, part.an], [part.an.T, part.nn]])
+            t = np.sum(Ainv[np.ix_(cols, cols)] * G)
+        else:  # a block without unknowns: from its Gram matrix (`arm_normal`)
+            t = np.sum(Ainv[:k, :k] * part.aa)
+        out.append(m - float(t))
     return np.array(out)
 
 

@@ -44,7 +44,7 @@ from kinecal.calibration.serial.summaries import (
     result_extra,
     validation_errors,
 )
-from kinecal.calibration.uncertainty import Uncertainty, subspace_uncertainty
+from kinecal.calibration.uncertainty import Uncertainty, arm_uncertainty
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers, remap_markers
@@ -90,7 +90,7 @@ def _uncertainty(problem: CalibrationProblem, x: np.ndarray, outliers: list[int]
     n_rows = problem.rows * (n if keep is None else len(keep))
     P = problem.errors(x) + problem.xyz if positions is None else positions
     scale = column_scale(problem.model, problem.data, problem.free, positions=P)
-    return subspace_uncertainty(normal, rss, n_rows, rank, scale)
+    return arm_uncertainty(normal, rss, n_rows, k, rank, scale)  # the stack's covariance
 
 
 def _solution_report(problem: CalibrationProblem, x: np.ndarray, report, normal, tol: float):

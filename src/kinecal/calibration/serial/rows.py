@@ -134,18 +134,51 @@ class PoseRows:
             r[sel], _, P[sel] = self.evaluate(p, sel, None)
         return r.ravel(), P
 
-    def normal_equations(self, p: Array, columns: Array) -> tuple[Array, Array, Array]:
-        """Residual vector ``(rows * N,)``, ``J^T J`` ``(k, k)`` and ``J^T r`` ``(k,)``."""
+    def normal_equations(self, p: Array, columns: Array, weight: Array | None = None,
+                         parts: list | None = None) -> tuple[Array, Array, Array]:
+        """Residual vector ``(rows * N,)``, ``J^T J`` ``(k, k)`` and ``J^T r`` ``(k,)``.
+
+        Parameters
+        ----------
+        p : ndarray, shape (n_params,)
+        columns : ndarray of int, shape (k,)
+            Parameter indices of the Jacobian's columns.
+        weight : ndarray, shape (N, rows), optional
+            Further row weights (a stacked problem's ``1 / sigma``); the poses whose rows
+            all weigh zero are not evaluated (their residual rows are zero).
+        parts : list of (ndarray or None, ndarray or None), optional
+            Pose groups, each with the positions in `columns` its rows reach (a robot
+            system's chains: `kinecal.calibration.blocks.tips.column_groups`); each group's
+            Gram matrix is accumulated on its own columns. Default: every pose, every
+            column.
+        """
         k = len(columns)
-        r = np.empty((self.n_poses, self.rows))
+        r = np.zeros((self.n_poses, self.rows))
         A = np.zeros((k, k))
         g = np.zeros(k)
-        for sel in self.chunks(k):
-            e, Jt, _ = self.evaluate(p, sel, columns)
-            r[sel] = e
-            J2 = Jt.reshape(k, -1)  # rows in (row, pose) order
-            A += J2 @ J2.T
-            g += J2 @ np.ascontiguousarray(e.T).ravel()
+        live = None if weight is None else weight.any(axis=1)
+        for poses, pos in parts or [(None, None)]:
+            if live is not None and not live.all():
+                poses = np.flatnonzero(live) if poses is None else poses[live[poses]]
+            cols = columns if pos is None else columns[pos]
+            for sel in self.chunks(len(cols), poses):
+                e, Jt, _ = self.evaluate(p, sel, cols if len(cols) else None)
+                if weight is not None:
+                    ws = weight[sel]
+                    e = e * ws
+                    if Jt is not None:
+                        Jt *= ws.T
+                r[sel] = e
+                if Jt is None:  # no column reaches these rows
+                    continue
+                J2 = Jt.reshape(len(cols), -1)  # rows in (row, pose) order
+                Ag, gg = J2 @ J2.T, J2 @ np.ascontiguousarray(e.T).ravel()
+                if pos is None:
+                    A += Ag
+                    g += gg
+                else:
+                    A[np.ix_(pos, pos)] += Ag
+                    g[pos] += gg
         return r.ravel(), A, g
 
     def gram(self, p: Array, columns: Array, keep: Array | None = None,

@@ -24,15 +24,16 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import NDArray
 
 from kinecal._special import fdtri
 from kinecal.calibration.identifiability import (
+    GROWTH_TOL,
     IdentifiabilityReport,
     analyse_factor,
     conditioning,
     observability_indices,
+    separated_columns,
 )
 from kinecal.calibration.serial.cross_validation import data_poses
 from kinecal.calibration.serial.inliers import merge_runs, robust_fit, robust_start
@@ -169,22 +170,17 @@ def _converge(problem: CalibrationProblem, res: OptimizeResult) -> OptimizeResul
     return more
 
 
-#: rank threshold for parameters that become identifiable at the identified geometry: they
-#: are freed only when well separated (pivot above 1e-4 of the largest), so that a
-#: second-order effect never makes the problem ill-conditioned
-GROWTH_TOL = 1e-4
-
-
 def grow_identifiable(model, data, problem, res, report, tol):
     """Free the parameters that became identifiable at the identified geometry.
 
     Identifiability is local: directions confounded at the nominal geometry can separate
     at the identified one (e.g. large angle errors make the IRB-120's rank 23 instead of
     20). Candidates are the held parameters whose unit-norm columns keep a component
-    above ``max(tol, GROWTH_TOL)`` after projecting out the free set's columns (the free
-    set only grows, it never swaps a confounded pair). The larger model is kept only if
-    it lowers the residual sum of squares significantly (extra-sum-of-squares F-test at
-    the 1 % level), so noise is never fitted with weakly identifiable parameters.
+    above ``max(tol, GROWTH_TOL)`` after projecting out the free set's columns
+    (`kinecal.calibration.identifiability.separated_columns`, the stack's test too). The
+    larger model is kept only if it lowers the residual sum of squares significantly
+    (extra-sum-of-squares F-test at the 1 % level), so noise is never fitted with weakly
+    identifiable parameters.
 
     One chunked pass at the current solution `res` gives the Gram matrix of the
     candidates' identification rows and the residual; everything else is ``(p, p)``
@@ -207,12 +203,7 @@ def grow_identifiable(model, data, problem, res, report, tol):
     # the same physical column scale as the analysis, threshold relative to the free set
     scale = column_scale(model, data, cand, params, positions=P)
     B = gram_root(G[:kc, :kc] * scale[:, None] * scale[None, :])  # B^T B = (J D)^T (J D)
-    Q, Rf = np.linalg.qr(B[:, :kf])
-    rest = B[:, kf:] - Q @ (Q.T @ B[:, kf:])
-    _, R, piv = scipy.linalg.qr(rest, mode="economic", pivoting=True)
-    diag = np.abs(np.diag(R))
-    ref = np.abs(np.diag(Rf)).max()
-    added = [held[k] for k in np.sort(piv[: int((diag > tol * ref).sum())])]
+    added = [held[k] for k in separated_columns(B, range(kf), range(kf, kc), tol)]
     if not added:
         return problem, _converge(problem, res), names, report
     grown = [n for n in report.names if n in names or n in added]

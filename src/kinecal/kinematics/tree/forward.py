@@ -93,6 +93,15 @@ class SystemSweep:
             raise InputError(f"outputs: expected 'position' or 'pose', got {outputs!r}")
         n_params = len(self.p)
         cols = np.arange(n_params) if columns is None else np.asarray(columns, dtype=np.intp)
+        if out is None and len(self.parts) == 1 and self.parts[0][1] == slice(0, self.n):
+            chain, _, s, q = self.parts[0]  # one chain's rows, in order: no scatter
+            sel, J = _chain_jacobian(chain, cols, q, self.p,
+                                     lambda c: s.jacobian_t(outputs, columns=c))
+            if sel.size == cols.size:
+                return J
+            Jt = np.zeros((cols.size, J.shape[1], self.n))
+            _put(Jt, sel, slice(None), J)
+            return Jt
         Jt = np.zeros((cols.size, 6 if outputs == "pose" else 3, self.n)) if out is None \
             else out
         for chain, rows, s, q in self.parts:
