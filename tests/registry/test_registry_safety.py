@@ -291,3 +291,51 @@ def test_an_output_on_the_registry_file_is_refused(sqlite_db, arm, cli):
         code, _, err = cli(*args, "--db", sqlite_db)
         assert code == 2 and "is also the input --db" in err, (args, err)
     assert digest(sqlite_db) == before
+
+
+def test_a_check_starved_by_other_writers_is_stored_under_the_write_lock(db, arm, tmp_path):
+    """When the current calibration keeps changing between reading it and writing the
+    check (other processes adding calibrations), the check is not given up: its last
+    attempt holds the registry's write lock from reading to writing (SQLite's file lock,
+    PostgreSQL's row lock). ``attempts=0`` takes that path at once; a writer that changes
+    the current calibration during every optimistic attempt forces it too."""
+    from kinecal._files import read_json
+    from kinecal.registry.fleet import check_robot
+    from kinecal.registry.records import calibration_row, model_source
+    from kinecal.registry.store import open_registry
+
+    doc = read_json(arm.result)
+    data = arm.measure("starved.csv", seed=91)
+    later = arm.measure("starved-later.csv", seed=92)
+
+    def last_check(reg):
+        return [e for e in reg.history("S1")["events"] if e["kind"] == "check"][-1]
+
+    def add(reg, k):
+        row = calibration_row("S1", doc, arm.result, source=model_source(None, doc),
+                              force_reason=f"add {k}")
+        return reg.add_event("S1", row, current="arm", reason=f"add {k}")
+
+    with open_registry(db) as reg:
+        add(reg, 0)
+        _, stored, new = check_robot(reg, "S1", [data], attempts=0)
+        assert new and stored["verdict"] in ("valid", "drifted", "recalibrate")
+        assert last_check(reg)["calibration"] == reg.current("S1")["id"]
+        if db.startswith("postgresql"):
+            return  # one transaction with the robot's row locked, always
+        # SQLite: every optimistic attempt sees another calibration made current meanwhile
+        made = []
+        real_make_current = reg.current
+
+        def changing_current(serial, subject="arm"):
+            ev = real_make_current(serial, subject)
+            made.append(add(reg, len(made) + 1))
+            return ev
+
+        reg.current = changing_current
+        try:
+            _, stored, new = check_robot(reg, "S1", [later], attempts=3)
+        finally:
+            reg.current = real_make_current
+        assert new and len(made) == 3
+        assert last_check(reg)["calibration"] == reg.current("S1")["id"]  # on the newest

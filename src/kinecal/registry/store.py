@@ -228,24 +228,26 @@ class Registry:
         calibration to writing the check (other robots go on; a second check of this robot
         waits). SQLite, whose write lock is the whole file's: the current calibration is
         read, the check made outside any lock, and written in a transaction that makes
-        sure the calibration is still current (else made again, up to `attempts` times).
+        sure the calibration is still current (else made again, up to `attempts` times);
+        when other writers kept changing it, a last attempt holds the file's write lock
+        from reading to writing, as PostgreSQL's row lock does.
         """
         from kinecal.registry import history as hist
 
-        if self.location.backend == "postgresql":
-            def txn(conn: Any) -> tuple[Any, dict[str, Any], bool]:
-                rid = self._robot_id(conn, serial, create=False, lock=True)
-                if rid is None:  # (no second connection: one per process on PostgreSQL)
-                    raise InputError(f"no robot {serial!r} in the registry "
-                                     f"{self.location.shown}", option="SERIAL")
-                eid = hist.current_id(conn, rid, "arm")
-                if eid is None:
-                    raise InputError(f"{serial} has no current arm calibration (registry add "
-                                     f"{serial} RESULT.json records one)", option="SERIAL")
-                doc, row = make(hist.event_by_id(conn, eid, full=True))
-                stored, new = self._insert(conn, rid, serial, row, None, None, "return")
-                return doc, stored, new
+        def txn(conn: Any) -> tuple[Any, dict[str, Any], bool]:
+            rid = self._robot_id(conn, serial, create=False, lock=True)
+            if rid is None:  # (no second connection: one per process on PostgreSQL)
+                raise InputError(f"no robot {serial!r} in the registry "
+                                 f"{self.location.shown}", option="SERIAL")
+            eid = hist.current_id(conn, rid, "arm")
+            if eid is None:
+                raise InputError(f"{serial} has no current arm calibration (registry add "
+                                 f"{serial} RESULT.json records one)", option="SERIAL")
+            doc, row = make(hist.event_by_id(conn, eid, full=True))
+            stored, new = self._insert(conn, rid, serial, row, None, None, "return")
+            return doc, stored, new
 
+        if self.location.backend == "postgresql":
             return self.write(txn)
         for _ in range(attempts):
             ev = self.current(serial)
@@ -256,8 +258,7 @@ class Registry:
                 return doc, stored, new
             except StaleCalibration:
                 continue
-        raise InputError(f"{serial}: the current calibration kept changing while the check "
-                         "ran", option="SERIAL")
+        return self.write(txn)  # BEGIN IMMEDIATE: no other writer until it is stored
 
     def set_current(self, serial: str, event_id: int, *, reason: str | None = None,
                     operator: str | None = None, date: datetime | None = None
