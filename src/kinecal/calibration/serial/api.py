@@ -28,7 +28,6 @@ from kinecal.calibration.diagnostics.envelope import check_calibrated_range
 from kinecal.calibration.diagnostics.fit import check_serial_fit
 from kinecal.calibration.diagnostics.noise import check_stated_noise, check_stated_sigma
 from kinecal.calibration.diagnostics.serial import SerialDataInfo, check_serial_data
-from kinecal.calibration.identifiability import analyse_factor
 from kinecal.calibration.method_options import check_method_options
 from kinecal.calibration.serial.box import check_at_bounds, run_metaheuristic
 from kinecal.calibration.serial.inputs import as_measurements, as_model, is_system
@@ -36,22 +35,21 @@ from kinecal.calibration.serial.polish import check_local_polish
 from kinecal.calibration.serial.prior import prior_spec, prior_state
 from kinecal.calibration.serial.prior_auto import apply_prior
 from kinecal.calibration.serial.prior_fit import prior_entry
-from kinecal.calibration.serial.problem import CalibrationProblem, column_scale, resolve_free
+from kinecal.calibration.serial.problem import CalibrationProblem, resolve_free
 from kinecal.calibration.serial.result import CalibrationResult
+from kinecal.calibration.serial.solution import solution_report, solution_uncertainty
 from kinecal.calibration.serial.solve import solve_lm
 from kinecal.calibration.serial.summaries import (
     conditions_of,
     result_extra,
     validation_errors,
 )
-from kinecal.calibration.uncertainty import Uncertainty, arm_uncertainty
 from kinecal.data import Measurements
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.markers import model_for_markers, remap_markers
 from kinecal.kinematics.serial.model import SerialModel
 from kinecal.metrology.stats import axis_stats
 from kinecal.optimize import METHODS
-from kinecal.optimize.factor import gram_root
 from kinecal.optimize.hybrid import hybrid_methods
 from kinecal.optimize.lsq import LOSSES, householder_gauss_newton
 
@@ -64,53 +62,6 @@ CALIBRATION_METHODS: tuple[str, ...] = ("lm", "householder", *METHODS, *hybrid_m
 #: identifiable in exact arithmetic but not from real data; freeing it only slows the
 #: solver down (UR5 laser-tracker data: 741 vs 9 evaluations for the same validation error)
 CALIBRATION_RANK_TOL = 1e-4
-
-
-def _uncertainty(problem: CalibrationProblem, x: np.ndarray, outliers: list[int],
-                 unique_rows: np.ndarray | None, normal: np.ndarray | None, rss: float,
-                 rank: int, positions: np.ndarray | None = None) -> Uncertainty:
-    """Covariance of the free parameters at `x` on their identifiable subspace.
-
-    The rows entering it: every pose but the robust loss' outliers, and of exact copies of a
-    row only the first (a copied row adds no information; counting it would shrink the
-    standard errors by the square root of the number of copies). `normal` and `rss`:
-    ``J^T W J`` and the weighted RSS at `x` when the solver already has them for all poses
-    (LM); otherwise one chunked pass over the kept poses. `positions`: the model's tool
-    points at `x` when known.
-    """
-    k = problem.n_free
-    n = len(problem.data)
-    keep = None
-    if outliers or unique_rows is not None:
-        keep = np.arange(n) if unique_rows is None else np.asarray(unique_rows)
-        keep = np.setdiff1d(keep, outliers)
-    if normal is None or keep is not None:
-        G = problem.gram(x, keep=keep)
-        normal, rss = G[:k, :k], G[k, k]
-    n_rows = problem.rows * (n if keep is None else len(keep))
-    P = problem.errors(x) + problem.xyz if positions is None else positions
-    scale = column_scale(problem.model, problem.data, problem.free, positions=P)
-    return arm_uncertainty(normal, rss, n_rows, k, rank, scale)  # the stack's covariance
-
-
-def _solution_report(problem: CalibrationProblem, x: np.ndarray, report, normal, tol: float):
-    """The identifiability report of an explicit free set, redone at the solution `x`.
-
-    Identifiability is local (large angle errors can separate parameters that are
-    confounded at nominal); the uncertainty and the words "not identifiable" must describe
-    the fit actually made.
-    """
-    k = problem.n_free
-    if normal is None:
-        normal = problem.gram(x)[:k, :k]
-    P = problem.errors(x) + problem.xyz
-    sub = analyse_factor(gram_root(normal), problem.free, problem.rows * len(problem.data),
-                         tol=tol, scale=column_scale(problem.model, problem.data, problem.free,
-                                                     positions=P))
-    return dataclasses.replace(
-        report, rank=sub.rank, identifiable=sub.identifiable, unidentifiable=sub.unidentifiable,
-        confounded_with=sub.confounded_with, condition_number=sub.condition_number,
-        singular_values=sub.singular_values, observability=sub.observability)
 
 
 def with_model_markers(data: Measurements, model: SerialModel) -> Measurements:
@@ -367,8 +318,8 @@ def _calibrate(model, data, method, *, free, validate, rng, loss, f_scale, maxit
     e_after = (problem.errors_from_residuals(res.residual) if normal is not None
                else problem.errors(x))
     if explicit:  # what the poses identify at the identified values, not at nominal
-        report = _solution_report(problem, x, report, normal, rank_tol)
-    unc = pfit.uncertainty if pfit is not None else _uncertainty(  # the posterior, or
+        report = solution_report(problem, x, report, normal, rank_tol)
+    unc = pfit.uncertainty if pfit is not None else solution_uncertainty(  # the posterior, or
         problem, x, outliers, info.unique_rows, normal, 2.0 * float(res.fun),
         report.rank if explicit else len(names), e_after + problem.xyz)
     if pfit is None:  # the report has the last word (a prior decides the rest)
