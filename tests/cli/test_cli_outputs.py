@@ -100,19 +100,28 @@ def _written_result(folder: Path) -> bool:
 
 def test_ctrl_c_while_the_report_renders_replaces_nothing(poses, tmp_path):
     """SIGINT once the result JSON is written (its temporary file waits for the report):
-    exit 130, the earlier r.json unchanged, no temporary file left."""
+    exit 130, the earlier r.json unchanged, no temporary file left. On a loaded machine the
+    report may be done before the signal lands: then everything is written whole (exit 0),
+    and the run is repeated until a signal lands inside the window (three tries)."""
     out, rep = tmp_path / "r.json", tmp_path / "r.html"
-    out.write_text("earlier\n")
-    p = _kinecal("calibrate", "ur5", str(poses), "--out", str(out), "--report", str(rep),
-                 "--quiet")
-    deadline = time.monotonic() + 120
-    while not _written_result(tmp_path):  # the result written, its report not yet
-        assert p.poll() is None and time.monotonic() < deadline, p.communicate()
-        time.sleep(0.01)
-    p.send_signal(signal.SIGINT)
-    _, err = p.communicate(timeout=60)
-    assert p.returncode == 130, err
-    assert out.read_text() == "earlier\n" and not rep.exists() and _left(tmp_path) == []
+    for _ in range(3):
+        out.write_text("earlier\n")
+        rep.unlink(missing_ok=True)
+        p = _kinecal("calibrate", "ur5", str(poses), "--out", str(out), "--report", str(rep),
+                     "--quiet")
+        deadline = time.monotonic() + 120
+        while not _written_result(tmp_path):  # the result written, its report not yet
+            assert p.poll() is None and time.monotonic() < deadline, p.communicate()
+            time.sleep(0.01)
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=60)
+        if p.returncode == 0:  # too late: the run had committed both, whole
+            assert out.read_text() != "earlier\n" and rep.exists() and _left(tmp_path) == []
+            continue
+        assert p.returncode == 130, err
+        assert out.read_text() == "earlier\n" and not rep.exists() and _left(tmp_path) == []
+        return
+    pytest.fail("the signal never landed while the report rendered (three tries)")
 
 
 def test_write_outputs_commits_all_or_none(tmp_path):
