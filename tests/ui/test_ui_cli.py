@@ -130,3 +130,46 @@ def test_planes_cameras_and_boards_placed():
     assert (camera.name, camera.attached) == ("camera", "world")
     assert np.allclose(camera.pose, X)
     assert (board.name, board.attached) == ("board", "flange")
+
+
+def test_a_camera_on_the_flange_moves_with_the_arm():
+    """A camera carried by the flange (cam2flange, a rig's camera on ``flange``) is drawn
+    at ``F(q_i) X`` of the pose the slider shows (F: the model's end frame with the
+    calibrated parameters), and follows the slider; a mount on a link the model lacks is
+    hidden."""
+    import numpy as np
+
+    from kinecal.io.measurements import read_measurements
+    from kinecal.io.models import load_model
+    from kinecal.ui.app import Workbench
+
+    model = load_model("ur5")
+    meas = read_measurements("ur5-laser-tracker:random", model)
+    X = np.eye(4)
+    X[:3, :3] = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    X[:3, 3] = [30.0, -20.0, 80.0]
+    params = model.nominal.copy()
+    params[model.index(["a2"])] += 1.5  # mm: a calibrated arm, not the nominal one
+    data = {"X": X.tolist(), "X_frame": "cam2flange",
+            "cameras": {"wrist": {"link": "flange", "pose": X.tolist()},
+                        "head": {"link": "head_link", "pose": np.eye(4).tolist()}}}
+    wb = Workbench("ur5", ["ur5-laser-tracker:random"], port=0, workdir="kinecal-ui")
+    try:
+        wb.see.set_result(params, "camera", data=data)
+        carried = {p.name: h for p, h in wb.see.instruments.carried}
+        assert set(carried) == {"camera", "camera wrist", "camera head"}
+        for index in (0, 7, 13):
+            wb.see.show_pose(index)
+            want = model.fk(meas.q[index:index + 1], params)[0] @ X
+            for name in ("camera", "camera wrist"):
+                h = carried[name]
+                assert h.visible
+                assert np.allclose(h.position, want[:3, 3] * 1e-3, atol=1e-12), (name, index)
+                w, x, y, z = h.wxyz
+                R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                              [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                              [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+                assert np.allclose(R, want[:3, :3], atol=1e-9)
+            assert not carried["camera head"].visible  # the UR5 has no head_link
+    finally:
+        wb.close()

@@ -5,12 +5,15 @@ calibration from images when they are fixed in the robot's base frame: ``X`` /
 ``board_pose`` of one camera (``cam2base``, ``target2base``, docs/arm-from-images.md), a
 rig's ``cameras`` / ``boards`` mounted on ``world``.
 
-A camera or board carried by a link moves with the arm; it is listed (`Placed.attached`
-names the link: ``flange`` or another) but not drawn.
+A camera or board carried by a link (`Placed.attached`: ``flange``, the model's end frame
+as the camera block places it, or a link of a URDF or robot system) moves with the arm: it
+is drawn at the pose the See view shows (`InstrumentsFigure.move`), hidden where the model
+has no such link.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,6 +90,7 @@ class InstrumentsFigure:
     def __init__(self, server) -> None:
         self.server = server
         self.handles: dict[str, object] = {}
+        self.carried: list[tuple[Placed, object]] = []  # moved with the arm (`move`)
 
     def show(self, placed: list[Placed], scale: float, size: float) -> None:
         """Draw `placed` (model units times `scale`: scene units); `size` is the arm's
@@ -94,6 +98,13 @@ class InstrumentsFigure:
         from kinecal.ui.geometry import quaternions_z_to
 
         self.clear()
+        for k, p in enumerate(p for p in placed if p.attached != "world"):
+            node = f"/carried/{k}"
+            h = self.server.scene.add_frame(node, axes_length=0.08 * size,
+                                            axes_radius=0.004 * size, visible=False)
+            label = self.server.scene.add_label(f"{node}/label", f"{p.name} (on {p.attached})")
+            self.handles[node] = (h, label)
+            self.carried.append((p, h))
         for k, p in enumerate(p for p in placed if p.attached == "world"):
             at = tuple(float(v) for v in p.pose[:3, 3] * scale)
             node = f"/placed/{k}"
@@ -107,15 +118,35 @@ class InstrumentsFigure:
                                                           0.002 * size),
                                               wxyz=tuple(wxyz), position=at, opacity=0.5)
             else:
-                from scipy.spatial.transform import Rotation
-
-                xyzw = Rotation.from_matrix(p.pose[:3, :3]).as_quat()
                 h = self.server.scene.add_frame(node, axes_length=0.08 * size,
                                                 axes_radius=0.004 * size, position=at,
-                                                wxyz=(xyzw[3], xyzw[0], xyzw[1], xyzw[2]))
+                                                wxyz=tuple(wxyz_of(p.pose[:3, :3])))
             label = self.server.scene.add_label(f"{node}/label", p.name)
             self.handles[node] = (h, label)
 
+    def move(self, frame_of: Callable[[str], Array | None], scale: float) -> None:
+        """Place the carried things at the arm's current pose: ``frame_of(link)`` is the
+        link's frame ``(4, 4)`` in the base frame (model units), None where the model has no
+        such link (the thing is then hidden); `scale`: scene units per model unit."""
+        for p, h in self.carried:
+            T = frame_of(p.attached)
+            h.visible = T is not None
+            if T is None:
+                continue
+            pose = np.asarray(T, dtype=float) @ p.pose
+            h.position = tuple(float(v) for v in pose[:3, 3] * scale)
+            h.wxyz = tuple(float(v) for v in wxyz_of(pose[:3, :3]))
+
     def clear(self) -> None:
         self.server.scene.remove_by_name("/placed")
+        self.server.scene.remove_by_name("/carried")
         self.handles.clear()
+        self.carried.clear()
+
+
+def wxyz_of(R: Array) -> Array:
+    """The unit quaternion ``(w, x, y, z)`` of a rotation matrix `R` ``(3, 3)``."""
+    from scipy.spatial.transform import Rotation
+
+    x, y, z, w = Rotation.from_matrix(R).as_quat()
+    return np.array([w, x, y, z])

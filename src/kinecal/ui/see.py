@@ -17,6 +17,7 @@ import threading
 import numpy as np
 from numpy.typing import NDArray
 
+from kinecal.errors import InputError
 from kinecal.ui.geometry import error_colors, residual_arrows
 from kinecal.ui.scene import RobotFigure, model_scale
 
@@ -52,6 +53,7 @@ class SeeView:
         self._handles: dict[str, object] = {}
         self._shown: str | None = None
         self._marker: tuple | None = None  # (handle, radius) of the current pose's marker
+        self._q_now: Array | None = None  # the joints shown (rad, the model's order)
         self._lock = threading.RLock()
         with tab:
             self.data = server.gui.add_dropdown("Data", ("(none)",), initial_value="(none)",
@@ -88,6 +90,8 @@ class SeeView:
         model = self.app.session.model
         if model is not None and self.robot.skeleton is not None:
             self.instruments.show(self.placed, model_scale(model), self.robot.skeleton.size)
+            if self._q_now is not None:
+                self._place_carried(self._q_now)
         else:
             self.instruments.clear()
 
@@ -115,6 +119,7 @@ class SeeView:
             q = np.zeros((1, s.model.n_joints))
             self.robot.set_poses(s.model, q, self.params, s.urdf())
             self.robot.show(0)
+            self._place_carried(q[0])
             if self._shown != s.model_spec:
                 self._shown = s.model_spec
                 self._frame(self.robot.skeleton.points[0])
@@ -231,6 +236,7 @@ class SeeView:
         n = len(ds.meas.q)
         index = int(np.clip(index, 0, n - 1))
         self.robot.show(index)
+        self._place_carried(ds.meas.q[index])
         k = model_scale(s.model)
         p = ds.meas.xyz[index] * k
         size = self.robot.skeleton.size
@@ -249,6 +255,31 @@ class SeeView:
             f"pose {index + 1} of {n} ({html.escape(ds.name)}): error before "
             f"{self.before[index]:.4g} {unit}{after}<br>joints: "
             + ", ".join(f"{v:.4g}" for v in q))
+
+
+    def _place_carried(self, q: Array) -> None:
+        """Move what a link carries (cameras, boards) to the arm's pose at joints `q`."""
+        self._q_now = np.asarray(q, dtype=float)
+        model = self.app.session.model
+        if not self.instruments.carried or model is None:
+            return
+        self.instruments.move(lambda link: carrier_frame(model, self._q_now, link,
+                                                         self.params), model_scale(model))
+
+
+def carrier_frame(model, q: Array, link: str, params: Array | None = None) -> Array | None:
+    """The frame ``(4, 4)`` of `link` (model units, base frame) at joints `q` with `params`:
+    ``flange``, a serial model's end frame (its tool frame when it has one, as the camera
+    block places a camera on the flange), or a link of a robot system; None if unknown."""
+    q = np.asarray(q, dtype=float)[None]
+    if hasattr(model, "link_poses"):  # a robot system: any of its links
+        try:
+            return model.link_poses(q, link, params)[0]
+        except (KeyError, ValueError, InputError):
+            return None
+    if link in ("flange", "tool"):
+        return model.fk(q, params)[0]
+    return None
 
 
 def _info_html(text: str) -> str:
