@@ -19,9 +19,8 @@ from numpy.typing import NDArray
 from kinecal.calibration.blocks.base import ResidualBlock
 from kinecal.calibration.blocks.pair import PairBlock
 from kinecal.metrology.stats import error_stats
-from kinecal.optimize.factor import qr_update
 
-__all__ = ["by_tip", "column_groups", "fold_groups", "observation_tips", "row_tips"]
+__all__ = ["by_tip", "column_groups", "observation_tips", "row_tips"]
 
 Bool = NDArray[np.bool_]
 
@@ -119,20 +118,3 @@ def column_groups(model, block: ResidualBlock, index: np.ndarray
     if len(out) == 1 and out[0][1].size == len(index):
         return None
     return out
-
-
-def fold_groups(R: np.ndarray | None, Jn: np.ndarray, Ja: np.ndarray, D: np.ndarray,
-                groups: list[tuple[np.ndarray, np.ndarray]], own: np.ndarray, nn: int,
-                n: int) -> np.ndarray:
-    """`R` (the stack's factor ``(n, n)``: nuisance columns first, then the arm's from
-    `nn`) with a block's rows folded in group by group (`column_groups`): each group's
-    rows factored on its own columns (the block's nuisance `own`, scaled `Jn`, and the
-    arm columns its chains reach, `Ja` scaled by `D`), then spread to full width and
-    folded (`kinecal.optimize.factor.qr_update`): ``n_g k_g^2`` per group, not ``m n^2``."""
-    for rows, cols in groups:
-        Rg = qr_update(None, np.hstack([Jn[rows], Ja[np.ix_(rows, cols)] * D[cols]]))
-        full = np.zeros((Rg.shape[0], n), order="F")
-        full[:, own] = Rg[:, :own.size]
-        full[:, nn + cols] = Rg[:, own.size:]
-        R = qr_update(R, full)
-    return R
