@@ -28,18 +28,11 @@ __all__ = ["read_rig_truth", "rig_truth", "write_rig_cameras", "write_rig_images
 
 
 def write_rig_images(scene: RigScene, folder: str | Path) -> None:
-    """The images as PNG files named `RigScene.names` in `folder` (created)."""
-    from kinecal._files import write_bytes_atomic
-    from kinecal.vision import require_cv2
+    """The images as PNG files named `RigScene.names` in `folder` (created), as
+    `kinecal.vision.stations.write_images` writes a one-camera scene's."""
+    from kinecal.vision.stations import write_images
 
-    cv2 = require_cv2()
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    for name, img in zip(scene.names, scene.images, strict=True):
-        ok, buf = cv2.imencode(".png", img)
-        if not ok:  # pragma: no cover - OpenCV always encodes uint8 PNG
-            raise InputError("PNG encoding failed", file=folder / name)
-        write_bytes_atomic(folder / name, buf.tobytes())
+    write_images(scene, folder)
 
 
 def write_rig_stations_of(scene: RigScene, path: str | Path) -> None:

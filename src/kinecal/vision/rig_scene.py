@@ -26,7 +26,6 @@ from numpy.typing import NDArray
 from kinecal.calibration.camera.rig_frames import WORLD, LinkFrames
 from kinecal.calibration.camera.rig_pixels import Mount, RigViews
 from kinecal.calibration.handeye.camera import check_camera, project
-from kinecal.calibration.serial.simulate import random_errors
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.ik import solve_ik
 from kinecal.kinematics.tree.system import is_system
@@ -35,6 +34,7 @@ from kinecal.vision.boards import Board
 from kinecal.vision.imaging import ImageConditions, render_boards
 from kinecal.vision.render import plan_views
 from kinecal.vision.rig_mounts import default_mounts
+from kinecal.vision.stations import scene_errors
 
 Array = NDArray[np.float64]
 
@@ -84,20 +84,6 @@ class RigScene:
     target2cam: list[dict[int, Array]]
     names: list[str] = field(default_factory=list)
     images: list = field(default_factory=list)
-
-
-def _errors(model, errors, rng: np.random.Generator) -> Array:
-    if isinstance(errors, str):
-        if errors == "zero":
-            return np.zeros(model.n_params)
-        if errors == "random":
-            return random_errors(model, rng)
-        raise InputError(f"errors: expected zero, random or a vector, got {errors!r}",
-                         option="--errors")
-    e = np.asarray(errors, float)
-    if e.shape != (model.n_params,):
-        raise InputError(f"errors: expected {model.n_params} values, got {e.shape}")
-    return e
 
 
 class _Chains:
@@ -192,7 +178,7 @@ def render_rig_stations(model, cameras: Sequence[Mount], boards: Sequence[tuple[
     if n < 1:
         raise InputError(f"expected at least 1 station, got {n}", option="--poses")
     rng = np.random.default_rng(seed)
-    truth = model.nominal + _errors(model, errors, rng)
+    truth = model.nominal + scene_errors(model, errors, rng)
     lim = np.asarray(model.joint_limits, float)
     home = lim.mean(axis=1) if q_home is None else np.asarray(q_home, float)
     if home.shape != (model.n_joints,):

@@ -38,7 +38,7 @@ from kinecal.vision.render import plan_views
 
 Array = NDArray[np.float64]
 
-__all__ = ["ArmScene", "render_arm_stations", "write_arm_scene", "write_images",
+__all__ = ["ArmScene", "render_arm_stations", "scene_errors", "write_arm_scene", "write_images",
            "write_scene_truth", "write_stations"]
 
 
@@ -86,7 +86,9 @@ class ArmScene:
     q_home: Array | None = None
 
 
-def _errors(model: SerialModel, errors: Any, rng: np.random.Generator) -> Array:
+def scene_errors(model: SerialModel, errors: Any, rng: np.random.Generator) -> Array:
+    """The true parameters' errors of a rendered scene: ``zero``, ``random`` (within the
+    tolerances), a mapping of names to values, or a whole vector ``(n_params,)``."""
     if isinstance(errors, str):
         if errors == "zero":
             return np.zeros(model.n_params)
@@ -188,7 +190,7 @@ def render_arm_stations(
         raise InputError(f"expected at least 1 station, got {n}", option="--poses")
     K, d8 = check_camera(K, dist)
     rng = np.random.default_rng(seed)
-    truth = model.nominal + _errors(model, errors, rng)
+    truth = model.nominal + scene_errors(model, errors, rng)
     lim = np.asarray(model.joint_limits, float)
     home = lim.mean(axis=1) if q_home is None else np.asarray(q_home, float)
     if home.shape != (model.n_joints,):
