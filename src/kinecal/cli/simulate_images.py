@@ -16,7 +16,7 @@ from kinecal.cli._options import load_model_arg
 from kinecal.cli._outputs import write_outputs
 from kinecal.errors import InputError
 
-__all__ = ["DEFAULT_CAMERA", "simulate_images"]
+__all__ = ["DEFAULT_CAMERA", "home_joints", "simulate_images"]
 
 #: largest --noise (grey levels: beyond the 0-255 range every pixel is noise) and --blur
 #: (px sigma: a Gaussian kernel of 6 sigma; 1e4 px ran for minutes, 1e308 crashed OpenCV)
@@ -27,7 +27,8 @@ DEFAULT_CAMERA = {"K": [[900.0, 0.0, 399.5], [0.0, 900.0, 299.5], [0.0, 0.0, 1.0
                   "dist": [-0.15, 0.06, 0.0005, -0.0003, 0.0], "size": (800, 600)}
 
 
-def _home(text: str | None, model: Any) -> np.ndarray | None:
+def home_joints(text: str | None, model: Any) -> np.ndarray | None:
+    """``--home q1,..,qn`` in the model's units as internal joint values (None: not given)."""
     if text is None:
         return None
     try:
@@ -35,8 +36,8 @@ def _home(text: str | None, model: Any) -> np.ndarray | None:
     except ValueError:
         v = np.zeros(0)
     if v.shape != (model.n_joints,) or not np.isfinite(v).all():
-        raise InputError(f"{text!r}: expected {model.n_joints} joint values q1,..,q"
-                         f"{model.n_joints} in the model's units", option="--home")
+        raise InputError(f"{text!r}: expected {model.n_joints} joint values in the model's "
+                         "joint order and units", option="--home")
     return v * model.joint_scale()
 
 
@@ -88,7 +89,7 @@ def simulate_images(args: dict[str, Any]) -> None:
         with status(f"rendering {n} stations", args["quiet"]):
             scene = render_arm_stations(
                 m, board, np.asarray(cam["K"]), np.asarray(cam["dist"]), cam["size"], n,
-                setup=args["setup"], errors=err, q_home=_home(args["home"], m),
+                setup=args["setup"], errors=err, q_home=home_joints(args["home"], m),
                 seed=args["seed"], supersample=2,
                 conditions=ImageConditions(blur=args["blur"], noise=args["noise"]))
         camera = CameraIntrinsics(scene.K, scene.dist, scene.size, source="render")

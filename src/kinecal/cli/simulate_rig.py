@@ -39,23 +39,10 @@ def is_rig_simulation(camera: list[str] | None, board: list[str] | None, system:
     return bool(camera) or any(is_mounted_board(b) for b in board or []) or system
 
 
-def _home(text: str | None, model: Any) -> np.ndarray | None:
-    if text is None:
-        return None
-    try:
-        v = np.array([float(t) for t in text.split(",")])
-    except ValueError:
-        v = np.zeros(0)
-    if v.shape != (model.n_joints,) or not np.isfinite(v).all():
-        raise InputError(f"{text!r}: expected {model.n_joints} joint values in the model's "
-                         "joint order and units", option="--home")
-    return v * model.joint_scale()
-
-
 def simulate_rig(a: dict[str, Any]) -> None:
     """Render the rig's images and write them, STATIONS.csv, the truth and the cameras'
     files (`a`: ``simulate``'s arguments, all checked before any work)."""
-    from kinecal.cli.simulate_images import DEFAULT_CAMERA, MAX_BLUR, MAX_NOISE
+    from kinecal.cli.simulate_images import DEFAULT_CAMERA, MAX_BLUR, MAX_NOISE, home_joints
 
     given = [opt for key, opt in _POSITION_ONLY.items() if a.get(key) not in (None, False, [])]
     if given:
@@ -114,7 +101,7 @@ def simulate_rig(a: dict[str, Any]) -> None:
         with status(f"rendering {n} stations of {len(cams)} cameras", a["quiet"]):
             scene = render_rig_stations(
                 m, cams, [(mb, b.board) for mb, b in zip(boards, rig.boards, strict=True)],
-                cam, n, errors=err, q_home=_home(a["home"], m), seed=a["seed"],
+                cam, n, errors=err, q_home=home_joints(a["home"], m), seed=a["seed"],
                 conditions=ImageConditions(blur=a["blur"], noise=a["noise"]), supersample=2)
         write_outputs(more=[(a["images"], lambda path: write_rig_images(scene, path)),
                             (out, lambda path: write_rig_stations_of(scene, path)),
