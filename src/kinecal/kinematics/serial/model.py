@@ -58,6 +58,7 @@ from kinecal.kinematics.serial.motions import (
     hayati_motions,
     urdf_motions,
 )
+from kinecal.kinematics.serial.parameters import ParameterVector
 from kinecal.kinematics.serial.sweep import Sweep
 
 if TYPE_CHECKING:  # loaded with a model's joint errors only
@@ -80,7 +81,7 @@ Array = NDArray[np.float64]
 
 
 @dataclass(repr=False)
-class SerialModel(SerialKinematics):
+class SerialModel(SerialKinematics, ParameterVector):
     """Kinematic model of a serial arm: revolute and prismatic joints, fixed frames.
 
     Parameters
@@ -257,31 +258,6 @@ class SerialModel(SerialKinematics):
             raise InputError(f"angle unit: expected deg or rad, got {unit!r}")
         rev = np.pi / 180.0 if unit == "deg" else 1.0
         return np.where(self.is_prismatic(), 1.0, rev)
-
-    @property
-    def parameter_names(self) -> tuple[str, ...]:
-        """Names of the full parameter vector, in order."""
-        return self._names
-
-    @property
-    def n_params(self) -> int:
-        """Length of the full parameter vector."""
-        return len(self._names)
-
-    @property
-    def nominal(self) -> Array:
-        """Nominal parameter vector ``(n_params,)`` (lengths in the model unit, angles in rad)."""
-        return self._nominal.copy()
-
-    @property
-    def fixed_names(self) -> frozenset[str]:
-        """Parameters fixed by the model's design (not calibrated by default)."""
-        return self._fixed
-
-    @property
-    def calibratable(self) -> tuple[str, ...]:
-        """Parameters calibrated by default (all but the fixed ones), in vector order."""
-        return tuple(n for n in self._names if n not in self._fixed)
 
     def index(self, names: Sequence[str]) -> NDArray[np.intp]:
         """Indices of `names` in the parameter vector; unknown names raise `InputError`."""

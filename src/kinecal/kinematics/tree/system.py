@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinecal.errors import InputError
 from kinecal.kinematics.serial.motions import PRISMATIC
+from kinecal.kinematics.serial.parameters import ParameterVector
 from kinecal.kinematics.tree.elements import Element, Tip
 from kinecal.kinematics.tree.forward import SystemKinematics, SystemSweep
 from kinecal.kinematics.tree.layout import build_layout, link_chain
@@ -44,7 +45,7 @@ def is_system(model: object) -> bool:
     return isinstance(model, SystemModel)
 
 
-class SystemModel(SystemKinematics):
+class SystemModel(SystemKinematics, ParameterVector):
     """A robot system (module docstring).
 
     Parameters
@@ -182,29 +183,10 @@ class SystemModel(SystemKinematics):
         return np.unique(self._link_chain(link).source)
 
     # ------------------------------------------------------------------ parameters
-    @property
-    def parameter_names(self) -> tuple[str, ...]:
-        return self._names
-
-    @property
-    def n_params(self) -> int:
-        return len(self._names)
 
     @property
     def _n_geometric(self) -> int:
         return len(self._names)
-
-    @property
-    def nominal(self) -> Array:
-        return self._nominal.copy()
-
-    @property
-    def fixed_names(self) -> frozenset[str]:
-        return self._fixed
-
-    @property
-    def calibratable(self) -> tuple[str, ...]:
-        return tuple(n for n in self._names if n not in self._fixed)
 
     def index(self, names: Sequence[str]) -> NDArray[np.intp]:
         """Indices of `names` in the parameter vector; `InputError` for unknown names."""
