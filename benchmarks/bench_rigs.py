@@ -60,6 +60,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
+from bench_arm_camera import craig_fk  # noqa: E402  (the peer's numpy D-H, one copy)
 from kinecal import load_model  # noqa: E402
 from kinecal.calibration.blocks.api import calibrate_blocks  # noqa: E402
 from kinecal.calibration.camera.evaluate import aligned_frame_errors  # noqa: E402
@@ -193,23 +194,6 @@ def predicted_tool_rms(m, tip, q, res, draws=40):
         p[idx] += L @ rng.standard_normal(len(idx))
         ms.append(np.mean(aligned_frame_errors(frames(m, tip, q, p), ref) ** 2))
     return float(np.sqrt(np.mean(ms)))
-
-
-def craig_fk(q, p):
-    """Plain numpy modified D-H of kr6-craig: p[(4 j) + (alpha, a, theta, d)]."""
-    n = len(q)
-    T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-    for j in range(6):
-        al, a, th, d = p[4 * j:4 * j + 4]
-        ca, sa = np.cos(al), np.sin(al)
-        ct, st = np.cos(th + q[:, j]), np.sin(th + q[:, j])
-        A = np.zeros((n, 4, 4))
-        A[:, 0, 0], A[:, 0, 1], A[:, 0, 3] = ct, -st, a
-        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st * ca, ct * ca, -sa, -sa * d
-        A[:, 2, 0], A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = st * sa, ct * sa, ca, ca * d
-        A[:, 3, 3] = 1.0
-        T = T @ A
-    return T
 
 
 def rotvecs(w):
